@@ -1,0 +1,1 @@
+//! Ephemerides: the Sun's and the Earth's topocentric directions in `MOON_ME`.

@@ -1,0 +1,1 @@
+//! Terrain horizons: elevation of the horizon as a function of azimuth for an observer.

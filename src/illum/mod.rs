@@ -1,0 +1,1 @@
+//! Illumination: visible fractions of the Sun's and the Earth's discs, irradiance, statistics.

@@ -1,0 +1,1 @@
+//! Declarative scenarios (`scenarios/*.toml`): sites, epochs, kernels, DEM layers and outputs.

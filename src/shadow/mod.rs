@@ -1,0 +1,1 @@
+//! Shadow engines on the model-space height field (CPU reference implementations).

@@ -1,0 +1,401 @@
+//! Georeferenced raster grids: projections, the pixel ↔ map transform and nodata-aware bilinear
+//! sampling.
+//!
+//! Conventions (stated once, also in `docs/ARCHITECTURE.md`):
+//! - Grid indices are `row` (down) and `col` (right); row 0 is the top (largest `y_m`).
+//! - The transform is GDAL's pixel-is-area geotransform: the **outer corner** of cell (0, 0) is at
+//!   `(x_left_m, y_top_m)`; the **centre** of cell (row, col) is at
+//!   `x_m = x_left_m + (col + 0.5) * px_x_m`, `y_m = y_top_m - (row + 0.5) * px_y_m`.
+//!   A pixel-is-point file is converted to this convention when it is read.
+//! - Heights are metres above the 1737.4 km reference sphere; nodata cells hold `NaN` (holes: no
+//!   terrain there, rays pass).
+
+use crate::MOON_RADIUS_M;
+
+/// A map projection on the Moon's reference sphere.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Projection {
+    /// Polar stereographic, spherical form (PDS/LOLA polar products, PROJ `+proj=stere`).
+    ///
+    /// South aspect: `rho = 2 R k0 tan(pi/4 + lat/2)`, `x = rho sin(lon - lon0)`,
+    /// `y = rho cos(lon - lon0)`. North aspect: `rho = 2 R k0 tan(pi/4 - lat/2)`,
+    /// `x = rho sin(lon - lon0)`, `y = -rho cos(lon - lon0)`.
+    PolarStereographic {
+        /// `true` for the south-polar aspect (latitude of origin −90°), `false` for the north.
+        south: bool,
+        /// Central meridian, degrees east.
+        lon0_deg: f64,
+        /// Scale factor at the pole (1 for LOLA products, whose true-scale latitude is the pole).
+        k0: f64,
+        /// Sphere radius, metres.
+        radius_m: f64,
+    },
+    /// Equirectangular (simple cylindrical) on the sphere: `x = R (lon - lon0) cos(lat_ts)`,
+    /// `y = R lat` (angles in radians).
+    Equirectangular {
+        /// Central meridian, degrees east.
+        lon0_deg: f64,
+        /// Latitude of true scale, degrees.
+        lat_ts_deg: f64,
+        /// Sphere radius, metres.
+        radius_m: f64,
+    },
+}
+
+impl Projection {
+    /// The LOLA south-polar stereographic projection (`+proj=stere +lat_0=-90 +lon_0=0 +k=1
+    /// +R=1737400`).
+    pub const LOLA_SOUTH_POLAR: Projection = Projection::PolarStereographic {
+        south: true,
+        lon0_deg: 0.0,
+        k0: 1.0,
+        radius_m: MOON_RADIUS_M,
+    };
+
+    /// Projected coordinates (m) of a planetocentric latitude / east longitude (deg).
+    pub fn xy_from_lat_lon(&self, lat_deg: f64, lon_deg: f64) -> (f64, f64) {
+        match *self {
+            Projection::PolarStereographic {
+                south,
+                lon0_deg,
+                k0,
+                radius_m,
+            } => {
+                let lat = lat_deg.to_radians();
+                let (sl, cl) = (lon_deg - lon0_deg).to_radians().sin_cos();
+                let quarter = std::f64::consts::FRAC_PI_4;
+                if south {
+                    let rho = 2.0 * radius_m * k0 * (quarter + lat / 2.0).tan();
+                    (rho * sl, rho * cl)
+                } else {
+                    let rho = 2.0 * radius_m * k0 * (quarter - lat / 2.0).tan();
+                    (rho * sl, -rho * cl)
+                }
+            }
+            Projection::Equirectangular {
+                lon0_deg,
+                lat_ts_deg,
+                radius_m,
+            } => {
+                let dlon = wrap_deg_180(lon_deg - lon0_deg).to_radians();
+                (
+                    radius_m * dlon * lat_ts_deg.to_radians().cos(),
+                    radius_m * lat_deg.to_radians(),
+                )
+            }
+        }
+    }
+
+    /// Planetocentric latitude and east longitude (deg, longitude in `(-180, 180]`) of projected
+    /// coordinates (m). Inverse of [`Projection::xy_from_lat_lon`].
+    pub fn lat_lon_from_xy(&self, x_m: f64, y_m: f64) -> (f64, f64) {
+        match *self {
+            Projection::PolarStereographic {
+                south,
+                lon0_deg,
+                k0,
+                radius_m,
+            } => {
+                let rho = x_m.hypot(y_m);
+                let c = 2.0 * (rho / (2.0 * radius_m * k0)).atan();
+                let quarter = std::f64::consts::FRAC_PI_2;
+                if south {
+                    let lat = c - quarter;
+                    let lon = x_m.atan2(y_m);
+                    (lat.to_degrees(), wrap_deg_180(lon.to_degrees() + lon0_deg))
+                } else {
+                    let lat = quarter - c;
+                    let lon = x_m.atan2(-y_m);
+                    (lat.to_degrees(), wrap_deg_180(lon.to_degrees() + lon0_deg))
+                }
+            }
+            Projection::Equirectangular {
+                lon0_deg,
+                lat_ts_deg,
+                radius_m,
+            } => {
+                let lat = (y_m / radius_m).to_degrees();
+                let lon = (x_m / (radius_m * lat_ts_deg.to_radians().cos())).to_degrees();
+                (lat, wrap_deg_180(lon + lon0_deg))
+            }
+        }
+    }
+
+    /// The sphere radius of the projection, metres.
+    pub fn radius_m(&self) -> f64 {
+        match *self {
+            Projection::PolarStereographic { radius_m, .. }
+            | Projection::Equirectangular { radius_m, .. } => radius_m,
+        }
+    }
+
+    /// A PROJ-style description, e.g. `+proj=stere +lat_0=-90 +lon_0=0 +k=1 +R=1737400`.
+    pub fn proj_string(&self) -> String {
+        match *self {
+            Projection::PolarStereographic {
+                south,
+                lon0_deg,
+                k0,
+                radius_m,
+            } => format!(
+                "+proj=stere +lat_0={} +lon_0={lon0_deg} +k={k0} +R={radius_m} +units=m",
+                if south { -90 } else { 90 }
+            ),
+            Projection::Equirectangular {
+                lon0_deg,
+                lat_ts_deg,
+                radius_m,
+            } => format!(
+                "+proj=eqc +lat_ts={lat_ts_deg} +lon_0={lon0_deg} +R={radius_m} +units=m"
+            ),
+        }
+    }
+}
+
+/// Wraps an angle in degrees into `(-180, 180]`.
+pub fn wrap_deg_180(deg: f64) -> f64 {
+    let mut d = deg % 360.0;
+    if d <= -180.0 {
+        d += 360.0;
+    } else if d > 180.0 {
+        d -= 360.0;
+    }
+    d
+}
+
+/// The pixel ↔ map transform of a north-up grid (pixel-is-area; see the module docs).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GridGeometry {
+    /// Number of rows.
+    pub rows: usize,
+    /// Number of columns.
+    pub cols: usize,
+    /// Map x of the left edge of column 0, metres.
+    pub x_left_m: f64,
+    /// Map y of the top edge of row 0, metres.
+    pub y_top_m: f64,
+    /// Cell width along x, metres (> 0).
+    pub px_x_m: f64,
+    /// Cell height along y, metres (> 0; rows grow towards −y).
+    pub px_y_m: f64,
+}
+
+impl GridGeometry {
+    /// Map coordinates (m) of the centre of cell (row, col); fractional indices interpolate.
+    pub fn xy_from_row_col(&self, row: f64, col: f64) -> (f64, f64) {
+        (
+            self.x_left_m + (col + 0.5) * self.px_x_m,
+            self.y_top_m - (row + 0.5) * self.px_y_m,
+        )
+    }
+
+    /// Fractional (row, col) of a map point, so that integer values are cell centres.
+    pub fn row_col_from_xy(&self, x_m: f64, y_m: f64) -> (f64, f64) {
+        (
+            (self.y_top_m - y_m) / self.px_y_m - 0.5,
+            (x_m - self.x_left_m) / self.px_x_m - 0.5,
+        )
+    }
+
+    /// Map bounds `(x_min, y_min, x_max, y_max)` of the outer cell edges, metres.
+    pub fn bounds_m(&self) -> (f64, f64, f64, f64) {
+        (
+            self.x_left_m,
+            self.y_top_m - self.rows as f64 * self.px_y_m,
+            self.x_left_m + self.cols as f64 * self.px_x_m,
+            self.y_top_m,
+        )
+    }
+
+    /// Whether a map point lies inside the outer cell edges.
+    pub fn contains_xy(&self, x_m: f64, y_m: f64) -> bool {
+        let (x0, y0, x1, y1) = self.bounds_m();
+        x_m >= x0 && x_m <= x1 && y_m >= y0 && y_m <= y1
+    }
+}
+
+/// A single-band elevation model: heights (m above the 1737.4 km sphere, `NaN` = nodata) on a
+/// georeferenced grid, row-major.
+#[derive(Debug, Clone)]
+pub struct Dem {
+    /// Where the grid sits on the map.
+    pub grid: GridGeometry,
+    /// The map projection of `grid`.
+    pub projection: Projection,
+    /// Heights, metres above the reference sphere, row-major (`rows * cols`), `NaN` for nodata.
+    pub heights_m: Vec<f32>,
+    /// A label for messages (usually the file path).
+    pub name: String,
+}
+
+impl Dem {
+    /// Height of cell (row, col), or `None` outside the grid or in a hole.
+    pub fn cell_height_m(&self, row: isize, col: isize) -> Option<f32> {
+        if row < 0 || col < 0 {
+            return None;
+        }
+        let (row, col) = (row as usize, col as usize);
+        if row >= self.grid.rows || col >= self.grid.cols {
+            return None;
+        }
+        let h = self.heights_m[row * self.grid.cols + col];
+        (!h.is_nan()).then_some(h)
+    }
+
+    /// Nodata-aware bilinear height (m) at a map point.
+    ///
+    /// The surface is the bilinear interpolant between cell centres. Where some of the four
+    /// surrounding centres are holes, the valid ones are re-weighted; where the nearest centre is a
+    /// hole, or the point is more than half a cell outside the outer centres, there is no surface
+    /// (`None`). Within the outer half-cell border the edge values are extended (clamped).
+    pub fn height_at_xy_m(&self, x_m: f64, y_m: f64) -> Option<f64> {
+        let (r, c) = self.grid.row_col_from_xy(x_m, y_m);
+        self.height_at_row_col(r, c)
+    }
+
+    /// Nodata-aware bilinear height (m) at a fractional (row, col); see
+    /// [`Dem::height_at_xy_m`].
+    pub fn height_at_row_col(&self, row: f64, col: f64) -> Option<f64> {
+        let (rows, cols) = (self.grid.rows as f64, self.grid.cols as f64);
+        if !(row >= -0.5 && col >= -0.5 && row <= rows - 0.5 && col <= cols - 0.5) {
+            return None;
+        }
+        let r = row.clamp(0.0, rows - 1.0);
+        let c = col.clamp(0.0, cols - 1.0);
+        let r0 = (r.floor() as isize).min(self.grid.rows as isize - 2).max(0);
+        let c0 = (c.floor() as isize).min(self.grid.cols as isize - 2).max(0);
+        let (fr, fc) = (r - r0 as f64, c - c0 as f64);
+        // Nearest centre must be valid.
+        let nearest = self.cell_height_m(row.round().clamp(0.0, rows - 1.0) as isize, col.round().clamp(0.0, cols - 1.0) as isize);
+        nearest?;
+        let mut sum = 0.0;
+        let mut wsum = 0.0;
+        for (dr, wr) in [(0, 1.0 - fr), (1, fr)] {
+            for (dc, wc) in [(0, 1.0 - fc), (1, fc)] {
+                let w = wr * wc;
+                if w <= 0.0 {
+                    continue;
+                }
+                if let Some(h) = self.cell_height_m(r0 + dr, c0 + dc) {
+                    sum += w * f64::from(h);
+                    wsum += w;
+                }
+            }
+        }
+        (wsum > 0.0).then(|| sum / wsum)
+    }
+
+    /// Height (m) at a latitude / east longitude (deg), bilinear; `None` off the grid or in a hole.
+    pub fn height_at_lat_lon_m(&self, lat_deg: f64, lon_deg: f64) -> Option<f64> {
+        let (x, y) = self.projection.xy_from_lat_lon(lat_deg, lon_deg);
+        self.height_at_xy_m(x, y)
+    }
+
+    /// Smallest cell size, metres.
+    pub fn px_m(&self) -> f64 {
+        self.grid.px_x_m.min(self.grid.px_y_m)
+    }
+}
+
+/// DEM layers, finest first: at any point the finest layer that has a surface there is used.
+#[derive(Debug, Clone, Default)]
+pub struct TerrainStack {
+    /// The layers, sorted by increasing cell size.
+    pub layers: Vec<Dem>,
+}
+
+impl TerrainStack {
+    /// Builds a stack, sorting the layers finest first.
+    pub fn new(mut layers: Vec<Dem>) -> Self {
+        layers.sort_by(|a, b| a.px_m().total_cmp(&b.px_m()));
+        TerrainStack { layers }
+    }
+
+    /// Height (m) at a latitude / east longitude from the finest layer with a surface there, and
+    /// that layer's index.
+    pub fn height_at_lat_lon_m(&self, lat_deg: f64, lon_deg: f64) -> Option<(f64, usize)> {
+        self.layers
+            .iter()
+            .enumerate()
+            .find_map(|(i, dem)| dem.height_at_lat_lon_m(lat_deg, lon_deg).map(|h| (h, i)))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn polar_stereographic_matches_provenance_formula() {
+        // PROVENANCE.md: x = 2R tan(colat/2) sin(lon), y = 2R tan(colat/2) cos(lon), colat from
+        // the south pole.
+        let p = Projection::LOLA_SOUTH_POLAR;
+        let (lat, lon): (f64, f64) = (-89.45, 222.7);
+        let colat = (90.0 + lat).to_radians();
+        let rho = 2.0 * MOON_RADIUS_M * (colat / 2.0).tan();
+        let (x, y) = p.xy_from_lat_lon(lat, lon);
+        assert!((x - rho * lon.to_radians().sin()).abs() < 1e-6);
+        assert!((y - rho * lon.to_radians().cos()).abs() < 1e-6);
+    }
+
+    #[test]
+    fn projections_round_trip_to_a_millimetre() {
+        let projections = [
+            Projection::LOLA_SOUTH_POLAR,
+            Projection::PolarStereographic {
+                south: false,
+                lon0_deg: 0.0,
+                k0: 1.0,
+                radius_m: MOON_RADIUS_M,
+            },
+            Projection::Equirectangular {
+                lon0_deg: 0.0,
+                lat_ts_deg: 0.0,
+                radius_m: MOON_RADIUS_M,
+            },
+        ];
+        for p in projections {
+            for &(lat, lon) in &[(-89.45, -137.3), (-85.99, 2.93), (-88.0, 179.9), (89.5, 45.0)] {
+                let lat = match p {
+                    Projection::PolarStereographic { south: false, .. } => -lat,
+                    _ => lat,
+                };
+                let (x, y) = p.xy_from_lat_lon(lat, lon);
+                let (lat2, lon2) = p.lat_lon_from_xy(x, y);
+                let (x2, y2) = p.xy_from_lat_lon(lat2, lon2);
+                assert!((x - x2).hypot(y - y2) < 1e-3, "{p:?} {lat} {lon}");
+            }
+        }
+    }
+
+    fn ramp_dem() -> Dem {
+        let grid = GridGeometry {
+            rows: 4,
+            cols: 5,
+            x_left_m: -250.0,
+            y_top_m: 200.0,
+            px_x_m: 100.0,
+            px_y_m: 100.0,
+        };
+        // h = 10 * col + 1000 * row, exactly representable and bilinear.
+        let heights_m = (0..20).map(|i| (10 * (i % 5) + 1000 * (i / 5)) as f32).collect();
+        Dem {
+            grid,
+            projection: Projection::LOLA_SOUTH_POLAR,
+            heights_m,
+            name: "ramp".into(),
+        }
+    }
+
+    #[test]
+    fn bilinear_reproduces_a_plane_and_respects_holes() {
+        let mut dem = ramp_dem();
+        let (x, y) = dem.grid.xy_from_row_col(1.25, 2.5);
+        let h = dem.height_at_xy_m(x, y).unwrap();
+        assert!((h - (10.0 * 2.5 + 1000.0 * 1.25)).abs() < 1e-9);
+        assert!(dem.height_at_xy_m(-1000.0, 0.0).is_none());
+        dem.heights_m[5 + 2] = f32::NAN;
+        assert!(dem.height_at_row_col(1.1, 2.1).is_none(), "nearest is a hole");
+        assert!(dem.height_at_row_col(1.6, 2.6).is_some(), "re-weighted around the hole");
+    }
+}

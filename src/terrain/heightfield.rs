@@ -1,0 +1,148 @@
+//! The model-space height field that every shadow engine works on.
+//!
+//! **Model space** is a local Cartesian frame tangent to the reference sphere at a centre point
+//! `C` (planetocentric `centre_lat_deg`, `centre_lon_deg`, on the 1737.4 km sphere):
+//!
+//! ```text
+//!   z (up = radial direction at C)
+//!   ^     y (north at C)
+//!   |    /
+//!   |   /        terrain point P: body-fixed p = (R + h) * u(lat, lon)
+//!   |  /         model coordinates m = enu_from_moon_me(C) * (p - R * u(C))
+//!   | /
+//!   C--------> x (east at C)
+//! ```
+//!
+//! Because `m` is an exact rigid transform of body-fixed positions, the Moon's curvature is part
+//! of the height field (`z` falls off as about `-(x² + y²) / 2R` for a flat sphere), and a light
+//! source at infinity (the Sun) is one constant direction vector over the whole grid. This is what
+//! makes height-field shadow algorithms exact on a curved Moon.
+//!
+//! The grid is regular in model `x`/`y` with the same pixel-is-area convention as
+//! [`crate::terrain::GridGeometry`]: the centre of cell (row, col) is at
+//! `x_m = x_left_m + (col + 0.5) * px_m`, `y_m = y_top_m - (row + 0.5) * px_m`; row 0 is the top
+//! (largest `y`, i.e. north of `C`).
+
+use nalgebra::{Matrix3, Vector3};
+
+use crate::MOON_RADIUS_M;
+use crate::frames::enu_from_moon_me;
+
+/// A terrain height field in model space (see the module docs). Heights are `f32` metres along
+/// the model `z` axis; `NaN` marks holes (no terrain; rays pass).
+#[derive(Debug, Clone)]
+pub struct HeightField {
+    /// Number of rows.
+    pub rows: usize,
+    /// Number of columns.
+    pub cols: usize,
+    /// Cell size along model x and y, metres.
+    pub px_m: f64,
+    /// Model x of the left edge of column 0, metres.
+    pub x_left_m: f64,
+    /// Model y of the top edge of row 0, metres.
+    pub y_top_m: f64,
+    /// Model z of the terrain surface at each cell centre, metres, row-major; `NaN` for holes.
+    pub z_m: Vec<f32>,
+    /// Planetocentric latitude of the model-space origin `C`, degrees.
+    pub centre_lat_deg: f64,
+    /// East longitude of the model-space origin `C`, degrees.
+    pub centre_lon_deg: f64,
+}
+
+impl HeightField {
+    /// A height field with every cell at `z = 0` on a grid centred on the model origin. Mainly for
+    /// tests and analytic fixtures (a flat plane, not a sphere).
+    pub fn flat(rows: usize, cols: usize, px_m: f64) -> Self {
+        HeightField {
+            rows,
+            cols,
+            px_m,
+            x_left_m: -(cols as f64) * px_m / 2.0,
+            y_top_m: rows as f64 * px_m / 2.0,
+            z_m: vec![0.0; rows * cols],
+            centre_lat_deg: -90.0,
+            centre_lon_deg: 0.0,
+        }
+    }
+
+    /// Height at cell (row, col), metres; `None` outside the grid or in a hole.
+    #[inline]
+    pub fn z_at(&self, row: isize, col: isize) -> Option<f32> {
+        if row < 0 || col < 0 || row as usize >= self.rows || col as usize >= self.cols {
+            return None;
+        }
+        let z = self.z_m[row as usize * self.cols + col as usize];
+        (!z.is_nan()).then_some(z)
+    }
+
+    /// Model x/y (m) of the centre of cell (row, col).
+    #[inline]
+    pub fn xy_from_row_col(&self, row: f64, col: f64) -> (f64, f64) {
+        (
+            self.x_left_m + (col + 0.5) * self.px_m,
+            self.y_top_m - (row + 0.5) * self.px_m,
+        )
+    }
+
+    /// Fractional (row, col) of a model x/y (m); integer values are cell centres.
+    #[inline]
+    pub fn row_col_from_xy(&self, x_m: f64, y_m: f64) -> (f64, f64) {
+        (
+            (self.y_top_m - y_m) / self.px_m - 0.5,
+            (x_m - self.x_left_m) / self.px_m - 0.5,
+        )
+    }
+
+    /// Rotation from `MOON_ME` to model space (the ENU frame at the centre `C`). Apply it to a
+    /// body-fixed light direction to get the model-space light direction.
+    pub fn model_from_moon_me(&self) -> Matrix3<f64> {
+        enu_from_moon_me(self.centre_lat_deg, self.centre_lon_deg)
+    }
+
+    /// Unit radial ("up") direction of the Moon at a model-space point, in model space. An
+    /// observer `h` metres above the ground at `p` stands at `p + h * up`.
+    pub fn up_at(&self, x_m: f64, y_m: f64, z_m: f64) -> Vector3<f64> {
+        Vector3::new(x_m, y_m, z_m + MOON_RADIUS_M).normalize()
+    }
+
+    /// Model-space point (m) of a body-fixed position given in metres.
+    pub fn model_from_body_m(&self, p_body_m: &Vector3<f64>) -> Vector3<f64> {
+        let (slat, clat) = self.centre_lat_deg.to_radians().sin_cos();
+        let (slon, clon) = self.centre_lon_deg.to_radians().sin_cos();
+        let c_body_m = MOON_RADIUS_M * Vector3::new(clat * clon, clat * slon, slat);
+        self.model_from_moon_me() * (p_body_m - c_body_m)
+    }
+
+    /// Body-fixed position (m) of a model-space point. Inverse of
+    /// [`HeightField::model_from_body_m`].
+    pub fn body_from_model_m(&self, p_model_m: &Vector3<f64>) -> Vector3<f64> {
+        let (slat, clat) = self.centre_lat_deg.to_radians().sin_cos();
+        let (slon, clon) = self.centre_lon_deg.to_radians().sin_cos();
+        let c_body_m = MOON_RADIUS_M * Vector3::new(clat * clon, clat * slon, slat);
+        self.model_from_moon_me().transpose() * p_model_m + c_body_m
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::frames::site_in_moon_me_km;
+
+    #[test]
+    fn model_space_round_trip_and_curvature_drop() {
+        let mut hf = HeightField::flat(4, 4, 100.0);
+        hf.centre_lat_deg = -89.5;
+        hf.centre_lon_deg = 222.7;
+        let p = site_in_moon_me_km(-89.0, 100.0, 1500.0) * 1e3;
+        let m = hf.model_from_body_m(&p);
+        let back = hf.body_from_model_m(&m);
+        assert!((back - p).norm() < 1e-6);
+        // A point on the sphere at ground distance s from C lies R(1 - cos(s/R)) below the plane.
+        let q = site_in_moon_me_km(-89.0, 222.7, 0.0) * 1e3;
+        let mq = hf.model_from_body_m(&q);
+        let s = 0.5_f64.to_radians();
+        let expected_z = -MOON_RADIUS_M * (1.0 - s.cos());
+        assert!((mq.z - expected_z).abs() < 1e-6, "{} vs {expected_z}", mq.z);
+    }
+}
