@@ -1,1 +1,264 @@
-//! Declarative scenarios (`scenarios/*.toml`): sites, epochs, kernels, DEM layers and outputs.
+//! Declarative scenarios (`scenarios/*.toml`): sites, epochs, kernels, outputs.
+//!
+//! A scenario is a TOML file; unknown keys are errors that name the key. Relative paths inside a
+//! scenario (kernels, DEMs) are resolved against the scenario file's folder; the output folder is
+//! resolved against the working directory. See `scenarios/south-pole-demo.toml` for an annotated
+//! example.
+//!
+//! `penumbra run` writes into the output folder one CSV per site and `run.json` with the
+//! provenance of the run (penumbra version, git commit, the scenario, kernels with sha256, epoch
+//! range, backend, wall time). Every file is written atomically.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::Context as _;
+use serde::{Deserialize, Serialize};
+
+use crate::ephem::{self, AbCorr, Site};
+
+/// Errors of scenario files.
+#[derive(Debug, thiserror::Error)]
+pub enum ScenarioError {
+    /// The file could not be read.
+    #[error("reading scenario {path}: {source}")]
+    Read {
+        /// The file.
+        path: String,
+        /// The I/O error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// The TOML is malformed or has unknown keys / wrong types.
+    #[error("scenario {path}: {why}")]
+    Parse {
+        /// The file.
+        path: String,
+        /// The parser's message (names the offending key).
+        why: String,
+    },
+    /// The scenario is well-formed but not meaningful.
+    #[error("scenario {path}: {why}")]
+    Invalid {
+        /// The file.
+        path: String,
+        /// What is wrong.
+        why: String,
+    },
+}
+
+/// A scenario file.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Scenario {
+    /// Short name of the scenario (used for the default output folder).
+    pub name: String,
+    /// Free text.
+    #[serde(default)]
+    pub description: String,
+    /// Output folder (default `out/<name>`), relative to the working directory.
+    pub output_dir: Option<PathBuf>,
+    /// Kernel folder, relative to the scenario file (default: penumbra's default kernels).
+    pub kernels: Option<PathBuf>,
+    /// Aberration correction, `lt+s` (default) or `none`.
+    #[serde(default)]
+    pub abcorr: AbCorr,
+    /// The epoch range.
+    pub time: TimeSpec,
+    /// The sites.
+    pub sites: Vec<SiteSpec>,
+}
+
+/// The epoch range of a scenario (UTC).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TimeSpec {
+    /// First epoch, UTC.
+    pub start: String,
+    /// Last epoch, UTC.
+    pub stop: String,
+    /// Step, e.g. `1h`.
+    pub step: String,
+}
+
+/// A named site.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SiteSpec {
+    /// Name, used in file names (letters, digits, `-` and `_`).
+    pub name: String,
+    /// Planetocentric latitude, degrees.
+    pub lat_deg: f64,
+    /// East longitude, degrees.
+    pub lon_deg: f64,
+    /// Height of the observer above the ground, metres (default 2).
+    #[serde(default = "default_height_above_ground_m")]
+    pub height_above_ground_m: f64,
+    /// Height of the ground above the 1737.4 km sphere, metres. Without terrain it defaults to 0;
+    /// with terrain layers it is read from the DEM unless given here.
+    pub ground_height_m: Option<f64>,
+}
+
+fn default_height_above_ground_m() -> f64 {
+    2.0
+}
+
+impl Scenario {
+    /// Reads and validates a scenario file.
+    pub fn load(path: &Path) -> Result<Self, ScenarioError> {
+        let text = std::fs::read_to_string(path).map_err(|source| ScenarioError::Read {
+            path: path.display().to_string(),
+            source,
+        })?;
+        let scenario: Scenario = toml::from_str(&text).map_err(|e| ScenarioError::Parse {
+            path: path.display().to_string(),
+            why: e.to_string().replace('\n', " ").split_whitespace().collect::<Vec<_>>().join(" "),
+        })?;
+        scenario.validate(path)?;
+        Ok(scenario)
+    }
+
+    fn validate(&self, path: &Path) -> Result<(), ScenarioError> {
+        let invalid = |why: String| ScenarioError::Invalid {
+            path: path.display().to_string(),
+            why,
+        };
+        if self.sites.is_empty() {
+            return Err(invalid("no [[sites]] given".into()));
+        }
+        let mut seen = std::collections::HashSet::new();
+        for s in &self.sites {
+            if s.name.is_empty()
+                || !s
+                    .name
+                    .chars()
+                    .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_')
+            {
+                return Err(invalid(format!(
+                    "site name '{}' must be letters, digits, '-' or '_'",
+                    s.name
+                )));
+            }
+            if !seen.insert(s.name.clone()) {
+                return Err(invalid(format!("site name '{}' is used twice", s.name)));
+            }
+            if !(s.height_above_ground_m >= 0.0) {
+                return Err(invalid(format!(
+                    "site '{}': height_above_ground_m must be >= 0",
+                    s.name
+                )));
+            }
+        }
+        Ok(())
+    }
+
+    /// The scenario's folder, against which its relative paths are resolved.
+    pub fn base_dir(path: &Path) -> PathBuf {
+        path.parent()
+            .filter(|p| !p.as_os_str().is_empty())
+            .map(Path::to_path_buf)
+            .unwrap_or_else(|| PathBuf::from("."))
+    }
+}
+
+/// Provenance written to `run.json`.
+#[derive(Debug, Serialize)]
+pub struct Provenance {
+    /// penumbra's version.
+    pub penumbra_version: &'static str,
+    /// The git commit the binary was built from, or `unknown`.
+    pub git_commit: &'static str,
+    /// The scenario file.
+    pub scenario_file: String,
+    /// The scenario as parsed.
+    pub scenario: Scenario,
+    /// Kernel files with sizes and sha256.
+    pub kernels: Vec<ephem::kernels::KernelFile>,
+    /// First epoch, UTC.
+    pub epoch_start_utc: String,
+    /// Last epoch, UTC.
+    pub epoch_stop_utc: String,
+    /// Number of epochs.
+    pub epoch_count: usize,
+    /// Compute backend.
+    pub backend: &'static str,
+    /// Files written, relative to the output folder.
+    pub outputs: Vec<String>,
+    /// Wall time of the run, seconds.
+    pub wall_time_s: f64,
+}
+
+/// Runs a scenario file (`penumbra run`).
+pub fn run_file(args: &crate::cli::RunArgs) -> anyhow::Result<()> {
+    let t0 = Instant::now();
+    let path = &args.scenario;
+    let scenario = Scenario::load(path)?;
+    let base = Scenario::base_dir(path);
+    let out_dir = args
+        .out_dir
+        .clone()
+        .or_else(|| scenario.output_dir.clone())
+        .unwrap_or_else(|| PathBuf::from("out").join(&scenario.name));
+
+    let kernel_dir = match (&args.kernels.kernels, &scenario.kernels) {
+        (Some(k), _) => k.clone(),
+        (None, Some(k)) => base.join(k),
+        (None, None) => ephem::kernels::default_kernel_dir(),
+    };
+    let start = ephem::time::parse_utc(&scenario.time.start).context("[time] start")?;
+    let stop = ephem::time::parse_utc(&scenario.time.stop).context("[time] stop")?;
+    let step = ephem::time::parse_step(&scenario.time.step).context("[time] step")?;
+    let epochs = ephem::time::epoch_range(start, stop, step)?;
+    let sites: Vec<Site> = scenario
+        .sites
+        .iter()
+        .map(|s| {
+            let ground_m = s.ground_height_m.unwrap_or(0.0);
+            Site::new(s.lat_deg, s.lon_deg, ground_m + s.height_above_ground_m)
+                .with_context(|| format!("site '{}'", s.name))
+        })
+        .collect::<anyhow::Result<_>>()?;
+    let kernels = ephem::Kernels::load(&kernel_dir).context("loading SPICE kernels")?;
+    let series = ephem::sun_earth_series(&kernels, &sites, &epochs, scenario.abcorr)?;
+
+    std::fs::create_dir_all(&out_dir)
+        .with_context(|| format!("creating output folder {}", out_dir.display()))?;
+    let mut outputs = Vec::new();
+    for (spec, rows) in scenario.sites.iter().zip(&series) {
+        let name = format!("{}_ephem.csv", spec.name);
+        crate::app::write_output(Some(&out_dir.join(&name)), |w| {
+            writeln!(w, "{}", crate::app::EPHEM_CSV_HEADER)?;
+            for (e, v) in epochs.iter().zip(rows) {
+                crate::app::write_ephem_row(w, *e, v)?;
+            }
+            Ok(())
+        })?;
+        outputs.push(name);
+    }
+    let provenance = Provenance {
+        penumbra_version: env!("CARGO_PKG_VERSION"),
+        git_commit: env!("PENUMBRA_GIT_COMMIT"),
+        scenario_file: path.display().to_string(),
+        scenario,
+        kernels: kernels.files.clone(),
+        epoch_start_utc: ephem::time::format_utc(epochs[0]),
+        epoch_stop_utc: ephem::time::format_utc(*epochs.last().unwrap_or(&epochs[0])),
+        epoch_count: epochs.len(),
+        backend: "cpu",
+        outputs,
+        wall_time_s: t0.elapsed().as_secs_f64(),
+    };
+    crate::app::write_output(Some(&out_dir.join("run.json")), |w| {
+        serde_json::to_writer_pretty(&mut *w, &provenance)?;
+        writeln!(w)?;
+        Ok(())
+    })?;
+    eprintln!(
+        "penumbra: wrote {} site file(s) and run.json to {} ({} epochs, {:.2} s)",
+        provenance.outputs.len(),
+        out_dir.display(),
+        provenance.epoch_count,
+        provenance.wall_time_s
+    );
+    Ok(())
+}

@@ -1,0 +1,272 @@
+//! The SPICE kernel set: finding it, loading it into an `anise` [`Almanac`], and describing it.
+//!
+//! A kernel folder holds SPK (`.bsp`) ephemerides, binary PCK (`.bpc`) Moon orientation, text frame
+//! kernels (`.tf`, converted by `anise` into Euler parameters at load time) and a leap-seconds kernel
+//! (`.tls`; penumbra uses hifitime's built-in table, which equals `naif0012.tls`, and checks that
+//! the folder's file agrees with it).
+//!
+//! Where the folder comes from, first match wins: `--kernels DIR`, the `PENUMBRA_KERNELS`
+//! environment variable, `./kernels` in the working directory, then the `kernels/` folder of the
+//! source tree the binary was built from.
+
+use std::path::{Path, PathBuf};
+
+use anise::prelude::{Almanac, BPC, Epoch, Frame, SPK};
+
+use super::EphemError;
+
+/// NAIF id of the solar-system barycentre.
+pub const SSB_ID: i32 = 0;
+/// NAIF id of the Sun.
+pub const SUN_ID: i32 = 10;
+/// NAIF id of the Earth-Moon barycentre.
+pub const EMB_ID: i32 = 3;
+/// NAIF id of the Earth.
+pub const EARTH_ID: i32 = 399;
+/// NAIF id of the Moon.
+pub const MOON_ID: i32 = 301;
+/// NAIF id of the J2000 inertial frame.
+pub const J2000_ID: i32 = 1;
+/// Frame id of `MOON_PA_DE421`, the frame of the Moon orientation BPC.
+pub const MOON_PA_DE421_ID: i32 = 31006;
+/// Frame id of `MOON_ME_DE421`, which `anise` reaches after converting `moon_080317.tf`. It is the
+/// `MOON_ME` of SPICE (`moon_080317.tf` makes `MOON_ME` an identity alias of it).
+pub const MOON_ME_ID: i32 = 31007;
+
+/// The Moon-centred J2000 frame.
+pub const MOON_J2000: Frame = Frame::new(MOON_ID, J2000_ID);
+/// The Moon-centred `MOON_ME` frame.
+pub const MOON_ME: Frame = Frame::new(MOON_ID, MOON_ME_ID);
+
+/// Seconds before the first usable epoch that the ephemeris must cover: light-time correction
+/// looks the Sun up about 500 s earlier, plus margin.
+pub const LIGHT_TIME_MARGIN_S: f64 = 600.0;
+
+/// One file of the kernel set.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct KernelFile {
+    /// Path as loaded.
+    pub path: PathBuf,
+    /// Kind: `spk`, `bpc`, `fk` or `lsk`.
+    pub kind: &'static str,
+    /// Size in bytes.
+    pub size_bytes: u64,
+    /// Lowercase hex sha256 of the contents.
+    pub sha256: String,
+}
+
+/// A loaded kernel set.
+
+pub struct Kernels {
+    /// The anise almanac holding the SPKs, BPCs and frame parameters.
+    pub almanac: Almanac,
+    /// The folder the kernels came from.
+    pub dir: PathBuf,
+    /// The files that were loaded.
+    pub files: Vec<KernelFile>,
+    /// First and last epoch at which the Sun, the Earth, the Moon and the `MOON_ME` frame are all
+    /// available (light-time margin included).
+    pub coverage: (Epoch, Epoch),
+}
+
+/// Where the default kernel folder is: `PENUMBRA_KERNELS`, `./kernels`, then the source tree's.
+pub fn default_kernel_dir() -> PathBuf {
+    if let Some(dir) = std::env::var_os("PENUMBRA_KERNELS") {
+        return PathBuf::from(dir);
+    }
+    let local = PathBuf::from("kernels");
+    if local.is_dir() {
+        return local;
+    }
+    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/kernels"))
+}
+
+fn load_failed(path: &Path, why: impl std::fmt::Display) -> EphemError {
+    EphemError::Kernel {
+        path: path.display().to_string(),
+        why: why.to_string().replace('\n', " "),
+    }
+}
+
+/// Runs an anise parser, turning a panic on a corrupt file into an error.
+fn guarded<T>(path: &Path, f: impl FnOnce() -> Result<T, String>) -> Result<T, EphemError> {
+    match std::panic::catch_unwind(std::panic::AssertUnwindSafe(f)) {
+        Ok(Ok(v)) => Ok(v),
+        Ok(Err(why)) => Err(load_failed(path, why)),
+        Err(_) => Err(load_failed(path, "the file is corrupt (the parser failed)")),
+    }
+}
+
+impl Kernels {
+    /// Loads every kernel in `dir` and checks that the set covers the Sun, the Earth, the Moon and
+    /// `MOON_ME`.
+    pub fn load(dir: &Path) -> Result<Self, EphemError> {
+        let entries = std::fs::read_dir(dir).map_err(|e| EphemError::KernelDir {
+            path: dir.display().to_string(),
+            why: e.to_string(),
+        })?;
+        let mut paths: Vec<PathBuf> = entries
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|p| p.is_file())
+            .collect();
+        paths.sort();
+
+        let mut almanac = Almanac::default();
+        let mut files = Vec::new();
+        let mut have_fk = false;
+        for path in paths {
+            let ext = path
+                .extension()
+                .and_then(|e| e.to_str())
+                .map(str::to_ascii_lowercase)
+                .unwrap_or_default();
+            let kind = match ext.as_str() {
+                "bsp" => "spk",
+                "bpc" => "bpc",
+                "tf" => "fk",
+                "tls" => "lsk",
+                _ => continue,
+            };
+            let bytes = std::fs::read(&path).map_err(|e| load_failed(&path, e))?;
+            match kind {
+                "spk" => {
+                    let spk = guarded(&path, || {
+                        SPK::parse(&bytes[..])
+                            .map_err(|e| e.to_string())
+                    })?;
+                    almanac = almanac.with_spk(spk);
+                }
+                "bpc" => {
+                    let bpc = guarded(&path, || {
+                        BPC::parse(&bytes[..])
+                            .map_err(|e| e.to_string())
+                    })?;
+                    almanac = almanac.with_bpc(bpc);
+                }
+                "fk" => {
+                    let text = String::from_utf8_lossy(&bytes);
+                    // moon_assoc_*.tf only associate names with frames: nothing to convert.
+                    if !text.contains("TKFRAME_") {
+                        continue;
+                    }
+                    let ep = guarded(&path, || {
+                        anise::naif::kpl::parser::convert_fk(&path, false)
+                            .map_err(|e| e.to_string())
+                    })?;
+                    if have_fk {
+                        return Err(load_failed(
+                            &path,
+                            "only one text frame kernel with TKFRAME definitions is supported",
+                        ));
+                    }
+                    have_fk = true;
+                    almanac = almanac.with_euler_parameters(ep);
+                }
+                _ => check_leap_seconds(&path, &bytes)?,
+            }
+            files.push(KernelFile {
+                size_bytes: bytes.len() as u64,
+                sha256: sha256_hex(&bytes),
+                path,
+                kind,
+            });
+        }
+        if files.is_empty() {
+            return Err(EphemError::KernelDir {
+                path: dir.display().to_string(),
+                why: "no kernel files (.bsp, .bpc, .tf, .tls) found".into(),
+            });
+        }
+        let coverage = coverage(&almanac, dir)?;
+        Ok(Kernels {
+            almanac,
+            dir: dir.to_path_buf(),
+            files,
+            coverage,
+        })
+    }
+
+    /// Errors unless `epoch` lies within the kernels' coverage.
+    pub fn check_epoch(&self, epoch: Epoch) -> Result<(), EphemError> {
+        if epoch < self.coverage.0 || epoch > self.coverage.1 {
+            return Err(EphemError::OutsideCoverage {
+                epoch: super::time::format_utc(epoch),
+                start: super::time::format_utc(self.coverage.0),
+                stop: super::time::format_utc(self.coverage.1),
+            });
+        }
+        Ok(())
+    }
+}
+
+fn sha256_hex(bytes: &[u8]) -> String {
+    use sha2::Digest as _;
+    format!("{:x}", sha2::Sha256::digest(bytes))
+}
+
+/// Intersection of the SPK domains of the bodies penumbra needs and of the BPC domain, shrunk by
+/// the light-time margin at the start.
+fn coverage(almanac: &Almanac, dir: &Path) -> Result<(Epoch, Epoch), EphemError> {
+    let missing = |what: String| EphemError::KernelDir {
+        path: dir.display().to_string(),
+        why: what,
+    };
+    let mut start = Epoch::from_tdb_seconds(f64::MIN / 4.0);
+    let mut stop = Epoch::from_tdb_seconds(f64::MAX / 4.0);
+    for (id, name) in [
+        (SUN_ID, "the Sun (10)"),
+        (EMB_ID, "the Earth-Moon barycentre (3)"),
+        (EARTH_ID, "the Earth (399)"),
+        (MOON_ID, "the Moon (301)"),
+    ] {
+        let (s, e) = almanac
+            .spk_domain(id)
+            .map_err(|_| missing(format!("no SPK holds {name}")))?;
+        start = start.max(s);
+        stop = stop.min(e);
+    }
+    let (s, e) = almanac
+        .bpc_domain(MOON_PA_DE421_ID)
+        .map_err(|_| missing("no binary PCK holds the Moon orientation (MOON_PA_DE421, 31006)".into()))?;
+    start = start.max(s);
+    stop = stop.min(e);
+    // MOON_ME must resolve (needs the frame kernel).
+    almanac
+        .rotate(MOON_J2000, MOON_ME, start + hifitime::Unit::Day * 1)
+        .map_err(|e| {
+            missing(format!(
+                "MOON_ME does not resolve (is moon_080317.tf there?): {e}"
+            ))
+        })?;
+    start += hifitime::Unit::Second * LIGHT_TIME_MARGIN_S;
+    if stop <= start {
+        return Err(missing("the kernels' time spans do not overlap".into()));
+    }
+    Ok((start, stop))
+}
+
+/// Checks a leap-seconds kernel against hifitime's built-in table: the number of `DELTA_AT`
+/// entries and the last offset must match (naif0012: 28 entries, last 37 s on 2017-01-01).
+fn check_leap_seconds(path: &Path, bytes: &[u8]) -> Result<(), EphemError> {
+    let text = String::from_utf8_lossy(bytes);
+    let Some(start) = text.find("DELTET/DELTA_AT") else {
+        return Err(load_failed(path, "not a leap-seconds kernel (no DELTET/DELTA_AT)"));
+    };
+    let body = &text[start..];
+    let body = &body[..body.find(')').unwrap_or(body.len())];
+    let offsets: Vec<f64> = body
+        .split(|c: char| c.is_whitespace() || c == ',' || c == '(')
+        .filter_map(|t| t.parse::<f64>().ok())
+        .collect();
+    let builtin_last_s = 37.0;
+    match offsets.last() {
+        Some(&last) if (last - builtin_last_s).abs() < 1e-9 => Ok(()),
+        Some(&last) => Err(load_failed(
+            path,
+            format!(
+                "its last leap-second offset is {last} s but penumbra's table ends at {builtin_last_s} s (naif0012)"
+            ),
+        )),
+        None => Err(load_failed(path, "no DELTA_AT values could be read")),
+    }
+}

@@ -1,0 +1,210 @@
+//! UTC epochs: parsing, formatting and evenly stepped ranges.
+//!
+//! Epoch strings given by users are **UTC** (not TDB: reading a UTC string as TDB moves the Sun by
+//! about 35 arcsec, since TDB − UTC ≈ 69 s and the Sun moves 0.5 arcsec/s across the lunar sky).
+//! Accepted forms: `YYYY-MM-DD`, `YYYY-MM-DDTHH:MM`, `YYYY-MM-DDTHH:MM:SS[.fff]`, a space instead of
+//! the `T`, and an optional trailing `Z` or ` UTC`. Leap seconds come from hifitime's table, which
+//! equals NAIF's `naif0012.tls`.
+
+use hifitime::{Duration, Epoch, Unit};
+
+use super::EphemError;
+
+/// Parses a UTC epoch string (see the module docs for the accepted forms).
+pub fn parse_utc(text: &str) -> Result<Epoch, EphemError> {
+    let bad = |why: &str| EphemError::BadEpoch {
+        text: text.to_string(),
+        why: why.to_string(),
+    };
+    let mut s = text.trim();
+    for suffix in [" UTC", "UTC", "Z"] {
+        if let Some(stripped) = s.strip_suffix(suffix) {
+            s = stripped.trim_end();
+            break;
+        }
+    }
+    let (date, clock) = match s.find(['T', ' ']) {
+        Some(i) => (&s[..i], &s[i + 1..]),
+        None => (s, ""),
+    };
+    let mut date_parts = date.split('-');
+    let (Some(y), Some(mo), Some(d), None) = (
+        date_parts.next(),
+        date_parts.next(),
+        date_parts.next(),
+        date_parts.next(),
+    ) else {
+        return Err(bad("expected YYYY-MM-DD[THH:MM[:SS]]"));
+    };
+    let num = |p: &str, what: &str| -> Result<u32, EphemError> {
+        if p.is_empty() || !p.bytes().all(|b| b.is_ascii_digit()) {
+            return Err(bad(&format!("{what} '{p}' is not a number")));
+        }
+        p.parse::<u32>()
+            .map_err(|_| bad(&format!("{what} '{p}' is out of range")))
+    };
+    let year = num(y, "year")?;
+    let month = num(mo, "month")?;
+    let day = num(d, "day")?;
+    let (mut hour, mut minute, mut second, mut nanos) = (0u32, 0u32, 0u32, 0u32);
+    if !clock.is_empty() {
+        let mut parts = clock.split(':');
+        hour = num(parts.next().unwrap_or(""), "hour")?;
+        minute = num(parts.next().ok_or_else(|| bad("expected HH:MM"))?, "minute")?;
+        if let Some(sec) = parts.next() {
+            let (whole, frac) = match sec.split_once('.') {
+                Some((w, f)) => (w, Some(f)),
+                None => (sec, None),
+            };
+            second = num(whole, "second")?;
+            if let Some(frac) = frac {
+                if frac.is_empty() || frac.len() > 9 || !frac.bytes().all(|b| b.is_ascii_digit())
+                {
+                    return Err(bad("fractional seconds must have 1 to 9 digits"));
+                }
+                nanos = num(frac, "fraction")? * 10u32.pow(9 - frac.len() as u32);
+            }
+        }
+        if parts.next().is_some() {
+            return Err(bad("too many ':' fields"));
+        }
+    }
+    if !(1..=12).contains(&month) || day == 0 || day > 31 || hour > 23 || minute > 59 || second > 60
+    {
+        return Err(bad("a field is out of range"));
+    }
+    let year = i32::try_from(year).map_err(|_| bad("year out of range"))?;
+    Epoch::maybe_from_gregorian_utc(
+        year,
+        month as u8,
+        day as u8,
+        hour as u8,
+        minute as u8,
+        second as u8,
+        nanos,
+    )
+    .map_err(|e| bad(&e.to_string()))
+}
+
+/// Formats an epoch as ISO 8601 UTC, `YYYY-MM-DDTHH:MM:SS` (with `.fff` when not whole seconds).
+pub fn format_utc(epoch: Epoch) -> String {
+    let (y, mo, d, h, mi, s, ns) = epoch.to_gregorian_utc();
+    if ns == 0 {
+        format!("{y:04}-{mo:02}-{d:02}T{h:02}:{mi:02}:{s:02}")
+    } else {
+        format!(
+            "{y:04}-{mo:02}-{d:02}T{h:02}:{mi:02}:{s:02}.{:03}",
+            ns / 1_000_000
+        )
+    }
+}
+
+/// Parses a time step such as `30s`, `10m`, `1h`, `6h`, `1d` (a positive number followed by one of
+/// `s`, `m`, `h`, `d`).
+pub fn parse_step(text: &str) -> Result<Duration, EphemError> {
+    let bad = |why: &str| EphemError::BadStep {
+        text: text.to_string(),
+        why: why.to_string(),
+    };
+    let s = text.trim();
+    let split = s
+        .find(|c: char| c.is_ascii_alphabetic())
+        .ok_or_else(|| bad("missing unit (use s, m, h or d, e.g. 1h)"))?;
+    let (value, unit) = s.split_at(split);
+    let value: f64 = value
+        .trim()
+        .parse()
+        .map_err(|_| bad("expected a number followed by s, m, h or d"))?;
+    let unit = match unit {
+        "s" => Unit::Second,
+        "m" | "min" => Unit::Minute,
+        "h" => Unit::Hour,
+        "d" => Unit::Day,
+        other => return Err(bad(&format!("unknown unit '{other}' (use s, m, h or d)"))),
+    };
+    if !(value.is_finite() && value > 0.0) {
+        return Err(bad("the step must be positive"));
+    }
+    let step = value * unit;
+    if step < 1.0 * Unit::Second {
+        return Err(bad("the step must be at least 1 s"));
+    }
+    Ok(step)
+}
+
+/// Upper bound on the number of epochs in one range, to catch typos such as a `1s` step over
+/// decades before they exhaust memory.
+pub const MAX_EPOCHS: usize = 20_000_000;
+
+/// Evenly spaced UTC epochs from `start` to `stop` inclusive (when `stop` falls on the grid).
+pub fn epoch_range(start: Epoch, stop: Epoch, step: Duration) -> Result<Vec<Epoch>, EphemError> {
+    if stop < start {
+        return Err(EphemError::BadRange {
+            why: format!(
+                "stop {} is before start {}",
+                format_utc(stop),
+                format_utc(start)
+            ),
+        });
+    }
+    let span_s = (stop - start).to_seconds();
+    let step_s = step.to_seconds();
+    let n = (span_s / step_s + 1e-9).floor() + 1.0;
+    if n > MAX_EPOCHS as f64 {
+        return Err(EphemError::BadRange {
+            why: format!("{n:.0} epochs exceed the limit of {MAX_EPOCHS}; use a larger --step"),
+        });
+    }
+    #[expect(clippy::cast_possible_truncation, reason = "n is bounded by MAX_EPOCHS above")]
+    let n = n as usize;
+    Ok((0..n).map(|i| start + step * (i as i64)).collect())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parses_utc_forms() {
+        let a = parse_utc("2024-01-03T00:00:00").unwrap();
+        assert_eq!(a, parse_utc("2024-01-03").unwrap());
+        assert_eq!(a, parse_utc("2024-01-03 00:00Z").unwrap());
+        assert_eq!(a, parse_utc("2024-01-03T00:00:00 UTC").unwrap());
+        let b = parse_utc("2024-01-03T12:34:56.5").unwrap();
+        assert!(((b - a).to_seconds() - (12.0 * 3600.0 + 34.0 * 60.0 + 56.5)).abs() < 1e-9);
+        assert_eq!(format_utc(b), "2024-01-03T12:34:56.500");
+        assert_eq!(format_utc(a), "2024-01-03T00:00:00");
+    }
+
+    #[test]
+    fn utc_is_not_tdb() {
+        // TDB - UTC at 2024 = 37 leap seconds + 32.184 s (+ periodic terms below 2 ms).
+        let e = parse_utc("2024-01-03T00:00:00").unwrap();
+        let tdb_as_if_utc =
+            Epoch::from_gregorian(2024, 1, 3, 0, 0, 0, 0, hifitime::TimeScale::TDB);
+        let diff_s = (e - tdb_as_if_utc).to_seconds();
+        assert!((diff_s - 69.184).abs() < 0.002, "TDB - UTC = {diff_s} s");
+    }
+
+    #[test]
+    fn rejects_malformed_epochs() {
+        for s in ["2024-13-01", "2024-01-32", "yesterday", "2024-01-03T25:00", "2024/01/03", ""] {
+            assert!(parse_utc(s).is_err(), "{s} should not parse");
+        }
+    }
+
+    #[test]
+    fn steps_and_ranges() {
+        assert_eq!(parse_step("1h").unwrap().to_seconds(), 3600.0);
+        assert_eq!(parse_step("10m").unwrap().to_seconds(), 600.0);
+        assert_eq!(parse_step("1d").unwrap().to_seconds(), 86400.0);
+        assert!(parse_step("0h").is_err());
+        assert!(parse_step("-1h").is_err());
+        assert!(parse_step("5").is_err());
+        assert!(parse_step("3y").is_err());
+        let s = parse_utc("2024-01-01").unwrap();
+        let r = epoch_range(s, parse_utc("2024-01-02").unwrap(), parse_step("6h").unwrap()).unwrap();
+        assert_eq!(r.len(), 5);
+        assert!(epoch_range(parse_utc("2024-01-02").unwrap(), s, parse_step("1h").unwrap()).is_err());
+    }
+}

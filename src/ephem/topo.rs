@@ -1,0 +1,313 @@
+//! Topocentric Sun and Earth directions for sites fixed on the Moon, SPICE-exact.
+//!
+//! For each epoch `t` (UTC → TDB by hifitime) penumbra queries `anise` once for the Moon-centred
+//! geometry shared by every site ([`MoonGeometry`]): the Sun's and the Earth's geometric states
+//! relative to the Moon, the Moon's state relative to the solar-system barycentre (all J2000), and
+//! the J2000 → `MOON_ME` rotation with its time derivative. Each site then gets its exact
+//! topocentric vector with the same arithmetic as SPICE's `spkcpo(target, t, 'MOON_ME',
+//! 'OBSERVER', abcorr, site, 'MOON', 'MOON_ME')`:
+//!
+//! 1. observer `o(t) = moon(t) + Rᵀ(t)·s` and `ȯ = moon_vel + Ṙᵀ(t)·s` (J2000, relative to the SSB),
+//!    where `s` is the site in `MOON_ME` and `R` the J2000 → `MOON_ME` rotation;
+//! 2. light time, one Newtonian iteration as SPICE's `LT`: `lt₀ = |T(t) − o(t)| / c`, target
+//!    position `T(t − lt₀) − o(t)` (SPICE `spkltc` with one iteration);
+//! 3. stellar aberration of that vector for the observer velocity `ȯ` (SPICE `stelab`: rotate the
+//!    vector towards `ȯ` about `u × ȯ/c` by `asin(|u × ȯ/c|)`);
+//! 4. rotation into `MOON_ME` at the observer epoch `t` (`'OBSERVER'` reference locus).
+//!
+//! `T(t − lt)` is taken as `T(t) − lt · Ṫ(t)` with the target's barycentric velocity `Ṫ`: the
+//! neglected `½ a lt²` is below 3e-5 km for the Sun (lt ≈ 500 s) and 5e-6 km for the Earth
+//! (lt ≈ 1.3 s), i.e. below 1e-5 arcsec. The comparison with SPICE is in `docs/VALIDATION.md`.
+
+use anise::prelude::{Aberration, Almanac, Epoch, Frame};
+use nalgebra::{Matrix3, Vector3};
+
+use super::EphemError;
+use super::kernels::{EARTH_ID, MOON_ID, MOON_J2000, MOON_ME, SSB_ID, SUN_ID, J2000_ID};
+use crate::frames::{az_el_deg_from_enu, enu_from_moon_me, site_in_moon_me_km};
+use crate::{EARTH_RADIUS_KM, SPEED_OF_LIGHT_KM_S, SUN_RADIUS_KM};
+
+/// Aberration correction applied to the topocentric directions.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+pub enum AbCorr {
+    /// Light time (one Newtonian iteration) + stellar aberration, SPICE `LT+S`.
+    #[default]
+    #[serde(rename = "lt+s")]
+    LtS,
+    /// Geometric positions, SPICE `NONE`.
+    #[serde(rename = "none")]
+    None,
+}
+
+impl AbCorr {
+    /// Parses `lt+s` or `none` (case-insensitive).
+    pub fn parse(text: &str) -> Result<Self, EphemError> {
+        match text.to_ascii_lowercase().as_str() {
+            "lt+s" => Ok(AbCorr::LtS),
+            "none" => Ok(AbCorr::None),
+            _ => Err(EphemError::BadAbCorr(text.to_string())),
+        }
+    }
+
+    /// The SPICE spelling (`LT+S` or `NONE`).
+    pub fn spice_name(self) -> &'static str {
+        match self {
+            AbCorr::LtS => "LT+S",
+            AbCorr::None => "NONE",
+        }
+    }
+}
+
+/// A Moon-centred state: position (km) and velocity (km/s) in J2000.
+#[derive(Debug, Clone, Copy)]
+pub struct StateJ2000 {
+    /// Position, km.
+    pub pos_km: Vector3<f64>,
+    /// Velocity, km/s.
+    pub vel_km_s: Vector3<f64>,
+}
+
+/// The Moon-centred geometry of one epoch, shared by every site.
+#[derive(Debug, Clone, Copy)]
+pub struct MoonGeometry {
+    /// The epoch.
+    pub epoch: Epoch,
+    /// Rotation J2000 → `MOON_ME`.
+    pub moon_me_from_j2000: Matrix3<f64>,
+    /// Time derivative of `moon_me_from_j2000`, 1/s.
+    pub moon_me_from_j2000_dt: Matrix3<f64>,
+    /// The Moon relative to the solar-system barycentre.
+    pub moon_wrt_ssb: StateJ2000,
+    /// The Sun relative to the Moon (geometric).
+    pub sun_wrt_moon: StateJ2000,
+    /// The Earth relative to the Moon (geometric).
+    pub earth_wrt_moon: StateJ2000,
+}
+
+fn state(
+    almanac: &Almanac,
+    target: i32,
+    observer: i32,
+    epoch: Epoch,
+) -> Result<StateJ2000, EphemError> {
+    let s = almanac
+        .translate(
+            Frame::new(target, J2000_ID),
+            Frame::new(observer, J2000_ID),
+            epoch,
+            None::<Aberration>,
+        )
+        .map_err(|e| EphemError::Query {
+            action: "translating",
+            why: e.to_string(),
+        })?;
+    Ok(StateJ2000 {
+        pos_km: Vector3::new(s.radius_km.x, s.radius_km.y, s.radius_km.z),
+        vel_km_s: Vector3::new(s.velocity_km_s.x, s.velocity_km_s.y, s.velocity_km_s.z),
+    })
+}
+
+fn to_na(m: &anise::math::Matrix3) -> Matrix3<f64> {
+    Matrix3::from_fn(|r, c| m[(r, c)])
+}
+
+impl MoonGeometry {
+    /// Queries the kernels for one epoch (four `anise` queries).
+    pub fn at(almanac: &Almanac, epoch: Epoch) -> Result<Self, EphemError> {
+        let dcm = almanac
+            .rotate(MOON_J2000, MOON_ME, epoch)
+            .map_err(|e| EphemError::Query {
+                action: "rotating J2000 to MOON_ME",
+                why: e.to_string(),
+            })?;
+        let rot_dt = dcm.rot_mat_dt.ok_or_else(|| EphemError::Query {
+            action: "rotating J2000 to MOON_ME",
+            why: "the rotation has no time derivative".into(),
+        })?;
+        Ok(MoonGeometry {
+            epoch,
+            moon_me_from_j2000: to_na(&dcm.rot_mat),
+            moon_me_from_j2000_dt: to_na(&rot_dt),
+            moon_wrt_ssb: state(almanac, MOON_ID, SSB_ID, epoch)?,
+            sun_wrt_moon: state(almanac, SUN_ID, MOON_ID, epoch)?,
+            earth_wrt_moon: state(almanac, EARTH_ID, MOON_ID, epoch)?,
+        })
+    }
+}
+
+/// SPICE `stelab`: the apparent position of an object at `pos` for an observer moving at `vel_km_s`
+/// relative to the solar-system barycentre.
+pub fn stellar_aberration(pos: &Vector3<f64>, obs_vel_km_s: &Vector3<f64>) -> Vector3<f64> {
+    let Some(u) = pos.try_normalize(0.0) else {
+        return *pos;
+    };
+    let vbyc = obs_vel_km_s / SPEED_OF_LIGHT_KM_S;
+    let h = u.cross(&vbyc);
+    let sin_phi = h.norm();
+    if sin_phi == 0.0 {
+        return *pos;
+    }
+    let phi = sin_phi.asin();
+    rotate_about(pos, &(h / sin_phi), phi)
+}
+
+/// Rodrigues rotation of `v` about the unit axis `k` by `angle_rad` (right-handed), SPICE `vrotv`.
+fn rotate_about(v: &Vector3<f64>, k: &Vector3<f64>, angle_rad: f64) -> Vector3<f64> {
+    let (s, c) = angle_rad.sin_cos();
+    v * c + k.cross(v) * s + k * (k.dot(v) * (1.0 - c))
+}
+
+/// A site fixed on the Moon, with its body-fixed position and local frame precomputed.
+#[derive(Debug, Clone, Copy)]
+pub struct Site {
+    /// Planetocentric latitude, degrees.
+    pub lat_deg: f64,
+    /// East longitude, degrees.
+    pub lon_deg: f64,
+    /// Height above the 1737.4 km sphere, metres.
+    pub height_m: f64,
+    /// Position in `MOON_ME`, km.
+    pub pos_in_moon_me_km: Vector3<f64>,
+    /// `MOON_ME` → local ENU rotation.
+    pub enu_from_moon_me: Matrix3<f64>,
+}
+
+impl Site {
+    /// A site from planetocentric latitude / east longitude (deg) and height above the sphere (m).
+    pub fn new(lat_deg: f64, lon_deg: f64, height_m: f64) -> Result<Self, EphemError> {
+        if !(-90.0..=90.0).contains(&lat_deg) {
+            return Err(EphemError::BadSite(format!(
+                "latitude {lat_deg} deg is outside [-90, 90]"
+            )));
+        }
+        if !lon_deg.is_finite() || !(-360.0..=360.0).contains(&lon_deg) {
+            return Err(EphemError::BadSite(format!(
+                "longitude {lon_deg} deg is outside [-360, 360]"
+            )));
+        }
+        if !height_m.is_finite() || height_m.abs() > 100_000.0 {
+            return Err(EphemError::BadSite(format!(
+                "height {height_m} m is not within ±100 km of the reference sphere"
+            )));
+        }
+        Ok(Site {
+            lat_deg,
+            lon_deg,
+            height_m,
+            pos_in_moon_me_km: site_in_moon_me_km(lat_deg, lon_deg, height_m),
+            enu_from_moon_me: enu_from_moon_me(lat_deg, lon_deg),
+        })
+    }
+}
+
+/// A body as seen from a site.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct Apparent {
+    /// Azimuth, degrees clockwise from local north, in `[0, 360)`.
+    pub az_deg: f64,
+    /// Elevation above the plane normal to the radial direction, degrees.
+    pub el_deg: f64,
+    /// Distance, km.
+    pub range_km: f64,
+    /// Apparent angular radius of the disc, degrees.
+    pub radius_deg: f64,
+    /// The (apparent) position relative to the site in `MOON_ME`, km.
+    #[serde(skip)]
+    pub pos_in_moon_me_km: Vector3<f64>,
+}
+
+/// The Sun and the Earth seen from one site at one epoch.
+#[derive(Debug, Clone, Copy, serde::Serialize)]
+pub struct SunEarth {
+    /// The Sun.
+    pub sun: Apparent,
+    /// The Earth.
+    pub earth: Apparent,
+}
+
+/// Topocentric position of a target in `MOON_ME` for a site (see the module docs).
+pub fn target_from_site(
+    geo: &MoonGeometry,
+    target_wrt_moon: &StateJ2000,
+    site: &Site,
+    abcorr: AbCorr,
+) -> Vector3<f64> {
+    let rt = geo.moon_me_from_j2000.transpose();
+    let site_j2000 = rt * site.pos_in_moon_me_km;
+    let rel_geometric = target_wrt_moon.pos_km - site_j2000;
+    let rel = match abcorr {
+        AbCorr::None => rel_geometric,
+        AbCorr::LtS => {
+            let site_vel_j2000 = geo.moon_me_from_j2000_dt.transpose() * site.pos_in_moon_me_km;
+            let obs_vel_ssb = geo.moon_wrt_ssb.vel_km_s + site_vel_j2000;
+            let target_vel_ssb = target_wrt_moon.vel_km_s + geo.moon_wrt_ssb.vel_km_s;
+            let lt_s = rel_geometric.norm() / SPEED_OF_LIGHT_KM_S;
+            let rel_lt = rel_geometric - target_vel_ssb * lt_s;
+            stellar_aberration(&rel_lt, &obs_vel_ssb)
+        }
+    };
+    geo.moon_me_from_j2000 * rel
+}
+
+fn apparent(pos_in_moon_me_km: Vector3<f64>, site: &Site, body_radius_km: f64) -> Apparent {
+    let enu = site.enu_from_moon_me * pos_in_moon_me_km;
+    let (az_deg, el_deg) = az_el_deg_from_enu(&enu);
+    let range_km = pos_in_moon_me_km.norm();
+    Apparent {
+        az_deg,
+        el_deg,
+        range_km,
+        radius_deg: (body_radius_km / range_km).asin().to_degrees(),
+        pos_in_moon_me_km,
+    }
+}
+
+/// The Sun and the Earth seen from `site` for the epoch of `geo`.
+pub fn sun_earth(geo: &MoonGeometry, site: &Site, abcorr: AbCorr) -> SunEarth {
+    SunEarth {
+        sun: apparent(
+            target_from_site(geo, &geo.sun_wrt_moon, site, abcorr),
+            site,
+            SUN_RADIUS_KM,
+        ),
+        earth: apparent(
+            target_from_site(geo, &geo.earth_wrt_moon, site, abcorr),
+            site,
+            EARTH_RADIUS_KM,
+        ),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn stellar_aberration_matches_the_classical_formula() {
+        // For a velocity perpendicular to the line of sight the deflection is asin(v/c).
+        let pos = Vector3::new(1.0e8, 0.0, 0.0);
+        let vel = Vector3::new(0.0, 30.0, 0.0);
+        let app = stellar_aberration(&pos, &vel);
+        let angle = app.cross(&pos).norm().atan2(app.dot(&pos));
+        assert!((angle - (30.0 / SPEED_OF_LIGHT_KM_S).asin()).abs() < 1e-14);
+        assert!(app.y > 0.0, "deflected towards the velocity");
+        assert!((app.norm() - pos.norm()).abs() < 1e-6, "length preserved");
+        // Parallel velocity: no deflection.
+        assert_eq!(stellar_aberration(&pos, &Vector3::new(5.0, 0.0, 0.0)), pos);
+    }
+
+    #[test]
+    fn abcorr_parsing() {
+        assert_eq!(AbCorr::parse("LT+S").unwrap(), AbCorr::LtS);
+        assert_eq!(AbCorr::parse("none").unwrap(), AbCorr::None);
+        assert!(AbCorr::parse("cn+s").is_err());
+    }
+
+    #[test]
+    fn site_validation() {
+        assert!(Site::new(-91.0, 0.0, 0.0).is_err());
+        assert!(Site::new(f64::NAN, 0.0, 0.0).is_err());
+        assert!(Site::new(-89.0, 0.0, f64::INFINITY).is_err());
+        assert!(Site::new(-89.45, -137.3, 2.0).is_ok());
+    }
+}

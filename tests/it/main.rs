@@ -1,0 +1,4 @@
+//! penumbra's integration tests: one binary, one module per area (anise/ripgrep layout).
+
+mod ephem;
+mod util;
