@@ -94,6 +94,22 @@ fn run_ephem(args: &EphemArgs) -> anyhow::Result<()> {
     let kernels = load_kernels(&args.kernels)?;
     let series = ephem::sun_earth_series(&kernels, &[site], &epochs, abcorr)?;
     let rows = &series[0];
+    // Sub-solar and sub-Earth points go into the JSON output only (the CSV columns are fixed).
+    let sub_points = if args.format == Format::Json {
+        use rayon::prelude::*;
+        epochs
+            .par_iter()
+            .map(|&e| {
+                let a = &kernels.almanac;
+                Ok((
+                    ephem::topo::sub_observer_point(a, ephem::kernels::SUN_ID, e, abcorr)?,
+                    ephem::topo::sub_observer_point(a, ephem::kernels::EARTH_ID, e, abcorr)?,
+                ))
+            })
+            .collect::<Result<Vec<_>, ephem::EphemError>>()?
+    } else {
+        Vec::new()
+    };
     write_output(args.out.as_deref(), |w| {
         match args.format {
             Format::Csv => {
@@ -107,10 +123,12 @@ fn run_ephem(args: &EphemArgs) -> anyhow::Result<()> {
                     "site": {"lat_deg": args.lat_deg, "lon_deg": args.lon_deg, "height_m": args.height_m},
                     "abcorr": abcorr.spice_name(),
                     "frame": "MOON_ME",
-                    "epochs": epochs.iter().zip(rows).map(|(e, v)| serde_json::json!({
+                    "epochs": epochs.iter().zip(rows).zip(&sub_points).map(|((e, v), (ss, se))| serde_json::json!({
                         "utc": format_utc(*e),
                         "sun": v.sun,
                         "earth": v.earth,
+                        "subsolar_point": ss,
+                        "sub_earth_point": se,
                     })).collect::<Vec<_>>(),
                 });
                 serde_json::to_writer_pretty(&mut *w, &doc)?;
@@ -143,10 +161,13 @@ fn run_kernels(args: &KernelArgs) -> anyhow::Result<()> {
         .map(|d| d.into_iter().collect())
         .unwrap_or_default();
     domains.sort_by_key(|(id, _)| *id);
-    for (id, (s, e)) in domains {
+    for (id, (s, e)) in domains.into_iter().filter(|(id, _)| *id != 0) {
         writeln!(out, "  {:>4} {}: {} .. {}", id, body_name(id), s, e)?;
     }
-    writeln!(out, "frames: J2000 (1), MOON_PA_DE421 (31006, binary PCK), MOON_ME = MOON_ME_DE421 (31007, from the frame kernel)")?;
+    writeln!(
+        out,
+        "frames: J2000 (1), MOON_PA_DE421 (31006, binary PCK), MOON_ME = MOON_ME_DE421 (31007, from the frame kernel)"
+    )?;
     if let Ok((s, e)) = kernels.almanac.bpc_domain(ephem::kernels::MOON_PA_DE421_ID) {
         writeln!(out, "  MOON_PA_DE421 orientation data: {s} .. {e}")?;
     }

@@ -56,7 +56,6 @@ pub struct KernelFile {
 }
 
 /// A loaded kernel set.
-
 pub struct Kernels {
     /// The anise almanac holding the SPKs, BPCs and frame parameters.
     pub almanac: Almanac,
@@ -130,17 +129,11 @@ impl Kernels {
             let bytes = std::fs::read(&path).map_err(|e| load_failed(&path, e))?;
             match kind {
                 "spk" => {
-                    let spk = guarded(&path, || {
-                        SPK::parse(&bytes[..])
-                            .map_err(|e| e.to_string())
-                    })?;
+                    let spk = guarded(&path, || SPK::parse(&bytes[..]).map_err(|e| e.to_string()))?;
                     almanac = almanac.with_spk(spk);
                 }
                 "bpc" => {
-                    let bpc = guarded(&path, || {
-                        BPC::parse(&bytes[..])
-                            .map_err(|e| e.to_string())
-                    })?;
+                    let bpc = guarded(&path, || BPC::parse(&bytes[..]).map_err(|e| e.to_string()))?;
                     almanac = almanac.with_bpc(bpc);
                 }
                 "fk" => {
@@ -225,9 +218,9 @@ fn coverage(almanac: &Almanac, dir: &Path) -> Result<(Epoch, Epoch), EphemError>
         start = start.max(s);
         stop = stop.min(e);
     }
-    let (s, e) = almanac
-        .bpc_domain(MOON_PA_DE421_ID)
-        .map_err(|_| missing("no binary PCK holds the Moon orientation (MOON_PA_DE421, 31006)".into()))?;
+    let (s, e) = almanac.bpc_domain(MOON_PA_DE421_ID).map_err(|_| {
+        missing("no binary PCK holds the Moon orientation (MOON_PA_DE421, 31006)".into())
+    })?;
     start = start.max(s);
     stop = stop.min(e);
     // MOON_ME must resolve (needs the frame kernel).
@@ -250,7 +243,10 @@ fn coverage(almanac: &Almanac, dir: &Path) -> Result<(Epoch, Epoch), EphemError>
 fn check_leap_seconds(path: &Path, bytes: &[u8]) -> Result<(), EphemError> {
     let text = String::from_utf8_lossy(bytes);
     let Some(start) = text.find("DELTET/DELTA_AT") else {
-        return Err(load_failed(path, "not a leap-seconds kernel (no DELTET/DELTA_AT)"));
+        return Err(load_failed(
+            path,
+            "not a leap-seconds kernel (no DELTET/DELTA_AT)",
+        ));
     };
     let body = &text[start..];
     let body = &body[..body.find(')').unwrap_or(body.len())];

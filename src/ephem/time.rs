@@ -58,8 +58,7 @@ pub fn parse_utc(text: &str) -> Result<Epoch, EphemError> {
             };
             second = num(whole, "second")?;
             if let Some(frac) = frac {
-                if frac.is_empty() || frac.len() > 9 || !frac.bytes().all(|b| b.is_ascii_digit())
-                {
+                if frac.is_empty() || frac.len() > 9 || !frac.bytes().all(|b| b.is_ascii_digit()) {
                     return Err(bad("fractional seconds must have 1 to 9 digits"));
                 }
                 nanos = num(frac, "fraction")? * 10u32.pow(9 - frac.len() as u32);
@@ -155,7 +154,10 @@ pub fn epoch_range(start: Epoch, stop: Epoch, step: Duration) -> Result<Vec<Epoc
             why: format!("{n:.0} epochs exceed the limit of {MAX_EPOCHS}; use a larger --step"),
         });
     }
-    #[expect(clippy::cast_possible_truncation, reason = "n is bounded by MAX_EPOCHS above")]
+    #[expect(
+        clippy::cast_possible_truncation,
+        reason = "n is bounded by MAX_EPOCHS above"
+    )]
     let n = n as usize;
     Ok((0..n).map(|i| start + step * (i as i64)).collect())
 }
@@ -180,15 +182,21 @@ mod tests {
     fn utc_is_not_tdb() {
         // TDB - UTC at 2024 = 37 leap seconds + 32.184 s (+ periodic terms below 2 ms).
         let e = parse_utc("2024-01-03T00:00:00").unwrap();
-        let tdb_as_if_utc =
-            Epoch::from_gregorian(2024, 1, 3, 0, 0, 0, 0, hifitime::TimeScale::TDB);
+        let tdb_as_if_utc = Epoch::from_gregorian(2024, 1, 3, 0, 0, 0, 0, hifitime::TimeScale::TDB);
         let diff_s = (e - tdb_as_if_utc).to_seconds();
         assert!((diff_s - 69.184).abs() < 0.002, "TDB - UTC = {diff_s} s");
     }
 
     #[test]
     fn rejects_malformed_epochs() {
-        for s in ["2024-13-01", "2024-01-32", "yesterday", "2024-01-03T25:00", "2024/01/03", ""] {
+        for s in [
+            "2024-13-01",
+            "2024-01-32",
+            "yesterday",
+            "2024-01-03T25:00",
+            "2024/01/03",
+            "",
+        ] {
             assert!(parse_utc(s).is_err(), "{s} should not parse");
         }
     }
@@ -203,8 +211,20 @@ mod tests {
         assert!(parse_step("5").is_err());
         assert!(parse_step("3y").is_err());
         let s = parse_utc("2024-01-01").unwrap();
-        let r = epoch_range(s, parse_utc("2024-01-02").unwrap(), parse_step("6h").unwrap()).unwrap();
+        let r = epoch_range(
+            s,
+            parse_utc("2024-01-02").unwrap(),
+            parse_step("6h").unwrap(),
+        )
+        .unwrap();
         assert_eq!(r.len(), 5);
-        assert!(epoch_range(parse_utc("2024-01-02").unwrap(), s, parse_step("1h").unwrap()).is_err());
+        assert!(
+            epoch_range(
+                parse_utc("2024-01-02").unwrap(),
+                s,
+                parse_step("1h").unwrap()
+            )
+            .is_err()
+        );
     }
 }

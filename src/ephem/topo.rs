@@ -23,7 +23,7 @@ use anise::prelude::{Aberration, Almanac, Epoch, Frame};
 use nalgebra::{Matrix3, Vector3};
 
 use super::EphemError;
-use super::kernels::{EARTH_ID, MOON_ID, MOON_J2000, MOON_ME, SSB_ID, SUN_ID, J2000_ID};
+use super::kernels::{EARTH_ID, J2000_ID, MOON_ID, MOON_J2000, MOON_ME, SSB_ID, SUN_ID};
 use crate::frames::{az_el_deg_from_enu, enu_from_moon_me, site_in_moon_me_km};
 use crate::{EARTH_RADIUS_KM, SPEED_OF_LIGHT_KM_S, SUN_RADIUS_KM};
 
@@ -276,6 +276,53 @@ pub fn sun_earth(geo: &MoonGeometry, site: &Site, abcorr: AbCorr) -> SunEarth {
             EARTH_RADIUS_KM,
         ),
     }
+}
+
+/// Planetocentric latitude and east longitude (deg) of a sub-observer point on the Moon.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct SubPoint {
+    /// Planetocentric latitude, degrees.
+    pub lat_deg: f64,
+    /// East longitude, degrees, in `(-180, 180]`.
+    pub lon_deg: f64,
+}
+
+/// The sub-observer point of a body (the Sun: sub-solar point; the Earth: sub-Earth point) on the
+/// Moon's reference sphere, with SPICE `subpnt('INTERCEPT/ELLIPSOID', 'MOON', et, 'MOON_ME',
+/// abcorr, observer)` semantics: the Moon's apparent position seen from the observer (light time
+/// to the Moon's centre, one iteration, + stellar aberration of the observer's barycentric
+/// velocity) and `MOON_ME` evaluated at the light-time-corrected epoch `et − lt`.
+pub fn sub_observer_point(
+    almanac: &Almanac,
+    observer_id: i32,
+    epoch: Epoch,
+    abcorr: AbCorr,
+) -> Result<SubPoint, EphemError> {
+    let geometric = state(almanac, MOON_ID, observer_id, epoch)?;
+    let (pos, target_epoch) = match abcorr {
+        AbCorr::None => (geometric.pos_km, epoch),
+        AbCorr::LtS => {
+            let lt0_s = geometric.pos_km.norm() / SPEED_OF_LIGHT_KM_S;
+            let obs_ssb = state(almanac, observer_id, SSB_ID, epoch)?;
+            let lt_epoch = epoch - hifitime::Unit::Second * lt0_s;
+            let moon_ssb = state(almanac, MOON_ID, SSB_ID, lt_epoch)?;
+            let pos_lt = moon_ssb.pos_km - obs_ssb.pos_km;
+            let lt1_s = pos_lt.norm() / SPEED_OF_LIGHT_KM_S;
+            (
+                stellar_aberration(&pos_lt, &obs_ssb.vel_km_s),
+                epoch - hifitime::Unit::Second * lt1_s,
+            )
+        }
+    };
+    let dcm = almanac
+        .rotate(MOON_J2000, MOON_ME, target_epoch)
+        .map_err(|e| EphemError::Query {
+            action: "rotating J2000 to MOON_ME",
+            why: e.to_string(),
+        })?;
+    let observer_in_moon_me = -(to_na(&dcm.rot_mat) * pos);
+    let (lat_deg, lon_deg, _) = crate::frames::lat_lon_height_from_moon_me_km(&observer_in_moon_me);
+    Ok(SubPoint { lat_deg, lon_deg })
 }
 
 #[cfg(test)]

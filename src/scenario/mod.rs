@@ -112,7 +112,12 @@ impl Scenario {
         })?;
         let scenario: Scenario = toml::from_str(&text).map_err(|e| ScenarioError::Parse {
             path: path.display().to_string(),
-            why: e.to_string().replace('\n', " ").split_whitespace().collect::<Vec<_>>().join(" "),
+            why: e
+                .to_string()
+                .replace('\n', " ")
+                .split_whitespace()
+                .collect::<Vec<_>>()
+                .join(" "),
         })?;
         scenario.validate(path)?;
         Ok(scenario)
@@ -142,7 +147,7 @@ impl Scenario {
             if !seen.insert(s.name.clone()) {
                 return Err(invalid(format!("site name '{}' is used twice", s.name)));
             }
-            if !(s.height_above_ground_m >= 0.0) {
+            if s.height_above_ground_m.is_nan() || s.height_above_ground_m < 0.0 {
                 return Err(invalid(format!(
                     "site '{}': height_above_ground_m must be >= 0",
                     s.name

@@ -32,7 +32,9 @@ struct Row {
 
 fn read_fixture() -> Vec<Row> {
     let text = std::fs::read_to_string(fixture("spice_reference.csv")).expect("fixture exists");
-    let mut lines = text.lines().filter(|l| !l.starts_with('#') && !l.trim().is_empty());
+    let mut lines = text
+        .lines()
+        .filter(|l| !l.starts_with('#') && !l.trim().is_empty());
     let header: Vec<&str> = lines.next().expect("header").split(',').collect();
     let col = |name: &str| header.iter().position(|h| *h == name).expect(name);
     let (c_site, c_lat, c_lon, c_h, c_utc, c_t, c_ab, c_r, c_az, c_el) = (
@@ -87,8 +89,7 @@ fn sun_and_earth_match_spice_within_0_01_arcsec() {
             "EARTH" => v.earth,
             t => panic!("unknown target {t}"),
         };
-        let d_az_arcsec =
-            wrap_deg(body.az_deg - r.az_deg) * r.el_deg.to_radians().cos() * 3600.0;
+        let d_az_arcsec = wrap_deg(body.az_deg - r.az_deg) * r.el_deg.to_radians().cos() * 3600.0;
         let d_el_arcsec = (body.el_deg - r.el_deg) * 3600.0;
         let d_range_km = body.range_km - r.range_km;
         assert!(
@@ -120,16 +121,8 @@ fn reading_utc_as_tdb_would_move_the_sun_by_about_35_arcsec() {
     let kernels = Kernels::load(&kernels_dir()).unwrap();
     let site = Site::new(-89.45, -137.3, 1957.0).unwrap();
     let utc = ephem::time::parse_utc("2024-01-03T00:00:00").unwrap();
-    let tdb_reading = hifitime::Epoch::from_gregorian(
-        2024,
-        1,
-        3,
-        0,
-        0,
-        0,
-        0,
-        hifitime::TimeScale::TDB,
-    );
+    let tdb_reading =
+        hifitime::Epoch::from_gregorian(2024, 1, 3, 0, 0, 0, 0, hifitime::TimeScale::TDB);
     let s = ephem::sun_earth_series(&kernels, &[site], &[utc, tdb_reading], AbCorr::LtS).unwrap();
     let (a, b) = (&s[0][0].sun, &s[0][1].sun);
     let sep_arcsec = a.pos_in_moon_me_km.angle(&b.pos_in_moon_me_km).to_degrees() * 3600.0;
@@ -140,7 +133,9 @@ fn reading_utc_as_tdb_would_move_the_sun_by_about_35_arcsec() {
     // And the fixture says the UTC reading is the right one.
     let r = read_fixture()
         .into_iter()
-        .find(|r| r.utc.starts_with("2024-01-03T00:00:00") && r.target == "SUN" && r.abcorr == "LT+S")
+        .find(|r| {
+            r.utc.starts_with("2024-01-03T00:00:00") && r.target == "SUN" && r.abcorr == "LT+S"
+        })
         .expect("fixture has 2024-01-03T00:00:00");
     let site = Site::new(r.lat_deg, r.lon_deg, r.height_m).unwrap();
     let v = &ephem::sun_earth_series(&kernels, &[site], &[utc], AbCorr::LtS).unwrap()[0][0];
@@ -153,8 +148,12 @@ fn angular_radii_follow_from_range() {
     let site = Site::new(-89.45, -137.3, 0.0).unwrap();
     let e = ephem::time::parse_utc("2030-06-01T12:00:00").unwrap();
     let v = &ephem::sun_earth_series(&kernels, &[site], &[e], AbCorr::LtS).unwrap()[0][0];
-    let sun = (penumbra::SUN_RADIUS_KM / v.sun.range_km).asin().to_degrees();
-    let earth = (penumbra::EARTH_RADIUS_KM / v.earth.range_km).asin().to_degrees();
+    let sun = (penumbra::SUN_RADIUS_KM / v.sun.range_km)
+        .asin()
+        .to_degrees();
+    let earth = (penumbra::EARTH_RADIUS_KM / v.earth.range_km)
+        .asin()
+        .to_degrees();
     assert!((v.sun.radius_deg - sun).abs() < 1e-12);
     assert!((v.earth.radius_deg - earth).abs() < 1e-12);
     // Sanity: the Sun's disc is 0.26–0.28 deg in radius, the Earth's 0.89–0.98 deg.
@@ -169,11 +168,22 @@ fn ephem_cli_prints_the_documented_csv() {
     let out = penumbra(
         dir.path(),
         &[
-            "ephem", "--lat-deg", "-89.45", "--lon-deg", "-137.3", "--utc", "2024-01-03T00:00:00",
-            "--kernels", k.to_str().unwrap(),
+            "ephem",
+            "--lat-deg",
+            "-89.45",
+            "--lon-deg",
+            "-137.3",
+            "--utc",
+            "2024-01-03T00:00:00",
+            "--kernels",
+            k.to_str().unwrap(),
         ],
     );
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let text = String::from_utf8(out.stdout).unwrap();
     let mut lines = text.lines();
     assert_eq!(
@@ -196,12 +206,30 @@ fn ephem_range_to_file_and_json() {
     let out = penumbra(
         dir.path(),
         &[
-            "ephem", "--lat-deg", "-89.45", "--lon-deg", "-137.3", "--start", "2024-01-01",
-            "--stop", "2024-01-02", "--step", "6h", "--format", "json", "--out", "e.json",
-            "--kernels", k.to_str().unwrap(),
+            "ephem",
+            "--lat-deg",
+            "-89.45",
+            "--lon-deg",
+            "-137.3",
+            "--start",
+            "2024-01-01",
+            "--stop",
+            "2024-01-02",
+            "--step",
+            "6h",
+            "--format",
+            "json",
+            "--out",
+            "e.json",
+            "--kernels",
+            k.to_str().unwrap(),
         ],
     );
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let doc: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.path().join("e.json")).unwrap()).unwrap();
     assert_eq!(doc["epochs"].as_array().unwrap().len(), 5);
@@ -216,19 +244,49 @@ fn bad_ephem_input_gives_one_line_and_exit_2() {
     let k = k.to_str().unwrap();
     let base = ["ephem", "--kernels", k, "--lon-deg", "0"];
     let cases: Vec<(Vec<&str>, &str)> = vec![
-        (vec!["--lat-deg", "-89", "--utc", "2024-13-45"], "bad UTC epoch"),
+        (
+            vec!["--lat-deg", "-89", "--utc", "2024-13-45"],
+            "bad UTC epoch",
+        ),
         (vec!["--lat-deg", "-95", "--utc", "2024-01-01"], "latitude"),
         (
-            vec!["--lat-deg", "-89", "--start", "2024-01-01", "--stop", "2024-01-02", "--step", "0h"],
+            vec![
+                "--lat-deg",
+                "-89",
+                "--start",
+                "2024-01-01",
+                "--stop",
+                "2024-01-02",
+                "--step",
+                "0h",
+            ],
             "step",
         ),
         (
-            vec!["--lat-deg", "-89", "--start", "2024-01-02", "--stop", "2024-01-01", "--step", "1h"],
+            vec![
+                "--lat-deg",
+                "-89",
+                "--start",
+                "2024-01-02",
+                "--stop",
+                "2024-01-01",
+                "--step",
+                "1h",
+            ],
             "before start",
         ),
-        (vec!["--lat-deg", "-89", "--utc", "2060-01-01"], "outside the kernels' coverage"),
-        (vec!["--lat-deg", "-89", "--utc", "1990-01-01"], "outside the kernels' coverage"),
-        (vec!["--lat-deg", "-89", "--utc", "2024-01-01", "--abcorr", "cn"], "aberration"),
+        (
+            vec!["--lat-deg", "-89", "--utc", "2060-01-01"],
+            "outside the kernels' coverage",
+        ),
+        (
+            vec!["--lat-deg", "-89", "--utc", "1990-01-01"],
+            "outside the kernels' coverage",
+        ),
+        (
+            vec!["--lat-deg", "-89", "--utc", "2024-01-01", "--abcorr", "cn"],
+            "aberration",
+        ),
     ];
     for (extra, needle) in cases {
         let mut args = base.to_vec();
@@ -236,7 +294,11 @@ fn bad_ephem_input_gives_one_line_and_exit_2() {
         args.extend(["--out", "x.csv"]);
         let out = penumbra(dir.path(), &args);
         assert_clean_error(&out, needle);
-        assert!(files_in(dir.path()).is_empty(), "{:?} left files behind", extra);
+        assert!(
+            files_in(dir.path()).is_empty(),
+            "{:?} left files behind",
+            extra
+        );
     }
 }
 
@@ -246,7 +308,17 @@ fn missing_or_corrupt_kernels_are_clean_errors() {
     // Missing folder.
     let out = penumbra(
         dir.path(),
-        &["ephem", "--lat-deg", "-89", "--lon-deg", "0", "--utc", "2024-01-01", "--kernels", "nope"],
+        &[
+            "ephem",
+            "--lat-deg",
+            "-89",
+            "--lon-deg",
+            "0",
+            "--utc",
+            "2024-01-01",
+            "--kernels",
+            "nope",
+        ],
     );
     assert_clean_error(&out, "nope");
     // A corrupt SPK next to otherwise good kernels.
@@ -259,10 +331,7 @@ fn missing_or_corrupt_kernels_are_clean_errors() {
         }
     }
     std::fs::write(bad.join("corrupt.bsp"), b"DAF/SPK this is not a kernel").unwrap();
-    let out = penumbra(
-        dir.path(),
-        &["kernels", "--kernels", bad.to_str().unwrap()],
-    );
+    let out = penumbra(dir.path(), &["kernels", "--kernels", bad.to_str().unwrap()]);
     assert_clean_error(&out, "corrupt.bsp");
     // A folder without the Moon's orientation.
     let partial = dir.path().join("partial");
@@ -273,7 +342,10 @@ fn missing_or_corrupt_kernels_are_clean_errors() {
             std::fs::copy(&f, partial.join(f.file_name().unwrap())).unwrap();
         }
     }
-    let out = penumbra(dir.path(), &["kernels", "--kernels", partial.to_str().unwrap()]);
+    let out = penumbra(
+        dir.path(),
+        &["kernels", "--kernels", partial.to_str().unwrap()],
+    );
     assert_clean_error(&out, "PCK");
 }
 
@@ -282,7 +354,11 @@ fn kernels_command_lists_coverage() {
     let dir = tempfile::tempdir().unwrap();
     let k = kernels_dir();
     let out = penumbra(dir.path(), &["kernels", "--kernels", k.to_str().unwrap()]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let text = String::from_utf8(out.stdout).unwrap();
     for needle in ["Sun", "Earth", "Moon", "MOON_ME", "usable epochs", "sha256"] {
         assert!(text.contains(needle), "missing {needle}: {text}");
@@ -318,23 +394,45 @@ lon_deg = 2.93
     )
     .unwrap();
     let out = penumbra(dir.path(), &["run", "s.toml"]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let res = dir.path().join("res");
-    assert_eq!(files_in(&res), vec!["a_ephem.csv", "b_ephem.csv", "run.json"]);
+    assert_eq!(
+        files_in(&res),
+        vec!["a_ephem.csv", "b_ephem.csv", "run.json"]
+    );
     let a = std::fs::read_to_string(res.join("a_ephem.csv")).unwrap();
     assert_eq!(a.lines().count(), 26, "header + 25 hourly rows");
     let run: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(res.join("run.json")).unwrap()).unwrap();
     assert_eq!(run["epoch_count"], 25);
     assert_eq!(run["scenario"]["sites"][0]["height_above_ground_m"], 2.0);
-    assert!(run["kernels"].as_array().unwrap().iter().all(|k| k["sha256"].as_str().unwrap().len() == 64));
+    assert!(
+        run["kernels"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .all(|k| k["sha256"].as_str().unwrap().len() == 64)
+    );
     // The CSV row for the first epoch equals `penumbra ephem` for the same site and height.
     let k = kernels_dir();
     let e = penumbra(
         dir.path(),
         &[
-            "ephem", "--lat-deg", "-89.45", "--lon-deg", "-137.3", "--height-m", "1957",
-            "--utc", "2030-01-01", "--kernels", k.to_str().unwrap(),
+            "ephem",
+            "--lat-deg",
+            "-89.45",
+            "--lon-deg",
+            "-137.3",
+            "--height-m",
+            "1957",
+            "--utc",
+            "2030-01-01",
+            "--kernels",
+            k.to_str().unwrap(),
         ],
     );
     let e = String::from_utf8(e.stdout).unwrap();

@@ -22,7 +22,9 @@ pub fn kernels_dir() -> PathBuf {
 
 /// A file of the shared LOLA data, or `None` (with a printed reason) when it is absent.
 pub fn shared_lola(name: &str) -> Option<PathBuf> {
-    let p = root().join("../shared/data/lola-south-pole-moondao").join(name);
+    let p = root()
+        .join("../shared/data/lola-south-pole-moondao")
+        .join(name);
     if p.is_file() {
         Some(p)
     } else {
