@@ -1,1 +1,2 @@
+//! Ephemeris benches (placeholder until the ephem subsystem lands).
 fn main() {}
