@@ -317,6 +317,7 @@ mod tests {
                 max_err_m = max_err_m.max((z - expected).abs());
             }
         }
+        println!("flat DEM -> sphere: max |z - closed form| = {max_err_m:.2e} m, {stats:?}");
         // f32 storage of z (|z| < 1.5 km here) rounds to < 0.1 mm; the tolerance is 1 mm.
         assert!(max_err_m < 1e-3, "max error {max_err_m} m");
         assert!(stats.max_iterations <= 2, "{stats:?}");
@@ -372,11 +373,59 @@ mod tests {
                 max_residual_m = max_residual_m.max((h - dem_h).abs());
             }
         }
+        println!("surface residual max {max_residual_m:.2e} m, {stats:?}");
         // Residual budget: f32 storage of z (~1 mm at |z| ~ 10 km) dominates.
         assert!(max_residual_m < 5e-3, "max residual {max_residual_m} m");
         assert_eq!(stats.unconverged, 0);
         // Measured: mean 3.8, max 5 iterations to |dz| < 0.1 mm at up to 68 km from C.
         assert!(stats.max_iterations <= 6, "{stats:?}");
+    }
+
+    #[test]
+    fn interpolation_error_against_an_analytic_surface_is_within_the_bilinear_bound() {
+        // h is analytic in polar stereographic x/y; the DEM holds it at 500 m cell centres. The
+        // exact model z solves the same fixed point with h evaluated in closed form (converged to
+        // 1e-9 m), so the difference is the resampling (bilinear interpolation) error alone.
+        let (amp_m, lx_m, ly_m, px_m) = (1500.0, 9000.0, 7000.0, 500.0);
+        let f = move |x: f64, y: f64| amp_m * (x / lx_m).sin() * (y / ly_m).cos();
+        let stack = TerrainStack::new(vec![polar_dem(400, px_m, f)]);
+        let spec = ModelGridSpec {
+            centre_lat_deg: -89.0,
+            centre_lon_deg: 100.0,
+            rows: 50,
+            cols: 50,
+            px_m: 730.0,
+        };
+        let (hf, _) = resample_to_model_space(&stack, &spec).unwrap();
+        let frame = ModelFrame::of(&hf);
+        let proj = crate::terrain::Projection::LOLA_SOUTH_POLAR;
+        let (mut max_err_m, mut sum_sq) = (0.0_f64, 0.0);
+        for row in 0..hf.rows {
+            for col in 0..hf.cols {
+                let (x, y) = hf.xy_from_row_col(row as f64, col as f64);
+                let mut z = 0.0;
+                for _ in 0..50 {
+                    let (lat, lon, _) = frame.lat_lon_height_from_model(&Vector3::new(x, y, z));
+                    let (xs, ys) = proj.xy_from_lat_lon(lat, lon);
+                    let rr = MOON_RADIUS_M + f(xs, ys);
+                    z = (rr * rr - x * x - y * y).sqrt() - MOON_RADIUS_M;
+                }
+                let err = f64::from(hf.z_at(row as isize, col as isize).unwrap()) - z;
+                max_err_m = max_err_m.max(err.abs());
+                sum_sq += err * err;
+            }
+        }
+        let rms_m = (sum_sq / (hf.rows * hf.cols) as f64).sqrt();
+        // Bilinear error bound: px²/8 (|h_xx| + |h_yy|) ≤ px²/8 · A (1/Lx² + 1/Ly²) = 1.53 m.
+        let bound_m = px_m * px_m / 8.0 * amp_m * (1.0 / (lx_m * lx_m) + 1.0 / (ly_m * ly_m));
+        println!(
+            "resampling error vs analytic surface: max {max_err_m:.3} m, rms {rms_m:.3} m, bound {bound_m:.3} m"
+        );
+        assert!(max_err_m < bound_m, "max {max_err_m} m > bound {bound_m} m");
+        assert!(
+            max_err_m > 1e-3,
+            "a test that cannot fail is no test: {max_err_m}"
+        );
     }
 
     #[test]

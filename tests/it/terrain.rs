@@ -258,6 +258,7 @@ fn resampling_the_lola_stack_into_model_space_lands_on_the_surface() {
             worst_m = worst_m.max((h - dem_h).abs());
         }
     }
+    println!("LOLA stack -> model space: worst residual {worst_m:.2e} m");
     // f32 storage of z (|z| up to ~5 km here: ulp 0.5 mm) bounds the residual.
     assert!(worst_m < 2e-3, "worst residual {worst_m} m");
 }
