@@ -15,6 +15,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Ephem(args) => run_ephem(&args),
         Command::Kernels(args) => run_kernels(&args),
         Command::Run(args) => crate::scenario::run_file(&args),
+        Command::Dem { command } => run_dem(command),
     }
 }
 
@@ -201,5 +202,73 @@ fn body_name(id: i32) -> &'static str {
         8 => "Neptune barycentre",
         9 => "Pluto barycentre",
         _ => "",
+    }
+}
+
+/// `penumbra dem info|synth`.
+fn run_dem(command: crate::cli::DemCommand) -> anyhow::Result<()> {
+    use crate::cli::{DemCommand, InfoFormat};
+    use crate::terrain::{self, DemInfo, synth};
+    use anyhow::Context as _;
+    match command {
+        DemCommand::Info { file, format, at } => {
+            let dem = terrain::load_dem(&file)?;
+            let info = DemInfo::of(&dem);
+            let stack = terrain::TerrainStack::new(vec![dem]);
+            let mut points = Vec::new();
+            for spec in &at {
+                let (lat, lon) = spec
+                    .split_once(',')
+                    .and_then(|(a, b)| {
+                        Some((a.trim().parse::<f64>().ok()?, b.trim().parse::<f64>().ok()?))
+                    })
+                    .with_context(|| format!("--at {spec:?}: expected LAT,LON in degrees"))?;
+                let (h, _) = stack.height_at_lat_lon_m_checked(lat, lon)?;
+                points.push((lat, lon, h));
+            }
+            match format {
+                InfoFormat::Text => {
+                    print!("{}", info.to_text());
+                    for (lat, lon, h) in &points {
+                        println!("height at {lat}, {lon}: {h:.3} m");
+                    }
+                }
+                InfoFormat::Json => {
+                    let mut v = serde_json::to_value(&info)?;
+                    v["points"] = points
+                        .iter()
+                        .map(|(lat, lon, h)| serde_json::json!({"lat_deg": lat, "lon_deg": lon, "height_m": h}))
+                        .collect();
+                    println!("{}", serde_json::to_string_pretty(&v)?);
+                }
+            }
+            Ok(())
+        }
+        DemCommand::Synth {
+            size,
+            px_m,
+            seed,
+            out,
+        } => {
+            let dem = synth::south_polar_dem(&synth::SynthParams {
+                size_px: size,
+                px_m,
+                seed,
+            })?;
+            let (version, seed_s) = (env!("CARGO_PKG_VERSION").to_string(), seed.to_string());
+            let (size_s, px_s) = (size.to_string(), px_m.to_string());
+            terrain::write_dem(
+                &out,
+                &dem,
+                &[
+                    ("software", &format!("penumbra {version}")),
+                    ("synth_seed", &seed_s),
+                    ("synth_size_px", &size_s),
+                    ("synth_px_m", &px_s),
+                    ("units", "m above the 1737.4 km sphere"),
+                ],
+            )?;
+            Ok(())
+        }
     }
 }

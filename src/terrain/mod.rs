@@ -1,7 +1,55 @@
 //! Terrain: DEM rasters, georeferencing, DEM layers and the curvature-exact model space.
+//!
+//! - [`grid`]: projections, the pixel ↔ map transform, nodata-aware bilinear sampling, layers.
+//! - [`geotiff`]: GeoTIFF input and output.
+//! - [`model_space`]: resampling a [`TerrainStack`] onto a model-space [`HeightField`].
+//! - [`synth`]: the seeded synthetic south-polar DEM and analytic test DEMs.
+//!
+//! See `docs/terrain.md` for formats, conventions and measured accuracy.
 
+pub mod error;
+pub mod geotiff;
 pub mod grid;
 pub mod heightfield;
+pub mod info;
+pub mod model_space;
+pub mod synth;
 
+use std::path::Path;
+
+pub use error::DemError;
+pub use geotiff::{
+    read_geotiff, write_dem, write_geotiff_f32, write_geotiff_u8, write_geotiff_u16,
+};
 pub use grid::{Dem, GridGeometry, Projection, TerrainStack};
 pub use heightfield::HeightField;
+pub use info::DemInfo;
+pub use model_space::{ModelFrame, ModelGridSpec, ResampleStats, resample_to_model_space};
+
+/// Loads a DEM file. GeoTIFF is the only format read today (PDS3 `.IMG` + `.LBL` is not
+/// supported yet).
+pub fn load_dem(path: &Path) -> error::Result<Dem> {
+    read_geotiff(path)
+}
+
+impl TerrainStack {
+    /// Loads DEM layers from files and sorts them finest first.
+    pub fn load<P: AsRef<Path>>(paths: &[P]) -> error::Result<Self> {
+        let layers = paths
+            .iter()
+            .map(|p| load_dem(p.as_ref()))
+            .collect::<error::Result<Vec<_>>>()?;
+        Ok(TerrainStack::new(layers))
+    }
+
+    /// Like [`TerrainStack::height_at_lat_lon_m`], with [`DemError::OutsideLayers`] where no
+    /// layer has a surface.
+    pub fn height_at_lat_lon_m_checked(
+        &self,
+        lat_deg: f64,
+        lon_deg: f64,
+    ) -> error::Result<(f64, usize)> {
+        self.height_at_lat_lon_m(lat_deg, lon_deg)
+            .ok_or(DemError::OutsideLayers { lat_deg, lon_deg })
+    }
+}

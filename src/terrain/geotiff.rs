@@ -1,0 +1,1334 @@
+//! GeoTIFF input and output for single-band DEMs and maps, with the pure-Rust `tiff` crate.
+//!
+//! **Reading** ([`read_geotiff`]): float32, int16, uint16 and uint8 samples, strips or tiles,
+//! uncompressed, LZW or Deflate (decoded by `tiff`). Integer samples are scaled with the
+//! `SCALE`/`OFFSET` items of the GDAL_METADATA tag (42112) when present; the GDAL_NODATA tag
+//! (42113) marks holes, which become `NaN`. Georeferencing comes from the GeoTIFF 1.0 tags
+//! ModelPixelScale (33550) + ModelTiepoint (33922), or ModelTransformation (34264, no rotation),
+//! and the GeoKeyDirectory (34735) with its double (34736) and ASCII (34737) parameters. Two
+//! CRSs are recognised, both on a sphere of lunar radius (LOLA's conventions):
+//! - polar stereographic: `ProjCoordTransGeoKey = CT_PolarStereographic (15)` with latitude of
+//!   origin ±90°, central meridian from `ProjStraightVertPoleLong` (or `ProjNatOriginLong`),
+//!   scale factor `ProjScaleAtNatOrigin` (or a standard parallel, GDAL "variant B");
+//! - equirectangular: `CT_Equirectangular (17)`, central meridian `ProjCenterLong`, latitude of
+//!   true scale `ProjStdParallel1`;
+//! - as a fallback, a PROJ string (`+proj=stere`/`+proj=eqc ...`) in a citation key.
+//!
+//! A pixel-is-point raster (`GTRasterTypeGeoKey = 2`) is shifted by half a pixel into the
+//! pixel-is-area convention of [`GridGeometry`], exactly as GDAL does. False easting/northing
+//! are folded into the grid origin, so the [`Projection`] never carries them.
+//!
+//! Memory: the image is decoded chunk by chunk (strip or tile) straight into the output
+//! `Vec<f32>`, so the peak is the DEM itself plus one chunk (see `docs/terrain.md` for the
+//! measured figure).
+//!
+//! **Writing** ([`write_geotiff_f32`], [`write_geotiff_u16`], [`write_geotiff_u8`],
+//! [`write_dem`]): uncompressed strips with ModelPixelScale, ModelTiepoint, a user-defined
+//! GeoKeyDirectory (sphere `R`, polar stereographic or equirectangular), GDAL_NODATA and an
+//! optional GDAL_METADATA block (provenance items). Files are encoded in memory and written with
+//! [`crate::output::write_atomic`] (temp file + rename).
+
+use std::collections::BTreeMap;
+use std::io::{Cursor, Read, Seek};
+use std::path::Path;
+
+use tiff::decoder::{ChunkType, Decoder, DecodingResult};
+use tiff::encoder::{TiffEncoder, colortype};
+use tiff::tags::Tag;
+use tiff::{TiffError, TiffFormatError};
+
+use super::error::{DemError, Result};
+use super::grid::{Dem, GridGeometry, Projection};
+use crate::output::{OutputError, write_atomic};
+
+/// TIFF tag of GDAL's XML metadata block.
+const TAG_GDAL_METADATA: u16 = 42112;
+/// TIFF tag of GDAL's nodata value (ASCII).
+const TAG_GDAL_NODATA: u16 = 42113;
+
+// GeoKey ids (GeoTIFF 1.0 specification, section 6.2).
+const KEY_MODEL_TYPE: u16 = 1024;
+const KEY_RASTER_TYPE: u16 = 1025;
+const KEY_GT_CITATION: u16 = 1026;
+const KEY_GEOGRAPHIC_TYPE: u16 = 2048;
+const KEY_GEOG_CITATION: u16 = 2049;
+const KEY_GEOG_DATUM: u16 = 2050;
+const KEY_GEOG_ANGULAR_UNITS: u16 = 2054;
+const KEY_GEOG_ELLIPSOID: u16 = 2056;
+const KEY_GEOG_SEMI_MAJOR: u16 = 2057;
+const KEY_GEOG_SEMI_MINOR: u16 = 2058;
+const KEY_GEOG_INV_FLATTENING: u16 = 2059;
+const KEY_GEOG_PRIME_MERIDIAN_LONG: u16 = 2061;
+const KEY_PROJECTED_CS_TYPE: u16 = 3072;
+const KEY_PCS_CITATION: u16 = 3073;
+const KEY_PROJECTION: u16 = 3074;
+const KEY_PROJ_COORD_TRANS: u16 = 3075;
+const KEY_PROJ_LINEAR_UNITS: u16 = 3076;
+const KEY_PROJ_STD_PARALLEL1: u16 = 3078;
+const KEY_PROJ_NAT_ORIGIN_LONG: u16 = 3080;
+const KEY_PROJ_NAT_ORIGIN_LAT: u16 = 3081;
+const KEY_PROJ_FALSE_EASTING: u16 = 3082;
+const KEY_PROJ_FALSE_NORTHING: u16 = 3083;
+const KEY_PROJ_CENTER_LONG: u16 = 3088;
+const KEY_PROJ_CENTER_LAT: u16 = 3089;
+const KEY_PROJ_SCALE_AT_NAT_ORIGIN: u16 = 3092;
+const KEY_PROJ_STRAIGHT_VERT_POLE_LONG: u16 = 3095;
+
+/// GeoTIFF "user-defined" code.
+const USER_DEFINED: u16 = 32767;
+/// `CT_PolarStereographic`.
+const CT_POLAR_STEREOGRAPHIC: u16 = 15;
+/// `CT_Equirectangular`.
+const CT_EQUIRECTANGULAR: u16 = 17;
+/// EPSG unit code of the metre.
+const EPSG_METRE: u16 = 9001;
+/// EPSG unit code of the degree.
+const EPSG_DEGREE: u16 = 9102;
+/// Range of sphere radii accepted as "the Moon", metres (LOLA uses 1,737,400 m; some products
+/// use 1,737,150 m).
+const LUNAR_RADIUS_RANGE_M: std::ops::RangeInclusive<f64> = 1_700_000.0..=1_780_000.0;
+
+/// One GeoKey value.
+#[derive(Debug, Clone, PartialEq)]
+enum GeoKeyValue {
+    Short(u16),
+    Doubles(Vec<f64>),
+    Ascii(String),
+}
+
+/// Reads a single-band GeoTIFF DEM (see the module docs for what is supported). Heights are
+/// returned as stored (after scale/offset), nodata as `NaN`.
+pub fn read_geotiff(path: &Path) -> Result<Dem> {
+    Ok(read_geotiff_with_metadata(path)?.0)
+}
+
+/// Like [`read_geotiff`], and also returns the `name`/value items of the GDAL_METADATA tag
+/// (empty when there is none).
+pub fn read_geotiff_with_metadata(path: &Path) -> Result<(Dem, Vec<(String, String)>)> {
+    let name = path.display().to_string();
+    let file = std::fs::File::open(path).map_err(|source| DemError::Io {
+        path: name.clone(),
+        source,
+    })?;
+    read_geotiff_from(std::io::BufReader::new(file), &name)
+}
+
+/// Reads a single-band GeoTIFF from any seekable reader; `name` labels the DEM and the errors.
+pub fn read_geotiff_from<R: Read + Seek>(
+    reader: R,
+    name: &str,
+) -> Result<(Dem, Vec<(String, String)>)> {
+    let tiff_err = |e: TiffError| map_tiff_error(name, e);
+    let mut decoder = Decoder::new(reader).map_err(tiff_err)?;
+
+    // --- sample layout -------------------------------------------------------------------------
+    let (cols_u32, rows_u32) = decoder.dimensions().map_err(tiff_err)?;
+    let bands: u16 = decoder
+        .find_tag_unsigned(Tag::SamplesPerPixel)
+        .map_err(tiff_err)?
+        .unwrap_or(1);
+    if bands != 1 {
+        return Err(DemError::MultiBand {
+            path: name.into(),
+            bands,
+        });
+    }
+    let bits: u16 = decoder
+        .find_tag_unsigned(Tag::BitsPerSample)
+        .map_err(tiff_err)?
+        .unwrap_or(1);
+    let format: u16 = decoder
+        .find_tag_unsigned(Tag::SampleFormat)
+        .map_err(tiff_err)?
+        .unwrap_or(1);
+    let kind = match (format, bits) {
+        (3, 32) => SampleKind::F32,
+        (2, 16) => SampleKind::I16,
+        (1, 16) => SampleKind::U16,
+        (1, 8) => SampleKind::U8,
+        _ => {
+            let what = match format {
+                1 => "unsigned integer",
+                2 => "signed integer",
+                3 => "float",
+                5 => "complex integer",
+                6 => "complex float",
+                _ => "undefined",
+            };
+            return Err(DemError::UnsupportedSampleFormat {
+                path: name.into(),
+                detail: format!("{bits}-bit {what}"),
+            });
+        }
+    };
+
+    // --- georeferencing ------------------------------------------------------------------------
+    let geo_err = |detail: String| DemError::Georeferencing {
+        path: name.into(),
+        detail,
+    };
+    let pixel_scale = find_f64s(&mut decoder, Tag::ModelPixelScaleTag).map_err(tiff_err)?;
+    let tiepoint = find_f64s(&mut decoder, Tag::ModelTiepointTag).map_err(tiff_err)?;
+    let transformation = find_f64s(&mut decoder, Tag::ModelTransformationTag).map_err(tiff_err)?;
+    let key_dir = match decoder
+        .find_tag(Tag::GeoKeyDirectoryTag)
+        .map_err(tiff_err)?
+    {
+        Some(v) => v.into_u16_vec().map_err(tiff_err)?,
+        None => {
+            return Err(geo_err(
+                "no GeoKeyDirectory tag (34735): not a GeoTIFF".into(),
+            ));
+        }
+    };
+    let doubles = find_f64s(&mut decoder, Tag::GeoDoubleParamsTag)
+        .map_err(tiff_err)?
+        .unwrap_or_default();
+    let ascii = find_ascii(&mut decoder, Tag::GeoAsciiParamsTag)
+        .map_err(tiff_err)?
+        .unwrap_or_default();
+    let keys = parse_geo_keys(&key_dir, &doubles, &ascii).map_err(geo_err)?;
+    let crs = projection_from_geo_keys(&keys).map_err(|detail| DemError::UnknownCrs {
+        path: name.into(),
+        detail,
+    })?;
+    let pixel_is_point = matches!(keys.get(&KEY_RASTER_TYPE), Some(GeoKeyValue::Short(2)));
+    let grid = grid_from_tags(
+        rows_u32 as usize,
+        cols_u32 as usize,
+        pixel_scale.as_deref(),
+        tiepoint.as_deref(),
+        transformation.as_deref(),
+        pixel_is_point,
+        (crs.false_easting_m, crs.false_northing_m),
+    )
+    .map_err(geo_err)?;
+
+    // --- nodata and scale/offset ---------------------------------------------------------------
+    let nodata = find_ascii(&mut decoder, Tag::Unknown(TAG_GDAL_NODATA))
+        .map_err(tiff_err)?
+        .and_then(|s| parse_nodata(&s));
+    let metadata = find_ascii(&mut decoder, Tag::Unknown(TAG_GDAL_METADATA))
+        .map_err(tiff_err)?
+        .map(|xml| parse_gdal_metadata(&xml))
+        .unwrap_or_default();
+    let band_item = |role: &str| -> Option<f64> {
+        metadata
+            .iter()
+            .find(|item| {
+                item.name.eq_ignore_ascii_case(role) && item.sample.as_deref() != Some("1")
+            })
+            .and_then(|item| item.value.trim().parse().ok())
+    };
+    let scale = band_item("SCALE").unwrap_or(1.0);
+    let offset = band_item("OFFSET").unwrap_or(0.0);
+
+    // --- pixels, chunk by chunk into the output buffer ----------------------------------------
+    let (rows, cols) = (grid.rows, grid.cols);
+    let mut heights_m = vec![f32::NAN; rows * cols];
+    let chunk_type = decoder.get_chunk_type();
+    let (chunk_w, chunk_h) = decoder.chunk_dimensions();
+    let (chunk_w, chunk_h) = (chunk_w as usize, chunk_h as usize);
+    let n_chunks = match chunk_type {
+        ChunkType::Strip => decoder.strip_count(),
+        ChunkType::Tile => decoder.tile_count(),
+    }
+    .map_err(tiff_err)?;
+    let chunks_across = match chunk_type {
+        ChunkType::Strip => 1,
+        ChunkType::Tile => cols.div_ceil(chunk_w.max(1)),
+    };
+    for chunk in 0..n_chunks {
+        let (w, h) = decoder.chunk_data_dimensions(chunk);
+        let (w, h) = (w as usize, h as usize);
+        let idx = chunk as usize;
+        let (col0, row0) = match chunk_type {
+            ChunkType::Strip => (0, idx * chunk_h),
+            ChunkType::Tile => (
+                (idx % chunks_across) * chunk_w,
+                (idx / chunks_across) * chunk_h,
+            ),
+        };
+        let data = decoder.read_chunk(chunk).map_err(tiff_err)?;
+        let place = Placement {
+            cols,
+            rows,
+            col0,
+            row0,
+            w,
+            h,
+        };
+        match (kind, data) {
+            (SampleKind::F32, DecodingResult::F32(v)) => {
+                let nd = nodata.map(|n| n as f32);
+                place.copy(&mut heights_m, &v, |x| {
+                    if Some(x) == nd {
+                        f32::NAN
+                    } else if scale == 1.0 && offset == 0.0 {
+                        x
+                    } else {
+                        (f64::from(x) * scale + offset) as f32
+                    }
+                });
+            }
+            (SampleKind::I16, DecodingResult::I16(v)) => {
+                place.copy(&mut heights_m, &v, |x| {
+                    int_sample(f64::from(x), nodata, scale, offset)
+                });
+            }
+            (SampleKind::U16, DecodingResult::U16(v)) => {
+                place.copy(&mut heights_m, &v, |x| {
+                    int_sample(f64::from(x), nodata, scale, offset)
+                });
+            }
+            (SampleKind::U8, DecodingResult::U8(v)) => {
+                place.copy(&mut heights_m, &v, |x| {
+                    int_sample(f64::from(x), nodata, scale, offset)
+                });
+            }
+            (_, other) => {
+                return Err(DemError::Decode {
+                    path: name.into(),
+                    detail: format!(
+                        "decoder returned {} samples for a {kind:?} raster",
+                        variant_name(&other)
+                    ),
+                });
+            }
+        }
+    }
+    if heights_m.iter().all(|h| h.is_nan()) {
+        return Err(DemError::AllNodata { path: name.into() });
+    }
+    let items = metadata
+        .into_iter()
+        .filter(|item| item.sample.is_none() && item.role.is_none())
+        .map(|item| (item.name, item.value))
+        .collect();
+    Ok((
+        Dem {
+            grid,
+            projection: crs.projection,
+            heights_m,
+            name: name.into(),
+        },
+        items,
+    ))
+}
+
+/// The sample types penumbra reads.
+#[derive(Debug, Clone, Copy)]
+enum SampleKind {
+    F32,
+    I16,
+    U16,
+    U8,
+}
+
+fn variant_name(d: &DecodingResult) -> &'static str {
+    match d {
+        DecodingResult::U8(_) => "u8",
+        DecodingResult::U16(_) => "u16",
+        DecodingResult::U32(_) => "u32",
+        DecodingResult::U64(_) => "u64",
+        DecodingResult::F16(_) => "f16",
+        DecodingResult::F32(_) => "f32",
+        DecodingResult::F64(_) => "f64",
+        DecodingResult::I8(_) => "i8",
+        DecodingResult::I16(_) => "i16",
+        DecodingResult::I32(_) => "i32",
+        DecodingResult::I64(_) => "i64",
+    }
+}
+
+#[inline]
+fn int_sample(raw: f64, nodata: Option<f64>, scale: f64, offset: f64) -> f32 {
+    if Some(raw) == nodata {
+        f32::NAN
+    } else {
+        (raw * scale + offset) as f32
+    }
+}
+
+/// Where a decoded chunk (`w` x `h` samples, row-major) lands in the image.
+struct Placement {
+    cols: usize,
+    rows: usize,
+    col0: usize,
+    row0: usize,
+    w: usize,
+    h: usize,
+}
+
+impl Placement {
+    fn copy<T: Copy>(&self, out: &mut [f32], src: &[T], conv: impl Fn(T) -> f32) {
+        let w = self.w.min(self.cols.saturating_sub(self.col0));
+        let h = self.h.min(self.rows.saturating_sub(self.row0));
+        for r in 0..h {
+            let Some(src_row) = src.get(r * self.w..r * self.w + w) else {
+                return;
+            };
+            let start = (self.row0 + r) * self.cols + self.col0;
+            for (o, &s) in out[start..start + w].iter_mut().zip(src_row) {
+                *o = conv(s);
+            }
+        }
+    }
+}
+
+fn map_tiff_error(name: &str, e: TiffError) -> DemError {
+    match e {
+        TiffError::FormatError(
+            f @ (TiffFormatError::TiffSignatureNotFound | TiffFormatError::TiffSignatureInvalid),
+        ) => DemError::NotTiff {
+            path: name.into(),
+            detail: f.to_string(),
+        },
+        TiffError::IoError(io) if io.kind() == std::io::ErrorKind::UnexpectedEof => {
+            DemError::Truncated {
+                path: name.into(),
+                detail: io.to_string(),
+            }
+        }
+        TiffError::IoError(io) => DemError::Io {
+            path: name.into(),
+            source: io,
+        },
+        TiffError::UnsupportedError(u) if u.to_string().to_lowercase().contains("sample") => {
+            DemError::UnsupportedSampleFormat {
+                path: name.into(),
+                detail: u.to_string(),
+            }
+        }
+        other => DemError::Decode {
+            path: name.into(),
+            detail: other.to_string(),
+        },
+    }
+}
+
+fn find_f64s<R: Read + Seek>(
+    decoder: &mut Decoder<R>,
+    tag: Tag,
+) -> std::result::Result<Option<Vec<f64>>, TiffError> {
+    decoder.find_tag(tag)?.map(|v| v.into_f64_vec()).transpose()
+}
+
+fn find_ascii<R: Read + Seek>(
+    decoder: &mut Decoder<R>,
+    tag: Tag,
+) -> std::result::Result<Option<String>, TiffError> {
+    decoder.find_tag(tag)?.map(|v| v.into_string()).transpose()
+}
+
+/// Parses the GeoKeyDirectory (GeoTIFF 1.0 section 2.4): a header `(version, revision, minor,
+/// count)` then `count` entries `(key, location, count, value_or_offset)`.
+fn parse_geo_keys(
+    dir: &[u16],
+    doubles: &[f64],
+    ascii: &str,
+) -> std::result::Result<BTreeMap<u16, GeoKeyValue>, String> {
+    if dir.len() < 4 {
+        return Err("GeoKeyDirectory shorter than its header".into());
+    }
+    let n = usize::from(dir[3]);
+    if dir.len() < 4 + 4 * n {
+        return Err(format!(
+            "GeoKeyDirectory announces {n} keys but holds {} values",
+            dir.len()
+        ));
+    }
+    let mut keys = BTreeMap::new();
+    for e in dir[4..4 + 4 * n].chunks_exact(4) {
+        let (key, loc, count, off) = (e[0], e[1], usize::from(e[2]), usize::from(e[3]));
+        let value = match loc {
+            0 => GeoKeyValue::Short(e[3]),
+            34736 => GeoKeyValue::Doubles(
+                doubles
+                    .get(off..off + count)
+                    .ok_or_else(|| format!("GeoKey {key}: double parameters out of range"))?
+                    .to_vec(),
+            ),
+            34737 => {
+                let s = ascii
+                    .get(off..(off + count).min(ascii.len()))
+                    .ok_or_else(|| format!("GeoKey {key}: ASCII parameters out of range"))?;
+                GeoKeyValue::Ascii(s.trim_end_matches(['|', '\0']).to_string())
+            }
+            34735 => GeoKeyValue::Short(*dir.get(off).unwrap_or(&0)),
+            _ => continue,
+        };
+        keys.insert(key, value);
+    }
+    Ok(keys)
+}
+
+/// A recognised CRS: the projection and the false easting/northing (folded into the grid).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Crs {
+    projection: Projection,
+    false_easting_m: f64,
+    false_northing_m: f64,
+}
+
+fn key_short(keys: &BTreeMap<u16, GeoKeyValue>, key: u16) -> Option<u16> {
+    match keys.get(&key) {
+        Some(GeoKeyValue::Short(v)) => Some(*v),
+        _ => None,
+    }
+}
+
+fn key_f64(keys: &BTreeMap<u16, GeoKeyValue>, key: u16) -> Option<f64> {
+    match keys.get(&key) {
+        Some(GeoKeyValue::Doubles(v)) => v.first().copied(),
+        _ => None,
+    }
+}
+
+/// Recognises polar stereographic or equirectangular on a lunar sphere from the GeoKeys (see the
+/// module docs); the error string says why a CRS was rejected.
+fn projection_from_geo_keys(keys: &BTreeMap<u16, GeoKeyValue>) -> std::result::Result<Crs, String> {
+    let model_type = key_short(keys, KEY_MODEL_TYPE);
+    if model_type == Some(2) {
+        return Err(
+            "geographic (latitude/longitude) raster; reproject to polar stereographic or equirectangular metres"
+                .into(),
+        );
+    }
+    let Some(ct) = key_short(keys, KEY_PROJ_COORD_TRANS) else {
+        // Fallback: a PROJ string in one of the citations.
+        for key in [KEY_PCS_CITATION, KEY_GT_CITATION, KEY_GEOG_CITATION] {
+            if let Some(GeoKeyValue::Ascii(s)) = keys.get(&key)
+                && s.contains("+proj=")
+            {
+                return crs_from_proj_string(s);
+            }
+        }
+        return Err(match key_short(keys, KEY_PROJECTED_CS_TYPE) {
+            Some(code) if code != USER_DEFINED => {
+                format!("EPSG:{code} is not a lunar polar stereographic or equirectangular CRS")
+            }
+            _ => "no ProjCoordTransGeoKey and no PROJ string".into(),
+        });
+    };
+    if let Some(units) = key_short(keys, KEY_PROJ_LINEAR_UNITS)
+        && units != EPSG_METRE
+    {
+        return Err(format!("linear unit EPSG:{units} is not the metre"));
+    }
+    let radius_m = sphere_radius_m(keys)?;
+    let fe = key_f64(keys, KEY_PROJ_FALSE_EASTING).unwrap_or(0.0);
+    let fn_ = key_f64(keys, KEY_PROJ_FALSE_NORTHING).unwrap_or(0.0);
+    let projection = match ct {
+        CT_POLAR_STEREOGRAPHIC => {
+            let lat0 = key_f64(keys, KEY_PROJ_NAT_ORIGIN_LAT)
+                .or_else(|| key_f64(keys, KEY_PROJ_CENTER_LAT))
+                .unwrap_or(90.0);
+            if (lat0.abs() - 90.0).abs() > 1e-9 {
+                return Err(format!(
+                    "stereographic with latitude of origin {lat0} deg is not polar"
+                ));
+            }
+            let lon0_deg = key_f64(keys, KEY_PROJ_STRAIGHT_VERT_POLE_LONG)
+                .or_else(|| key_f64(keys, KEY_PROJ_NAT_ORIGIN_LONG))
+                .or_else(|| key_f64(keys, KEY_PROJ_CENTER_LONG))
+                .unwrap_or(0.0);
+            // Variant B gives a standard parallel instead of a scale factor; on the sphere
+            // k0 = (1 + sin|lat_ts|) / 2 (Snyder 1987, eq. 21-7 with the sphere).
+            let k0 = key_f64(keys, KEY_PROJ_SCALE_AT_NAT_ORIGIN).unwrap_or_else(|| {
+                key_f64(keys, KEY_PROJ_STD_PARALLEL1)
+                    .map(|ts| (1.0 + ts.abs().to_radians().sin()) / 2.0)
+                    .unwrap_or(1.0)
+            });
+            Projection::PolarStereographic {
+                south: lat0 < 0.0,
+                lon0_deg,
+                k0,
+                radius_m,
+            }
+        }
+        CT_EQUIRECTANGULAR => {
+            let lon0_deg = key_f64(keys, KEY_PROJ_CENTER_LONG)
+                .or_else(|| key_f64(keys, KEY_PROJ_NAT_ORIGIN_LONG))
+                .unwrap_or(0.0);
+            let lat_ts_deg = key_f64(keys, KEY_PROJ_STD_PARALLEL1).unwrap_or(0.0);
+            // y = R (lat - lat0) + FN, so a non-zero lat0 is one more false northing.
+            let lat0 = key_f64(keys, KEY_PROJ_CENTER_LAT).unwrap_or(0.0);
+            return Ok(Crs {
+                projection: Projection::Equirectangular {
+                    lon0_deg,
+                    lat_ts_deg,
+                    radius_m,
+                },
+                false_easting_m: fe,
+                false_northing_m: fn_ - radius_m * lat0.to_radians(),
+            });
+        }
+        other => {
+            return Err(format!(
+                "coordinate transformation code {other} (only 15 polar stereographic and 17 equirectangular)"
+            ));
+        }
+    };
+    Ok(Crs {
+        projection,
+        false_easting_m: fe,
+        false_northing_m: fn_,
+    })
+}
+
+/// The sphere radius from the ellipsoid GeoKeys; errors for a non-lunar or non-spherical body.
+fn sphere_radius_m(keys: &BTreeMap<u16, GeoKeyValue>) -> std::result::Result<f64, String> {
+    if let Some(code) = key_short(keys, KEY_GEOG_ELLIPSOID)
+        && code != USER_DEFINED
+    {
+        return Err(format!("ellipsoid EPSG:{code} is not the lunar sphere"));
+    }
+    if let Some(code) = key_short(keys, KEY_GEOGRAPHIC_TYPE)
+        && code != USER_DEFINED
+        && key_f64(keys, KEY_GEOG_SEMI_MAJOR).is_none()
+    {
+        return Err(format!("geographic CRS EPSG:{code} is not lunar"));
+    }
+    let a = key_f64(keys, KEY_GEOG_SEMI_MAJOR)
+        .ok_or("no ellipsoid semi-major axis (GeogSemiMajorAxisGeoKey)")?;
+    let b = key_f64(keys, KEY_GEOG_SEMI_MINOR).unwrap_or_else(|| {
+        match key_f64(keys, KEY_GEOG_INV_FLATTENING) {
+            Some(inv_f) if inv_f != 0.0 => a * (1.0 - 1.0 / inv_f),
+            _ => a,
+        }
+    });
+    if !LUNAR_RADIUS_RANGE_M.contains(&a) {
+        return Err(format!("semi-major axis {a} m is not the Moon's"));
+    }
+    if (a - b).abs() > 1e-3 {
+        return Err(format!("ellipsoid a = {a} m, b = {b} m is not a sphere"));
+    }
+    Ok(a)
+}
+
+/// Parses a PROJ string such as `+proj=stere +lat_0=-90 +lon_0=0 +k=1 +R=1737400`.
+fn crs_from_proj_string(s: &str) -> std::result::Result<Crs, String> {
+    let mut params = BTreeMap::new();
+    for tok in s.split_whitespace() {
+        let tok = tok.trim_start_matches('+');
+        if let Some((k, v)) = tok.split_once('=') {
+            params.insert(k.to_string(), v.trim_matches(['|', '"']).to_string());
+        }
+    }
+    let num = |k: &str| -> std::result::Result<Option<f64>, String> {
+        params
+            .get(k)
+            .map(|v| {
+                v.parse::<f64>()
+                    .map_err(|_| format!("PROJ parameter {k}={v}"))
+            })
+            .transpose()
+    };
+    let radius_m = num("R")?
+        .or(num("a")?)
+        .ok_or("PROJ string without +R or +a")?;
+    if let Some(b) = num("b")?
+        && (b - radius_m).abs() > 1e-3
+    {
+        return Err(format!(
+            "PROJ ellipsoid a = {radius_m} m, b = {b} m is not a sphere"
+        ));
+    }
+    if !LUNAR_RADIUS_RANGE_M.contains(&radius_m) {
+        return Err(format!("PROJ radius {radius_m} m is not the Moon's"));
+    }
+    let lon0_deg = num("lon_0")?.unwrap_or(0.0);
+    let fe = num("x_0")?.unwrap_or(0.0);
+    let fn_ = num("y_0")?.unwrap_or(0.0);
+    match params.get("proj").map(String::as_str) {
+        Some("stere") | Some("ups") => {
+            let lat0 = num("lat_0")?.unwrap_or(0.0);
+            if (lat0.abs() - 90.0).abs() > 1e-9 {
+                return Err(format!("+proj=stere with lat_0={lat0} is not polar"));
+            }
+            let k0 = match (num("k")?.or(num("k_0")?), num("lat_ts")?) {
+                (Some(k), _) => k,
+                (None, Some(ts)) => (1.0 + ts.abs().to_radians().sin()) / 2.0,
+                (None, None) => 1.0,
+            };
+            Ok(Crs {
+                projection: Projection::PolarStereographic {
+                    south: lat0 < 0.0,
+                    lon0_deg,
+                    k0,
+                    radius_m,
+                },
+                false_easting_m: fe,
+                false_northing_m: fn_,
+            })
+        }
+        Some("eqc") => {
+            let lat0 = num("lat_0")?.unwrap_or(0.0);
+            Ok(Crs {
+                projection: Projection::Equirectangular {
+                    lon0_deg,
+                    lat_ts_deg: num("lat_ts")?.unwrap_or(0.0),
+                    radius_m,
+                },
+                false_easting_m: fe,
+                false_northing_m: fn_ - radius_m * lat0.to_radians(),
+            })
+        }
+        other => Err(format!("PROJ projection {other:?}")),
+    }
+}
+
+/// Builds the pixel-is-area grid from the raster tags; `false_en_m` is removed from the map
+/// coordinates so that they are the projection's own.
+fn grid_from_tags(
+    rows: usize,
+    cols: usize,
+    pixel_scale: Option<&[f64]>,
+    tiepoint: Option<&[f64]>,
+    transformation: Option<&[f64]>,
+    pixel_is_point: bool,
+    false_en_m: (f64, f64),
+) -> std::result::Result<GridGeometry, String> {
+    let (x_corner, y_corner, px_x_m, px_y_m) = match (pixel_scale, tiepoint, transformation) {
+        (Some(scale), Some(tie), _) if scale.len() >= 2 && tie.len() >= 6 => {
+            if tie.len() > 6 {
+                return Err("several tie points (warped rasters are not supported)".into());
+            }
+            // Tie point (i, j, k, x, y, z): raster (i, j) sits at map (x, y).
+            (
+                tie[3] - tie[0] * scale[0],
+                tie[4] + tie[1] * scale[1],
+                scale[0],
+                scale[1],
+            )
+        }
+        (_, _, Some(m)) if m.len() >= 16 => {
+            if m[1] != 0.0 || m[4] != 0.0 {
+                return Err("rotated ModelTransformation is not supported".into());
+            }
+            (m[3], m[7], m[0], -m[5])
+        }
+        _ => {
+            return Err(
+                "neither ModelPixelScale + ModelTiepoint nor ModelTransformation is present".into(),
+            );
+        }
+    };
+    if !(px_x_m > 0.0 && px_y_m > 0.0 && px_x_m.is_finite() && px_y_m.is_finite()) {
+        return Err(format!(
+            "pixel size {px_x_m} x {px_y_m} m (must be positive, north-up)"
+        ));
+    }
+    // Pixel-is-point: the tie point is the centre of pixel (0, 0); move it to its outer corner.
+    let (half_x, half_y) = if pixel_is_point {
+        (px_x_m / 2.0, px_y_m / 2.0)
+    } else {
+        (0.0, 0.0)
+    };
+    Ok(GridGeometry {
+        rows,
+        cols,
+        x_left_m: x_corner - half_x - false_en_m.0,
+        y_top_m: y_corner + half_y - false_en_m.1,
+        px_x_m,
+        px_y_m,
+    })
+}
+
+/// Parses GDAL's nodata string (`"-32768"`, `"nan"`, `"-3.4028234663852886e+38"`).
+fn parse_nodata(s: &str) -> Option<f64> {
+    let t = s.trim().trim_end_matches('\0');
+    if t.eq_ignore_ascii_case("nan") {
+        return Some(f64::NAN);
+    }
+    t.parse().ok()
+}
+
+/// One `<Item>` of a GDAL_METADATA block.
+#[derive(Debug, Clone, PartialEq)]
+struct MetadataItem {
+    name: String,
+    sample: Option<String>,
+    role: Option<String>,
+    value: String,
+}
+
+/// Minimal parser of GDAL's metadata XML: `<GDALMetadata><Item name=".." [sample=".."]
+/// [role=".."]>value</Item>...</GDALMetadata>`.
+fn parse_gdal_metadata(xml: &str) -> Vec<MetadataItem> {
+    let attr = |head: &str, key: &str| -> Option<String> {
+        let pat = format!("{key}=\"");
+        let start = head.find(&pat)? + pat.len();
+        let end = head[start..].find('"')? + start;
+        Some(xml_unescape(&head[start..end]))
+    };
+    let mut items = Vec::new();
+    let mut rest = xml;
+    while let Some(start) = rest.find("<Item") {
+        rest = &rest[start + 5..];
+        let Some(head_end) = rest.find('>') else {
+            break;
+        };
+        let head = &rest[..head_end];
+        let Some(close) = rest.find("</Item>") else {
+            break;
+        };
+        let value = if head.ends_with('/') || close < head_end {
+            String::new()
+        } else {
+            xml_unescape(&rest[head_end + 1..close])
+        };
+        if let Some(name) = attr(head, "name") {
+            items.push(MetadataItem {
+                name,
+                sample: attr(head, "sample"),
+                role: attr(head, "role"),
+                value,
+            });
+        }
+        rest = &rest[close + 7..];
+    }
+    items
+}
+
+fn xml_unescape(s: &str) -> String {
+    let mut out = String::with_capacity(s.len());
+    let mut rest = s;
+    while let Some(amp) = rest.find('&') {
+        out.push_str(&rest[..amp]);
+        rest = &rest[amp..];
+        let Some(semi) = rest.find(';') else {
+            break;
+        };
+        let entity = &rest[1..semi];
+        let ch = match entity {
+            "amp" => Some('&'),
+            "lt" => Some('<'),
+            "gt" => Some('>'),
+            "quot" => Some('"'),
+            "apos" => Some('\''),
+            e if e.starts_with("#x") => u32::from_str_radix(&e[2..], 16)
+                .ok()
+                .and_then(char::from_u32),
+            e if e.starts_with('#') => e[1..].parse().ok().and_then(char::from_u32),
+            _ => None,
+        };
+        match ch {
+            Some(c) => {
+                out.push(c);
+                rest = &rest[semi + 1..];
+            }
+            None => {
+                out.push('&');
+                rest = &rest[1..];
+            }
+        }
+    }
+    out.push_str(rest);
+    out
+}
+
+/// Escapes text for XML and keeps it ASCII (TIFF ASCII tags): non-ASCII becomes `&#N;`.
+fn xml_escape(s: &str) -> String {
+    let mut out = String::with_capacity(s.len());
+    for c in s.chars() {
+        match c {
+            '&' => out.push_str("&amp;"),
+            '<' => out.push_str("&lt;"),
+            '>' => out.push_str("&gt;"),
+            '"' => out.push_str("&quot;"),
+            c if c.is_ascii() && (c == '\n' || c == '\t' || !c.is_ascii_control()) => out.push(c),
+            c => out.push_str(&format!("&#{};", u32::from(c))),
+        }
+    }
+    out
+}
+
+// ------------------------------------------------------------------------------------------------
+// Writing
+// ------------------------------------------------------------------------------------------------
+
+/// Builds the GeoKeyDirectory, double and ASCII parameters of a user-defined CRS on the sphere.
+fn geo_keys_for(projection: &Projection) -> (Vec<u16>, Vec<f64>, String) {
+    let mut entries: Vec<(u16, GeoKeyValue)> = Vec::new();
+    let r = projection.radius_m();
+    let (citation, ct) = match *projection {
+        Projection::PolarStereographic { south, .. } => (
+            format!(
+                "{} polar stereographic on the lunar sphere R={r} m (penumbra)",
+                if south { "South" } else { "North" }
+            ),
+            CT_POLAR_STEREOGRAPHIC,
+        ),
+        Projection::Equirectangular { .. } => (
+            format!("Equirectangular on the lunar sphere R={r} m (penumbra)"),
+            CT_EQUIRECTANGULAR,
+        ),
+    };
+    entries.push((KEY_MODEL_TYPE, GeoKeyValue::Short(1)));
+    entries.push((KEY_RASTER_TYPE, GeoKeyValue::Short(1)));
+    entries.push((KEY_GT_CITATION, GeoKeyValue::Ascii(citation)));
+    entries.push((KEY_GEOGRAPHIC_TYPE, GeoKeyValue::Short(USER_DEFINED)));
+    entries.push((
+        KEY_GEOG_CITATION,
+        GeoKeyValue::Ascii(format!(
+            "GCS Name = Moon sphere R={r} m|Datum = Moon|Ellipsoid = Moon sphere|Primem = Reference meridian"
+        )),
+    ));
+    entries.push((KEY_GEOG_DATUM, GeoKeyValue::Short(USER_DEFINED)));
+    entries.push((KEY_GEOG_ANGULAR_UNITS, GeoKeyValue::Short(EPSG_DEGREE)));
+    entries.push((KEY_GEOG_ELLIPSOID, GeoKeyValue::Short(USER_DEFINED)));
+    entries.push((KEY_GEOG_SEMI_MAJOR, GeoKeyValue::Doubles(vec![r])));
+    entries.push((KEY_GEOG_SEMI_MINOR, GeoKeyValue::Doubles(vec![r])));
+    entries.push((
+        KEY_GEOG_PRIME_MERIDIAN_LONG,
+        GeoKeyValue::Doubles(vec![0.0]),
+    ));
+    entries.push((KEY_PROJECTED_CS_TYPE, GeoKeyValue::Short(USER_DEFINED)));
+    entries.push((KEY_PROJECTION, GeoKeyValue::Short(USER_DEFINED)));
+    entries.push((KEY_PROJ_COORD_TRANS, GeoKeyValue::Short(ct)));
+    entries.push((KEY_PROJ_LINEAR_UNITS, GeoKeyValue::Short(EPSG_METRE)));
+    match *projection {
+        Projection::PolarStereographic {
+            south,
+            lon0_deg,
+            k0,
+            ..
+        } => {
+            let lat0 = if south { -90.0 } else { 90.0 };
+            entries.push((KEY_PROJ_NAT_ORIGIN_LAT, GeoKeyValue::Doubles(vec![lat0])));
+            entries.push((KEY_PROJ_FALSE_EASTING, GeoKeyValue::Doubles(vec![0.0])));
+            entries.push((KEY_PROJ_FALSE_NORTHING, GeoKeyValue::Doubles(vec![0.0])));
+            entries.push((KEY_PROJ_SCALE_AT_NAT_ORIGIN, GeoKeyValue::Doubles(vec![k0])));
+            entries.push((
+                KEY_PROJ_STRAIGHT_VERT_POLE_LONG,
+                GeoKeyValue::Doubles(vec![lon0_deg]),
+            ));
+        }
+        Projection::Equirectangular {
+            lon0_deg,
+            lat_ts_deg,
+            ..
+        } => {
+            entries.push((
+                KEY_PROJ_STD_PARALLEL1,
+                GeoKeyValue::Doubles(vec![lat_ts_deg]),
+            ));
+            entries.push((KEY_PROJ_FALSE_EASTING, GeoKeyValue::Doubles(vec![0.0])));
+            entries.push((KEY_PROJ_FALSE_NORTHING, GeoKeyValue::Doubles(vec![0.0])));
+            entries.push((KEY_PROJ_CENTER_LONG, GeoKeyValue::Doubles(vec![lon0_deg])));
+            entries.push((KEY_PROJ_CENTER_LAT, GeoKeyValue::Doubles(vec![0.0])));
+        }
+    }
+    entries.sort_by_key(|(k, _)| *k);
+    let mut dir: Vec<u16> = vec![1, 1, 0, entries.len() as u16];
+    let mut doubles = Vec::new();
+    let mut ascii = String::new();
+    for (key, value) in entries {
+        match value {
+            GeoKeyValue::Short(v) => dir.extend([key, 0, 1, v]),
+            GeoKeyValue::Doubles(v) => {
+                dir.extend([key, 34736, v.len() as u16, doubles.len() as u16]);
+                doubles.extend(v);
+            }
+            GeoKeyValue::Ascii(s) => {
+                let text = format!("{s}|");
+                dir.extend([key, 34737, text.len() as u16, ascii.len() as u16]);
+                ascii.push_str(&text);
+            }
+        }
+    }
+    (dir, doubles, ascii)
+}
+
+/// The GDAL_METADATA XML of `items` (dataset-level items).
+fn gdal_metadata_xml(items: &[(&str, &str)]) -> String {
+    let mut xml = String::from("<GDALMetadata>\n");
+    for (k, v) in items {
+        xml.push_str(&format!(
+            "  <Item name=\"{}\">{}</Item>\n",
+            xml_escape(k),
+            xml_escape(v)
+        ));
+    }
+    xml.push_str("</GDALMetadata>");
+    xml
+}
+
+/// Sample types penumbra writes.
+trait WriteSample: Copy {
+    type Color: colortype::ColorType<Inner = Self>;
+}
+impl WriteSample for f32 {
+    type Color = colortype::Gray32Float;
+}
+impl WriteSample for u16 {
+    type Color = colortype::Gray16;
+}
+impl WriteSample for u8 {
+    type Color = colortype::Gray8;
+}
+
+fn write_geotiff<T>(
+    path: &Path,
+    grid: &GridGeometry,
+    projection: &Projection,
+    values: &[T],
+    nodata: Option<String>,
+    metadata: &[(&str, &str)],
+) -> Result<()>
+where
+    T: WriteSample,
+    [T]: tiff::encoder::TiffValue,
+{
+    if grid.rows == 0 || grid.cols == 0 || values.len() != grid.rows * grid.cols {
+        return Err(DemError::InvalidParameter(format!(
+            "raster of {} values for a {}x{} grid",
+            values.len(),
+            grid.rows,
+            grid.cols
+        )));
+    }
+    let name = path.display().to_string();
+    let enc_err = |e: TiffError| DemError::Encode {
+        path: name.clone(),
+        detail: e.to_string(),
+    };
+    let (dir, doubles, ascii) = geo_keys_for(projection);
+    let mut bytes = Cursor::new(Vec::with_capacity(std::mem::size_of_val(values) + 4096));
+    {
+        let mut encoder = TiffEncoder::new(&mut bytes).map_err(enc_err)?;
+        let (w, h) = (
+            u32::try_from(grid.cols)
+                .map_err(|_| DemError::InvalidParameter("too many columns".into()))?,
+            u32::try_from(grid.rows)
+                .map_err(|_| DemError::InvalidParameter("too many rows".into()))?,
+        );
+        let mut image = encoder.new_image::<T::Color>(w, h).map_err(enc_err)?;
+        let dir_enc = image.encoder();
+        dir_enc
+            .write_tag(
+                Tag::ModelPixelScaleTag,
+                &[grid.px_x_m, grid.px_y_m, 0.0][..],
+            )
+            .map_err(enc_err)?;
+        dir_enc
+            .write_tag(
+                Tag::ModelTiepointTag,
+                &[0.0, 0.0, 0.0, grid.x_left_m, grid.y_top_m, 0.0][..],
+            )
+            .map_err(enc_err)?;
+        dir_enc
+            .write_tag(Tag::GeoKeyDirectoryTag, &dir[..])
+            .map_err(enc_err)?;
+        dir_enc
+            .write_tag(Tag::GeoDoubleParamsTag, &doubles[..])
+            .map_err(enc_err)?;
+        dir_enc
+            .write_tag(Tag::GeoAsciiParamsTag, ascii.as_str())
+            .map_err(enc_err)?;
+        if !metadata.is_empty() {
+            dir_enc
+                .write_tag(
+                    Tag::Unknown(TAG_GDAL_METADATA),
+                    gdal_metadata_xml(metadata).as_str(),
+                )
+                .map_err(enc_err)?;
+        }
+        if let Some(nd) = nodata {
+            dir_enc
+                .write_tag(Tag::Unknown(TAG_GDAL_NODATA), nd.as_str())
+                .map_err(enc_err)?;
+        }
+        image.write_data(values).map_err(enc_err)?;
+    }
+    let bytes = bytes.into_inner();
+    write_atomic(path, |w| {
+        w.write_all(&bytes).map_err(|source| {
+            DemError::Output(OutputError::Io {
+                path: name.clone(),
+                source,
+            })
+        })
+    })
+}
+
+/// Writes a float32 single-band GeoTIFF. `nodata` is recorded in GDAL_NODATA (`NaN` allowed);
+/// `metadata` items go into GDAL_METADATA (e.g. `("penumbra_version", "0.1.0")`).
+pub fn write_geotiff_f32(
+    path: &Path,
+    grid: &GridGeometry,
+    projection: &Projection,
+    values: &[f32],
+    nodata: Option<f32>,
+    metadata: &[(&str, &str)],
+) -> Result<()> {
+    let nd = nodata.map(|v| {
+        if v.is_nan() {
+            "nan".to_string()
+        } else {
+            format!("{v}")
+        }
+    });
+    write_geotiff(path, grid, projection, values, nd, metadata)
+}
+
+/// Writes a uint16 single-band GeoTIFF (see [`write_geotiff_f32`]).
+pub fn write_geotiff_u16(
+    path: &Path,
+    grid: &GridGeometry,
+    projection: &Projection,
+    values: &[u16],
+    nodata: Option<u16>,
+    metadata: &[(&str, &str)],
+) -> Result<()> {
+    write_geotiff(
+        path,
+        grid,
+        projection,
+        values,
+        nodata.map(|v| v.to_string()),
+        metadata,
+    )
+}
+
+/// Writes a uint8 single-band GeoTIFF (see [`write_geotiff_f32`]).
+pub fn write_geotiff_u8(
+    path: &Path,
+    grid: &GridGeometry,
+    projection: &Projection,
+    values: &[u8],
+    nodata: Option<u8>,
+    metadata: &[(&str, &str)],
+) -> Result<()> {
+    write_geotiff(
+        path,
+        grid,
+        projection,
+        values,
+        nodata.map(|v| v.to_string()),
+        metadata,
+    )
+}
+
+/// Writes a DEM as a float32 GeoTIFF; holes (`NaN`) are declared with `GDAL_NODATA = nan`.
+pub fn write_dem(path: &Path, dem: &Dem, metadata: &[(&str, &str)]) -> Result<()> {
+    let nodata = dem.heights_m.iter().any(|h| h.is_nan()).then_some(f32::NAN);
+    write_geotiff_f32(
+        path,
+        &dem.grid,
+        &dem.projection,
+        &dem.heights_m,
+        nodata,
+        metadata,
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::MOON_RADIUS_M;
+
+    fn grid(rows: usize, cols: usize) -> GridGeometry {
+        GridGeometry {
+            rows,
+            cols,
+            x_left_m: -1500.0,
+            y_top_m: 2500.0,
+            px_x_m: 100.0,
+            px_y_m: 100.0,
+        }
+    }
+
+    #[test]
+    fn f32_round_trip_is_exact_with_holes_and_metadata() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("a.tif");
+        let g = grid(7, 5);
+        let mut values: Vec<f32> = (0..35).map(|i| i as f32 * 1.25 - 7.0).collect();
+        values[3] = f32::NAN;
+        let dem = Dem {
+            grid: g,
+            projection: Projection::LOLA_SOUTH_POLAR,
+            heights_m: values.clone(),
+            name: "t".into(),
+        };
+        write_dem(
+            &path,
+            &dem,
+            &[("tool", "penumbra <0.1> & co"), ("note", "h\u{e9}")],
+        )
+        .unwrap();
+        let (back, items) = read_geotiff_with_metadata(&path).unwrap();
+        assert_eq!(back.grid, g);
+        assert_eq!(back.projection, Projection::LOLA_SOUTH_POLAR);
+        for (a, b) in back.heights_m.iter().zip(&values) {
+            assert!(a == b || (a.is_nan() && b.is_nan()), "{a} vs {b}");
+        }
+        assert_eq!(
+            items,
+            vec![
+                ("tool".to_string(), "penumbra <0.1> & co".to_string()),
+                ("note".to_string(), "h\u{e9}".to_string())
+            ]
+        );
+    }
+
+    #[test]
+    fn u16_u8_and_equirectangular_round_trip() {
+        let dir = tempfile::tempdir().unwrap();
+        let g = grid(4, 6);
+        let eqc = Projection::Equirectangular {
+            lon0_deg: 180.0,
+            lat_ts_deg: 10.0,
+            radius_m: MOON_RADIUS_M,
+        };
+        let p16 = dir.path().join("u16.tif");
+        let v16: Vec<u16> = (0..24).map(|i| i * 2700).collect();
+        write_geotiff_u16(&p16, &g, &eqc, &v16, Some(0), &[]).unwrap();
+        let d = read_geotiff(&p16).unwrap();
+        assert_eq!(d.projection, eqc);
+        assert_eq!(d.grid, g);
+        assert!(d.heights_m[0].is_nan(), "nodata 0 becomes a hole");
+        for (a, b) in d.heights_m.iter().zip(&v16).skip(1) {
+            assert_eq!(*a, f32::from(*b));
+        }
+        let p8 = dir.path().join("u8.tif");
+        let v8: Vec<u8> = (0..24).map(|i| i * 10).collect();
+        write_geotiff_u8(&p8, &g, &Projection::LOLA_SOUTH_POLAR, &v8, None, &[]).unwrap();
+        let d = read_geotiff(&p8).unwrap();
+        for (a, b) in d.heights_m.iter().zip(&v8) {
+            assert_eq!(*a, f32::from(*b));
+        }
+    }
+
+    #[test]
+    fn geo_keys_round_trip_through_the_parser() {
+        for p in [
+            Projection::LOLA_SOUTH_POLAR,
+            Projection::PolarStereographic {
+                south: false,
+                lon0_deg: 45.0,
+                k0: 0.994,
+                radius_m: 1_737_150.0,
+            },
+            Projection::Equirectangular {
+                lon0_deg: 0.0,
+                lat_ts_deg: -85.0,
+                radius_m: MOON_RADIUS_M,
+            },
+        ] {
+            let (dir, doubles, ascii) = geo_keys_for(&p);
+            let keys = parse_geo_keys(&dir, &doubles, &ascii).unwrap();
+            let crs = projection_from_geo_keys(&keys).unwrap();
+            assert_eq!(crs.projection, p);
+            assert_eq!((crs.false_easting_m, crs.false_northing_m), (0.0, 0.0));
+        }
+    }
+
+    #[test]
+    fn proj_string_fallback_and_rejections() {
+        let crs = crs_from_proj_string(
+            "+proj=stere +lat_0=-90 +lon_0=0 +k=1 +x_0=0 +y_0=0 +R=1737400 +units=m",
+        )
+        .unwrap();
+        assert_eq!(crs.projection, Projection::LOLA_SOUTH_POLAR);
+        assert!(crs_from_proj_string("+proj=stere +lat_0=-45 +R=1737400").is_err());
+        assert!(crs_from_proj_string("+proj=stere +lat_0=-90 +R=6378137").is_err());
+        assert!(crs_from_proj_string("+proj=merc +R=1737400").is_err());
+        // An Earth ellipsoid through GeoKeys.
+        let mut keys = BTreeMap::new();
+        keys.insert(KEY_MODEL_TYPE, GeoKeyValue::Short(1));
+        keys.insert(
+            KEY_PROJ_COORD_TRANS,
+            GeoKeyValue::Short(CT_POLAR_STEREOGRAPHIC),
+        );
+        keys.insert(KEY_GEOG_ELLIPSOID, GeoKeyValue::Short(7030));
+        let err = projection_from_geo_keys(&keys).unwrap_err();
+        assert!(err.contains("7030"), "{err}");
+        keys.clear();
+        keys.insert(KEY_PROJECTED_CS_TYPE, GeoKeyValue::Short(3031));
+        let err = projection_from_geo_keys(&keys).unwrap_err();
+        assert!(err.contains("EPSG:3031"), "{err}");
+    }
+
+    #[test]
+    fn pixel_is_point_shifts_half_a_pixel_and_false_origin_is_removed() {
+        let g = grid_from_tags(
+            10,
+            10,
+            Some(&[240.0, 240.0, 0.0]),
+            Some(&[0.0, 0.0, 0.0, -184200.0, 184200.0, 0.0]),
+            None,
+            true,
+            (1000.0, -2000.0),
+        )
+        .unwrap();
+        assert_eq!(
+            (g.x_left_m, g.y_top_m),
+            (-184320.0 - 1000.0, 184320.0 + 2000.0)
+        );
+        let m = [
+            10.0, 0.0, 0.0, -5.0, 0.0, -20.0, 0.0, 7.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0,
+        ];
+        let g = grid_from_tags(2, 3, None, None, Some(&m), false, (0.0, 0.0)).unwrap();
+        assert_eq!(
+            (g.x_left_m, g.y_top_m, g.px_x_m, g.px_y_m),
+            (-5.0, 7.0, 10.0, 20.0)
+        );
+    }
+
+    #[test]
+    fn gdal_metadata_scale_offset_items_are_parsed() {
+        let xml = r#"<GDALMetadata>
+  <Item name="units">m</Item>
+  <Item name="OFFSET" sample="0" role="offset">10</Item>
+  <Item name="SCALE" sample="0" role="scale">0.5</Item>
+</GDALMetadata>"#;
+        let items = parse_gdal_metadata(xml);
+        assert_eq!(items.len(), 3);
+        assert_eq!(items[2].role.as_deref(), Some("scale"));
+        assert_eq!(items[2].value, "0.5");
+        assert_eq!(parse_nodata("nan").map(f64::is_nan), Some(true));
+        assert_eq!(parse_nodata("-32768"), Some(-32768.0));
+    }
+
+    #[test]
+    fn int16_with_scale_offset_and_nodata_is_decoded() {
+        // Build an int16 GeoTIFF by hand with the tiff encoder, as LOLA's int16 (0.5 m) products
+        // are stored: height = raw * 0.5 + 1737400 - 1737400 (offset 0 here, 10 m to test it).
+        let raw: Vec<i16> = vec![-32768, -2, 0, 3, 100, 200, 300, 400, -500, 1, 2, 32767];
+        let (dir, doubles, ascii) = geo_keys_for(&Projection::LOLA_SOUTH_POLAR);
+        let mut bytes = Cursor::new(Vec::new());
+        {
+            let mut enc = TiffEncoder::new(&mut bytes).unwrap();
+            let mut img = enc.new_image::<colortype::GrayI16>(4, 3).unwrap();
+            let d = img.encoder();
+            d.write_tag(Tag::ModelPixelScaleTag, &[100.0, 100.0, 0.0][..])
+                .unwrap();
+            d.write_tag(
+                Tag::ModelTiepointTag,
+                &[0.0, 0.0, 0.0, -1500.0, 2500.0, 0.0][..],
+            )
+            .unwrap();
+            d.write_tag(Tag::GeoKeyDirectoryTag, &dir[..]).unwrap();
+            d.write_tag(Tag::GeoDoubleParamsTag, &doubles[..]).unwrap();
+            d.write_tag(Tag::GeoAsciiParamsTag, ascii.as_str()).unwrap();
+            d.write_tag(Tag::Unknown(TAG_GDAL_NODATA), "-32768")
+                .unwrap();
+            d.write_tag(
+                Tag::Unknown(TAG_GDAL_METADATA),
+                r#"<GDALMetadata><Item name="SCALE" sample="0" role="scale">0.5</Item><Item name="OFFSET" sample="0" role="offset">10</Item></GDALMetadata>"#,
+            )
+            .unwrap();
+            img.write_data(&raw).unwrap();
+        }
+        let bytes = bytes.into_inner();
+        let (dem, _) = read_geotiff_from(Cursor::new(bytes), "i16").unwrap();
+        assert!(dem.heights_m[0].is_nan());
+        for (h, r) in dem.heights_m.iter().zip(&raw).skip(1) {
+            assert_eq!(f64::from(*h), f64::from(*r) * 0.5 + 10.0);
+        }
+    }
+}

@@ -1,0 +1,509 @@
+//! Synthetic terrain: a deterministic (seeded) south-polar DEM for demos, and tiny analytic DEMs
+//! with closed-form answers for tests.
+//!
+//! The synthetic DEM ([`south_polar_dem`]) is a south-polar stereographic grid centred on the
+//! pole, built from:
+//! - craters with a size-frequency distribution `N(>D) ∝ D⁻²` (near lunar equilibrium), each a
+//!   parabolic bowl with a raised rim and ejecta decaying as `r⁻³`; depth/diameter and rim
+//!   heights follow Pike (1977): simple craters `d = 0.196 D`, rim `0.036 D`; complex craters
+//!   (`D > 15 km`) `d = 1.044 D^0.301`, rim `0.236 D^0.399` (km) with a flat floor; a large young
+//!   "Shackleton-like" crater (d/D = 0.2) near the pole; younger craters overprint older ones;
+//! - a ridge (Gaussian cross-section, tapering ends) and a massif (a broad mound);
+//! - fractal roughness: fBm of a hash-based value noise (6 octaves, gain 0.5).
+//!
+//! The analytic DEMs ([`flat`], [`wall`], [`bowl_crater`]) sit on the same kind of grid; use
+//! [`flat_height_field`] to get them as a flat-plane [`HeightField`] (no curvature), which is
+//! what closed-form shadow tests need.
+
+use nalgebra::Vector3;
+use rayon::prelude::*;
+
+use super::error::{DemError, Result};
+use super::grid::{Dem, GridGeometry, Projection};
+use super::heightfield::HeightField;
+
+/// Parameters of the synthetic south-polar DEM.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SynthParams {
+    /// Grid size, pixels (square).
+    pub size_px: usize,
+    /// Pixel size, metres.
+    pub px_m: f64,
+    /// Seed of the pseudo-random generator (same seed, same DEM, on every platform).
+    pub seed: u64,
+}
+
+impl Default for SynthParams {
+    /// 400 x 400 pixels of 100 m (40 km square around the pole), seed 1.
+    fn default() -> Self {
+        SynthParams {
+            size_px: 400,
+            px_m: 100.0,
+            seed: 1,
+        }
+    }
+}
+
+/// A square south-polar stereographic grid of `n` x `n` cells of `px_m`, centred on the pole.
+pub fn polar_grid(rows: usize, cols: usize, px_m: f64) -> GridGeometry {
+    GridGeometry {
+        rows,
+        cols,
+        x_left_m: -(cols as f64) * px_m / 2.0,
+        y_top_m: rows as f64 * px_m / 2.0,
+        px_x_m: px_m,
+        px_y_m: px_m,
+    }
+}
+
+/// Builds a DEM on [`polar_grid`] with heights `f(x_m, y_m)` at the cell centres.
+pub fn dem_from_fn(
+    rows: usize,
+    cols: usize,
+    px_m: f64,
+    name: &str,
+    f: impl Fn(f64, f64) -> f64 + Sync,
+) -> Dem {
+    let grid = polar_grid(rows, cols, px_m);
+    let mut heights_m = vec![0.0_f32; rows * cols];
+    heights_m
+        .par_chunks_mut(cols.max(1))
+        .enumerate()
+        .for_each(|(row, out)| {
+            for (col, h) in out.iter_mut().enumerate() {
+                let (x, y) = grid.xy_from_row_col(row as f64, col as f64);
+                *h = f(x, y) as f32;
+            }
+        });
+    Dem {
+        grid,
+        projection: Projection::LOLA_SOUTH_POLAR,
+        heights_m,
+        name: name.into(),
+    }
+}
+
+/// A flat DEM at `height_m` everywhere.
+pub fn flat(rows: usize, cols: usize, px_m: f64, height_m: f64) -> Dem {
+    dem_from_fn(rows, cols, px_m, "synth:flat", |_, _| height_m)
+}
+
+/// A wall: cells with `col >= wall_col` are at `height_m`, the others at 0 (grid x = east on
+/// a flat-plane height field). With the Sun due east (azimuth 90°) at elevation `e`, the ground
+/// west of the face is shadowed over a length `height_m / tan(e)` from the face (the face sits
+/// between the centres of columns `wall_col - 1` and `wall_col` for a point-sampled engine).
+pub fn wall(rows: usize, cols: usize, px_m: f64, wall_col: usize, height_m: f64) -> Dem {
+    let grid = polar_grid(rows, cols, px_m);
+    let heights_m = (0..rows * cols)
+        .map(|i| {
+            if i % cols >= wall_col {
+                height_m as f32
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    Dem {
+        grid,
+        projection: Projection::LOLA_SOUTH_POLAR,
+        heights_m,
+        name: "synth:wall".into(),
+    }
+}
+
+/// Height (m) of a spherical bowl crater of rim radius `radius_m` and depth `depth_m` at distance
+/// `r_m` from its centre; the rim and the ground outside are at 0, the floor at `-depth_m`.
+pub fn bowl_crater_height_m(r_m: f64, radius_m: f64, depth_m: f64) -> f64 {
+    if r_m >= radius_m {
+        return 0.0;
+    }
+    let sphere_r = bowl_sphere_radius_m(radius_m, depth_m);
+    sphere_r - depth_m - (sphere_r * sphere_r - r_m * r_m).sqrt()
+}
+
+/// Radius of the sphere whose cap is the bowl: `(a² + d²) / 2d`.
+fn bowl_sphere_radius_m(radius_m: f64, depth_m: f64) -> f64 {
+    (radius_m * radius_m + depth_m * depth_m) / (2.0 * depth_m)
+}
+
+/// A spherical bowl crater (see [`bowl_crater_height_m`]) centred on the grid centre.
+pub fn bowl_crater(n: usize, px_m: f64, radius_m: f64, depth_m: f64) -> Dem {
+    dem_from_fn(n, n, px_m, "synth:bowl", |x, y| {
+        bowl_crater_height_m(x.hypot(y), radius_m, depth_m)
+    })
+}
+
+/// Closed-form illumination of the spherical bowl on a flat plane: whether the surface point
+/// above (`x_m`, `y_m`) (relative to the crater centre) sees the centre of a Sun in the unit
+/// direction `sun_dir` (local x east, y north, z up; `sun_dir.z > 0`).
+///
+/// Inside the bowl the ray from `P` towards the Sun runs along a chord of the sphere of centre
+/// `O` and leaves it at `Q = P + t s`, `t = −2 (P − O)·s`. `P` is lit iff its facet faces the Sun
+/// (`(O − P)·s > 0`) and the chord reaches the rim plane before the wall (`Q_z ≥ 0`), since the
+/// sphere below the rim plane *is* the bowl (Buhl, Welch & Rea 1968; Ingersoll et al. 1992).
+pub fn bowl_crater_is_lit(
+    x_m: f64,
+    y_m: f64,
+    radius_m: f64,
+    depth_m: f64,
+    sun_dir: &Vector3<f64>,
+) -> bool {
+    if sun_dir.z <= 0.0 {
+        return false;
+    }
+    let r = x_m.hypot(y_m);
+    if r >= radius_m {
+        return true;
+    }
+    let sphere_r = bowl_sphere_radius_m(radius_m, depth_m);
+    let o = Vector3::new(0.0, 0.0, sphere_r - depth_m);
+    let p = Vector3::new(x_m, y_m, bowl_crater_height_m(r, radius_m, depth_m));
+    let facing = (o - p).dot(sun_dir);
+    if facing <= 0.0 {
+        return false;
+    }
+    let t = -2.0 * (p - o).dot(sun_dir);
+    (p + t * sun_dir).z >= 0.0
+}
+
+/// The DEM's heights as a flat-plane model-space height field (no curvature: `z = h`, model
+/// x/y = map x/y). For analytic tests of shadow algorithms.
+pub fn flat_height_field(dem: &Dem) -> HeightField {
+    HeightField {
+        rows: dem.grid.rows,
+        cols: dem.grid.cols,
+        px_m: dem.grid.px_x_m,
+        x_left_m: dem.grid.x_left_m,
+        y_top_m: dem.grid.y_top_m,
+        z_m: dem.heights_m.clone(),
+        centre_lat_deg: -90.0,
+        centre_lon_deg: 0.0,
+    }
+}
+
+// ------------------------------------------------------------------------------------------------
+// Pseudo-random numbers and noise
+// ------------------------------------------------------------------------------------------------
+
+/// SplitMix64 (Steele, Lea & Flood 2014): a tiny, portable, well-mixed generator.
+#[derive(Debug, Clone)]
+struct SplitMix64(u64);
+
+impl SplitMix64 {
+    fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        mix64(self.0)
+    }
+    /// Uniform in `[0, 1)`.
+    fn next_f64(&mut self) -> f64 {
+        (self.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
+    }
+}
+
+/// SplitMix64's finaliser.
+fn mix64(mut z: u64) -> u64 {
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+/// Hash of a lattice point to `[-1, 1]`.
+fn lattice_value(ix: i64, iy: i64, salt: u64) -> f64 {
+    let h = mix64(
+        (ix as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15)
+            ^ (iy as u64).wrapping_mul(0xC2B2_AE3D_27D4_EB4F)
+            ^ salt,
+    );
+    (h >> 11) as f64 * (2.0 / (1u64 << 53) as f64) - 1.0
+}
+
+/// Value noise: lattice values blended with the quintic fade `6t⁵ − 15t⁴ + 10t³` (Perlin 2002),
+/// so the surface is C² smooth. Range `[-1, 1]`.
+pub fn value_noise(x: f64, y: f64, salt: u64) -> f64 {
+    let (fx, fy) = (x.floor(), y.floor());
+    let (ix, iy) = (fx as i64, fy as i64);
+    let fade = |t: f64| t * t * t * (t * (t * 6.0 - 15.0) + 10.0);
+    let (u, v) = (fade(x - fx), fade(y - fy));
+    let a = lattice_value(ix, iy, salt);
+    let b = lattice_value(ix + 1, iy, salt);
+    let c = lattice_value(ix, iy + 1, salt);
+    let d = lattice_value(ix + 1, iy + 1, salt);
+    let top = a + (b - a) * u;
+    let bottom = c + (d - c) * u;
+    top + (bottom - top) * v
+}
+
+/// Fractional Brownian motion: `octaves` of [`value_noise`], each at twice the frequency and
+/// `gain` times the amplitude of the previous one.
+pub fn fbm(x: f64, y: f64, octaves: u32, gain: f64, salt: u64) -> f64 {
+    let (mut sum, mut amp, mut freq) = (0.0, 1.0, 1.0);
+    for o in 0..octaves {
+        sum += amp * value_noise(x * freq, y * freq, salt.wrapping_add(u64::from(o) * 7919));
+        amp *= gain;
+        freq *= 2.0;
+    }
+    sum
+}
+
+// ------------------------------------------------------------------------------------------------
+// The synthetic south-polar DEM
+// ------------------------------------------------------------------------------------------------
+
+/// One crater of the synthetic DEM.
+#[derive(Debug, Clone, Copy)]
+struct Crater {
+    x_m: f64,
+    y_m: f64,
+    diameter_m: f64,
+    depth_m: f64,
+    rim_m: f64,
+    /// Floor radius as a fraction of the rim radius (0 for simple bowls).
+    floor_frac: f64,
+}
+
+impl Crater {
+    fn from_pike(x_m: f64, y_m: f64, diameter_m: f64) -> Self {
+        let d_km = diameter_m / 1000.0;
+        let (depth_km, rim_km, floor_frac) = if d_km < 15.0 {
+            (0.196 * d_km, 0.036 * d_km, 0.0)
+        } else {
+            (1.044 * d_km.powf(0.301), 0.236 * d_km.powf(0.399), 0.4)
+        };
+        Crater {
+            x_m,
+            y_m,
+            diameter_m,
+            depth_m: depth_km * 1000.0,
+            rim_m: rim_km * 1000.0,
+            floor_frac,
+        }
+    }
+
+    /// Outer reach of the ejecta blanket, in rim radii.
+    const REACH: f64 = 3.0;
+
+    /// Applies the crater to the old surface height `h_old` at distance `r_m`: inside, the bowl
+    /// replaces the old terrain (progressively towards the centre); outside, the rim/ejecta adds.
+    fn apply(&self, r_m: f64, h_old: f64) -> f64 {
+        let rc = self.diameter_m / 2.0;
+        let q = r_m / rc;
+        if q >= Self::REACH {
+            return h_old;
+        }
+        if q >= 1.0 {
+            let cut = Self::REACH.powi(-3);
+            return h_old + self.rim_m * (q.powi(-3) - cut) / (1.0 - cut);
+        }
+        let floor = self.rim_m - self.depth_m;
+        let t = ((q - self.floor_frac) / (1.0 - self.floor_frac)).max(0.0);
+        let bowl = floor + self.depth_m * t * t;
+        // Old terrain survives on the upper walls only (weight q⁴).
+        let w = q.powi(4);
+        bowl + w * h_old
+    }
+}
+
+/// The seeded synthetic south-polar DEM (see the module docs). Errors for an empty or absurd
+/// size (more than 16384 pixels a side) or a non-positive pixel size.
+pub fn south_polar_dem(params: &SynthParams) -> Result<Dem> {
+    let n = params.size_px;
+    if n == 0 || n > 16_384 || !(params.px_m > 0.0 && params.px_m.is_finite()) {
+        return Err(DemError::InvalidParameter(format!(
+            "synthetic DEM of {n} px at {} m (need 1..=16384 px and a positive pixel size)",
+            params.px_m
+        )));
+    }
+    let extent_m = n as f64 * params.px_m;
+    let mut rng = SplitMix64(params.seed ^ 0x5EED_0F7E_44A1);
+    let seed_salt = rng.next_u64();
+
+    // Ridge: through the domain at a seeded angle, passing beside the pole.
+    let ridge_angle = rng.next_f64() * std::f64::consts::PI;
+    let (ridge_dx, ridge_dy) = (ridge_angle.cos(), ridge_angle.sin());
+    let ridge_offset_m = (0.15 + 0.1 * rng.next_f64()) * extent_m;
+    let ridge_height_m = 1200.0;
+    let ridge_sigma_m = 0.05 * extent_m;
+    // Massif: a broad mound in one quadrant.
+    let massif_angle = rng.next_f64() * std::f64::consts::TAU;
+    let massif_r_m = 0.3 * extent_m;
+    let (massif_x_m, massif_y_m) = (
+        massif_r_m * massif_angle.cos(),
+        massif_r_m * massif_angle.sin(),
+    );
+    let massif_height_m = 2500.0;
+    let massif_sigma_m = 0.12 * extent_m;
+    let noise_wavelength_m = extent_m / 3.0;
+    let roughness_m = 150.0;
+
+    let base = dem_from_fn(n, n, params.px_m, "synth:south-polar", |x, y| {
+        // Signed distance across the ridge and position along it.
+        let across = -x * ridge_dy + y * ridge_dx - ridge_offset_m;
+        let along = x * ridge_dx + y * ridge_dy;
+        let taper = (-(along / (0.45 * extent_m)).powi(4)).exp();
+        let ridge = ridge_height_m
+            * taper
+            * (-(across * across) / (2.0 * ridge_sigma_m * ridge_sigma_m)).exp();
+        let (mx, my) = (x - massif_x_m, y - massif_y_m);
+        let massif = massif_height_m
+            * (-(mx * mx + my * my) / (2.0 * massif_sigma_m * massif_sigma_m)).exp()
+            * (1.0 + 0.25 * value_noise(mx / massif_sigma_m, my / massif_sigma_m, seed_salt));
+        let rough = roughness_m
+            * fbm(
+                x / noise_wavelength_m,
+                y / noise_wavelength_m,
+                6,
+                0.5,
+                seed_salt,
+            );
+        ridge + massif + rough
+    });
+
+    // Craters, N(>D) = 0.05 A / D² between 4 px and 0.25 of the extent, plus the polar crater.
+    let d_min_m = 4.0 * params.px_m;
+    let d_max_m = 0.25 * extent_m;
+    let area_m2 = extent_m * extent_m * 1.44; // include a 10 % margin around the grid
+    let count = ((0.05 * area_m2 / (d_min_m * d_min_m)) as usize).min(5000);
+    let mut craters: Vec<Crater> = (0..count)
+        .map(|_| {
+            let u = rng.next_f64().max(1e-12);
+            let d = (d_min_m / u.sqrt()).min(d_max_m);
+            let x = (rng.next_f64() - 0.5) * 1.2 * extent_m;
+            let y = (rng.next_f64() - 0.5) * 1.2 * extent_m;
+            Crater::from_pike(x, y, d)
+        })
+        .collect();
+    // Largest first ≈ oldest first; the young polar crater goes in after the old large ones.
+    craters.sort_by(|a, b| b.diameter_m.total_cmp(&a.diameter_m));
+    let polar_d_m = 0.4 * extent_m;
+    let polar = Crater {
+        x_m: (rng.next_f64() - 0.5) * 0.1 * extent_m,
+        y_m: (rng.next_f64() - 0.5) * 0.1 * extent_m,
+        diameter_m: polar_d_m,
+        depth_m: 0.2 * polar_d_m,
+        rim_m: 0.036 * polar_d_m,
+        floor_frac: 0.0,
+    };
+    let insert_at = craters
+        .iter()
+        .position(|c| c.diameter_m < 0.1 * extent_m)
+        .unwrap_or(craters.len());
+    craters.insert(insert_at, polar);
+
+    let mut dem = base;
+    let grid = dem.grid;
+    for c in &craters {
+        let reach_m = Crater::REACH * c.diameter_m / 2.0;
+        let (r0, c0) = grid.row_col_from_xy(c.x_m - reach_m, c.y_m + reach_m);
+        let (r1, c1) = grid.row_col_from_xy(c.x_m + reach_m, c.y_m - reach_m);
+        let row_lo = r0.floor().max(0.0) as usize;
+        let row_hi = (r1.ceil().max(-1.0) + 1.0).min(n as f64) as usize;
+        let col_lo = c0.floor().max(0.0) as usize;
+        let col_hi = (c1.ceil().max(-1.0) + 1.0).min(n as f64) as usize;
+        if row_lo >= row_hi || col_lo >= col_hi {
+            continue;
+        }
+        dem.heights_m[row_lo * n..row_hi * n]
+            .par_chunks_mut(n)
+            .enumerate()
+            .for_each(|(i, out)| {
+                let row = row_lo + i;
+                for (col, h) in out.iter_mut().enumerate().take(col_hi).skip(col_lo) {
+                    let (x, y) = grid.xy_from_row_col(row as f64, col as f64);
+                    let r = (x - c.x_m).hypot(y - c.y_m);
+                    *h = c.apply(r, f64::from(*h)) as f32;
+                }
+            });
+    }
+    Ok(dem)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn synthetic_dem_is_deterministic_and_plausible() {
+        let p = SynthParams {
+            size_px: 128,
+            px_m: 200.0,
+            seed: 7,
+        };
+        let a = south_polar_dem(&p).unwrap();
+        let b = south_polar_dem(&p).unwrap();
+        assert_eq!(a.heights_m, b.heights_m, "same seed, same DEM");
+        let c = south_polar_dem(&SynthParams { seed: 8, ..p }).unwrap();
+        assert_ne!(a.heights_m, c.heights_m, "another seed, another DEM");
+        let (lo, hi) = a
+            .heights_m
+            .iter()
+            .fold((f32::MAX, f32::MIN), |(lo, hi), &h| (lo.min(h), hi.max(h)));
+        let relief_m = f64::from(hi - lo);
+        assert!((2000.0..12000.0).contains(&relief_m), "relief {relief_m} m");
+        assert!(a.heights_m.iter().all(|h| h.is_finite()));
+        // The young polar crater: the centre region is well below the mean.
+        let mean = a.heights_m.iter().map(|&h| f64::from(h)).sum::<f64>() / (128.0 * 128.0);
+        let centre = a.height_at_xy_m(0.0, 0.0).unwrap();
+        assert!(centre < mean - 1000.0, "centre {centre} m, mean {mean} m");
+    }
+
+    #[test]
+    fn bowl_crater_profile_and_closed_form_shadow() {
+        let (a, d) = (1000.0, 200.0);
+        assert!((bowl_crater_height_m(0.0, a, d) + d).abs() < 1e-9);
+        assert!(bowl_crater_height_m(a - 1e-9, a, d).abs() < 1e-3);
+        // Independent check: march the ray towards a Sun due east (0.5 m steps) through the
+        // analytic surface.
+        let e = 8.0_f64.to_radians();
+        let sun = Vector3::new(e.cos(), 0.0, e.sin());
+        let mut disagreements = 0;
+        for i in -19..20 {
+            for j in -19..20 {
+                let (x, y) = (f64::from(i) * 50.0, f64::from(j) * 50.0);
+                let closed = bowl_crater_is_lit(x, y, a, d, &sun);
+                let h0 = bowl_crater_height_m(x.hypot(y), a, d);
+                let mut lit = true;
+                let mut t = 0.5;
+                while t < 20_000.0 {
+                    let q = Vector3::new(x, y, h0) + t * sun;
+                    if q.z < bowl_crater_height_m(q.x.hypot(q.y), a, d) - 1e-9 {
+                        lit = false;
+                        break;
+                    }
+                    t += 0.5;
+                }
+                disagreements += usize::from(closed != lit);
+            }
+        }
+        assert_eq!(disagreements, 0);
+        // With the Sun low in the east, the floor centre and the east wall (facing west) are in
+        // shadow, the west wall (facing the Sun) is lit.
+        assert!(!bowl_crater_is_lit(0.0, 0.0, a, d, &sun));
+        assert!(!bowl_crater_is_lit(900.0, 0.0, a, d, &sun));
+        assert!(bowl_crater_is_lit(-900.0, 0.0, a, d, &sun));
+    }
+
+    #[test]
+    fn value_noise_is_bounded_and_continuous() {
+        let mut max_jump: f64 = 0.0;
+        let mut prev = value_noise(0.0, 0.3, 1);
+        for k in 1..10_000 {
+            let v = value_noise(f64::from(k) * 1e-3, 0.3, 1);
+            assert!((-1.0..=1.0).contains(&v));
+            max_jump = max_jump.max((v - prev).abs());
+            prev = v;
+        }
+        // Max slope of the quintic-faded lattice is 15/8 * 2 = 3.75 per unit; step is 1e-3.
+        assert!(max_jump < 4e-3, "{max_jump}");
+    }
+
+    #[test]
+    fn wall_and_flat_fixtures() {
+        let w = wall(4, 6, 10.0, 3, 25.0);
+        assert_eq!(w.cell_height_m(1, 2), Some(0.0));
+        assert_eq!(w.cell_height_m(1, 3), Some(25.0));
+        let f = flat(3, 3, 10.0, 5.0);
+        let hf = flat_height_field(&f);
+        assert_eq!(hf.z_at(1, 1), Some(5.0));
+        assert_eq!(hf.xy_from_row_col(1.0, 1.0), (0.0, 0.0));
+    }
+}

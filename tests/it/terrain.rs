@@ -1,0 +1,658 @@
+//! Terrain (issue 4): `penumbra dem info|synth` through the binary, GeoTIFF output checked with
+//! GDAL, the real LOLA grids of `../shared/data/lola-south-pole-moondao/`, and bad inputs.
+
+use std::io::Cursor;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use penumbra::terrain::{
+    self, GridGeometry, ModelGridSpec, Projection, TerrainStack, geotiff, resample_to_model_space,
+    synth,
+};
+
+const BIN: &str = env!("CARGO_BIN_EXE_penumbra");
+const LOLA_DIR: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/../shared/data/lola-south-pole-moondao"
+);
+const INNER: &str = "ldem75s_crop_240m_pm184km.tif";
+const FAR: &str = "ldem75s_far_1787m_pm457km_feathered.tif";
+const SITE01: &str = "site01_connecting_ridge_10m.tif";
+
+fn lola(file: &str) -> Option<PathBuf> {
+    let p = Path::new(LOLA_DIR).join(file);
+    if p.exists() {
+        Some(p)
+    } else {
+        println!("skipped: {} is absent", p.display());
+        None
+    }
+}
+
+fn run(args: &[&str]) -> Output {
+    Command::new(BIN).args(args).output().unwrap()
+}
+
+fn has_tool(tool: &str) -> bool {
+    let found = Command::new(tool).arg("--version").output().is_ok();
+    if !found {
+        println!("skipped: `{tool}` is not installed");
+    }
+    found
+}
+
+/// Asserts the CLI failed cleanly: exit code 2, one line on stderr, no panic.
+fn assert_clean_failure(out: &Output, expect_in_message: &str) {
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "stderr: {stderr}");
+    assert_eq!(stderr.trim_end().lines().count(), 1, "stderr: {stderr}");
+    assert!(stderr.starts_with("penumbra: error: "), "stderr: {stderr}");
+    assert!(!stderr.contains("panicked"), "stderr: {stderr}");
+    assert!(
+        stderr
+            .to_lowercase()
+            .contains(&expect_in_message.to_lowercase()),
+        "expected {expect_in_message:?} in: {stderr}"
+    );
+}
+
+/// PROVENANCE.md's cross-check heights (bilinear, m): (lat, lon, site01, inner, far).
+const CROSS_CHECKS: [(f64, f64, f64, f64, f64); 4] = [
+    (-89.45, 222.7, 1954.9, 1948.9, 1800.3),
+    (-89.3, 200.0, 940.0, 938.9, 902.1),
+    (-89.6, 250.0, 647.7, 648.0, 566.5),
+    (-89.5, 210.0, 1520.6, 1521.3, 1530.7),
+];
+/// The cross-check values are printed to 0.1 m; sampling conventions may differ by a little.
+const CROSS_CHECK_TOL_M: f64 = 1.0;
+
+fn info_json(path: &Path, at: &[(f64, f64)]) -> serde_json::Value {
+    let mut args = vec![
+        "dem".to_string(),
+        "info".into(),
+        path.display().to_string(),
+        "--format".into(),
+        "json".into(),
+    ];
+    for (lat, lon) in at {
+        args.push("--at".into());
+        args.push(format!("{lat},{lon}"));
+    }
+    let out = Command::new(BIN).args(&args).output().unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).unwrap()
+}
+
+#[test]
+fn dem_info_reports_the_lola_crop_and_provenance_heights() {
+    let Some(inner) = lola(INNER) else { return };
+    let mut at: Vec<(f64, f64)> = CROSS_CHECKS.iter().map(|c| (c.0, c.1)).collect();
+    at.push((-85.99, 2.93)); // Malapert: inner 5121
+    at.push((-89.67, 129.8)); // Shackleton floor: ~ -2783
+    let v = info_json(&inner, &at);
+    assert_eq!(
+        (v["cols"].as_u64(), v["rows"].as_u64()),
+        (Some(1536), Some(1536))
+    );
+    assert_eq!(
+        (v["px_x_m"].as_f64(), v["px_y_m"].as_f64()),
+        (Some(240.0), Some(240.0))
+    );
+    assert_eq!(v["projection"], "polar stereographic (south)");
+    assert!(
+        v["proj"]
+            .as_str()
+            .unwrap()
+            .contains("+proj=stere +lat_0=-90")
+    );
+    assert!(v["proj"].as_str().unwrap().contains("+R=1737400"));
+    let b: Vec<f64> = v["bounds_xy_m"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect();
+    assert_eq!(b, vec![-184320.0, -184320.0, 184320.0, 184320.0]);
+    assert_eq!(v["nodata_count"].as_u64(), Some(0));
+    // PROVENANCE.md: "axes reach ~83.9 S, corners ~81.4 S".
+    assert!((v["lat_max_deg"].as_f64().unwrap() - -81.42).abs() < 0.01);
+    let pts = v["points"].as_array().unwrap();
+    // PROVENANCE.md gives Malapert as 5121 (whole metres) and the Shackleton floor as
+    // "~ -2783" (approximate), so that one gets 2 m.
+    let expected: Vec<(f64, f64)> = CROSS_CHECKS
+        .iter()
+        .map(|c| (c.3, CROSS_CHECK_TOL_M))
+        .chain([(5121.0, CROSS_CHECK_TOL_M), (-2783.0, 2.0)])
+        .collect();
+    assert_eq!(pts.len(), expected.len());
+    for (p, (want, tol)) in pts.iter().zip(&expected) {
+        let h = p["height_m"].as_f64().unwrap();
+        assert!((h - want).abs() < *tol, "{p} vs {want}");
+    }
+    // The text format says the same.
+    let out = run(&["dem", "info", inner.to_str().unwrap()]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.contains("size: 1536 x 1536 px"), "{text}");
+    assert!(text.contains("pixel size: 240 x 240 m"), "{text}");
+    assert!(text.contains("bounds x: -184320 .. 184320 m"), "{text}");
+}
+
+#[test]
+fn provenance_heights_match_in_the_far_field_and_site01_grids() {
+    let (Some(far), Some(site)) = (lola(FAR), lola(SITE01)) else {
+        return;
+    };
+    let at: Vec<(f64, f64)> = CROSS_CHECKS.iter().map(|c| (c.0, c.1)).collect();
+    let v = info_json(&site, &at);
+    assert_eq!(v["px_x_m"].as_f64(), Some(10.0));
+    for (p, c) in v["points"].as_array().unwrap().iter().zip(&CROSS_CHECKS) {
+        assert!(
+            (p["height_m"].as_f64().unwrap() - c.2).abs() < CROSS_CHECK_TOL_M,
+            "{p}"
+        );
+    }
+    let mut at_far = at.clone();
+    at_far.push((-85.99, 2.93)); // Malapert: far 5043
+    let v = info_json(&far, &at_far);
+    let want: Vec<f64> = CROSS_CHECKS.iter().map(|c| c.4).chain([5043.0]).collect();
+    for (p, w) in v["points"].as_array().unwrap().iter().zip(&want) {
+        assert!(
+            (p["height_m"].as_f64().unwrap() - w).abs() < CROSS_CHECK_TOL_M,
+            "{p}"
+        );
+    }
+}
+
+#[test]
+fn lat_lon_to_xy_round_trip_is_below_a_millimetre_on_the_lola_projection() {
+    let Some(inner) = lola(INNER) else { return };
+    let dem = terrain::load_dem(&inner).unwrap();
+    let p = dem.projection;
+    let mut worst_m: f64 = 0.0;
+    for i in 0..200 {
+        let lat = -90.0 + 8.5 * f64::from(i) / 200.0;
+        let lon = -180.0 + 359.9 * f64::from(i * 37 % 200) / 200.0;
+        let (x, y) = p.xy_from_lat_lon(lat, lon);
+        let (lat2, lon2) = p.lat_lon_from_xy(x, y);
+        // Distance on the sphere between (lat, lon) and (lat2, lon2), metres.
+        let a = penumbra::frames::site_in_moon_me_km(lat, lon, 0.0);
+        let b = penumbra::frames::site_in_moon_me_km(lat2, lon2, 0.0);
+        worst_m = worst_m.max((a - b).norm() * 1e3);
+        let (x2, y2) = p.xy_from_lat_lon(lat2, lon2);
+        worst_m = worst_m.max((x - x2).hypot(y - y2));
+    }
+    assert!(worst_m < 1e-3, "worst round trip {worst_m} m");
+}
+
+#[test]
+fn reading_the_1536_dem_peaks_below_one_and_a_half_times_its_size() {
+    let Some(inner) = lola(INNER) else { return };
+    let time = Path::new("/usr/bin/time");
+    if !time.exists() {
+        println!("skipped: /usr/bin/time is absent");
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let tiny = dir.path().join("tiny.tif");
+    assert!(
+        run(&[
+            "dem",
+            "synth",
+            "--size",
+            "4",
+            "--out",
+            tiny.to_str().unwrap()
+        ])
+        .status
+        .success()
+    );
+    let peak_kib = |file: &Path| -> f64 {
+        let out = Command::new(time)
+            .args(["-f", "%M", BIN, "dem", "info"])
+            .arg(file)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        err.trim().lines().last().unwrap().trim().parse().unwrap()
+    };
+    let base_kib = peak_kib(&tiny);
+    let big_kib = peak_kib(&inner);
+    let dem_kib = (1536.0 * 1536.0 * 4.0) / 1024.0;
+    let ratio = (big_kib - base_kib) / dem_kib;
+    println!(
+        "peak RSS {big_kib} KiB, baseline {base_kib} KiB, DEM {dem_kib} KiB, ratio {ratio:.3}"
+    );
+    assert!(ratio < 1.5, "ratio {ratio}");
+}
+
+#[test]
+fn resampling_the_lola_stack_into_model_space_lands_on_the_surface() {
+    let (Some(inner), Some(far), Some(site)) = (lola(INNER), lola(FAR), lola(SITE01)) else {
+        return;
+    };
+    let stack = TerrainStack::load(&[far, inner, site]).unwrap();
+    assert_eq!(stack.layers[0].px_m(), 10.0, "finest first");
+    let spec = ModelGridSpec {
+        centre_lat_deg: -89.45,
+        centre_lon_deg: 222.7,
+        rows: 128,
+        cols: 128,
+        px_m: 1000.0,
+    };
+    let (hf, stats) = resample_to_model_space(&stack, &spec).unwrap();
+    assert_eq!(stats.holes, 0);
+    assert_eq!(stats.unconverged, 0);
+    println!("{stats:?}");
+    let frame = terrain::ModelFrame::of(&hf);
+    let mut worst_m: f64 = 0.0;
+    for row in (0..hf.rows).step_by(7) {
+        for col in (0..hf.cols).step_by(5) {
+            let (x, y) = hf.xy_from_row_col(row as f64, col as f64);
+            let z = f64::from(hf.z_at(row as isize, col as isize).unwrap());
+            let (lat, lon, h) = frame.lat_lon_height_from_model(&nalgebra::Vector3::new(x, y, z));
+            let (dem_h, _) = stack.height_at_lat_lon_m(lat, lon).unwrap();
+            worst_m = worst_m.max((h - dem_h).abs());
+        }
+    }
+    println!("LOLA stack -> model space: worst residual {worst_m:.2e} m");
+    // f32 storage of z (|z| up to ~5 km here: ulp 0.5 mm) bounds the residual.
+    assert!(worst_m < 2e-3, "worst residual {worst_m} m");
+}
+
+fn gdal_json(path: &Path) -> serde_json::Value {
+    let out = Command::new("gdalinfo")
+        .args(["-json", "-proj4"])
+        .arg(path)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).unwrap()
+}
+
+fn gdal_value(path: &Path, col: usize, row: usize) -> f64 {
+    let out = Command::new("gdallocationinfo")
+        .arg("-valonly")
+        .arg(path)
+        .args([col.to_string(), row.to_string()])
+        .output()
+        .unwrap();
+    String::from_utf8_lossy(&out.stdout).trim().parse().unwrap()
+}
+
+#[test]
+fn synth_geotiff_reads_back_in_gdal_with_the_same_georeferencing() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("synth.tif");
+    let o = run(&[
+        "dem",
+        "synth",
+        "--size",
+        "64",
+        "--px-m",
+        "250",
+        "--seed",
+        "3",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let (ours, items) = geotiff::read_geotiff_with_metadata(&out).unwrap();
+    // Our own reader round-trips exactly what the generator made.
+    let direct = synth::south_polar_dem(&synth::SynthParams {
+        size_px: 64,
+        px_m: 250.0,
+        seed: 3,
+    })
+    .unwrap();
+    assert_eq!(ours.heights_m, direct.heights_m);
+    assert_eq!(ours.grid, direct.grid);
+    assert!(items.iter().any(|(k, v)| k == "synth_seed" && v == "3"));
+    if !has_tool("gdalinfo") {
+        return;
+    }
+    let v = gdal_json(&out);
+    let proj4 = v["coordinateSystem"]["proj4"].as_str().unwrap();
+    for want in [
+        "+proj=stere",
+        "+lat_0=-90",
+        "+lon_0=0",
+        "+k=1",
+        "+R=1737400",
+        "+units=m",
+    ] {
+        assert!(proj4.contains(want), "{proj4} lacks {want}");
+    }
+    let gt: Vec<f64> = v["geoTransform"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect();
+    assert_eq!(gt, vec![-8000.0, 250.0, 0.0, 8000.0, 0.0, -250.0]);
+    assert_eq!(v["size"], serde_json::json!([64, 64]));
+    assert_eq!(v["metadata"][""]["synth_seed"], "3");
+    for &(col, row) in &[(0, 0), (63, 0), (0, 63), (31, 32), (17, 50)] {
+        let g = gdal_value(&out, col, row);
+        let ours = f64::from(ours.heights_m[row * 64 + col]);
+        // gdallocationinfo prints 15 significant digits of the f32 value.
+        assert!(
+            (g - ours).abs() <= 1e-9 * ours.abs().max(1.0),
+            "({col},{row}) {g} vs {ours}"
+        );
+    }
+}
+
+#[test]
+fn u8_u16_equirectangular_and_nodata_read_back_in_gdal() {
+    if !has_tool("gdalinfo") {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let grid = GridGeometry {
+        rows: 5,
+        cols: 7,
+        x_left_m: 1000.0,
+        y_top_m: -2000.0,
+        px_x_m: 30.0,
+        px_y_m: 20.0,
+    };
+    let eqc = Projection::Equirectangular {
+        lon0_deg: 180.0,
+        lat_ts_deg: 0.0,
+        radius_m: 1_737_400.0,
+    };
+    let p16 = dir.path().join("u16.tif");
+    let v16: Vec<u16> = (0..35).map(|i| i * 1000 + 7).collect();
+    terrain::write_geotiff_u16(&p16, &grid, &eqc, &v16, Some(7), &[]).unwrap();
+    let v = gdal_json(&p16);
+    let proj4 = v["coordinateSystem"]["proj4"].as_str().unwrap();
+    assert!(
+        proj4.contains("+proj=eqc") && proj4.contains("+lon_0=180") && proj4.contains("+R=1737400"),
+        "{proj4}"
+    );
+    assert_eq!(v["bands"][0]["type"], "UInt16");
+    assert_eq!(v["bands"][0]["noDataValue"].as_f64(), Some(7.0));
+    let gt: Vec<f64> = v["geoTransform"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect();
+    assert_eq!(gt, vec![1000.0, 30.0, 0.0, -2000.0, 0.0, -20.0]);
+    assert_eq!(gdal_value(&p16, 3, 2), f64::from(v16[2 * 7 + 3]));
+    let p8 = dir.path().join("u8.tif");
+    let v8: Vec<u8> = (0..35).map(|i| i * 7).collect();
+    terrain::write_geotiff_u8(
+        &p8,
+        &grid,
+        &Projection::LOLA_SOUTH_POLAR,
+        &v8,
+        Some(255),
+        &[],
+    )
+    .unwrap();
+    let v = gdal_json(&p8);
+    assert_eq!(v["bands"][0]["type"], "Byte");
+    assert_eq!(gdal_value(&p8, 6, 4), f64::from(v8[4 * 7 + 6]));
+}
+
+#[test]
+fn gdal_written_tiled_lzw_int16_pixel_is_point_with_scale_reads_correctly() {
+    if !has_tool("gdal_translate") {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let src = dir.path().join("src.tif");
+    let dem = synth::south_polar_dem(&synth::SynthParams {
+        size_px: 40,
+        px_m: 100.0,
+        seed: 5,
+    })
+    .unwrap();
+    terrain::write_dem(&src, &dem, &[]).unwrap();
+    for (name, opts) in [
+        (
+            "tiled_lzw_i16_point.tif",
+            &[
+                "-ot",
+                "Int16",
+                "-co",
+                "TILED=YES",
+                "-co",
+                "BLOCKXSIZE=16",
+                "-co",
+                "BLOCKYSIZE=16",
+                "-co",
+                "COMPRESS=LZW",
+                "-mo",
+                "AREA_OR_POINT=Point",
+                "-a_scale",
+                "0.5",
+                "-a_offset",
+                "10",
+            ][..],
+        ),
+        (
+            "strips_deflate_u16.tif",
+            &[
+                "-ot",
+                "UInt16",
+                "-scale",
+                "-3000",
+                "5000",
+                "0",
+                "60000",
+                "-co",
+                "COMPRESS=DEFLATE",
+                "-co",
+                "BLOCKYSIZE=3",
+                "-a_nodata",
+                "0",
+            ][..],
+        ),
+        (
+            "tiled_deflate_f32.tif",
+            &[
+                "-co",
+                "TILED=YES",
+                "-co",
+                "BLOCKXSIZE=16",
+                "-co",
+                "BLOCKYSIZE=16",
+                "-co",
+                "COMPRESS=DEFLATE",
+            ][..],
+        ),
+    ] {
+        let dst = dir.path().join(name);
+        let out = Command::new("gdal_translate")
+            .arg("-q")
+            .args(opts)
+            .arg(&src)
+            .arg(&dst)
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let back = terrain::read_geotiff(&dst).unwrap();
+        assert_eq!(
+            back.grid, dem.grid,
+            "{name}: pixel-is-point must shift back to the same grid"
+        );
+        assert_eq!(back.projection, Projection::LOLA_SOUTH_POLAR, "{name}");
+        let v = gdal_json(&dst);
+        let scale = v["bands"][0]["scale"].as_f64().unwrap_or(1.0);
+        let offset = v["bands"][0]["offset"].as_f64().unwrap_or(0.0);
+        let nodata = v["bands"][0]["noDataValue"].as_f64();
+        for &(col, row) in &[(0, 0), (39, 0), (17, 16), (16, 17), (39, 39), (5, 33)] {
+            let raw = gdal_value(&dst, col, row);
+            let ours = back.heights_m[row * 40 + col];
+            if Some(raw) == nodata {
+                assert!(ours.is_nan(), "{name} ({col},{row})");
+            } else {
+                let want = raw * scale + offset;
+                assert!(
+                    (f64::from(ours) - want).abs() <= 1e-6 * want.abs().max(1.0),
+                    "{name} ({col},{row}): {ours} vs {want}"
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn bad_inputs_fail_with_one_line_and_exit_code_2() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let good = d.join("good.tif");
+    assert!(
+        run(&[
+            "dem",
+            "synth",
+            "--size",
+            "32",
+            "--out",
+            good.to_str().unwrap()
+        ])
+        .status
+        .success()
+    );
+    let arg = |p: &Path| p.to_str().unwrap().to_string();
+
+    // Missing file.
+    assert_clean_failure(
+        &run(&["dem", "info", &arg(&d.join("missing.tif"))]),
+        "missing.tif",
+    );
+    // Truncated: the first half of a valid file.
+    let bytes = std::fs::read(&good).unwrap();
+    let truncated = d.join("truncated.tif");
+    std::fs::write(&truncated, &bytes[..bytes.len() / 2]).unwrap();
+    assert_clean_failure(&run(&["dem", "info", &arg(&truncated)]), "truncated");
+    // Not a TIFF.
+    let text = d.join("notes.tif");
+    std::fs::write(&text, "these are not the pixels you are looking for\n").unwrap();
+    assert_clean_failure(&run(&["dem", "info", &arg(&text)]), "not a TIFF");
+    // Unsupported sample format: float64 and uint32.
+    let f64_path = d.join("f64.tif");
+    let mut buf = Cursor::new(Vec::new());
+    tiff::encoder::TiffEncoder::new(&mut buf)
+        .unwrap()
+        .write_image::<tiff::encoder::colortype::Gray64Float>(2, 2, &[1.0, 2.0, 3.0, 4.0])
+        .unwrap();
+    std::fs::write(&f64_path, buf.into_inner()).unwrap();
+    assert_clean_failure(
+        &run(&["dem", "info", &arg(&f64_path)]),
+        "unsupported sample format 64-bit float",
+    );
+    let u32_path = d.join("u32.tif");
+    let mut buf = Cursor::new(Vec::new());
+    tiff::encoder::TiffEncoder::new(&mut buf)
+        .unwrap()
+        .write_image::<tiff::encoder::colortype::Gray32>(2, 2, &[1, 2, 3, 4])
+        .unwrap();
+    std::fs::write(&u32_path, buf.into_inner()).unwrap();
+    assert_clean_failure(&run(&["dem", "info", &arg(&u32_path)]), "32-bit unsigned");
+    // No georeferencing at all: a plain float32 TIFF.
+    let plain = d.join("plain.tif");
+    let mut buf = Cursor::new(Vec::new());
+    tiff::encoder::TiffEncoder::new(&mut buf)
+        .unwrap()
+        .write_image::<tiff::encoder::colortype::Gray32Float>(2, 2, &[1.0, 2.0, 3.0, 4.0])
+        .unwrap();
+    std::fs::write(&plain, buf.into_inner()).unwrap();
+    assert_clean_failure(&run(&["dem", "info", &arg(&plain)]), "GeoKeyDirectory");
+    // Unknown CRS: EPSG:3031 (Antarctic polar stereographic on WGS 84).
+    let earth = d.join("earth.tif");
+    let mut buf = Cursor::new(Vec::new());
+    {
+        let mut enc = tiff::encoder::TiffEncoder::new(&mut buf).unwrap();
+        let mut img = enc
+            .new_image::<tiff::encoder::colortype::Gray32Float>(2, 2)
+            .unwrap();
+        let t = img.encoder();
+        use tiff::tags::Tag;
+        t.write_tag(Tag::ModelPixelScaleTag, &[10.0, 10.0, 0.0][..])
+            .unwrap();
+        t.write_tag(Tag::ModelTiepointTag, &[0.0, 0.0, 0.0, 0.0, 0.0, 0.0][..])
+            .unwrap();
+        t.write_tag(
+            Tag::GeoKeyDirectoryTag,
+            &[
+                1u16, 1, 0, 3, 1024, 0, 1, 1, 1025, 0, 1, 1, 3072, 0, 1, 3031,
+            ][..],
+        )
+        .unwrap();
+        img.write_data(&[1.0, 2.0, 3.0, 4.0]).unwrap();
+    }
+    std::fs::write(&earth, buf.into_inner()).unwrap();
+    assert_clean_failure(&run(&["dem", "info", &arg(&earth)]), "EPSG:3031");
+    // All nodata.
+    let holes = d.join("holes.tif");
+    let grid = GridGeometry {
+        rows: 3,
+        cols: 3,
+        x_left_m: 0.0,
+        y_top_m: 0.0,
+        px_x_m: 1.0,
+        px_y_m: 1.0,
+    };
+    terrain::write_geotiff_f32(
+        &holes,
+        &grid,
+        &Projection::LOLA_SOUTH_POLAR,
+        &[f32::NAN; 9],
+        Some(f32::NAN),
+        &[],
+    )
+    .unwrap();
+    assert_clean_failure(
+        &run(&["dem", "info", &arg(&holes)]),
+        "every pixel is nodata",
+    );
+    // A site outside every layer (the synthetic DEM covers 89.3 S .. the pole).
+    assert_clean_failure(
+        &run(&["dem", "info", &arg(&good), "--at", "-80,0"]),
+        "no DEM layer covers",
+    );
+    // Bad synth parameters, and an output folder that does not exist: no partial file left.
+    assert_clean_failure(
+        &run(&[
+            "dem",
+            "synth",
+            "--size",
+            "0",
+            "--out",
+            &arg(&d.join("x.tif")),
+        ]),
+        "invalid terrain parameter",
+    );
+    assert_clean_failure(
+        &run(&[
+            "dem",
+            "synth",
+            "--size",
+            "8",
+            "--out",
+            &arg(&d.join("nope/x.tif")),
+        ]),
+        "nope",
+    );
+    let leftovers: Vec<_> = std::fs::read_dir(d)
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .filter(|e| e.file_name().to_string_lossy().starts_with(".penumbra-"))
+        .collect();
+    assert!(leftovers.is_empty(), "temporary files left: {leftovers:?}");
+}
