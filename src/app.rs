@@ -101,10 +101,10 @@ fn run_ephem(args: &EphemArgs) -> anyhow::Result<()> {
         epochs
             .par_iter()
             .map(|&e| {
-                let a = &kernels.almanac;
+                let geo = ephem::MoonGeometry::at(&kernels.almanac, e)?;
                 Ok((
-                    ephem::topo::sub_observer_point(a, ephem::kernels::SUN_ID, e, abcorr)?,
-                    ephem::topo::sub_observer_point(a, ephem::kernels::EARTH_ID, e, abcorr)?,
+                    ephem::topo::sub_body_point(&geo, &geo.sun_wrt_moon, abcorr),
+                    ephem::topo::sub_body_point(&geo, &geo.earth_wrt_moon, abcorr),
                 ))
             })
             .collect::<Result<Vec<_>, ephem::EphemError>>()?

@@ -287,42 +287,25 @@ pub struct SubPoint {
     pub lon_deg: f64,
 }
 
-/// The sub-observer point of a body (the Sun: sub-solar point; the Earth: sub-Earth point) on the
-/// Moon's reference sphere, with SPICE `subpnt('INTERCEPT/ELLIPSOID', 'MOON', et, 'MOON_ME',
-/// abcorr, observer)` semantics: the Moon's apparent position seen from the observer (light time
-/// to the Moon's centre, one iteration, + stellar aberration of the observer's barycentric
-/// velocity) and `MOON_ME` evaluated at the light-time-corrected epoch `et − lt`.
-pub fn sub_observer_point(
-    almanac: &Almanac,
-    observer_id: i32,
-    epoch: Epoch,
-    abcorr: AbCorr,
-) -> Result<SubPoint, EphemError> {
-    let geometric = state(almanac, MOON_ID, observer_id, epoch)?;
-    let (pos, target_epoch) = match abcorr {
-        AbCorr::None => (geometric.pos_km, epoch),
-        AbCorr::LtS => {
-            let lt0_s = geometric.pos_km.norm() / SPEED_OF_LIGHT_KM_S;
-            let obs_ssb = state(almanac, observer_id, SSB_ID, epoch)?;
-            let lt_epoch = epoch - hifitime::Unit::Second * lt0_s;
-            let moon_ssb = state(almanac, MOON_ID, SSB_ID, lt_epoch)?;
-            let pos_lt = moon_ssb.pos_km - obs_ssb.pos_km;
-            let lt1_s = pos_lt.norm() / SPEED_OF_LIGHT_KM_S;
-            (
-                stellar_aberration(&pos_lt, &obs_ssb.vel_km_s),
-                epoch - hifitime::Unit::Second * lt1_s,
-            )
-        }
+/// The sub-solar (or sub-Earth) point on the Moon at the epoch of `geo`: where the apparent body
+/// stands at the zenith, i.e. the planetocentric latitude and longitude of the body's apparent
+/// direction from the Moon's centre in `MOON_ME` (SPICE
+/// `spkpos(body, et, 'MOON_ME', abcorr, 'MOON')` + `reclat`).
+///
+/// This is the Moon-centred definition that matters to a lunar observer. SPICE's `subpnt` with the
+/// Sun as observer instead takes the Moon ≈8.3 minutes earlier (the light time from the Sun), which
+/// moves the sub-solar point by up to 0.077°; for the Earth the two differ by 0.0002°.
+pub fn sub_body_point(geo: &MoonGeometry, target_wrt_moon: &StateJ2000, abcorr: AbCorr) -> SubPoint {
+    let centre = Site {
+        lat_deg: 0.0,
+        lon_deg: 0.0,
+        height_m: -crate::MOON_RADIUS_M,
+        pos_in_moon_me_km: Vector3::zeros(),
+        enu_from_moon_me: Matrix3::identity(),
     };
-    let dcm = almanac
-        .rotate(MOON_J2000, MOON_ME, target_epoch)
-        .map_err(|e| EphemError::Query {
-            action: "rotating J2000 to MOON_ME",
-            why: e.to_string(),
-        })?;
-    let observer_in_moon_me = -(to_na(&dcm.rot_mat) * pos);
-    let (lat_deg, lon_deg, _) = crate::frames::lat_lon_height_from_moon_me_km(&observer_in_moon_me);
-    Ok(SubPoint { lat_deg, lon_deg })
+    let p = target_from_site(geo, target_wrt_moon, &centre, abcorr);
+    let (lat_deg, lon_deg, _) = crate::frames::lat_lon_height_from_moon_me_km(&p);
+    SubPoint { lat_deg, lon_deg }
 }
 
 #[cfg(test)]

@@ -453,3 +453,28 @@ fn unknown_scenario_key_is_named() {
     let out = penumbra(dir.path(), &["run", "missing.toml"]);
     assert_clean_error(&out, "missing.toml");
 }
+
+#[test]
+fn sub_solar_and_sub_earth_points_match_spice() {
+    // Oracle: tests/fixtures/spice_subpoints_moon_centre.csv (tools/make_spice_fixture.py):
+    // reclat(spkpos(body, et, 'MOON_ME', 'LT+S', 'MOON')).
+    let kernels = Kernels::load(&kernels_dir()).unwrap();
+    let text = std::fs::read_to_string(fixture("spice_subpoints_moon_centre.csv")).unwrap();
+    let mut n = 0;
+    for line in text.lines().filter(|l| !l.starts_with('#')).skip(1) {
+        let f: Vec<&str> = line.split(',').collect();
+        let epoch = ephem::time::parse_utc(f[0]).unwrap();
+        let (lat, lon): (f64, f64) = (f[2].parse().unwrap(), f[3].parse().unwrap());
+        let geo = ephem::MoonGeometry::at(&kernels.almanac, epoch).unwrap();
+        let target = if f[1] == "SUN" { geo.sun_wrt_moon } else { geo.earth_wrt_moon };
+        let p = ephem::topo::sub_body_point(&geo, &target, AbCorr::LtS);
+        let d_lat_arcsec = (p.lat_deg - lat) * 3600.0;
+        let d_lon_arcsec = wrap_deg(p.lon_deg - lon) * lat.to_radians().cos() * 3600.0;
+        assert!(
+            d_lat_arcsec.abs() < ANGLE_TOL_ARCSEC && d_lon_arcsec.abs() < ANGLE_TOL_ARCSEC,
+            "{line}: Δlat {d_lat_arcsec}\" Δlon·cos(lat) {d_lon_arcsec}\""
+        );
+        n += 1;
+    }
+    assert!(n >= 20);
+}
