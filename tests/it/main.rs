@@ -1,0 +1,3 @@
+//! penumbra's integration tests: one binary, one module per area (anise/ripgrep layout).
+
+mod illum;
