@@ -251,3 +251,115 @@ fn plots_render_readable_pngs() {
     assert!(write_horizon_polar_plot(&bad, "x", &h, &tracks, 10).is_err());
     assert!(!bad.exists());
 }
+
+/// A crude horizon from the shared 240 m LOLA grid, used only to give the fast-method error
+/// measurement a horizon with real terrain statistics (the reference horizons are `src/horizon`'s
+/// job): observer 2 m above the bilinear surface at the Connecting Ridge (89.45° S, 222.7° E),
+/// 1440 azimuths, samples every 120 m out to 180 km in the polar stereographic plane (scale
+/// error < 0.1% there), the Moon's curvature as a drop of d²/(2R).
+fn crude_lola_horizon() -> Option<Vec<f64>> {
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../shared/data/lola-south-pole-moondao/ldem75s_crop_240m_pm184km.tif"
+    );
+    let Ok(file) = std::fs::File::open(path) else {
+        println!("skipping: {path} not found");
+        return None;
+    };
+    let mut dec = tiff::decoder::Decoder::new(std::io::BufReader::new(file)).unwrap();
+    let (cols, rows) = dec.dimensions().unwrap();
+    let tiff::decoder::DecodingResult::F32(z) = dec.read_image().unwrap() else {
+        panic!("expected f32 heights");
+    };
+    let (cols, rows) = (cols as usize, rows as usize);
+    // Geometry from PROVENANCE.md: 240 m pixels, bounds ±184320 m, row 0 at the top (+y).
+    let (px_m, top_m, left_m, radius_m) = (240.0, 184_320.0, -184_320.0, 1_737_400.0);
+    let height = |x_m: f64, y_m: f64| -> Option<f64> {
+        let c = (x_m - left_m) / px_m - 0.5;
+        let r = (top_m - y_m) / px_m - 0.5;
+        if c < 0.0 || r < 0.0 || c >= (cols - 1) as f64 || r >= (rows - 1) as f64 {
+            return None;
+        }
+        let (c0, r0) = (c.floor() as usize, r.floor() as usize);
+        let (fc, fr) = (c - c0 as f64, r - r0 as f64);
+        let at = |r: usize, c: usize| f64::from(z[r * cols + c]);
+        Some(
+            (1.0 - fr) * ((1.0 - fc) * at(r0, c0) + fc * at(r0, c0 + 1))
+                + fr * ((1.0 - fc) * at(r0 + 1, c0) + fc * at(r0 + 1, c0 + 1)),
+        )
+    };
+    let (colat, lon) = ((90.0_f64 - 89.45).to_radians(), 222.7_f64.to_radians());
+    let rho = 2.0 * radius_m * (colat / 2.0).tan();
+    let (x0, y0) = (rho * lon.sin(), rho * lon.cos());
+    let h0 = height(x0, y0).unwrap() + 2.0;
+    // North = away from the pole; east = increasing longitude.
+    let north = (lon.sin(), lon.cos());
+    let east = (lon.cos(), -lon.sin());
+    Some(
+        (0..1440)
+            .map(|i| {
+                let az = (f64::from(i) * 0.25).to_radians();
+                let dir = (
+                    north.0 * az.cos() + east.0 * az.sin(),
+                    north.1 * az.cos() + east.1 * az.sin(),
+                );
+                let mut best = f64::NEG_INFINITY;
+                let mut d = 120.0;
+                while d < 180_000.0 {
+                    match height(x0 + d * dir.0, y0 + d * dir.1) {
+                        Some(h) => {
+                            let dz = h - h0 - d * d / (2.0 * radius_m);
+                            best = best.max(dz.atan2(d).to_degrees());
+                        }
+                        None => break,
+                    }
+                    d += 120.0;
+                }
+                best
+            })
+            .collect(),
+    )
+}
+
+/// The fast methods against the exact integral on a horizon with real terrain statistics.
+/// Prints the row recorded in docs/illum.md:
+/// `cargo test --test it illum::fast_methods_error_on_lola -- --nocapture`.
+#[test]
+fn fast_methods_error_on_lola_horizon() {
+    let Some(el) = crude_lola_horizon() else {
+        return;
+    };
+    let (lo, hi) = el
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &e| {
+            (a.min(e), b.max(e))
+        });
+    println!("crude LOLA horizon at the Connecting Ridge: {lo:.3}° .. {hi:.3}°");
+    // Sanity: a ridge near the pole sees a horizon within a few degrees of the horizontal.
+    assert!(lo > -3.0 && hi < 5.0, "{lo} {hi}");
+    let h = HorizonProfile::new(&el).unwrap();
+    for (body, r) in [("Sun", 0.267), ("Earth", 0.95)] {
+        let mut rng = Lcg(11);
+        let (mut seg_err, mut mid_err) = (Vec::new(), Vec::new());
+        for _ in 0..20_000 {
+            let az = rng.next() * 360.0;
+            let disc = Disc {
+                az_deg: az,
+                el_deg: h.el_at_az_deg(az) + (2.0 * rng.next() - 1.0) * r,
+                radius_deg: r,
+            };
+            let u = LimbDarkening::UNIFORM;
+            let exact = visible_fraction(&h, &disc, DiscMethod::Exact, &u);
+            seg_err.push((visible_fraction(&h, &disc, DiscMethod::Segment, &u) - exact).abs());
+            mid_err.push((visible_fraction(&h, &disc, DiscMethod::MiddleValue, &u) - exact).abs());
+        }
+        let s = error_stats(&mut seg_err);
+        let m = error_stats(&mut mid_err);
+        println!(
+            "LOLA {body} r={r}: segment |err| mean {:.4} p99 {:.4} max {:.4}; \
+             middle value mean {:.4} p99 {:.4} max {:.4}",
+            s.mean, s.p99, s.max, m.mean, m.p99, m.max
+        );
+        assert!(s.mean < 0.05 && m.mean < 0.05, "{} {}", s.mean, m.mean);
+    }
+}
