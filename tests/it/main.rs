@@ -1,5 +1,6 @@
 //! penumbra's integration tests: one binary, one module per area (anise/ripgrep layout).
 
 mod ephem;
+mod illum;
 mod terrain;
 mod util;

@@ -1,0 +1,496 @@
+//! PNG plots: the visible fraction of the Sun and the Earth over time, and the horizon profile
+//! with the Sun's and the Earth's sky tracks (rectangular az × el, and a polar variant).
+//!
+//! Rendering uses `plotters`' bitmap backend into an RGB buffer, encoded as PNG with `image`, then
+//! written atomically ([`crate::output::write_bytes_atomic`]). Text uses the DejaVu Sans font
+//! embedded by the `dejavu` crate (Bitstream Vera licence, permissive) through `ab_glyph`, so no
+//! system font library (freetype/fontconfig) is needed.
+
+use std::path::Path;
+use std::sync::OnceLock;
+
+use hifitime::Epoch;
+use plotters::coord::Shift;
+use plotters::prelude::*;
+
+use super::IllumError;
+use super::disc::HorizonProfile;
+use super::stats::format_utc;
+
+/// Default plot size in pixels (width, height).
+pub const DEFAULT_SIZE_PX: (u32, u32) = (1200, 600);
+
+/// Colour of the Sun's curves and track.
+const SUN_COLOR: RGBColor = RGBColor(230, 130, 0);
+/// Colour of the Earth's curves and track.
+const EARTH_COLOR: RGBColor = RGBColor(30, 90, 200);
+/// Fill colour of the terrain below the horizon.
+const TERRAIN_COLOR: RGBColor = RGBColor(170, 170, 170);
+/// Most track points drawn per body (longer tracks are thinned by a uniform stride).
+const MAX_TRACK_POINTS: usize = 40_000;
+
+/// Registers the embedded font once (the ab_glyph backend has no font until one is registered).
+fn ensure_font() -> Result<(), IllumError> {
+    static REGISTERED: OnceLock<bool> = OnceLock::new();
+    let ok = *REGISTERED.get_or_init(|| {
+        plotters::style::register_font("sans-serif", FontStyle::Normal, dejavu::sans::regular())
+            .is_ok()
+    });
+    if ok {
+        Ok(())
+    } else {
+        Err(IllumError::Plot {
+            what: "font",
+            message: "the embedded DejaVu Sans font failed to load".to_string(),
+        })
+    }
+}
+
+fn plot_err<E: std::fmt::Display>(what: &'static str) -> impl Fn(E) -> IllumError {
+    move |e| IllumError::Plot {
+        what,
+        message: e.to_string(),
+    }
+}
+
+/// Draws with `draw` on a white canvas of `size_px` and returns the PNG bytes.
+fn render_png(
+    what: &'static str,
+    size_px: (u32, u32),
+    draw: impl FnOnce(&DrawingArea<BitMapBackend<'_>, Shift>) -> Result<(), IllumError>,
+) -> Result<Vec<u8>, IllumError> {
+    ensure_font()?;
+    let (w, h) = size_px;
+    if w < 200 || h < 150 {
+        return Err(IllumError::Plot {
+            what,
+            message: format!("plot size {w}x{h} px is too small (min 200x150)"),
+        });
+    }
+    let mut rgb = vec![0_u8; (w as usize) * (h as usize) * 3];
+    {
+        let root = BitMapBackend::with_buffer(&mut rgb, (w, h)).into_drawing_area();
+        root.fill(&WHITE).map_err(plot_err(what))?;
+        draw(&root)?;
+        root.present().map_err(plot_err(what))?;
+    }
+    let img = image::RgbImage::from_raw(w, h, rgb).ok_or_else(|| IllumError::Plot {
+        what,
+        message: "pixel buffer has the wrong size".to_string(),
+    })?;
+    let mut png = Vec::new();
+    img.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+        .map_err(plot_err(what))?;
+    Ok(png)
+}
+
+/// A visibility time series to plot: uniform grid from `start_utc` every `step_s` seconds.
+#[derive(Debug, Clone, Copy)]
+pub struct FractionSeries<'a> {
+    /// Epoch of the first sample.
+    pub start_utc: Epoch,
+    /// Step between samples, seconds.
+    pub step_s: f64,
+    /// Visible fraction of the Sun per sample.
+    pub sun_fraction: &'a [f64],
+    /// Visible fraction of the Earth per sample, if it is to be drawn.
+    pub earth_fraction: Option<&'a [f64]>,
+}
+
+/// Time axis unit chosen from the span: hours up to 3 days, days up to 2 years, else years.
+fn time_unit(span_s: f64) -> (f64, &'static str) {
+    if span_s <= 3.0 * 86_400.0 {
+        (3600.0, "h")
+    } else if span_s <= 2.0 * 365.25 * 86_400.0 {
+        (86_400.0, "days")
+    } else {
+        (365.25 * 86_400.0, "years")
+    }
+}
+
+/// Renders the visible fraction of the Sun (and the Earth) over time as PNG bytes.
+pub fn render_fraction_plot_png(
+    title: &str,
+    series: &FractionSeries<'_>,
+    size_px: (u32, u32),
+) -> Result<Vec<u8>, IllumError> {
+    const WHAT: &str = "visible-fraction plot";
+    let n = series.sun_fraction.len();
+    if n == 0 {
+        return Err(IllumError::EmptySeries {
+            site: title.to_string(),
+        });
+    }
+    let span_s = n as f64 * series.step_s;
+    let (unit_s, unit_name) = time_unit(span_s);
+    let x_max = span_s / unit_s;
+    let x_of = |k: usize| k as f64 * series.step_s / unit_s;
+    render_png(WHAT, size_px, |root| {
+        let mut chart = ChartBuilder::on(root)
+            .caption(title, ("sans-serif", 24))
+            .margin(12)
+            .x_label_area_size(50)
+            .y_label_area_size(60)
+            .build_cartesian_2d(0.0..x_max, -0.02..1.2)
+            .map_err(plot_err(WHAT))?;
+        chart
+            .configure_mesh()
+            .x_desc(format!(
+                "time since {} ({unit_name})",
+                format_utc(series.start_utc)
+            ))
+            .y_desc("visible fraction of the disc")
+            .y_labels(13)
+            .light_line_style(BLACK.mix(0.04))
+            .label_style(("sans-serif", 15))
+            .axis_desc_style(("sans-serif", 17))
+            .draw()
+            .map_err(plot_err(WHAT))?;
+        if let Some(earth) = series.earth_fraction {
+            chart
+                .draw_series(LineSeries::new(
+                    earth.iter().enumerate().map(|(k, &f)| (x_of(k), f)),
+                    EARTH_COLOR.stroke_width(1),
+                ))
+                .map_err(plot_err(WHAT))?
+                .label("Earth")
+                .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], EARTH_COLOR));
+        }
+        chart
+            .draw_series(LineSeries::new(
+                series
+                    .sun_fraction
+                    .iter()
+                    .enumerate()
+                    .map(|(k, &f)| (x_of(k), f)),
+                SUN_COLOR.stroke_width(2),
+            ))
+            .map_err(plot_err(WHAT))?
+            .label("Sun")
+            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], SUN_COLOR));
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK)
+            .label_font(("sans-serif", 15))
+            .position(SeriesLabelPosition::UpperRight)
+            .draw()
+            .map_err(plot_err(WHAT))?;
+        Ok(())
+    })
+}
+
+/// Writes [`render_fraction_plot_png`] to `path` atomically.
+pub fn write_fraction_plot(
+    path: &Path,
+    title: &str,
+    series: &FractionSeries<'_>,
+    size_px: (u32, u32),
+) -> Result<(), IllumError> {
+    let png = render_fraction_plot_png(title, series, size_px)?;
+    crate::output::write_bytes_atomic(path, &png)?;
+    Ok(())
+}
+
+/// Sky tracks of the Sun and the Earth over a period, as (azimuth, elevation) pairs in degrees.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct SkyTracks<'a> {
+    /// The Sun's centre, (az_deg, el_deg) per sample.
+    pub sun_az_el_deg: &'a [(f64, f64)],
+    /// The Earth's centre, (az_deg, el_deg) per sample.
+    pub earth_az_el_deg: &'a [(f64, f64)],
+}
+
+/// Every `stride`-th point so that at most [`MAX_TRACK_POINTS`] remain.
+fn thinned(track: &[(f64, f64)]) -> impl Iterator<Item = (f64, f64)> + '_ {
+    let stride = track.len().div_ceil(MAX_TRACK_POINTS).max(1);
+    track
+        .iter()
+        .step_by(stride)
+        .map(|&(az, el)| (az.rem_euclid(360.0), el))
+}
+
+/// Elevation range (deg) covering the horizon and both tracks, padded.
+fn el_range_deg(horizon: &HorizonProfile<'_>, tracks: &SkyTracks<'_>) -> (f64, f64) {
+    let all = horizon.el_deg().iter().copied().chain(
+        tracks
+            .sun_az_el_deg
+            .iter()
+            .chain(tracks.earth_az_el_deg)
+            .map(|p| p.1)
+            .filter(|e| e.is_finite()),
+    );
+    let (lo, hi) = all.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), e| {
+        (lo.min(e), hi.max(e))
+    });
+    let pad = (0.05 * (hi - lo)).max(0.2);
+    (lo - pad, hi + pad)
+}
+
+/// Horizon samples as (az, el) points closing the circle at 360°.
+fn horizon_points(horizon: &HorizonProfile<'_>) -> Vec<(f64, f64)> {
+    let step = horizon.az_step_deg();
+    let el = horizon.el_deg();
+    let mut pts: Vec<(f64, f64)> = el
+        .iter()
+        .enumerate()
+        .map(|(i, &e)| (i as f64 * step, e))
+        .collect();
+    pts.push((360.0, el[0]));
+    pts
+}
+
+/// Renders the horizon profile (terrain filled) with the Sun's and the Earth's tracks on a
+/// rectangular azimuth (0–360°) × elevation plot, as PNG bytes.
+pub fn render_horizon_plot_png(
+    title: &str,
+    horizon: &HorizonProfile<'_>,
+    tracks: &SkyTracks<'_>,
+    size_px: (u32, u32),
+) -> Result<Vec<u8>, IllumError> {
+    const WHAT: &str = "horizon plot";
+    let (el_lo, el_hi) = el_range_deg(horizon, tracks);
+    render_png(WHAT, size_px, |root| {
+        let mut chart = ChartBuilder::on(root)
+            .caption(title, ("sans-serif", 24))
+            .margin(12)
+            .x_label_area_size(50)
+            .y_label_area_size(60)
+            .build_cartesian_2d(0.0..360.0, el_lo..el_hi)
+            .map_err(plot_err(WHAT))?;
+        chart
+            .configure_mesh()
+            .x_desc("azimuth (deg, clockwise from north)")
+            .y_desc("elevation (deg)")
+            .x_labels(13)
+            .x_label_formatter(&|az| format!("{az:.0}"))
+            .light_line_style(BLACK.mix(0.04))
+            .label_style(("sans-serif", 15))
+            .axis_desc_style(("sans-serif", 17))
+            .draw()
+            .map_err(plot_err(WHAT))?;
+        let pts = horizon_points(horizon);
+        chart
+            .draw_series(AreaSeries::new(
+                pts.iter().copied(),
+                el_lo,
+                TERRAIN_COLOR.mix(0.6),
+            ))
+            .map_err(plot_err(WHAT))?;
+        chart
+            .draw_series(LineSeries::new(pts, BLACK.stroke_width(2)))
+            .map_err(plot_err(WHAT))?
+            .label("horizon (terrain below)")
+            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK.stroke_width(2)));
+        for (track, color, label) in [
+            (tracks.sun_az_el_deg, SUN_COLOR, "Sun centre track"),
+            (tracks.earth_az_el_deg, EARTH_COLOR, "Earth centre track"),
+        ] {
+            if track.is_empty() {
+                continue;
+            }
+            chart
+                .draw_series(thinned(track).map(|p| Circle::new(p, 1, color.filled())))
+                .map_err(plot_err(WHAT))?
+                .label(label)
+                .legend(move |(x, y)| Circle::new((x + 10, y), 4, color.filled()));
+        }
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK)
+            .label_font(("sans-serif", 15))
+            .position(SeriesLabelPosition::UpperRight)
+            .draw()
+            .map_err(plot_err(WHAT))?;
+        Ok(())
+    })
+}
+
+/// Renders the polar variant: azimuth clockwise from north (up), the radius linear in elevation
+/// with the highest elevation of the plot at the centre and the lowest on the rim (so a horizon a
+/// few degrees high stays readable, unlike a zenith-centred plot), as PNG bytes.
+pub fn render_horizon_polar_png(
+    title: &str,
+    horizon: &HorizonProfile<'_>,
+    tracks: &SkyTracks<'_>,
+    size_px: u32,
+) -> Result<Vec<u8>, IllumError> {
+    const WHAT: &str = "polar horizon plot";
+    let (el_lo, el_hi) = el_range_deg(horizon, tracks);
+    let to_xy = |az_deg: f64, el_deg: f64| {
+        let rho = ((el_hi - el_deg) / (el_hi - el_lo)).clamp(0.0, 1.0);
+        let az = az_deg.to_radians();
+        (rho * az.sin(), rho * az.cos())
+    };
+    render_png(WHAT, (size_px, size_px), |root| {
+        let mut chart = ChartBuilder::on(root)
+            .caption(title, ("sans-serif", 22))
+            .margin(20)
+            .build_cartesian_2d(-1.2..1.2, -1.2..1.2)
+            .map_err(plot_err(WHAT))?;
+        // Terrain: the ring between the horizon curve and the rim, closed through a seam at 0°.
+        let mut ring: Vec<(f64, f64)> = horizon_points(horizon)
+            .into_iter()
+            .map(|(az, el)| to_xy(az, el))
+            .collect();
+        ring.extend((0..=360).rev().map(|a| to_xy(f64::from(a), el_lo)));
+        chart
+            .draw_series(std::iter::once(Polygon::new(ring, TERRAIN_COLOR.mix(0.6))))
+            .map_err(plot_err(WHAT))?;
+        // Elevation rings with labels, and azimuth spokes every 30°.
+        let (ticks, decimals) = nice_ticks(el_lo, el_hi, 8);
+        for &el in &ticks {
+            let circle: Vec<(f64, f64)> = (0..=360).map(|a| to_xy(f64::from(a), el)).collect();
+            chart
+                .draw_series(std::iter::once(PathElement::new(circle, BLACK.mix(0.3))))
+                .map_err(plot_err(WHAT))?;
+            chart
+                .draw_series(std::iter::once(Text::new(
+                    format!("{el:.decimals$}°"),
+                    to_xy(45.0, el),
+                    ("sans-serif", 13).into_font().color(&BLACK),
+                )))
+                .map_err(plot_err(WHAT))?;
+        }
+        for a in (0..360).step_by(30) {
+            let az = f64::from(a);
+            chart
+                .draw_series(std::iter::once(PathElement::new(
+                    vec![to_xy(az, el_hi), to_xy(az, el_lo)],
+                    BLACK.mix(0.3),
+                )))
+                .map_err(plot_err(WHAT))?;
+            let label = match a {
+                0 => "N".to_string(),
+                90 => "E".to_string(),
+                180 => "S".to_string(),
+                270 => "W".to_string(),
+                _ => format!("{a}°"),
+            };
+            let (x, y) = to_xy(az, el_lo);
+            chart
+                .draw_series(std::iter::once(Text::new(
+                    label,
+                    (1.08 * x - 0.04, 1.08 * y + 0.03),
+                    ("sans-serif", 15).into_font().color(&BLACK),
+                )))
+                .map_err(plot_err(WHAT))?;
+        }
+        let horizon_xy: Vec<(f64, f64)> = horizon_points(horizon)
+            .into_iter()
+            .map(|(az, el)| to_xy(az, el))
+            .collect();
+        chart
+            .draw_series(std::iter::once(PathElement::new(
+                horizon_xy,
+                BLACK.stroke_width(2),
+            )))
+            .map_err(plot_err(WHAT))?
+            .label("horizon (terrain outside)")
+            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK.stroke_width(2)));
+        for (track, color, label) in [
+            (tracks.sun_az_el_deg, SUN_COLOR, "Sun centre track"),
+            (tracks.earth_az_el_deg, EARTH_COLOR, "Earth centre track"),
+        ] {
+            if track.is_empty() {
+                continue;
+            }
+            chart
+                .draw_series(
+                    thinned(track)
+                        .filter(|&(_, el)| el >= el_lo)
+                        .map(|(az, el)| Circle::new(to_xy(az, el), 1, color.filled())),
+                )
+                .map_err(plot_err(WHAT))?
+                .label(label)
+                .legend(move |(x, y)| Circle::new((x + 10, y), 4, color.filled()));
+        }
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK)
+            .label_font(("sans-serif", 14))
+            .position(SeriesLabelPosition::UpperLeft)
+            .draw()
+            .map_err(plot_err(WHAT))?;
+        root.draw(&Text::new(
+            format!("radius: elevation, {el_hi:.1}° at centre to {el_lo:.1}° at rim"),
+            (10, i32::try_from(size_px).unwrap_or(i32::MAX) - 22),
+            ("sans-serif", 14).into_font().color(&BLACK),
+        ))
+        .map_err(plot_err(WHAT))?;
+        Ok(())
+    })
+}
+
+/// About `count` round tick values (1, 2 or 5 × 10^k steps) inside `[lo, hi]`, and the number
+/// of decimals that prints them exactly.
+fn nice_ticks(lo: f64, hi: f64, count: usize) -> (Vec<f64>, usize) {
+    let raw = (hi - lo) / count.max(1) as f64;
+    let mag = 10f64.powf(raw.log10().floor());
+    let step = [1.0, 2.0, 5.0, 10.0]
+        .into_iter()
+        .map(|m| m * mag)
+        .find(|s| *s >= raw)
+        .unwrap_or(10.0 * mag);
+    let mut ticks = Vec::new();
+    let mut i = (lo / step).ceil();
+    while i * step <= hi {
+        ticks.push(i * step + 0.0); // + 0.0 turns -0.0 into 0.0
+        i += 1.0;
+    }
+    let decimals = (-step.log10().floor()).max(0.0) as usize;
+    (ticks, decimals)
+}
+
+/// Writes [`render_horizon_plot_png`] to `path` atomically.
+pub fn write_horizon_plot(
+    path: &Path,
+    title: &str,
+    horizon: &HorizonProfile<'_>,
+    tracks: &SkyTracks<'_>,
+    size_px: (u32, u32),
+) -> Result<(), IllumError> {
+    let png = render_horizon_plot_png(title, horizon, tracks, size_px)?;
+    crate::output::write_bytes_atomic(path, &png)?;
+    Ok(())
+}
+
+/// Writes [`render_horizon_polar_png`] to `path` atomically.
+pub fn write_horizon_polar_plot(
+    path: &Path,
+    title: &str,
+    horizon: &HorizonProfile<'_>,
+    tracks: &SkyTracks<'_>,
+    size_px: u32,
+) -> Result<(), IllumError> {
+    let png = render_horizon_polar_png(title, horizon, tracks, size_px)?;
+    crate::output::write_bytes_atomic(path, &png)?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn nice_ticks_are_round() {
+        // Span 5.5 / 5 = 1.1 → step 2.
+        let (t, d) = nice_ticks(-1.3, 4.2, 5);
+        assert_eq!(d, 0);
+        let labels: Vec<String> = t.iter().map(|v| format!("{v:.d$}")).collect();
+        assert_eq!(labels, ["0", "2", "4"]);
+        // Span 0.9 / 8 = 0.1125 → step 0.2, one decimal.
+        let (t, d) = nice_ticks(0.05, 0.95, 8);
+        let labels: Vec<String> = t.iter().map(|v| format!("{v:.d$}")).collect();
+        assert_eq!(labels, ["0.2", "0.4", "0.6", "0.8"]);
+    }
+
+    #[test]
+    fn time_units() {
+        assert_eq!(time_unit(48.0 * 3600.0).1, "h");
+        assert_eq!(time_unit(30.0 * 86_400.0).1, "days");
+        assert_eq!(time_unit(18.6 * 365.25 * 86_400.0).1, "years");
+    }
+}

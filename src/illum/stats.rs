@@ -1,0 +1,578 @@
+//! Time-weighted statistics of per-site visibility series, written as `stats.json`.
+//!
+//! **Time weighting.** A series is sampled on a uniform grid `t_k = start + k · step`,
+//! `k = 0..n`. Sample `k` stands for the interval `[t_k, t_k + step)`, so every sample weighs one
+//! step, percentages are sample counts / n · 100, and a run of `m` consecutive samples that meet a
+//! condition is a window from `t_k` to `t_k + m · step`, `m · step` long. Window lengths are thus
+//! resolved to ±1 step (the true event can start up to one step earlier or end up to one step
+//! later than sampled). A window that touches the first or last sample may be cut by the ends of
+//! the series (its true length can be longer). Ties: the earliest longest window is reported.
+//!
+//! **Thresholds** (constants below, recorded in the file's `definitions`):
+//! * Sun *fully visible*: fraction ≥ [`SUN_FULL_MIN_FRACTION`] (0.999: the hidden part is a
+//!   sliver of at most 0.1% of the disc);
+//! * *visible* (Sun or Earth, any part): fraction > [`VISIBLE_MIN_FRACTION`] (1e-9, i.e.
+//!   numerically non-zero); *partly visible* = visible but not fully;
+//! * *dark* (Sun) / *hidden* (Earth): not visible;
+//! * *low Sun*: fraction < [`LOW_SUN_MAX_FRACTION`] (10%, dark included).
+//!
+//! Combined figures for a set of sites sharing one time grid: "at least one site lit" (any site's
+//! Sun visible) and the longest darkness of the union (every site dark at once).
+
+use std::path::Path;
+
+use hifitime::{Duration, Epoch};
+use serde::{Deserialize, Serialize};
+
+use super::IllumError;
+
+/// Minimum visible fraction for the Sun to count as fully visible.
+pub const SUN_FULL_MIN_FRACTION: f64 = 0.999;
+/// A disc counts as visible (any part) when its fraction exceeds this.
+pub const VISIBLE_MIN_FRACTION: f64 = 1e-9;
+/// The "low Sun" threshold: fraction strictly below 10%.
+pub const LOW_SUN_MAX_FRACTION: f64 = 0.10;
+
+/// One site's series on a uniform time grid.
+#[derive(Debug, Clone, Copy)]
+pub struct SiteSeries<'a> {
+    /// Site name (copied into the statistics).
+    pub site: &'a str,
+    /// Epoch of the first sample.
+    pub start_utc: Epoch,
+    /// Time step between samples, seconds.
+    pub step_s: f64,
+    /// Visible (flux) fraction of the Sun's disc per sample, 0..=1.
+    pub sun_fraction: &'a [f64],
+    /// Visible fraction of the Earth's disc per sample, 0..=1.
+    pub earth_fraction: &'a [f64],
+}
+
+impl SiteSeries<'_> {
+    fn validate(&self) -> Result<(), IllumError> {
+        let n = self.sun_fraction.len();
+        if n == 0 {
+            return Err(IllumError::EmptySeries {
+                site: self.site.to_string(),
+            });
+        }
+        if !(self.step_s > 0.0 && self.step_s.is_finite()) {
+            return Err(IllumError::BadStep {
+                step_s: self.step_s,
+            });
+        }
+        if self.earth_fraction.len() != n {
+            return Err(IllumError::LengthMismatch {
+                site: self.site.to_string(),
+                what: "earth_fraction",
+                got: self.earth_fraction.len(),
+                expected: n,
+            });
+        }
+        Ok(())
+    }
+
+    /// Epoch of the start of sample `k` (`k = n` gives the end of the series).
+    fn epoch_at(&self, k: usize) -> Epoch {
+        let offset_s = k as f64 * self.step_s;
+        self.start_utc + Duration::from_seconds(offset_s)
+    }
+}
+
+/// A time window of consecutive samples (see the module docs for the weighting).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct Run {
+    first: usize,
+    len: usize,
+}
+
+/// The earliest longest run of consecutive indices in `0..n` for which `pred` holds.
+fn longest_run(n: usize, pred: impl Fn(usize) -> bool) -> Option<Run> {
+    let mut best: Option<Run> = None;
+    let mut cur_first = 0;
+    let mut cur_len = 0;
+    for k in 0..n {
+        if pred(k) {
+            if cur_len == 0 {
+                cur_first = k;
+            }
+            cur_len += 1;
+            if best.is_none_or(|b| cur_len > b.len) {
+                best = Some(Run {
+                    first: cur_first,
+                    len: cur_len,
+                });
+            }
+        } else {
+            cur_len = 0;
+        }
+    }
+    best
+}
+
+/// Formats an epoch as ISO 8601 UTC, `YYYY-MM-DDTHH:MM:SSZ` (milliseconds added when non-zero).
+pub fn format_utc(epoch: Epoch) -> String {
+    let (y, mo, d, h, mi, s, ns) = epoch.to_gregorian_utc();
+    if ns == 0 {
+        format!("{y:04}-{mo:02}-{d:02}T{h:02}:{mi:02}:{s:02}Z")
+    } else {
+        format!(
+            "{y:04}-{mo:02}-{d:02}T{h:02}:{mi:02}:{s:02}.{:03}Z",
+            ns / 1_000_000
+        )
+    }
+}
+
+/// Percentage of samples in `0..n` for which `pred` holds.
+fn pct(n: usize, pred: impl Fn(usize) -> bool) -> f64 {
+    let count = (0..n).filter(|&k| pred(k)).count();
+    100.0 * count as f64 / n as f64
+}
+
+/// A window's duration (h) and start/end UTC strings, or 0 h and `None`s if there is none.
+fn window(series: &SiteSeries<'_>, run: Option<Run>) -> (f64, Option<String>, Option<String>) {
+    match run {
+        Some(r) => {
+            let hours = r.len as f64 * series.step_s / 3600.0;
+            (
+                hours,
+                Some(format_utc(series.epoch_at(r.first))),
+                Some(format_utc(series.epoch_at(r.first + r.len))),
+            )
+        }
+        None => (0.0, None, None),
+    }
+}
+
+/// Time-weighted statistics of one site's series. Percentages are of the whole series (0–100);
+/// durations in hours; times ISO 8601 UTC; `None` where no such window exists.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SiteStats {
+    /// Site name.
+    pub site: String,
+    /// Start of the first sample (UTC).
+    pub start_utc: String,
+    /// End of the last sample's interval, `start + n · step` (UTC).
+    pub end_utc: String,
+    /// Time step, seconds.
+    pub step_s: f64,
+    /// Number of samples.
+    pub samples: usize,
+    /// Length of the series, `n · step`, hours.
+    pub span_h: f64,
+    /// % of time the Sun is fully visible (fraction ≥ 0.999).
+    pub sun_full_pct: f64,
+    /// % of time the Sun is partly visible (visible, not fully).
+    pub sun_partial_pct: f64,
+    /// % of time any part of the Sun is visible (full + partial).
+    pub sun_visible_pct: f64,
+    /// % of time the Sun is entirely hidden.
+    pub sun_dark_pct: f64,
+    /// Time-mean visible fraction of the Sun (0–1).
+    pub sun_mean_visible_fraction: f64,
+    /// Longest continuous darkness (Sun entirely hidden), hours.
+    pub longest_dark_h: f64,
+    /// Start of the longest darkness (UTC).
+    pub longest_dark_start_utc: Option<String>,
+    /// End of the longest darkness (UTC).
+    pub longest_dark_end_utc: Option<String>,
+    /// Longest stretch with less than 10% of the Sun visible (darkness included), hours.
+    pub longest_below_10pct_h: f64,
+    /// Start of that stretch (UTC).
+    pub longest_below_10pct_start_utc: Option<String>,
+    /// End of that stretch (UTC).
+    pub longest_below_10pct_end_utc: Option<String>,
+    /// % of time any part of the Earth is visible.
+    pub earth_visible_pct: f64,
+    /// Time-mean visible fraction of the Earth (0–1).
+    pub earth_mean_visible_fraction: f64,
+    /// Longest continuous window with the Earth (partly) visible, hours.
+    pub longest_earth_visible_h: f64,
+    /// Start of that window (UTC).
+    pub longest_earth_visible_start_utc: Option<String>,
+    /// End of that window (UTC).
+    pub longest_earth_visible_end_utc: Option<String>,
+    /// Longest continuous window with the Earth entirely hidden, hours.
+    pub longest_earth_hidden_h: f64,
+    /// Start of that window (UTC).
+    pub longest_earth_hidden_start_utc: Option<String>,
+    /// End of that window (UTC).
+    pub longest_earth_hidden_end_utc: Option<String>,
+    /// % of time both the Sun and the Earth are (at least partly) visible.
+    pub sun_and_earth_pct: f64,
+}
+
+/// Statistics of one site's series.
+pub fn site_stats(series: &SiteSeries<'_>) -> Result<SiteStats, IllumError> {
+    series.validate()?;
+    let sun = series.sun_fraction;
+    let earth = series.earth_fraction;
+    let n = sun.len();
+    let sun_vis = |k: usize| sun[k] > VISIBLE_MIN_FRACTION;
+    let earth_vis = |k: usize| earth[k] > VISIBLE_MIN_FRACTION;
+    let (nf, span_h) = (n as f64, n as f64 * series.step_s / 3600.0);
+
+    let (longest_dark_h, longest_dark_start_utc, longest_dark_end_utc) =
+        window(series, longest_run(n, |k| !sun_vis(k)));
+    let (longest_below_10pct_h, longest_below_10pct_start_utc, longest_below_10pct_end_utc) =
+        window(series, longest_run(n, |k| sun[k] < LOW_SUN_MAX_FRACTION));
+    let (longest_earth_visible_h, longest_earth_visible_start_utc, longest_earth_visible_end_utc) =
+        window(series, longest_run(n, earth_vis));
+    let (longest_earth_hidden_h, longest_earth_hidden_start_utc, longest_earth_hidden_end_utc) =
+        window(series, longest_run(n, |k| !earth_vis(k)));
+
+    let sun_full_pct = pct(n, |k| sun[k] >= SUN_FULL_MIN_FRACTION);
+    let sun_visible_pct = pct(n, sun_vis);
+    Ok(SiteStats {
+        site: series.site.to_string(),
+        start_utc: format_utc(series.start_utc),
+        end_utc: format_utc(series.epoch_at(n)),
+        step_s: series.step_s,
+        samples: n,
+        span_h,
+        sun_full_pct,
+        sun_partial_pct: pct(n, |k| sun_vis(k) && sun[k] < SUN_FULL_MIN_FRACTION),
+        sun_visible_pct,
+        sun_dark_pct: pct(n, |k| !sun_vis(k)),
+        sun_mean_visible_fraction: sun.iter().sum::<f64>() / nf,
+        longest_dark_h,
+        longest_dark_start_utc,
+        longest_dark_end_utc,
+        longest_below_10pct_h,
+        longest_below_10pct_start_utc,
+        longest_below_10pct_end_utc,
+        earth_visible_pct: pct(n, earth_vis),
+        earth_mean_visible_fraction: earth.iter().sum::<f64>() / nf,
+        longest_earth_visible_h,
+        longest_earth_visible_start_utc,
+        longest_earth_visible_end_utc,
+        longest_earth_hidden_h,
+        longest_earth_hidden_start_utc,
+        longest_earth_hidden_end_utc,
+        sun_and_earth_pct: pct(n, |k| sun_vis(k) && earth_vis(k)),
+    })
+}
+
+/// Combined figures for a set of sites on one time grid.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CombinedStats {
+    /// The sites combined.
+    pub sites: Vec<String>,
+    /// % of time at least one site sees (part of) the Sun.
+    pub any_sun_visible_pct: f64,
+    /// % of time at least one site sees the Sun fully.
+    pub any_sun_full_pct: f64,
+    /// Longest window with every site dark at once (the union's darkness), hours.
+    pub longest_all_dark_h: f64,
+    /// Start of that window (UTC).
+    pub longest_all_dark_start_utc: Option<String>,
+    /// End of that window (UTC).
+    pub longest_all_dark_end_utc: Option<String>,
+    /// % of time at least one site sees (part of) the Earth.
+    pub any_earth_visible_pct: f64,
+    /// Longest window with the Earth hidden from every site at once, hours.
+    pub longest_all_earth_hidden_h: f64,
+    /// Start of that window (UTC).
+    pub longest_all_earth_hidden_start_utc: Option<String>,
+    /// End of that window (UTC).
+    pub longest_all_earth_hidden_end_utc: Option<String>,
+}
+
+/// Combined statistics of several sites; they must share start epoch, step and length.
+pub fn combined_stats(all: &[SiteSeries<'_>]) -> Result<CombinedStats, IllumError> {
+    let Some(first) = all.first() else {
+        return Err(IllumError::EmptySeries {
+            site: "(no sites)".to_string(),
+        });
+    };
+    for s in all {
+        s.validate()?;
+        if s.start_utc != first.start_utc
+            || s.step_s != first.step_s
+            || s.sun_fraction.len() != first.sun_fraction.len()
+        {
+            return Err(IllumError::MismatchedGrids {
+                site: s.site.to_string(),
+            });
+        }
+    }
+    let n = first.sun_fraction.len();
+    let any_sun = |k: usize| all.iter().any(|s| s.sun_fraction[k] > VISIBLE_MIN_FRACTION);
+    let any_earth = |k: usize| {
+        all.iter()
+            .any(|s| s.earth_fraction[k] > VISIBLE_MIN_FRACTION)
+    };
+    let (longest_all_dark_h, longest_all_dark_start_utc, longest_all_dark_end_utc) =
+        window(first, longest_run(n, |k| !any_sun(k)));
+    let (
+        longest_all_earth_hidden_h,
+        longest_all_earth_hidden_start_utc,
+        longest_all_earth_hidden_end_utc,
+    ) = window(first, longest_run(n, |k| !any_earth(k)));
+    Ok(CombinedStats {
+        sites: all.iter().map(|s| s.site.to_string()).collect(),
+        any_sun_visible_pct: pct(n, any_sun),
+        any_sun_full_pct: pct(n, |k| {
+            all.iter()
+                .any(|s| s.sun_fraction[k] >= SUN_FULL_MIN_FRACTION)
+        }),
+        longest_all_dark_h,
+        longest_all_dark_start_utc,
+        longest_all_dark_end_utc,
+        any_earth_visible_pct: pct(n, any_earth),
+        longest_all_earth_hidden_h,
+        longest_all_earth_hidden_start_utc,
+        longest_all_earth_hidden_end_utc,
+    })
+}
+
+/// The thresholds and weighting used, recorded in `stats.json` so the file is self-describing.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct StatsDefinitions {
+    /// Sun fully visible: fraction ≥ this.
+    pub sun_full_min_fraction: f64,
+    /// Visible (any part): fraction > this.
+    pub visible_min_fraction: f64,
+    /// Low Sun: fraction < this.
+    pub low_sun_max_fraction: f64,
+    /// How samples are weighted in time.
+    pub time_weighting: String,
+}
+
+impl Default for StatsDefinitions {
+    fn default() -> Self {
+        Self {
+            sun_full_min_fraction: SUN_FULL_MIN_FRACTION,
+            visible_min_fraction: VISIBLE_MIN_FRACTION,
+            low_sun_max_fraction: LOW_SUN_MAX_FRACTION,
+            time_weighting: "each sample stands for [t, t + step); a run of m samples lasts \
+                             m * step (resolution +-1 step); windows touching the series ends \
+                             may be cut by them"
+                .to_string(),
+        }
+    }
+}
+
+/// The content of `stats.json`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct StatsFile {
+    /// Thresholds and weighting.
+    pub definitions: StatsDefinitions,
+    /// Per-site statistics.
+    pub sites: Vec<SiteStats>,
+    /// Combined figures when there is more than one site.
+    pub combined: Option<CombinedStats>,
+}
+
+impl StatsFile {
+    /// Per-site statistics for every series, plus the combined figures when there are ≥ 2.
+    pub fn from_series(all: &[SiteSeries<'_>]) -> Result<Self, IllumError> {
+        let sites = all.iter().map(site_stats).collect::<Result<Vec<_>, _>>()?;
+        let combined = if all.len() >= 2 {
+            Some(combined_stats(all)?)
+        } else {
+            None
+        };
+        Ok(Self {
+            definitions: StatsDefinitions::default(),
+            sites,
+            combined,
+        })
+    }
+
+    /// Writes the statistics as pretty JSON, atomically.
+    pub fn write_json(&self, path: &Path) -> Result<(), IllumError> {
+        let mut bytes = serde_json::to_vec_pretty(self)?;
+        bytes.push(b'\n');
+        crate::output::write_bytes_atomic(path, &bytes)?;
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn start() -> Epoch {
+        Epoch::from_gregorian_utc_at_midnight(2024, 1, 1)
+    }
+
+    #[test]
+    fn longest_run_is_earliest_longest() {
+        let v = [1, 0, 0, 1, 0, 0, 1, 0];
+        let r = longest_run(v.len(), |k| v[k] == 0).unwrap();
+        assert_eq!(r, Run { first: 1, len: 2 });
+        assert_eq!(longest_run(3, |_| false), None);
+        assert_eq!(longest_run(3, |_| true), Some(Run { first: 0, len: 3 }));
+    }
+
+    /// Hand-made hourly series of 10 samples; every answer counted by hand below.
+    #[test]
+    fn hand_made_series() {
+        //           k:  0    1    2    3     4    5    6    7    8     9
+        let sun = [1.0, 1.0, 0.5, 0.0, 0.0, 0.0, 0.05, 0.2, 0.9995, 0.0];
+        let earth = [0.0, 0.3, 0.3, 0.3, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0];
+        let s = SiteSeries {
+            site: "A",
+            start_utc: start(),
+            step_s: 3600.0,
+            sun_fraction: &sun,
+            earth_fraction: &earth,
+        };
+        let st = site_stats(&s).unwrap();
+        assert_eq!(st.samples, 10);
+        assert_eq!(st.span_h, 10.0);
+        assert_eq!(st.start_utc, "2024-01-01T00:00:00Z");
+        assert_eq!(st.end_utc, "2024-01-01T10:00:00Z");
+        // Full: k = 0, 1, 8 → 30%. Partial: 2, 6, 7 → 30%. Dark: 3, 4, 5, 9 → 40%.
+        assert!((st.sun_full_pct - 30.0).abs() < 1e-12);
+        assert!((st.sun_partial_pct - 30.0).abs() < 1e-12);
+        assert!((st.sun_visible_pct - 60.0).abs() < 1e-12);
+        assert!((st.sun_dark_pct - 40.0).abs() < 1e-12);
+        let mean = (1.0 + 1.0 + 0.5 + 0.05 + 0.2 + 0.9995) / 10.0;
+        assert!((st.sun_mean_visible_fraction - mean).abs() < 1e-15);
+        // Longest dark: k = 3..=5, 03:00 → 06:00, 3 h.
+        assert_eq!(st.longest_dark_h, 3.0);
+        assert_eq!(
+            st.longest_dark_start_utc.as_deref(),
+            Some("2024-01-01T03:00:00Z")
+        );
+        assert_eq!(
+            st.longest_dark_end_utc.as_deref(),
+            Some("2024-01-01T06:00:00Z")
+        );
+        // Below 10%: k = 3..=6 (0.05 < 0.1), 4 h.
+        assert_eq!(st.longest_below_10pct_h, 4.0);
+        assert_eq!(
+            st.longest_below_10pct_start_utc.as_deref(),
+            Some("2024-01-01T03:00:00Z")
+        );
+        // Earth visible: 1, 2, 3, 7, 8, 9 → 60%; longest visible 3 h (k = 1..=3, the earliest);
+        // hidden k = 4..=6, 3 h.
+        assert!((st.earth_visible_pct - 60.0).abs() < 1e-12);
+        assert_eq!(st.longest_earth_visible_h, 3.0);
+        assert_eq!(
+            st.longest_earth_visible_start_utc.as_deref(),
+            Some("2024-01-01T01:00:00Z")
+        );
+        assert_eq!(st.longest_earth_hidden_h, 3.0);
+        assert_eq!(
+            st.longest_earth_hidden_end_utc.as_deref(),
+            Some("2024-01-01T07:00:00Z")
+        );
+        // Sun and Earth together: k = 1, 2, 7, 8 → 40%.
+        assert!((st.sun_and_earth_pct - 40.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn always_lit_has_no_dark_window() {
+        let sun = [1.0; 5];
+        let earth = [0.0; 5];
+        let s = SiteSeries {
+            site: "lit",
+            start_utc: start(),
+            step_s: 1800.0,
+            sun_fraction: &sun,
+            earth_fraction: &earth,
+        };
+        let st = site_stats(&s).unwrap();
+        assert_eq!(st.longest_dark_h, 0.0);
+        assert_eq!(st.longest_dark_start_utc, None);
+        assert_eq!(st.sun_full_pct, 100.0);
+        // Earth hidden for the whole 5 × 30 min = 2.5 h.
+        assert_eq!(st.longest_earth_hidden_h, 2.5);
+    }
+
+    #[test]
+    fn combined_union_of_two_sites() {
+        // Two sites over 8 hourly samples: A dark at 2..=5, B dark at 4..=7.
+        let a = [1.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 1.0];
+        let b = [0.5, 0.5, 0.5, 0.5, 0.0, 0.0, 0.0, 0.0];
+        let ea = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0];
+        let eb = [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0];
+        let series = [
+            SiteSeries {
+                site: "A",
+                start_utc: start(),
+                step_s: 3600.0,
+                sun_fraction: &a,
+                earth_fraction: &ea,
+            },
+            SiteSeries {
+                site: "B",
+                start_utc: start(),
+                step_s: 3600.0,
+                sun_fraction: &b,
+                earth_fraction: &eb,
+            },
+        ];
+        let file = StatsFile::from_series(&series).unwrap();
+        let c = file.combined.as_ref().unwrap();
+        // Both dark only at k = 4, 5 → 2 h, 04:00–06:00; at least one lit 6/8 = 75%.
+        assert_eq!(c.longest_all_dark_h, 2.0);
+        assert_eq!(
+            c.longest_all_dark_start_utc.as_deref(),
+            Some("2024-01-01T04:00:00Z")
+        );
+        assert!((c.any_sun_visible_pct - 75.0).abs() < 1e-12);
+        // Fully lit somewhere: A at 0, 1, 6, 7 → 50%.
+        assert!((c.any_sun_full_pct - 50.0).abs() < 1e-12);
+        // Earth visible somewhere at k = 3 and 7 → 25%; hidden from all at 0..=2 and 4..=6 → 3 h.
+        assert!((c.any_earth_visible_pct - 25.0).abs() < 1e-12);
+        assert_eq!(c.longest_all_earth_hidden_h, 3.0);
+        assert_eq!(
+            c.longest_all_earth_hidden_start_utc.as_deref(),
+            Some("2024-01-01T00:00:00Z")
+        );
+
+        // Round trip through JSON on disk.
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("stats.json");
+        file.write_json(&path).unwrap();
+        let back: StatsFile = serde_json::from_slice(&std::fs::read(&path).unwrap()).unwrap();
+        assert_eq!(back, file);
+        let text = std::fs::read_to_string(&path).unwrap();
+        assert!(text.contains("\"longest_dark_h\""), "{text}");
+    }
+
+    #[test]
+    fn bad_series_are_errors() {
+        let ok = [1.0; 3];
+        let s = SiteSeries {
+            site: "X",
+            start_utc: start(),
+            step_s: 3600.0,
+            sun_fraction: &[],
+            earth_fraction: &[],
+        };
+        assert!(matches!(
+            site_stats(&s),
+            Err(IllumError::EmptySeries { .. })
+        ));
+        let s = SiteSeries {
+            sun_fraction: &ok,
+            earth_fraction: &ok[..2],
+            ..s
+        };
+        assert!(matches!(
+            site_stats(&s),
+            Err(IllumError::LengthMismatch { .. })
+        ));
+        let s = SiteSeries {
+            earth_fraction: &ok,
+            step_s: 0.0,
+            ..s
+        };
+        assert!(matches!(site_stats(&s), Err(IllumError::BadStep { .. })));
+        let a = SiteSeries { step_s: 60.0, ..s };
+        let b = SiteSeries {
+            step_s: 120.0,
+            site: "Y",
+            ..a
+        };
+        assert!(matches!(
+            combined_stats(&[a, b]),
+            Err(IllumError::MismatchedGrids { .. })
+        ));
+    }
+}
