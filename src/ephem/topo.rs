@@ -23,7 +23,7 @@ use anise::prelude::{Aberration, Almanac, Epoch, Frame};
 use nalgebra::{Matrix3, Vector3};
 
 use super::EphemError;
-use super::kernels::{EARTH_ID, J2000_ID, MOON_ID, MOON_J2000, MOON_ME, SSB_ID, SUN_ID};
+use super::kernels::{EARTH_ID, EMB_ID, J2000_ID, MOON_ID, MOON_J2000, MOON_ME, SSB_ID, SUN_ID};
 use crate::frames::{az_el_deg_from_enu, enu_from_moon_me, site_in_moon_me_km};
 use crate::{EARTH_RADIUS_KM, SPEED_OF_LIGHT_KM_S, SUN_RADIUS_KM};
 
@@ -112,7 +112,10 @@ fn to_na(m: &anise::math::Matrix3) -> Matrix3<f64> {
 }
 
 impl MoonGeometry {
-    /// Queries the kernels for one epoch (four `anise` queries).
+    /// Queries the kernels for one epoch: four single-segment SPK evaluations (Sun and EMB wrt
+    /// the SSB, Moon and Earth wrt the EMB, i.e. the DE440 segments themselves) combined here, and
+    /// one rotation. Asking anise for Sun-wrt-Moon directly would walk the tree and evaluate seven
+    /// segments.
     pub fn at(almanac: &Almanac, epoch: Epoch) -> Result<Self, EphemError> {
         let dcm = almanac
             .rotate(MOON_J2000, MOON_ME, epoch)
@@ -124,13 +127,27 @@ impl MoonGeometry {
             action: "rotating J2000 to MOON_ME",
             why: "the rotation has no time derivative".into(),
         })?;
+        let sun_wrt_ssb = state(almanac, SUN_ID, SSB_ID, epoch)?;
+        let emb_wrt_ssb = state(almanac, EMB_ID, SSB_ID, epoch)?;
+        let moon_wrt_emb = state(almanac, MOON_ID, EMB_ID, epoch)?;
+        let earth_wrt_emb = state(almanac, EARTH_ID, EMB_ID, epoch)?;
+        let moon_wrt_ssb = StateJ2000 {
+            pos_km: emb_wrt_ssb.pos_km + moon_wrt_emb.pos_km,
+            vel_km_s: emb_wrt_ssb.vel_km_s + moon_wrt_emb.vel_km_s,
+        };
         Ok(MoonGeometry {
             epoch,
             moon_me_from_j2000: to_na(&dcm.rot_mat),
             moon_me_from_j2000_dt: to_na(&rot_dt),
-            moon_wrt_ssb: state(almanac, MOON_ID, SSB_ID, epoch)?,
-            sun_wrt_moon: state(almanac, SUN_ID, MOON_ID, epoch)?,
-            earth_wrt_moon: state(almanac, EARTH_ID, MOON_ID, epoch)?,
+            moon_wrt_ssb,
+            sun_wrt_moon: StateJ2000 {
+                pos_km: sun_wrt_ssb.pos_km - moon_wrt_ssb.pos_km,
+                vel_km_s: sun_wrt_ssb.vel_km_s - moon_wrt_ssb.vel_km_s,
+            },
+            earth_wrt_moon: StateJ2000 {
+                pos_km: earth_wrt_emb.pos_km - moon_wrt_emb.pos_km,
+                vel_km_s: earth_wrt_emb.vel_km_s - moon_wrt_emb.vel_km_s,
+            },
         })
     }
 }
