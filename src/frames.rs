@@ -104,7 +104,12 @@ mod tests {
         // the lon-0 meridian; latitude increases in every horizontal direction at the south pole).
         let m = enu_from_moon_me(-90.0, 0.0);
         let north = m.row(1);
-        assert!((north - Vector3::new(1.0, 0.0, 0.0).transpose()).abs().max() < EPS);
+        assert!(
+            (north - Vector3::new(1.0, 0.0, 0.0).transpose())
+                .abs()
+                .max()
+                < EPS
+        );
     }
 
     #[test]

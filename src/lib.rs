@@ -38,7 +38,7 @@ pub const MOON_RADIUS_KM: f64 = 1_737.4;
 /// uses 696,000 km, which is the value penumbra uses so that its radii match SPICE's).
 pub const SUN_RADIUS_KM: f64 = 696_000.0;
 /// Equatorial radius of the Earth, kilometres (`pck00010`/WGS-84-like value 6378.1366 km).
-pub const EARTH_RADIUS_KM: f64 = 6_378.1366;
+pub const EARTH_RADIUS_KM: f64 = 6_378.136_6;
 /// Total solar irradiance at 1 au, W/m² (Kopp & Lean 2011, 1360.8 ± 0.5 W/m²).
 pub const SOLAR_CONSTANT_W_M2: f64 = 1_360.8;
 /// The astronomical unit, kilometres (IAU 2012 exact).

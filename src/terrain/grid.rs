@@ -145,9 +145,7 @@ impl Projection {
                 lon0_deg,
                 lat_ts_deg,
                 radius_m,
-            } => format!(
-                "+proj=eqc +lat_ts={lat_ts_deg} +lon_0={lon0_deg} +R={radius_m} +units=m"
-            ),
+            } => format!("+proj=eqc +lat_ts={lat_ts_deg} +lon_0={lon0_deg} +R={radius_m} +units=m"),
         }
     }
 }
@@ -266,7 +264,10 @@ impl Dem {
         let c0 = (c.floor() as isize).min(self.grid.cols as isize - 2).max(0);
         let (fr, fc) = (r - r0 as f64, c - c0 as f64);
         // Nearest centre must be valid.
-        let nearest = self.cell_height_m(row.round().clamp(0.0, rows - 1.0) as isize, col.round().clamp(0.0, cols - 1.0) as isize);
+        let nearest = self.cell_height_m(
+            row.round().clamp(0.0, rows - 1.0) as isize,
+            col.round().clamp(0.0, cols - 1.0) as isize,
+        );
         nearest?;
         let mut sum = 0.0;
         let mut wsum = 0.0;
@@ -355,7 +356,12 @@ mod tests {
             },
         ];
         for p in projections {
-            for &(lat, lon) in &[(-89.45, -137.3), (-85.99, 2.93), (-88.0, 179.9), (89.5, 45.0)] {
+            for &(lat, lon) in &[
+                (-89.45, -137.3),
+                (-85.99, 2.93),
+                (-88.0, 179.9),
+                (89.5, 45.0),
+            ] {
                 let lat = match p {
                     Projection::PolarStereographic { south: false, .. } => -lat,
                     _ => lat,
@@ -378,7 +384,9 @@ mod tests {
             px_y_m: 100.0,
         };
         // h = 10 * col + 1000 * row, exactly representable and bilinear.
-        let heights_m = (0..20).map(|i| (10 * (i % 5) + 1000 * (i / 5)) as f32).collect();
+        let heights_m = (0..20)
+            .map(|i| (10 * (i % 5) + 1000 * (i / 5)) as f32)
+            .collect();
         Dem {
             grid,
             projection: Projection::LOLA_SOUTH_POLAR,
@@ -395,7 +403,13 @@ mod tests {
         assert!((h - (10.0 * 2.5 + 1000.0 * 1.25)).abs() < 1e-9);
         assert!(dem.height_at_xy_m(-1000.0, 0.0).is_none());
         dem.heights_m[5 + 2] = f32::NAN;
-        assert!(dem.height_at_row_col(1.1, 2.1).is_none(), "nearest is a hole");
-        assert!(dem.height_at_row_col(1.6, 2.6).is_some(), "re-weighted around the hole");
+        assert!(
+            dem.height_at_row_col(1.1, 2.1).is_none(),
+            "nearest is a hole"
+        );
+        assert!(
+            dem.height_at_row_col(1.6, 2.6).is_some(),
+            "re-weighted around the hole"
+        );
     }
 }
