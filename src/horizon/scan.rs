@@ -15,7 +15,7 @@ use rayon::prelude::*;
 use super::{Horizon, HorizonError, HorizonMethod, HorizonParams, azimuth_count};
 use crate::MOON_RADIUS_M;
 use crate::frames::enu_from_moon_me;
-use crate::terrain::{Dem, TerrainStack};
+use crate::terrain::{Dem, Projection, TerrainStack};
 
 /// Cells of the finest layer at the segment start per path segment.
 const SEGMENT_CELLS: f64 = 8.0;
@@ -116,6 +116,14 @@ struct Observer {
 struct SegmentEnd {
     theta_rad: f64,
     row_col: Vec<(f64, f64)>,
+}
+
+/// Scratch buffers reused along one azimuth.
+struct Buffers {
+    /// Sample parameters along a segment.
+    ts: Vec<f64>,
+    /// Finer layers reaching the segment.
+    finer: Vec<usize>,
 }
 
 /// The running maximum along one azimuth, kept as `tan(el)` (the ground angle stays in (0, pi/2)
@@ -272,20 +280,29 @@ impl<'a> HorizonEngine<'a> {
 
     /// A segment end at ground angle `theta` along direction `dir`.
     fn segment_end(&self, obs: &Observer, dir: &Vector3<f64>, theta_rad: f64) -> SegmentEnd {
+        let mut end = SegmentEnd {
+            theta_rad,
+            row_col: vec![(0.0, 0.0); self.layers.len()],
+        };
+        self.fill_segment_end(obs, dir, theta_rad, &mut end);
+        end
+    }
+
+    /// Places `end` at ground angle `theta` along direction `dir` (no allocation).
+    fn fill_segment_end(
+        &self,
+        obs: &Observer,
+        dir: &Vector3<f64>,
+        theta_rad: f64,
+        end: &mut SegmentEnd,
+    ) {
         let (s, c) = theta_rad.sin_cos();
         let u = obs.up * c + dir * s;
-        let lat_deg = u.z.clamp(-1.0, 1.0).asin().to_degrees();
-        let lon_deg = u.y.atan2(u.x).to_degrees();
-        let row_col = self
-            .stack
-            .layers
-            .iter()
-            .map(|dem| {
-                let (x, y) = dem.projection.xy_from_lat_lon(lat_deg, lon_deg);
-                dem.grid.row_col_from_xy(x, y)
-            })
-            .collect();
-        SegmentEnd { theta_rad, row_col }
+        end.theta_rad = theta_rad;
+        for (rc, dem) in end.row_col.iter_mut().zip(&self.stack.layers) {
+            let (x, y) = xy_from_unit(&dem.projection, &u);
+            *rc = dem.grid.row_col_from_xy(x, y);
+        }
     }
 
     /// Length (ground angle) of the segment starting at `end`: 8 cells of the finest layer whose
@@ -318,21 +335,25 @@ impl<'a> HorizonEngine<'a> {
             skip_below_tan: f64::NEG_INFINITY,
             tolerance_rad,
         };
-        let mut ts: Vec<f64> = Vec::with_capacity(64);
+        let mut bufs = Buffers {
+            ts: Vec::with_capacity(64),
+            finer: Vec::with_capacity(self.layers.len()),
+        };
         let mut start = self.segment_end(obs, &dir, obs.theta_min_rad);
+        let mut end = start.clone();
         let mut first = true;
         while start.theta_rad < obs.theta_max_rad {
             let theta_b =
                 (start.theta_rad + self.segment_length_rad(&start)).min(obs.theta_max_rad);
-            let end = self.segment_end(obs, &dir, theta_b);
+            self.fill_segment_end(obs, &dir, theta_b, &mut end);
             let skip = fast && self.segment_bound_tan(obs, &start, &end) <= best.skip_below_tan;
             if !skip {
                 for li in 0..self.layers.len() {
-                    self.scan_layer_segment(obs, li, &start, &end, first, &mut ts, &mut best);
+                    self.scan_layer_segment(obs, li, &start, &end, first, &mut bufs, &mut best);
                 }
             }
             first = false;
-            start = end;
+            std::mem::swap(&mut start, &mut end);
         }
         if best.tan_el == f64::NEG_INFINITY {
             (-90.0, f64::NAN)
@@ -388,9 +409,10 @@ impl<'a> HorizonEngine<'a> {
         a: &SegmentEnd,
         b: &SegmentEnd,
         include_start: bool,
-        ts: &mut Vec<f64>,
+        bufs: &mut Buffers,
         best: &mut Best,
     ) {
+        let Buffers { ts, finer } = bufs;
         let dem = self.layers[li].dem;
         let ((ra, ca), (rb, cb)) = (a.row_col[li], b.row_col[li]);
         let (rows, cols) = (dem.grid.rows as f64, dem.grid.cols as f64);
@@ -402,16 +424,15 @@ impl<'a> HorizonEngine<'a> {
             return;
         }
         // Finer layers that reach this segment (only those can take samples away).
-        let finer: Vec<usize> = (0..li)
-            .filter(|&k| {
-                let ((rka, cka), (rkb, ckb)) = (a.row_col[k], b.row_col[k]);
-                let g = &self.layers[k].dem.grid;
-                !(rka.max(rkb) < -0.5
-                    || cka.max(ckb) < -0.5
-                    || rka.min(rkb) > g.rows as f64 - 0.5
-                    || cka.min(ckb) > g.cols as f64 - 0.5)
-            })
-            .collect();
+        finer.clear();
+        finer.extend((0..li).filter(|&k| {
+            let ((rka, cka), (rkb, ckb)) = (a.row_col[k], b.row_col[k]);
+            let g = &self.layers[k].dem.grid;
+            !(rka.max(rkb) < -0.5
+                || cka.max(ckb) < -0.5
+                || rka.min(rkb) > g.rows as f64 - 0.5
+                || cka.min(ckb) > g.cols as f64 - 0.5)
+        }));
         ts.clear();
         ts.push(0.0);
         push_crossings(ra, rb, rows, ts);
@@ -423,7 +444,7 @@ impl<'a> HorizonEngine<'a> {
         let d_theta = b.theta_rad - a.theta_rad;
         // Height (if this layer is the finest with a surface there) and ground angle at t.
         let sample = |t: f64| -> Option<(f64, f64)> {
-            for &k in &finer {
+            for &k in finer.iter() {
                 let ((rka, cka), (rkb, ckb)) = (a.row_col[k], b.row_col[k]);
                 let dk = self.layers[k].dem;
                 if dk
@@ -485,6 +506,40 @@ impl<'a> HorizonEngine<'a> {
 fn tan_elevation(r0_m: f64, rho_m: f64, theta_rad: f64) -> f64 {
     let (s, c) = theta_rad.sin_cos();
     (rho_m * c - r0_m) / (rho_m * s)
+}
+
+/// Projected coordinates (m) of a unit radial vector in `MOON_ME`. Polar stereographic is
+/// evaluated straight from the vector (`tan(pi/4 + lat/2) cos(lat) = 1 + sin(lat)` turns the
+/// formulas of [`crate::terrain::Projection`] into `x = 2 R k0 e / (1 - z)`, `y = 2 R k0 n /
+/// (1 - z)` for the south aspect, with `e`, `n` the components along the rotated `lon0` axes),
+/// which avoids the asin/atan2/tan of going through latitude and longitude; other projections
+/// go through them.
+fn xy_from_unit(projection: &Projection, u: &Vector3<f64>) -> (f64, f64) {
+    match *projection {
+        Projection::PolarStereographic {
+            south,
+            lon0_deg,
+            k0,
+            radius_m,
+        } => {
+            let (s0, c0) = lon0_deg.to_radians().sin_cos();
+            // sin(lon - lon0) cos(lat) and cos(lon - lon0) cos(lat).
+            let e = u.y * c0 - u.x * s0;
+            let n = u.x * c0 + u.y * s0;
+            if south {
+                let f = 2.0 * radius_m * k0 / (1.0 - u.z);
+                (f * e, f * n)
+            } else {
+                let f = 2.0 * radius_m * k0 / (1.0 + u.z);
+                (f * e, -f * n)
+            }
+        }
+        Projection::Equirectangular { .. } => {
+            let lat_deg = u.z.clamp(-1.0, 1.0).asin().to_degrees();
+            let lon_deg = u.y.atan2(u.x).to_degrees();
+            projection.xy_from_lat_lon(lat_deg, lon_deg)
+        }
+    }
 }
 
 /// Whether fractional (row, col) lies within a layer's outer cell edges.
@@ -553,6 +608,37 @@ mod tests {
         push_crossings(5.2, 4.1, 10.0, &mut ts);
         assert_eq!(ts.len(), 1);
         assert!((5.2 - ts[0] * 1.1 - 5.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn unit_vector_projection_matches_lat_lon_projection() {
+        let projections = [
+            Projection::LOLA_SOUTH_POLAR,
+            Projection::PolarStereographic {
+                south: false,
+                lon0_deg: 20.0,
+                k0: 0.99,
+                radius_m: MOON_RADIUS_M,
+            },
+            Projection::PolarStereographic {
+                south: true,
+                lon0_deg: -45.0,
+                k0: 1.0,
+                radius_m: MOON_RADIUS_M,
+            },
+        ];
+        for p in projections {
+            let north = matches!(p, Projection::PolarStereographic { south: false, .. });
+            for (lat, lon) in [(-89.45_f64, 222.7_f64), (-85.0, 10.0), (-89.999, -100.0)] {
+                let lat = if north { -lat } else { lat };
+                let (sl, cl) = lat.to_radians().sin_cos();
+                let (so, co) = lon.to_radians().sin_cos();
+                let u = Vector3::new(cl * co, cl * so, sl);
+                let (x, y) = xy_from_unit(&p, &u);
+                let (x2, y2) = p.xy_from_lat_lon(lat, lon);
+                assert!((x - x2).hypot(y - y2) < 1e-6, "{p:?} {lat} {lon}");
+            }
+        }
     }
 
     #[test]
