@@ -26,6 +26,7 @@ const BLOCK_CELLS: usize = 8;
 /// of any cell whose bilinear support can reach block (br, bc) (the block grown by one cell).
 struct PreparedLayer<'a> {
     dem: &'a Dem,
+    projector: UnitProjector,
     block_rows: usize,
     block_cols: usize,
     block_max_m: Vec<f32>,
@@ -62,6 +63,7 @@ impl<'a> PreparedLayer<'a> {
         }
         PreparedLayer {
             dem,
+            projector: UnitProjector::new(&dem.projection),
             block_rows,
             block_cols,
             block_max_m,
@@ -115,6 +117,8 @@ struct Observer {
 #[derive(Clone)]
 struct SegmentEnd {
     theta_rad: f64,
+    /// `(sin, cos)` of `theta_rad`.
+    sin_cos: (f64, f64),
     row_col: Vec<(f64, f64)>,
 }
 
@@ -134,6 +138,8 @@ struct Best {
     /// `tan(el_best + tolerance)`: segments whose bound is below this are skipped (fast method).
     skip_below_tan: f64,
     tolerance_rad: f64,
+    /// Whether skipping is allowed (fast method).
+    fast: bool,
 }
 
 impl Best {
@@ -282,6 +288,7 @@ impl<'a> HorizonEngine<'a> {
     fn segment_end(&self, obs: &Observer, dir: &Vector3<f64>, theta_rad: f64) -> SegmentEnd {
         let mut end = SegmentEnd {
             theta_rad,
+            sin_cos: (0.0, 1.0),
             row_col: vec![(0.0, 0.0); self.layers.len()],
         };
         self.fill_segment_end(obs, dir, theta_rad, &mut end);
@@ -299,9 +306,10 @@ impl<'a> HorizonEngine<'a> {
         let (s, c) = theta_rad.sin_cos();
         let u = obs.up * c + dir * s;
         end.theta_rad = theta_rad;
-        for (rc, dem) in end.row_col.iter_mut().zip(&self.stack.layers) {
-            let (x, y) = xy_from_unit(&dem.projection, &u);
-            *rc = dem.grid.row_col_from_xy(x, y);
+        end.sin_cos = (s, c);
+        for (rc, layer) in end.row_col.iter_mut().zip(&self.layers) {
+            let (x, y) = layer.projector.xy_from_unit(&u);
+            *rc = layer.dem.grid.row_col_from_xy(x, y);
         }
     }
 
@@ -334,6 +342,7 @@ impl<'a> HorizonEngine<'a> {
             theta_rad: f64::NAN,
             skip_below_tan: f64::NEG_INFINITY,
             tolerance_rad,
+            fast,
         };
         let mut bufs = Buffers {
             ts: Vec::with_capacity(64),
@@ -346,7 +355,8 @@ impl<'a> HorizonEngine<'a> {
             let theta_b =
                 (start.theta_rad + self.segment_length_rad(&start)).min(obs.theta_max_rad);
             self.fill_segment_end(obs, &dir, theta_b, &mut end);
-            let skip = fast && self.segment_bound_tan(obs, &start, &end) <= best.skip_below_tan;
+            let skip =
+                best.fast && self.segment_bound_tan(obs, &start, &end) <= best.skip_below_tan;
             if !skip {
                 for li in 0..self.layers.len() {
                     self.scan_layer_segment(obs, li, &start, &end, first, &mut bufs, &mut best);
@@ -383,18 +393,7 @@ impl<'a> HorizonEngine<'a> {
             }
             h_max = h_max.max(layer.max_in_box_m(r0, r1, c0, c1));
         }
-        if h_max == f64::NEG_INFINITY {
-            return f64::NEG_INFINITY;
-        }
-        let rho = MOON_RADIUS_M + h_max;
-        let theta = if rho < obs.r0_m {
-            (rho / obs.r0_m)
-                .acos()
-                .clamp(a.theta_rad, b.theta_rad.max(a.theta_rad))
-        } else {
-            a.theta_rad
-        };
-        tan_elevation(obs.r0_m, rho, theta)
+        bound_tan(obs.r0_m, h_max, a.sin_cos, b.sin_cos)
     }
 
     /// Samples layer `li` along one segment: every crossing of a grid line (integer row or col:
@@ -466,6 +465,20 @@ impl<'a> HorizonEngine<'a> {
         }
         for w in ts.windows(2) {
             let (t0, t1) = (w[0], w[1]);
+            if best.fast {
+                // The piece lies in one bilinear patch, whose heights are bounded by its four
+                // centres: skip it when even that cannot beat the horizon by the tolerance.
+                let tm = 0.5 * (t0 + t1);
+                let h_max = patch_max_m(dem, ra + tm * (rb - ra), ca + tm * (cb - ca));
+                let (th0, th1) = (a.theta_rad + t0 * d_theta, a.theta_rad + t1 * d_theta);
+                if bound_tan(obs.r0_m, h_max, th0.sin_cos(), th1.sin_cos()) <= best.skip_below_tan {
+                    prev = None;
+                    continue;
+                }
+                if prev.is_none() {
+                    prev = sample(t0);
+                }
+            }
             let next = sample(t1);
             if let Some((h, th)) = next {
                 best.offer(tan_elevation(obs.r0_m, MOON_RADIUS_M + h, th), th);
@@ -508,38 +521,110 @@ fn tan_elevation(r0_m: f64, rho_m: f64, theta_rad: f64) -> f64 {
     (rho_m * c - r0_m) / (rho_m * s)
 }
 
-/// Projected coordinates (m) of a unit radial vector in `MOON_ME`. Polar stereographic is
+/// Projects unit radial vectors in `MOON_ME` to map coordinates. Polar stereographic is
 /// evaluated straight from the vector (`tan(pi/4 + lat/2) cos(lat) = 1 + sin(lat)` turns the
 /// formulas of [`crate::terrain::Projection`] into `x = 2 R k0 e / (1 - z)`, `y = 2 R k0 n /
 /// (1 - z)` for the south aspect, with `e`, `n` the components along the rotated `lon0` axes),
 /// which avoids the asin/atan2/tan of going through latitude and longitude; other projections
 /// go through them.
-fn xy_from_unit(projection: &Projection, u: &Vector3<f64>) -> (f64, f64) {
-    match *projection {
-        Projection::PolarStereographic {
-            south,
-            lon0_deg,
-            k0,
-            radius_m,
-        } => {
-            let (s0, c0) = lon0_deg.to_radians().sin_cos();
-            // sin(lon - lon0) cos(lat) and cos(lon - lon0) cos(lat).
-            let e = u.y * c0 - u.x * s0;
-            let n = u.x * c0 + u.y * s0;
-            if south {
-                let f = 2.0 * radius_m * k0 / (1.0 - u.z);
-                (f * e, f * n)
-            } else {
-                let f = 2.0 * radius_m * k0 / (1.0 + u.z);
-                (f * e, -f * n)
+#[derive(Clone, Copy)]
+enum UnitProjector {
+    /// Polar stereographic with its constants precomputed.
+    Stereographic {
+        south: bool,
+        sin_lon0: f64,
+        cos_lon0: f64,
+        two_r_k0_m: f64,
+    },
+    /// Any other projection, through latitude and longitude.
+    Other(Projection),
+}
+
+impl UnitProjector {
+    fn new(projection: &Projection) -> Self {
+        match *projection {
+            Projection::PolarStereographic {
+                south,
+                lon0_deg,
+                k0,
+                radius_m,
+            } => {
+                let (sin_lon0, cos_lon0) = lon0_deg.to_radians().sin_cos();
+                UnitProjector::Stereographic {
+                    south,
+                    sin_lon0,
+                    cos_lon0,
+                    two_r_k0_m: 2.0 * radius_m * k0,
+                }
             }
-        }
-        Projection::Equirectangular { .. } => {
-            let lat_deg = u.z.clamp(-1.0, 1.0).asin().to_degrees();
-            let lon_deg = u.y.atan2(u.x).to_degrees();
-            projection.xy_from_lat_lon(lat_deg, lon_deg)
+            other => UnitProjector::Other(other),
         }
     }
+
+    /// Map coordinates (m) of the unit radial vector `u`.
+    #[inline]
+    fn xy_from_unit(&self, u: &Vector3<f64>) -> (f64, f64) {
+        match *self {
+            UnitProjector::Stereographic {
+                south,
+                sin_lon0,
+                cos_lon0,
+                two_r_k0_m,
+            } => {
+                // sin(lon - lon0) cos(lat) and cos(lon - lon0) cos(lat).
+                let e = u.y * cos_lon0 - u.x * sin_lon0;
+                let n = u.x * cos_lon0 + u.y * sin_lon0;
+                if south {
+                    let f = two_r_k0_m / (1.0 - u.z);
+                    (f * e, f * n)
+                } else {
+                    let f = two_r_k0_m / (1.0 + u.z);
+                    (f * e, -f * n)
+                }
+            }
+            UnitProjector::Other(p) => {
+                let lat_deg = u.z.clamp(-1.0, 1.0).asin().to_degrees();
+                let lon_deg = u.y.atan2(u.x).to_degrees();
+                p.xy_from_lat_lon(lat_deg, lon_deg)
+            }
+        }
+    }
+}
+
+/// Upper bound of `tan(el)` over ground angles `[theta_a, theta_b]` (given as `(sin, cos)`,
+/// `theta_a <= theta_b`) for heights <= `h_max_m`: elevation grows with height, and at a fixed
+/// radius `rho` it peaks at the tangent angle `acos(rho / r0)` when `rho < r0` and otherwise
+/// falls with the angle. Done on cosines, so no inverse trigonometry.
+#[inline]
+fn bound_tan(r0_m: f64, h_max_m: f64, sc_a: (f64, f64), sc_b: (f64, f64)) -> f64 {
+    if h_max_m == f64::NEG_INFINITY {
+        return f64::NEG_INFINITY;
+    }
+    let rho = MOON_RADIUS_M + h_max_m;
+    let k = rho / r0_m;
+    let (s, c) = if k >= sc_a.1 {
+        sc_a
+    } else if k <= sc_b.1 {
+        sc_b
+    } else {
+        ((1.0 - k * k).sqrt(), k)
+    };
+    (rho * c - r0_m) / (rho * s)
+}
+
+/// Largest of the (up to) four cell centres that span the bilinear patch holding fractional
+/// (row, col), clamped at the grid edges; `-inf` when all are holes.
+#[inline]
+fn patch_max_m(dem: &Dem, row: f64, col: f64) -> f64 {
+    let r0 = (row.floor() as isize).clamp(0, dem.grid.rows as isize - 1);
+    let c0 = (col.floor() as isize).clamp(0, dem.grid.cols as isize - 1);
+    let mut m = f64::NEG_INFINITY;
+    for (dr, dc) in [(0, 0), (0, 1), (1, 0), (1, 1)] {
+        if let Some(h) = dem.cell_height_m(r0 + dr, c0 + dc) {
+            m = m.max(f64::from(h));
+        }
+    }
+    m
 }
 
 /// Whether fractional (row, col) lies within a layer's outer cell edges.
@@ -634,10 +719,27 @@ mod tests {
                 let (sl, cl) = lat.to_radians().sin_cos();
                 let (so, co) = lon.to_radians().sin_cos();
                 let u = Vector3::new(cl * co, cl * so, sl);
-                let (x, y) = xy_from_unit(&p, &u);
+                let (x, y) = UnitProjector::new(&p).xy_from_unit(&u);
                 let (x2, y2) = p.xy_from_lat_lon(lat, lon);
                 assert!((x - x2).hypot(y - y2) < 1e-6, "{p:?} {lat} {lon}");
             }
+        }
+    }
+
+    #[test]
+    fn bound_is_the_maximum_over_the_angle_range() {
+        let r = MOON_RADIUS_M;
+        for (r0, h, th_a, th_b) in [
+            (r + 100.0, 0.0, 1e-4, 1e-2),   // tangent point inside the range
+            (r + 100.0, 0.0, 1e-2, 2e-2),   // beyond the tangent point
+            (r + 100.0, 0.0, 1e-5, 1e-4),   // before it
+            (r + 100.0, 500.0, 1e-4, 1e-3), // terrain above the observer
+        ] {
+            let brute = (0..=10_000)
+                .map(|k| tan_elevation(r0, r + h, th_a + (th_b - th_a) * k as f64 / 1e4))
+                .fold(f64::NEG_INFINITY, f64::max);
+            let b = bound_tan(r0, h, th_a.sin_cos(), th_b.sin_cos());
+            assert!(b >= brute - 1e-12 && b <= brute + 1e-9, "{b} vs {brute}");
         }
     }
 
