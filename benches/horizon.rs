@@ -36,6 +36,24 @@ fn bench_horizon(c: &mut Criterion) {
         })
     });
     group.finish();
+
+    let site01 = dir.join("site01_connecting_ridge_10m.tif");
+    if site01.exists() {
+        let stack3 =
+            penumbra::horizon::tiff_stub::load_stack(&[site01, paths[0].clone(), paths[1].clone()])
+                .unwrap();
+        let engine3 = HorizonEngine::new(&stack3);
+        let mut group = c.benchmark_group("horizon_site01_240m_far_1440az");
+        group.sample_size(10);
+        group.bench_function("fast", |b| {
+            b.iter(|| {
+                engine3
+                    .horizon(-89.45, 222.7, &HorizonParams::default())
+                    .unwrap()
+            })
+        });
+        group.finish();
+    }
 }
 
 criterion_group!(benches, bench_horizon);

@@ -292,6 +292,23 @@ fn fast_matches_exact_on_real_lola_grids() {
         );
         assert!(q(0.99) <= 0.01);
         assert!(q(1.0) <= p.fast_tolerance_deg + 1e-9);
+        // A looser skip tolerance trades accuracy for speed but stays within its bound.
+        let loose = HorizonParams {
+            fast_tolerance_deg: 0.05,
+            ..p
+        };
+        let fast_loose = engine.horizon(-89.45, 222.7, &loose).unwrap();
+        let max_loose = fast_loose
+            .elevation_deg
+            .iter()
+            .zip(&exact.elevation_deg)
+            .map(|(f, e)| {
+                assert!(f - e <= 1e-9);
+                e - f
+            })
+            .fold(0.0, f64::max);
+        println!("{names:?}: tolerance 0.05 deg: max |error| {max_loose:.2e} deg");
+        assert!(max_loose <= 0.05 + 1e-9);
         // Sanity of the profile itself: a ridge-top site, horizon within a few degrees.
         assert!(exact.elevation_deg.iter().all(|e| e.abs() < 5.0));
     }
