@@ -16,6 +16,10 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Kernels(args) => run_kernels(&args),
         Command::Run(args) => crate::scenario::run_file(&args),
         Command::Dem { command } => run_dem(command),
+        Command::Horizon(args) => {
+            let stack = load_stack(&args.dem)?;
+            crate::horizon::cli_run(&args, &stack)
+        }
     }
 }
 
@@ -271,4 +275,12 @@ fn run_dem(command: crate::cli::DemCommand) -> anyhow::Result<()> {
             Ok(())
         }
     }
+}
+
+/// Loads DEM layers (GeoTIFF) into a terrain stack, finest first.
+pub fn load_stack(paths: &[std::path::PathBuf]) -> anyhow::Result<crate::terrain::TerrainStack> {
+    if paths.is_empty() {
+        anyhow::bail!("no DEM given (use --dem FILE, repeatable)");
+    }
+    Ok(crate::terrain::TerrainStack::load(paths)?)
 }

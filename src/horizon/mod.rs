@@ -1,1 +1,252 @@
-//! Terrain horizons: elevation of the horizon as a function of azimuth for an observer.
+//! Terrain horizons: the elevation of the terrain horizon as a function of azimuth for an observer
+//! standing on a [`TerrainStack`], computed in true 3-D geometry on the Moon's reference sphere.
+//!
+//! ```text
+//!   observer O at r0 = R + h_ground + h_obs (radial)        terrain point T at R + h(theta)
+//!        O . . . . . . . . . . . . . . . . . . . . . . . . T      on the great circle that leaves
+//!        |\  el = atan2((R+h) cos theta - r0, (R+h) sin theta)    O with initial azimuth az
+//!        | \________ theta = ground angle O-centre-T
+//! ```
+//!
+//! Everything along one azimuth lies in the plane spanned by the observer's radial unit vector
+//! `u0` and the initial direction `d = cos(az) north + sin(az) east`; a terrain point at ground
+//! angle `theta` is `(R + h) (cos(theta) u0 + sin(theta) d)`, so its elevation above the plane
+//! normal to `u0` at the observer is the `atan2` above, exactly, curvature included.
+//!
+//! Two methods (see `docs/horizon.md` for the measured accuracy and speed):
+//! - [`HorizonMethod::Exact`], the reference: every crossing of the path with the grid lines of
+//!   the bilinear surface (the lines through cell centres, plus the outer edge of each layer) on
+//!   the finest layer with data there, plus, inside every bilinear patch crossed, the patch
+//!   midpoint and the tangent point of the quadratic height profile (a straight line through a
+//!   bilinear patch sees a quadratic height), so the maximum over the bilinear surface is found.
+//! - [`HorizonMethod::Fast`]: the same scan, but a path segment is skipped when a conservative
+//!   upper bound of its elevation (from a per-layer block-maximum grid, a one-level max-mipmap)
+//!   cannot beat the current horizon by more than `fast_tolerance_deg`. The error against the
+//!   exact scan is therefore in `[-fast_tolerance_deg, 0]` by construction.
+//!
+//! **The observer's own cell.** Terrain closer than half a cell of the layer that carries the
+//! observer (`min_distance_m`, 120 m on a 240 m grid, 5 m on a 10 m grid) is ignored: it is
+//! interpolated from the same (at most four) cell centres as the ground the observer stands on,
+//! so it is the DEM's representation of that ground, not a resolved obstacle. Beyond it the
+//! surface counts in full, including a sloping surface under the observer seen further out.
+//!
+//! **No terrain.** When a direction has no terrain sample at all (the path leaves every layer
+//! before `min_distance_m`), the horizon is `-90°` and the distance `NaN`. Otherwise the horizon
+//! is the maximum elevation over all terrain samples, which may be negative (a flat sphere gives
+//! the dip of the geometric horizon or of the DEM edge, whichever is nearer): no terrain exists
+//! outside the layers.
+
+mod cli;
+mod scan;
+
+pub use cli::{cli_run, write_csv, write_json};
+pub use scan::HorizonEngine;
+
+use serde::Serialize;
+
+use crate::terrain::TerrainStack;
+
+/// Default azimuth step, degrees (1440 azimuths).
+pub const DEFAULT_AZ_STEP_DEG: f64 = 0.25;
+/// Default observer height above the surface, metres.
+pub const DEFAULT_OBSERVER_HEIGHT_M: f64 = 2.0;
+/// Default skip tolerance of the fast method, degrees: its horizon is never more than this below
+/// the exact scan's.
+pub const DEFAULT_FAST_TOLERANCE_DEG: f64 = 0.002;
+
+/// Errors of the horizon subsystem.
+#[derive(Debug, thiserror::Error)]
+pub enum HorizonError {
+    /// The terrain stack has no layers.
+    #[error("the terrain stack has no DEM layers")]
+    NoLayers,
+    /// Latitude or longitude is not a finite number or the latitude is outside [-90, 90].
+    #[error("site latitude {lat_deg} / longitude {lon_deg} deg is not a valid position")]
+    BadSite {
+        /// Latitude given, degrees.
+        lat_deg: f64,
+        /// Longitude given, degrees.
+        lon_deg: f64,
+    },
+    /// The site lies outside every DEM layer.
+    #[error("site {lat_deg} deg, {lon_deg} deg lies outside every DEM layer ({layers})")]
+    OffDem {
+        /// Latitude of the site, degrees.
+        lat_deg: f64,
+        /// Longitude of the site, degrees.
+        lon_deg: f64,
+        /// Names of the layers, for the message.
+        layers: String,
+    },
+    /// The site lies inside a layer but in a nodata hole of every layer covering it.
+    #[error("site {lat_deg} deg, {lon_deg} deg lies in a nodata hole of {layer}")]
+    InHole {
+        /// Latitude of the site, degrees.
+        lat_deg: f64,
+        /// Longitude of the site, degrees.
+        lon_deg: f64,
+        /// The finest layer whose extent contains the site.
+        layer: String,
+    },
+    /// The observer height is negative or not finite.
+    #[error("observer height {observer_height_m} m must be a finite number >= 0")]
+    BadObserverHeight {
+        /// Height given, metres.
+        observer_height_m: f64,
+    },
+    /// The azimuth step is not positive, too small, or 360 is not an integer multiple of it.
+    #[error(
+        "azimuth step {az_step_deg} deg must be > 0, >= 0.001 and divide 360 into a whole number of steps"
+    )]
+    BadAzStep {
+        /// Step given, degrees.
+        az_step_deg: f64,
+    },
+    /// The fast method's tolerance is negative or not finite.
+    #[error("fast-method tolerance {tolerance_deg} deg must be a finite number >= 0")]
+    BadTolerance {
+        /// Tolerance given, degrees.
+        tolerance_deg: f64,
+    },
+}
+
+/// How the horizon is scanned.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum HorizonMethod {
+    /// Every grid-line crossing and every bilinear patch maximum on the finest layer (reference).
+    Exact,
+    /// The exact scan with conservative block-maximum skipping (error <= the tolerance).
+    Fast,
+}
+
+/// Parameters of a horizon computation.
+#[derive(Debug, Clone, Copy)]
+pub struct HorizonParams {
+    /// Observer height above the terrain surface along the radial direction, metres (>= 0).
+    pub observer_height_m: f64,
+    /// Azimuth step, degrees; azimuths are `0, step, 2 step, …` up to 360 (excluded).
+    pub az_step_deg: f64,
+    /// Scan method.
+    pub method: HorizonMethod,
+    /// Skip tolerance of [`HorizonMethod::Fast`], degrees (ignored by the exact scan).
+    pub fast_tolerance_deg: f64,
+}
+
+impl Default for HorizonParams {
+    fn default() -> Self {
+        HorizonParams {
+            observer_height_m: DEFAULT_OBSERVER_HEIGHT_M,
+            az_step_deg: DEFAULT_AZ_STEP_DEG,
+            method: HorizonMethod::Fast,
+            fast_tolerance_deg: DEFAULT_FAST_TOLERANCE_DEG,
+        }
+    }
+}
+
+/// A horizon profile: elevation (and the distance to the terrain point that sets it) at evenly
+/// spaced azimuths, clockwise from north.
+#[derive(Debug, Clone, Serialize)]
+pub struct Horizon {
+    /// Site latitude, degrees.
+    pub lat_deg: f64,
+    /// Site east longitude, degrees.
+    pub lon_deg: f64,
+    /// Terrain height under the observer, metres above the 1737.4 km sphere.
+    pub ground_height_m: f64,
+    /// Observer height above the terrain, metres.
+    pub observer_height_m: f64,
+    /// Name of the layer that carries the observer.
+    pub ground_layer: String,
+    /// Terrain nearer than this ground distance is the observer's own cell and is ignored, metres.
+    pub min_distance_m: f64,
+    /// Method used.
+    pub method: HorizonMethod,
+    /// Azimuth step, degrees.
+    pub az_step_deg: f64,
+    /// Azimuths, degrees clockwise from north.
+    pub az_deg: Vec<f64>,
+    /// Horizon elevation at each azimuth, degrees above the plane normal to the radial direction
+    /// (`-90` where there is no terrain).
+    pub elevation_deg: Vec<f64>,
+    /// Ground distance (on the reference sphere, `R * theta`) to the terrain point that sets the
+    /// horizon, metres (`NaN` where there is no terrain).
+    pub distance_m: Vec<f64>,
+}
+
+impl Horizon {
+    /// The horizon elevation (deg) at any azimuth (deg, any real value): linear interpolation
+    /// between the samples, wrapping at 360°.
+    pub fn elevation_at_deg(&self, az_deg: f64) -> f64 {
+        let n = self.elevation_deg.len();
+        if n == 0 {
+            return -90.0;
+        }
+        let pos = az_deg.rem_euclid(360.0) / self.az_step_deg;
+        let i0 = (pos.floor() as usize).min(n - 1);
+        let frac = (pos - i0 as f64).clamp(0.0, 1.0);
+        let i1 = (i0 + 1) % n;
+        self.elevation_deg[i0] * (1.0 - frac) + self.elevation_deg[i1] * frac
+    }
+}
+
+/// Computes the horizon of a site on a terrain stack (builds a [`HorizonEngine`]; reuse an engine
+/// for many sites).
+pub fn horizon(
+    stack: &TerrainStack,
+    lat_deg: f64,
+    lon_deg: f64,
+    params: &HorizonParams,
+) -> Result<Horizon, HorizonError> {
+    HorizonEngine::new(stack).horizon(lat_deg, lon_deg, params)
+}
+
+/// Validates an azimuth step and returns the number of azimuths.
+fn azimuth_count(az_step_deg: f64) -> Result<usize, HorizonError> {
+    let bad = HorizonError::BadAzStep { az_step_deg };
+    if !(az_step_deg.is_finite() && (0.001..=360.0).contains(&az_step_deg)) {
+        return Err(bad);
+    }
+    let n = 360.0 / az_step_deg;
+    let n_round = n.round();
+    if (n - n_round).abs() > 1e-6 * n_round.max(1.0) {
+        return Err(bad);
+    }
+    Ok(n_round as usize)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn azimuth_step_validation() {
+        assert_eq!(azimuth_count(0.25).unwrap(), 1440);
+        assert_eq!(azimuth_count(1.0).unwrap(), 360);
+        for bad in [0.0, -1.0, 0.7, f64::NAN, 400.0, 1e-5] {
+            assert!(azimuth_count(bad).is_err(), "{bad}");
+        }
+    }
+
+    #[test]
+    fn interpolation_wraps_at_360() {
+        let h = Horizon {
+            lat_deg: 0.0,
+            lon_deg: 0.0,
+            ground_height_m: 0.0,
+            observer_height_m: 0.0,
+            ground_layer: String::new(),
+            min_distance_m: 0.0,
+            method: HorizonMethod::Exact,
+            az_step_deg: 90.0,
+            az_deg: vec![0.0, 90.0, 180.0, 270.0],
+            elevation_deg: vec![1.0, 2.0, 3.0, 5.0],
+            distance_m: vec![1.0; 4],
+        };
+        assert!((h.elevation_at_deg(45.0) - 1.5).abs() < 1e-12);
+        assert!((h.elevation_at_deg(315.0) - 3.0).abs() < 1e-12);
+        assert!((h.elevation_at_deg(-45.0) - 3.0).abs() < 1e-12);
+        assert!((h.elevation_at_deg(360.0) - 1.0).abs() < 1e-12);
+        assert!((h.elevation_at_deg(270.0) - 5.0).abs() < 1e-12);
+    }
+}
