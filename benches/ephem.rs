@@ -3,7 +3,10 @@
 //!
 //! Run: `cargo bench --bench ephem`.
 
-#![allow(missing_docs, reason = "criterion's macros generate undocumented items")]
+#![allow(
+    missing_docs,
+    reason = "criterion's macros generate undocumented items"
+)]
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use penumbra::ephem::{self, AbCorr, Kernels, Site};

@@ -24,6 +24,9 @@ pub enum Command {
     Run(RunArgs),
     /// Terrain horizon (elevation vs azimuth) seen by an observer above a site.
     Horizon(HorizonArgs),
+    /// Per-site illumination time series: Sun and Earth visible fractions, irradiance,
+    /// statistics and plots.
+    Series(SeriesArgs),
     /// Inspect or generate DEMs (GeoTIFF).
     Dem {
         /// The DEM action.
@@ -197,4 +200,98 @@ pub enum HorizonFormat {
     Csv,
     /// One JSON object with the site and the arrays.
     Json,
+}
+
+/// Arguments of `penumbra series`.
+#[derive(Debug, Clone, Args)]
+pub struct SeriesArgs {
+    /// DEM GeoTIFF layer; repeat for several layers (the finest with data is used at each point).
+    #[arg(
+        long = "dem",
+        value_name = "FILE",
+        required_unless_present = "synthetic"
+    )]
+    pub dem: Vec<PathBuf>,
+    /// Use penumbra's synthetic south-polar DEM (400 x 400 px at 100 m, seed 1) instead of --dem.
+    #[arg(long, conflicts_with = "dem")]
+    pub synthetic: bool,
+    /// A site as NAME,LAT_DEG,LON_DEG[,HEIGHT_ABOVE_GROUND_M] (planetocentric latitude, east
+    /// longitude, degrees; height in metres); repeatable.
+    #[arg(long, value_name = "SITE", allow_hyphen_values = true)]
+    pub site: Vec<String>,
+    /// Latitude of a single site named "site", degrees (alternative to --site).
+    #[arg(
+        long,
+        allow_hyphen_values = true,
+        requires = "lon_deg",
+        conflicts_with = "site"
+    )]
+    pub lat_deg: Option<f64>,
+    /// East longitude of a single site named "site", degrees.
+    #[arg(long, allow_hyphen_values = true, requires = "lat_deg")]
+    pub lon_deg: Option<f64>,
+    /// Observer height above the ground, metres (for sites that do not give their own).
+    #[arg(long, default_value_t = 2.0, allow_hyphen_values = true)]
+    pub observer_height_m: f64,
+    /// Epoch(s).
+    #[command(flatten)]
+    pub epochs: EpochArgs,
+    /// Aberration correction: lt+s or none.
+    #[arg(long, default_value = "lt+s")]
+    pub abcorr: String,
+    /// Disc integration: exact (strip integral, default), segment (paper 001 circular segment)
+    /// or middle-value.
+    #[arg(long, value_enum, default_value_t = DiscMethodArg::Exact)]
+    pub disc_method: DiscMethodArg,
+    /// Solar limb darkening used to flux-weight the Sun's visible fraction.
+    #[arg(long, value_enum, default_value_t = crate::series::LimbLaw::Eddington)]
+    pub limb_darkening: crate::series::LimbLaw,
+    /// Horizon azimuth step, degrees (must divide 360).
+    #[arg(long, default_value_t = 0.25)]
+    pub az_step_deg: f64,
+    /// Horizon scan method.
+    #[arg(long, value_enum, default_value_t = HorizonMethodArg::Fast)]
+    pub horizon_method: HorizonMethodArg,
+    /// Do not draw PNG plots.
+    #[arg(long)]
+    pub no_plots: bool,
+    /// Do not write the per-epoch series.csv files (statistics only).
+    #[arg(long)]
+    pub no_csv: bool,
+    /// Kernels.
+    #[command(flatten)]
+    pub kernels: KernelArgs,
+    /// Output folder (created if needed): one sub-folder per site, plus stats.json and run.json.
+    #[arg(long, value_name = "DIR")]
+    pub out_dir: PathBuf,
+}
+
+/// Disc integration method on the command line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum DiscMethodArg {
+    /// Exact strip integral.
+    Exact,
+    /// Circular segment under the line through the disc's edge azimuths (paper 001).
+    Segment,
+    /// Horizontal chord at the centre azimuth's horizon (Max 1988).
+    MiddleValue,
+}
+
+impl From<DiscMethodArg> for crate::illum::DiscMethod {
+    fn from(m: DiscMethodArg) -> Self {
+        match m {
+            DiscMethodArg::Exact => crate::illum::DiscMethod::Exact,
+            DiscMethodArg::Segment => crate::illum::DiscMethod::Segment,
+            DiscMethodArg::MiddleValue => crate::illum::DiscMethod::MiddleValue,
+        }
+    }
+}
+
+impl From<HorizonMethodArg> for crate::horizon::HorizonMethod {
+    fn from(m: HorizonMethodArg) -> Self {
+        match m {
+            HorizonMethodArg::Fast => crate::horizon::HorizonMethod::Fast,
+            HorizonMethodArg::Exact => crate::horizon::HorizonMethod::Exact,
+        }
+    }
 }

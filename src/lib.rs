@@ -27,6 +27,7 @@ pub mod horizon;
 pub mod illum;
 pub mod output;
 pub mod scenario;
+pub mod series;
 pub mod shadow;
 pub mod terrain;
 

@@ -312,7 +312,11 @@ pub struct SubPoint {
 /// This is the Moon-centred definition that matters to a lunar observer. SPICE's `subpnt` with the
 /// Sun as observer instead takes the Moon ≈8.3 minutes earlier (the light time from the Sun), which
 /// moves the sub-solar point by up to 0.077°; for the Earth the two differ by 0.0002°.
-pub fn sub_body_point(geo: &MoonGeometry, target_wrt_moon: &StateJ2000, abcorr: AbCorr) -> SubPoint {
+pub fn sub_body_point(
+    geo: &MoonGeometry,
+    target_wrt_moon: &StateJ2000,
+    abcorr: AbCorr,
+) -> SubPoint {
     let centre = Site {
         lat_deg: 0.0,
         lon_deg: 0.0,

@@ -69,3 +69,71 @@ pub fn sha256_file(path: &Path) -> std::io::Result<String> {
     std::io::copy(&mut f, &mut hasher)?;
     Ok(format!("{:x}", hasher.finalize()))
 }
+
+/// Provenance of a run, written as `run.json` next to its outputs: what made the files, from what.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct Provenance {
+    /// penumbra's version.
+    pub penumbra_version: &'static str,
+    /// The git commit the binary was built from, or `unknown`.
+    pub git_commit: &'static str,
+    /// The command line.
+    pub command_line: Vec<String>,
+    /// The scenario file, when the run came from one.
+    pub scenario_file: Option<String>,
+    /// The scenario as parsed, when the run came from one.
+    pub scenario: Option<serde_json::Value>,
+    /// Kernel files with sizes and sha256.
+    pub kernels: Vec<crate::ephem::kernels::KernelFile>,
+    /// DEM layers used (paths, or a description of the synthetic DEM).
+    pub dem_layers: Vec<String>,
+    /// First epoch, UTC.
+    pub epoch_start_utc: String,
+    /// Last epoch, UTC.
+    pub epoch_stop_utc: String,
+    /// Number of epochs.
+    pub epoch_count: usize,
+    /// Compute backend.
+    pub backend: String,
+    /// Files written, relative to the output folder.
+    pub outputs: Vec<String>,
+    /// Wall time of the run, seconds.
+    pub wall_time_s: f64,
+}
+
+impl Provenance {
+    /// A provenance record with the tool's identity and command line filled in.
+    pub fn new() -> Self {
+        Provenance {
+            penumbra_version: env!("CARGO_PKG_VERSION"),
+            git_commit: env!("PENUMBRA_GIT_COMMIT"),
+            command_line: std::env::args().collect(),
+            scenario_file: None,
+            scenario: None,
+            kernels: Vec::new(),
+            dem_layers: Vec::new(),
+            epoch_start_utc: String::new(),
+            epoch_stop_utc: String::new(),
+            epoch_count: 0,
+            backend: "cpu".into(),
+            outputs: Vec::new(),
+            wall_time_s: 0.0,
+        }
+    }
+
+    /// Writes the record as pretty JSON to `path`, atomically.
+    pub fn write(&self, path: &Path) -> Result<(), OutputError> {
+        let mut bytes = serde_json::to_vec_pretty(self).map_err(|e| OutputError::Io {
+            path: path.display().to_string(),
+            source: std::io::Error::other(e),
+        })?;
+        bytes.push(b'\n');
+        write_bytes_atomic(path, &bytes)
+    }
+}
+
+impl Default for Provenance {
+    fn default() -> Self {
+        Self::new()
+    }
+}

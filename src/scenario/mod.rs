@@ -67,6 +67,33 @@ pub struct Scenario {
     pub time: TimeSpec,
     /// The sites.
     pub sites: Vec<SiteSpec>,
+    /// Terrain: DEM layers or the synthetic DEM. Without it the run is ephemeris-only.
+    pub terrain: Option<TerrainSpec>,
+    /// Per-site illumination series (needs `[terrain]`); present = enabled.
+    pub series: Option<crate::series::SeriesConfig>,
+}
+
+/// The terrain of a scenario.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TerrainSpec {
+    /// DEM GeoTIFF layers, relative to the scenario file (any order; the finest with data wins).
+    #[serde(default)]
+    pub layers: Vec<PathBuf>,
+    /// The built-in synthetic south-polar DEM, used when `layers` is empty.
+    pub synthetic: Option<SynthSpec>,
+}
+
+/// Parameters of the synthetic DEM in a scenario.
+#[derive(Debug, Clone, Copy, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SynthSpec {
+    /// Grid size, pixels (square).
+    pub size_px: usize,
+    /// Pixel size, metres.
+    pub px_m: f64,
+    /// Seed.
+    pub seed: u64,
 }
 
 /// The epoch range of a scenario (UTC).
@@ -154,6 +181,28 @@ impl Scenario {
                 )));
             }
         }
+        if let Some(t) = &self.terrain {
+            if t.layers.is_empty() && t.synthetic.is_none() {
+                return Err(invalid(
+                    "[terrain] needs `layers = [...]` or `synthetic = { size_px, px_m, seed }`"
+                        .into(),
+                ));
+            }
+            if !t.layers.is_empty() && t.synthetic.is_some() {
+                return Err(invalid(
+                    "[terrain] takes either `layers` or `synthetic`, not both".into(),
+                ));
+            }
+            if let Some(s) = self.sites.iter().find(|s| s.ground_height_m.is_some()) {
+                return Err(invalid(format!(
+                    "site '{}': ground_height_m is read from the DEM when [terrain] is given; remove it",
+                    s.name
+                )));
+            }
+        }
+        if self.series.is_some() && self.terrain.is_none() {
+            return Err(invalid("[series] needs [terrain]".into()));
+        }
         Ok(())
     }
 
@@ -164,33 +213,6 @@ impl Scenario {
             .map(Path::to_path_buf)
             .unwrap_or_else(|| PathBuf::from("."))
     }
-}
-
-/// Provenance written to `run.json`.
-#[derive(Debug, Serialize)]
-pub struct Provenance {
-    /// penumbra's version.
-    pub penumbra_version: &'static str,
-    /// The git commit the binary was built from, or `unknown`.
-    pub git_commit: &'static str,
-    /// The scenario file.
-    pub scenario_file: String,
-    /// The scenario as parsed.
-    pub scenario: Scenario,
-    /// Kernel files with sizes and sha256.
-    pub kernels: Vec<ephem::kernels::KernelFile>,
-    /// First epoch, UTC.
-    pub epoch_start_utc: String,
-    /// Last epoch, UTC.
-    pub epoch_stop_utc: String,
-    /// Number of epochs.
-    pub epoch_count: usize,
-    /// Compute backend.
-    pub backend: &'static str,
-    /// Files written, relative to the output folder.
-    pub outputs: Vec<String>,
-    /// Wall time of the run, seconds.
-    pub wall_time_s: f64,
 }
 
 /// Runs a scenario file (`penumbra run`).
@@ -214,56 +236,123 @@ pub fn run_file(args: &crate::cli::RunArgs) -> anyhow::Result<()> {
     let stop = ephem::time::parse_utc(&scenario.time.stop).context("[time] stop")?;
     let step = ephem::time::parse_step(&scenario.time.step).context("[time] step")?;
     let epochs = ephem::time::epoch_range(start, stop, step)?;
-    let sites: Vec<Site> = scenario
-        .sites
-        .iter()
-        .map(|s| {
-            let ground_m = s.ground_height_m.unwrap_or(0.0);
-            Site::new(s.lat_deg, s.lon_deg, ground_m + s.height_above_ground_m)
-                .with_context(|| format!("site '{}'", s.name))
-        })
-        .collect::<anyhow::Result<_>>()?;
     let kernels = ephem::Kernels::load(&kernel_dir).context("loading SPICE kernels")?;
-    let series = ephem::sun_earth_series(&kernels, &sites, &epochs, scenario.abcorr)?;
+    // Fail on coverage before loading terrain or writing anything.
+    ephem::moon_geometry_table(&kernels, &[epochs[0], *epochs.last().unwrap_or(&epochs[0])])?;
 
+    let mut prov = crate::output::Provenance::new();
+    prov.scenario_file = Some(path.display().to_string());
+    prov.scenario = Some(serde_json::to_value(&scenario)?);
+    prov.kernels = kernels.files.clone();
+    prov.epoch_start_utc = ephem::time::format_utc(epochs[0]);
+    prov.epoch_stop_utc = ephem::time::format_utc(*epochs.last().unwrap_or(&epochs[0]));
+    prov.epoch_count = epochs.len();
+
+    let stack = match &scenario.terrain {
+        None => None,
+        Some(t) => Some(load_terrain(t, &base, &out_dir, &mut prov)?),
+    };
     std::fs::create_dir_all(&out_dir)
         .with_context(|| format!("creating output folder {}", out_dir.display()))?;
-    let mut outputs = Vec::new();
-    for (spec, rows) in scenario.sites.iter().zip(&series) {
-        let name = format!("{}_ephem.csv", spec.name);
-        crate::app::write_output(Some(&out_dir.join(&name)), |w| {
-            writeln!(w, "{}", crate::app::EPHEM_CSV_HEADER)?;
-            for (e, v) in epochs.iter().zip(rows) {
-                crate::app::write_ephem_row(w, *e, v)?;
+
+    match (&stack, &scenario.series) {
+        (Some(stack), Some(config)) => {
+            let sites: Vec<crate::series::SeriesSite> = scenario
+                .sites
+                .iter()
+                .map(|s| crate::series::SeriesSite {
+                    name: s.name.clone(),
+                    lat_deg: s.lat_deg,
+                    lon_deg: s.lon_deg,
+                    height_above_ground_m: s.height_above_ground_m,
+                })
+                .collect();
+            let (_, files) = crate::series::run_series(
+                &kernels,
+                stack,
+                &sites,
+                &epochs,
+                step.to_seconds(),
+                &crate::series::SeriesConfig {
+                    abcorr: scenario.abcorr,
+                    ..*config
+                },
+                &out_dir,
+            )?;
+            prov.outputs.extend(files);
+        }
+        _ => {
+            let sites: Vec<Site> = scenario
+                .sites
+                .iter()
+                .map(|s| {
+                    let ground_m = match (&stack, s.ground_height_m) {
+                        (_, Some(g)) => g,
+                        (Some(stack), None) => {
+                            stack.height_at_lat_lon_m_checked(s.lat_deg, s.lon_deg)?.0
+                        }
+                        (None, None) => 0.0,
+                    };
+                    Site::new(s.lat_deg, s.lon_deg, ground_m + s.height_above_ground_m)
+                        .with_context(|| format!("site '{}'", s.name))
+                })
+                .collect::<anyhow::Result<_>>()?;
+            let series = ephem::sun_earth_series(&kernels, &sites, &epochs, scenario.abcorr)?;
+            for (spec, rows) in scenario.sites.iter().zip(&series) {
+                let name = format!("{}_ephem.csv", spec.name);
+                crate::app::write_output(Some(&out_dir.join(&name)), |w| {
+                    writeln!(w, "{}", crate::app::EPHEM_CSV_HEADER)?;
+                    for (e, v) in epochs.iter().zip(rows) {
+                        crate::app::write_ephem_row(w, *e, v)?;
+                    }
+                    Ok(())
+                })?;
+                prov.outputs.push(name);
             }
-            Ok(())
-        })?;
-        outputs.push(name);
+        }
     }
-    let provenance = Provenance {
-        penumbra_version: env!("CARGO_PKG_VERSION"),
-        git_commit: env!("PENUMBRA_GIT_COMMIT"),
-        scenario_file: path.display().to_string(),
-        scenario,
-        kernels: kernels.files.clone(),
-        epoch_start_utc: ephem::time::format_utc(epochs[0]),
-        epoch_stop_utc: ephem::time::format_utc(*epochs.last().unwrap_or(&epochs[0])),
-        epoch_count: epochs.len(),
-        backend: "cpu",
-        outputs,
-        wall_time_s: t0.elapsed().as_secs_f64(),
-    };
-    crate::app::write_output(Some(&out_dir.join("run.json")), |w| {
-        serde_json::to_writer_pretty(&mut *w, &provenance)?;
-        writeln!(w)?;
-        Ok(())
-    })?;
+    prov.wall_time_s = t0.elapsed().as_secs_f64();
+    prov.write(&out_dir.join("run.json"))?;
     eprintln!(
-        "penumbra: wrote {} site file(s) and run.json to {} ({} epochs, {:.2} s)",
-        provenance.outputs.len(),
+        "penumbra: {} file(s) and run.json written to {} ({} sites, {} epochs, {:.1} s)",
+        prov.outputs.len(),
         out_dir.display(),
-        provenance.epoch_count,
-        provenance.wall_time_s
+        scenario.sites.len(),
+        prov.epoch_count,
+        prov.wall_time_s
     );
     Ok(())
+}
+
+/// Loads a scenario's terrain; the synthetic DEM is also written to the output folder.
+fn load_terrain(
+    spec: &TerrainSpec,
+    base: &Path,
+    out_dir: &Path,
+    prov: &mut crate::output::Provenance,
+) -> anyhow::Result<crate::terrain::TerrainStack> {
+    if let Some(s) = spec.synthetic {
+        let params = crate::terrain::synth::SynthParams {
+            size_px: s.size_px,
+            px_m: s.px_m,
+            seed: s.seed,
+        };
+        let (stack, what) = crate::app::synthetic_stack(&params)?;
+        std::fs::create_dir_all(out_dir)
+            .with_context(|| format!("creating output folder {}", out_dir.display()))?;
+        crate::terrain::write_dem(
+            &out_dir.join("terrain_synthetic.tif"),
+            &stack.layers[0],
+            &[(
+                "software",
+                &format!("penumbra {}", env!("CARGO_PKG_VERSION")),
+            )],
+        )?;
+        prov.outputs.push("terrain_synthetic.tif".into());
+        prov.dem_layers.push(what);
+        return Ok(stack);
+    }
+    let paths: Vec<PathBuf> = spec.layers.iter().map(|p| base.join(p)).collect();
+    prov.dem_layers = paths.iter().map(|p| p.display().to_string()).collect();
+    Ok(crate::terrain::TerrainStack::load(&paths)?)
 }

@@ -466,7 +466,11 @@ fn sub_solar_and_sub_earth_points_match_spice() {
         let epoch = ephem::time::parse_utc(f[0]).unwrap();
         let (lat, lon): (f64, f64) = (f[2].parse().unwrap(), f[3].parse().unwrap());
         let geo = ephem::MoonGeometry::at(&kernels.almanac, epoch).unwrap();
-        let target = if f[1] == "SUN" { geo.sun_wrt_moon } else { geo.earth_wrt_moon };
+        let target = if f[1] == "SUN" {
+            geo.sun_wrt_moon
+        } else {
+            geo.earth_wrt_moon
+        };
         let p = ephem::topo::sub_body_point(&geo, &target, AbCorr::LtS);
         let d_lat_arcsec = (p.lat_deg - lat) * 3600.0;
         let d_lon_arcsec = wrap_deg(p.lon_deg - lon) * lat.to_radians().cos() * 3600.0;

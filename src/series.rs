@@ -1,0 +1,485 @@
+//! Per-site illumination time series (`penumbra series` and scenario `[series]`): horizons from
+//! the terrain, the Sun's and the Earth's apparent discs from the ephemeris, visible fractions,
+//! irradiance, statistics and plots.
+//!
+//! Pipeline for a set of sites and epochs:
+//! 1. one horizon per site ([`crate::horizon`]), at the site's ground height from the DEM layers
+//!    plus the observer's height above the ground;
+//! 2. the Moon-centred geometry of every epoch, queried once and shared by all sites
+//!    ([`crate::ephem::moon_geometry_table`]); each site then gets its exact topocentric Sun and
+//!    Earth (no approximation: the site offset is applied exactly, see `src/ephem/topo.rs`);
+//! 3. per site and epoch: the visible fractions of both discs ([`crate::illum::disc`]) and the
+//!    solar irradiance ([`crate::illum::irradiance`]);
+//! 4. per site: `series.csv`, `horizon.csv`, `stats.json` and PNG plots; for all sites together a
+//!    combined `stats.json` ("at least one site lit").
+//!
+//! Sites are processed in parallel; each site's rows are written and dropped before the next, so
+//! memory holds only the shared ephemeris table (≈300 B per epoch) and two `f64` fractions per site
+//! and epoch (for the combined statistics).
+
+use std::io::Write;
+use std::path::Path;
+
+use anyhow::Context as _;
+use hifitime::Epoch;
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use crate::ephem::{self, AbCorr, Kernels, MoonGeometry, Site, time::format_utc};
+use crate::horizon::{self, Horizon, HorizonMethod, HorizonParams};
+use crate::illum::stats::{SiteSeries, StatsFile};
+use crate::illum::{self, Disc, DiscMethod, HorizonProfile, LimbDarkening};
+use crate::terrain::TerrainStack;
+
+/// A named site of a series run.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct SeriesSite {
+    /// Name, used as the site's output folder.
+    pub name: String,
+    /// Planetocentric latitude, degrees.
+    pub lat_deg: f64,
+    /// East longitude, degrees.
+    pub lon_deg: f64,
+    /// Observer height above the ground, metres.
+    pub height_above_ground_m: f64,
+}
+
+/// Limb-darkening choices for the Sun's visible fraction.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "kebab-case")]
+pub enum LimbLaw {
+    /// Uniform disc: the visible fraction is an area fraction.
+    None,
+    /// Eddington law `(2 + 3μ)/5`, for total (bolometric) irradiance: the default, since the
+    /// irradiance columns are total irradiance.
+    #[default]
+    Eddington,
+    /// Allen's 550 nm quadratic law (visible band).
+    Allen550nm,
+}
+
+impl LimbLaw {
+    /// The intensity law.
+    pub fn law(self) -> LimbDarkening {
+        match self {
+            LimbLaw::None => LimbDarkening::UNIFORM,
+            LimbLaw::Eddington => LimbDarkening::EDDINGTON,
+            LimbLaw::Allen550nm => LimbDarkening::ALLEN_550NM,
+        }
+    }
+}
+
+/// Settings of a series run.
+#[derive(Debug, Clone, Copy, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SeriesConfig {
+    /// Aberration correction of the ephemeris.
+    pub abcorr: AbCorr,
+    /// Disc integration method (`exact` strip integral or the fast approximations).
+    pub disc_method: DiscMethod,
+    /// Limb darkening of the Sun (the Earth's disc is always uniform).
+    pub limb_darkening: LimbLaw,
+    /// Horizon azimuth step, degrees.
+    pub az_step_deg: f64,
+    /// Horizon method.
+    #[serde(with = "horizon_method_serde")]
+    pub horizon_method: HorizonMethod,
+    /// Whether to draw PNG plots.
+    pub plots: bool,
+    /// Whether to write the per-epoch CSV (statistics are always written).
+    pub write_csv: bool,
+}
+
+mod horizon_method_serde {
+    use super::HorizonMethod;
+    use serde::{Deserialize as _, Deserializer, Serializer};
+
+    pub fn serialize<S: Serializer>(m: &HorizonMethod, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(match m {
+            HorizonMethod::Exact => "exact",
+            HorizonMethod::Fast => "fast",
+        })
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<HorizonMethod, D::Error> {
+        match String::deserialize(d)?.as_str() {
+            "exact" => Ok(HorizonMethod::Exact),
+            "fast" => Ok(HorizonMethod::Fast),
+            other => Err(serde::de::Error::custom(format!(
+                "unknown horizon method '{other}' (use fast or exact)"
+            ))),
+        }
+    }
+}
+
+impl Default for SeriesConfig {
+    fn default() -> Self {
+        SeriesConfig {
+            abcorr: AbCorr::LtS,
+            disc_method: DiscMethod::Exact,
+            limb_darkening: LimbLaw::Eddington,
+            az_step_deg: horizon::DEFAULT_AZ_STEP_DEG,
+            horizon_method: HorizonMethod::Fast,
+            plots: true,
+            write_csv: true,
+        }
+    }
+}
+
+/// The CSV header of a site's `series.csv`.
+pub const SERIES_CSV_HEADER: &str = "utc,sun_az_deg,sun_el_deg,sun_horizon_el_deg,sun_visible_fraction,sun_irradiance_normal_w_m2,sun_irradiance_horizontal_w_m2,sun_irradiance_vertical_tracking_w_m2,earth_az_deg,earth_el_deg,earth_horizon_el_deg,earth_visible_fraction";
+
+/// One site's results kept after its files are written.
+#[derive(Debug, Clone)]
+pub struct SiteOutcome {
+    /// The site.
+    pub site: SeriesSite,
+    /// Its horizon.
+    pub horizon: Horizon,
+    /// Visible fraction of the Sun per epoch.
+    pub sun_fraction: Vec<f64>,
+    /// Visible fraction of the Earth per epoch.
+    pub earth_fraction: Vec<f64>,
+    /// Files written, relative to the output folder.
+    pub files: Vec<String>,
+}
+
+/// Computes the horizons of every site (in order), failing with the site's name.
+pub fn site_horizons(
+    stack: &TerrainStack,
+    sites: &[SeriesSite],
+    config: &SeriesConfig,
+) -> anyhow::Result<Vec<Horizon>> {
+    let engine = horizon::HorizonEngine::new(stack);
+    sites
+        .iter()
+        .map(|s| {
+            let params = HorizonParams {
+                observer_height_m: s.height_above_ground_m,
+                az_step_deg: config.az_step_deg,
+                method: config.horizon_method,
+                ..HorizonParams::default()
+            };
+            engine
+                .horizon(s.lat_deg, s.lon_deg, &params)
+                .with_context(|| format!("horizon of site '{}'", s.name))
+        })
+        .collect()
+}
+
+/// Sun and Earth fractions of one site for every epoch of the shared table, calling `row` for each
+/// epoch (in order) with the values of the CSV row.
+pub fn site_fractions(
+    table: &[MoonGeometry],
+    site: &Site,
+    horizon: &Horizon,
+    config: &SeriesConfig,
+    mut row: impl FnMut(usize, &SeriesRow) -> anyhow::Result<()>,
+) -> anyhow::Result<(Vec<f64>, Vec<f64>)> {
+    let profile = HorizonProfile::new(&horizon.elevation_deg)?;
+    let limb = config.limb_darkening.law();
+    let mut sun_fraction = Vec::with_capacity(table.len());
+    let mut earth_fraction = Vec::with_capacity(table.len());
+    for (k, geo) in table.iter().enumerate() {
+        let v = ephem::topo::sun_earth(geo, site, config.abcorr);
+        let sun_disc = Disc {
+            az_deg: v.sun.az_deg,
+            el_deg: v.sun.el_deg,
+            radius_deg: v.sun.radius_deg,
+        };
+        let earth_disc = Disc {
+            az_deg: v.earth.az_deg,
+            el_deg: v.earth.el_deg,
+            radius_deg: v.earth.radius_deg,
+        };
+        let sun_f = illum::visible_fraction(&profile, &sun_disc, config.disc_method, &limb);
+        let earth_f = illum::visible_fraction(
+            &profile,
+            &earth_disc,
+            config.disc_method,
+            &LimbDarkening::UNIFORM,
+        );
+        let r = SeriesRow {
+            sun: v.sun,
+            earth: v.earth,
+            sun_horizon_el_deg: profile.el_at_az_deg(v.sun.az_deg),
+            earth_horizon_el_deg: profile.el_at_az_deg(v.earth.az_deg),
+            sun_fraction: sun_f,
+            earth_fraction: earth_f,
+        };
+        row(k, &r)?;
+        sun_fraction.push(sun_f);
+        earth_fraction.push(earth_f);
+    }
+    Ok((sun_fraction, earth_fraction))
+}
+
+/// One epoch of one site.
+#[derive(Debug, Clone, Copy)]
+pub struct SeriesRow {
+    /// The Sun seen from the site.
+    pub sun: ephem::Apparent,
+    /// The Earth seen from the site.
+    pub earth: ephem::Apparent,
+    /// Horizon elevation at the Sun's azimuth, degrees.
+    pub sun_horizon_el_deg: f64,
+    /// Horizon elevation at the Earth's azimuth, degrees.
+    pub earth_horizon_el_deg: f64,
+    /// Visible (flux) fraction of the Sun's disc.
+    pub sun_fraction: f64,
+    /// Visible fraction of the Earth's disc.
+    pub earth_fraction: f64,
+}
+
+fn write_row(w: &mut dyn Write, epoch: Epoch, r: &SeriesRow) -> std::io::Result<()> {
+    let normal = illum::irradiance::normal_irradiance_w_m2(r.sun.range_km, r.sun_fraction);
+    let horizontal =
+        illum::irradiance::horizontal_irradiance_w_m2(r.sun.range_km, r.sun.el_deg, r.sun_fraction);
+    let vertical = illum::irradiance::vertical_tracking_irradiance_w_m2(
+        r.sun.range_km,
+        r.sun.el_deg,
+        r.sun_fraction,
+    );
+    writeln!(
+        w,
+        "{},{:.6},{:.6},{:.6},{:.6},{:.3},{:.3},{:.3},{:.6},{:.6},{:.6},{:.6}",
+        format_utc(epoch),
+        r.sun.az_deg,
+        r.sun.el_deg,
+        r.sun_horizon_el_deg,
+        r.sun_fraction,
+        normal,
+        horizontal,
+        vertical,
+        r.earth.az_deg,
+        r.earth.el_deg,
+        r.earth_horizon_el_deg,
+        r.earth_fraction
+    )
+}
+
+/// Runs a whole series: horizons, ephemeris, fractions, files. Returns every site's outcome and
+/// the list of files written (relative to `out_dir`), including the combined `stats.json`.
+pub fn run_series(
+    kernels: &Kernels,
+    stack: &TerrainStack,
+    sites: &[SeriesSite],
+    epochs: &[Epoch],
+    step_s: f64,
+    config: &SeriesConfig,
+    out_dir: &Path,
+) -> anyhow::Result<(Vec<SiteOutcome>, Vec<String>)> {
+    if sites.is_empty() {
+        anyhow::bail!("no sites given");
+    }
+    let horizons = site_horizons(stack, sites, config)?;
+    let table = ephem::moon_geometry_table(kernels, epochs)?;
+    std::fs::create_dir_all(out_dir)
+        .with_context(|| format!("creating output folder {}", out_dir.display()))?;
+
+    let progress = indicatif::ProgressBar::new((sites.len() * epochs.len()) as u64);
+    progress.set_style(
+        indicatif::ProgressStyle::with_template(
+            "{spinner} series [{bar:30}] {percent}% ({pos}/{len} site-epochs, eta {eta})",
+        )
+        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
+        .progress_chars("=> "),
+    );
+    let outcomes: Vec<SiteOutcome> = sites
+        .par_iter()
+        .zip(horizons)
+        .map(|(spec, horizon)| {
+            run_one_site(
+                &table, epochs, step_s, spec, horizon, config, out_dir, &progress,
+            )
+        })
+        .collect::<anyhow::Result<_>>()?;
+    progress.finish_and_clear();
+
+    let mut files: Vec<String> = outcomes.iter().flat_map(|o| o.files.clone()).collect();
+    let all: Vec<SiteSeries<'_>> = outcomes
+        .iter()
+        .map(|o| SiteSeries {
+            site: &o.site.name,
+            start_utc: epochs[0],
+            step_s,
+            sun_fraction: &o.sun_fraction,
+            earth_fraction: &o.earth_fraction,
+        })
+        .collect();
+    StatsFile::from_series(&all)?.write_json(&out_dir.join("stats.json"))?;
+    files.push("stats.json".into());
+    Ok((outcomes, files))
+}
+
+#[expect(clippy::too_many_arguments, reason = "one site's slice of run_series")]
+fn run_one_site(
+    table: &[MoonGeometry],
+    epochs: &[Epoch],
+    step_s: f64,
+    spec: &SeriesSite,
+    horizon: Horizon,
+    config: &SeriesConfig,
+    out_dir: &Path,
+    progress: &indicatif::ProgressBar,
+) -> anyhow::Result<SiteOutcome> {
+    let site_dir = out_dir.join(&spec.name);
+    std::fs::create_dir_all(&site_dir)
+        .with_context(|| format!("creating {}", site_dir.display()))?;
+    let rel = |f: &str| format!("{}/{f}", spec.name);
+    let mut files = Vec::new();
+    let site = Site::new(
+        spec.lat_deg,
+        spec.lon_deg,
+        horizon.ground_height_m + spec.height_above_ground_m,
+    )
+    .with_context(|| format!("site '{}'", spec.name))?;
+
+    // Horizon CSV.
+    crate::output::write_atomic(&site_dir.join("horizon.csv"), |w| -> anyhow::Result<()> {
+        crate::horizon::write_csv(&horizon, w)?;
+        Ok(())
+    })?;
+    files.push(rel("horizon.csv"));
+
+    // Series rows, streamed to the CSV; the sky tracks are thinned for the plots.
+    let track_stride = (epochs.len() / 20_000).max(1);
+    let mut sun_track = Vec::new();
+    let mut earth_track = Vec::new();
+    let mut fractions = (Vec::new(), Vec::new());
+    let mut compute = |w: Option<&mut dyn Write>| -> anyhow::Result<()> {
+        let mut w = w;
+        fractions = site_fractions(table, &site, &horizon, config, |k, r| {
+            if let Some(w) = w.as_deref_mut() {
+                write_row(w, epochs[k], r)?;
+            }
+            if k % track_stride == 0 {
+                sun_track.push((r.sun.az_deg, r.sun.el_deg));
+                earth_track.push((r.earth.az_deg, r.earth.el_deg));
+            }
+            if k % 4096 == 4095 {
+                progress.inc(4096);
+            }
+            Ok(())
+        })?;
+        progress.inc((epochs.len() % 4096) as u64);
+        Ok(())
+    };
+    if config.write_csv {
+        crate::output::write_atomic(&site_dir.join("series.csv"), |w| -> anyhow::Result<()> {
+            writeln!(w, "{SERIES_CSV_HEADER}")?;
+            compute(Some(w))
+        })?;
+        files.push(rel("series.csv"));
+    } else {
+        compute(None)?;
+    }
+    let (sun_fraction, earth_fraction) = fractions;
+
+    let series = SiteSeries {
+        site: &spec.name,
+        start_utc: epochs[0],
+        step_s,
+        sun_fraction: &sun_fraction,
+        earth_fraction: &earth_fraction,
+    };
+    StatsFile::from_series(&[series])?.write_json(&site_dir.join("stats.json"))?;
+    files.push(rel("stats.json"));
+
+    if config.plots {
+        let profile = HorizonProfile::new(&horizon.elevation_deg)?;
+        let tracks = illum::plot::SkyTracks {
+            sun_az_el_deg: &sun_track,
+            earth_az_el_deg: &earth_track,
+        };
+        let title = format!(
+            "{} ({:.3}°, {:.3}°), {:.1} m above ground",
+            spec.name, spec.lat_deg, spec.lon_deg, spec.height_above_ground_m
+        );
+        illum::plot::write_horizon_plot(
+            &site_dir.join("horizon.png"),
+            &format!("Horizon and sky tracks: {title}"),
+            &profile,
+            &tracks,
+            (1400, 600),
+        )?;
+        illum::plot::write_horizon_polar_plot(
+            &site_dir.join("horizon_polar.png"),
+            &format!("Horizon (polar): {}", spec.name),
+            &profile,
+            &tracks,
+            900,
+        )?;
+        illum::plot::write_fraction_plot(
+            &site_dir.join("visibility.png"),
+            &format!("Visible fraction of the Sun and the Earth: {title}"),
+            &illum::plot::FractionSeries {
+                start_utc: epochs[0],
+                step_s,
+                sun_fraction: &sun_fraction,
+                earth_fraction: Some(&earth_fraction),
+            },
+            (1400, 500),
+        )?;
+        files.extend([
+            rel("horizon.png"),
+            rel("horizon_polar.png"),
+            rel("visibility.png"),
+        ]);
+    }
+    Ok(SiteOutcome {
+        site: spec.clone(),
+        horizon,
+        sun_fraction,
+        earth_fraction,
+        files,
+    })
+}
+
+/// Parses a `--site NAME,LAT,LON[,HEIGHT_ABOVE_GROUND_M]` value.
+pub fn parse_site_flag(text: &str, default_height_m: f64) -> anyhow::Result<SeriesSite> {
+    let parts: Vec<&str> = text.split(',').map(str::trim).collect();
+    let bad = || {
+        anyhow::anyhow!("--site '{text}': expected NAME,LAT_DEG,LON_DEG[,HEIGHT_ABOVE_GROUND_M]")
+    };
+    if !(3..=4).contains(&parts.len()) || parts[0].is_empty() {
+        return Err(bad());
+    }
+    let num = |s: &str| s.parse::<f64>().map_err(|_| bad());
+    Ok(SeriesSite {
+        name: parts[0].to_string(),
+        lat_deg: num(parts[1])?,
+        lon_deg: num(parts[2])?,
+        height_above_ground_m: if parts.len() == 4 {
+            num(parts[3])?
+        } else {
+            default_height_m
+        },
+    })
+}
+
+/// Checks site names (used as folder names) and heights.
+pub fn validate_sites(sites: &[SeriesSite]) -> anyhow::Result<()> {
+    let mut seen = std::collections::HashSet::new();
+    for s in sites {
+        if s.name.is_empty()
+            || !s
+                .name
+                .chars()
+                .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_')
+        {
+            anyhow::bail!("site name '{}' must be letters, digits, '-' or '_'", s.name);
+        }
+        if !seen.insert(s.name.as_str()) {
+            anyhow::bail!("site name '{}' is used twice", s.name);
+        }
+        if s.height_above_ground_m.is_nan() || s.height_above_ground_m < 0.0 {
+            anyhow::bail!(
+                "site '{}': height above ground {} m must be >= 0",
+                s.name,
+                s.height_above_ground_m
+            );
+        }
+    }
+    Ok(())
+}
