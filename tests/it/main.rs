@@ -3,5 +3,6 @@
 mod ephem;
 mod horizon;
 mod illum;
+mod series;
 mod terrain;
 mod util;
