@@ -159,7 +159,7 @@ pub(crate) fn unit_light(light_in_model: [f64; 3]) -> Result<Vector3<f64>> {
         });
     }
     let n = v.norm();
-    if !(n > 1e-12) {
+    if n.is_nan() || n <= 1e-12 {
         return Err(ShadowError::InvalidLight {
             light: light_in_model,
             reason: "zero length",
@@ -179,10 +179,7 @@ pub(crate) fn check_observer_height(observer_height_m: f64) -> Result<()> {
 
 /// Validates a disc angular radius.
 pub(crate) fn check_radius(angular_radius_rad: f64) -> Result<()> {
-    if angular_radius_rad.is_finite()
-        && angular_radius_rad >= 0.0
-        && angular_radius_rad < std::f64::consts::FRAC_PI_2
-    {
+    if (0.0..std::f64::consts::FRAC_PI_2).contains(&angular_radius_rad) {
         Ok(())
     } else {
         Err(ShadowError::InvalidAngularRadius(angular_radius_rad))

@@ -423,9 +423,9 @@ mod tests {
                     .collect();
                 let mut next = vec![0; n];
                 find_next_v_quad(&black, &mut next);
-                for v in 0..n {
+                for (v, &got) in next.iter().enumerate() {
                     let expected = (0..v).rev().find(|&w| black[w]).map_or(NONE, |w| w as i32);
-                    assert_eq!(next[v], expected, "n={n} density={density} v={v}");
+                    assert_eq!(got, expected, "n={n} density={density} v={v}");
                 }
             }
         }
