@@ -1,1 +1,409 @@
 //! Shadow engines on the model-space height field (CPU reference implementations).
+//!
+//! Every engine answers the same two questions for each cell of a
+//! [`HeightField`](crate::terrain::HeightField), for an observer standing `observer_height_m`
+//! above the cell's surface point (along the exact radial direction
+//! [`HeightField::up_at`](crate::terrain::HeightField::up_at)) and a light at infinity given by
+//! one constant unit direction `light_in_model` (model space; `z > 0` is above the tangent plane
+//! at the model origin):
+//!
+//! * [`Engine::hard_mask`]: is the centre of the light's disc visible? (`1` lit, `0` shadow,
+//!   `255` nodata);
+//! * [`Engine::visible_fraction`]: which fraction of a uniform disc of angular radius
+//!   `angular_radius_rad` (Sun ≈ 0.2666°, Earth ≈ 0.95°) is visible? (`NaN` for nodata).
+//!
+//! The engines:
+//! * [`brute`]: the reference. Marches every ray through every grid line it crosses; soft
+//!   fraction by sampling the disc with many directions. Also the uniform-stepping baseline.
+//! * [`smap`]: hard shadows by the SMap of paper 004 (silhouette colours + NextV pointers).
+//! * [`dp`]: soft shadows by the dynamic-programming maximum-mipmap search of papers 000/003, and
+//!   [`dp::soft_combined`], SMap at the two vertical limbs + DP only in the penumbra.
+//! * [`accuracy`]: engine-vs-engine metrics (mask disagreement away from edges, |Δ fraction|).
+//!
+//! Conventions shared by all engines (so that they are comparable pixel by pixel):
+//! * **Terrain surface.** Heights are given at cell centres. Along the straight lines that join
+//!   cell centres (`row = integer` or `col = integer` in centre coordinates) the surface is the
+//!   linear interpolation of the two neighbouring centres, which is the bilinear surface between
+//!   centres restricted to those lines. Rays are tested where they cross such lines. A sample
+//!   whose two centres are not both valid (`NaN` = hole) is no terrain: rays pass.
+//! * **Blocking.** A ray is blocked at a sample if the surface is strictly above the ray.
+//! * **Grid edge.** A ray that leaves the grid is lit (no terrain outside the grid).
+//! * **The sphere below.** A light direction below the observer's local horizontal plane
+//!   (`light · up <= 0`) is blocked by the Moon itself; so a light below the horizon everywhere
+//!   gives an all-dark map, not an error (the dip of the horizon for an observer a few metres up,
+//!   `sqrt(2h/R)` ≈ 0.08° at 2 m, is ignored).
+
+pub mod accuracy;
+pub mod brute;
+pub mod dp;
+pub mod smap;
+
+use nalgebra::Vector3;
+use rayon::prelude::*;
+
+use crate::terrain::HeightField;
+
+/// Apparent angular radius of the Sun's disc at 1 au, radians (696,000 km / 1 au = 0.2666°).
+pub const SUN_ANGULAR_RADIUS_RAD: f64 = crate::SUN_RADIUS_KM / crate::AU_KM;
+/// Typical apparent angular radius of the Earth's disc seen from the Moon, radians (0.95°).
+pub const EARTH_ANGULAR_RADIUS_RAD: f64 = 0.0166;
+/// Mask value for a lit cell.
+pub const MASK_LIT: u8 = 1;
+/// Mask value for a shadowed cell.
+pub const MASK_SHADOW: u8 = 0;
+/// Mask value for a cell without data.
+pub const MASK_NODATA: u8 = 255;
+
+/// Errors of the shadow engines.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum ShadowError {
+    /// The light direction is zero, not finite, or otherwise unusable.
+    #[error("invalid light direction {light:?}: {reason}")]
+    InvalidLight {
+        /// The offending vector (model space).
+        light: [f64; 3],
+        /// Why it was rejected.
+        reason: &'static str,
+    },
+    /// The angular radius of the disc is negative, not finite, or not below 90°.
+    #[error("invalid angular radius {0} rad (must be finite, >= 0 and < pi/2)")]
+    InvalidAngularRadius(f64),
+    /// The observer height is negative or not finite.
+    #[error("invalid observer height {0} m (must be finite and >= 0)")]
+    InvalidObserverHeight(f64),
+    /// A configuration parameter (sample count, mip levels) is out of range.
+    #[error("invalid parameter {name}: {reason}")]
+    InvalidParameter {
+        /// Which parameter.
+        name: &'static str,
+        /// Why it was rejected.
+        reason: &'static str,
+    },
+}
+
+/// Result alias for the shadow engines.
+pub type Result<T, E = ShadowError> = std::result::Result<T, E>;
+
+/// The shadow engines behind one interface.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Engine {
+    /// Brute-force ray marching (the reference); soft fraction by disc sampling
+    /// ([`brute::DEFAULT_DISC_SAMPLES`] directions).
+    Brute,
+    /// SMap (paper 004) for hard masks; its soft fraction is [`dp::soft_combined`] (SMap has no
+    /// soft mode of its own).
+    Smap,
+    /// DP maximum mipmaps (papers 000/003) for every pixel; the hard mask is `J* > 0`.
+    Dp,
+    /// SMap at the disc's upper and lower limbs + DP for the penumbra pixels only; the hard mask
+    /// is SMap's.
+    Combined,
+}
+
+impl Engine {
+    /// Hard lit/shadow mask of the light disc's centre: `1` lit, `0` shadow, `255` nodata.
+    pub fn hard_mask(
+        self,
+        hf: &HeightField,
+        observer_height_m: f64,
+        light_in_model: [f64; 3],
+    ) -> Result<Vec<u8>> {
+        match self {
+            Engine::Brute => brute::hard_mask(hf, observer_height_m, light_in_model),
+            Engine::Smap | Engine::Combined => {
+                smap::hard_mask(hf, observer_height_m, light_in_model)
+            }
+            Engine::Dp => dp::hard_mask(hf, observer_height_m, light_in_model),
+        }
+    }
+
+    /// Visible fraction (0..=1) of a uniform disc of angular radius `angular_radius_rad` centred
+    /// on `light_in_model`; `NaN` for nodata cells.
+    pub fn visible_fraction(
+        self,
+        hf: &HeightField,
+        observer_height_m: f64,
+        light_in_model: [f64; 3],
+        angular_radius_rad: f64,
+    ) -> Result<Vec<f32>> {
+        match self {
+            Engine::Brute => brute::visible_fraction(
+                hf,
+                observer_height_m,
+                light_in_model,
+                angular_radius_rad,
+                brute::DEFAULT_DISC_SAMPLES,
+            ),
+            Engine::Smap | Engine::Combined => {
+                dp::soft_combined(hf, observer_height_m, light_in_model, angular_radius_rad)
+                    .map(|(f, _)| f)
+            }
+            Engine::Dp => dp::visible_fraction(
+                hf,
+                observer_height_m,
+                light_in_model,
+                angular_radius_rad,
+                &dp::DpConfig::default(),
+            ),
+        }
+    }
+}
+
+/// Validates and normalises a light direction.
+pub(crate) fn unit_light(light_in_model: [f64; 3]) -> Result<Vector3<f64>> {
+    let v = Vector3::from(light_in_model);
+    if !v.iter().all(|c| c.is_finite()) {
+        return Err(ShadowError::InvalidLight {
+            light: light_in_model,
+            reason: "not finite",
+        });
+    }
+    let n = v.norm();
+    if n.is_nan() || n <= 1e-12 {
+        return Err(ShadowError::InvalidLight {
+            light: light_in_model,
+            reason: "zero length",
+        });
+    }
+    Ok(v / n)
+}
+
+/// Validates an observer height.
+pub(crate) fn check_observer_height(observer_height_m: f64) -> Result<()> {
+    if observer_height_m.is_finite() && observer_height_m >= 0.0 {
+        Ok(())
+    } else {
+        Err(ShadowError::InvalidObserverHeight(observer_height_m))
+    }
+}
+
+/// Validates a disc angular radius.
+pub(crate) fn check_radius(angular_radius_rad: f64) -> Result<()> {
+    if (0.0..std::f64::consts::FRAC_PI_2).contains(&angular_radius_rad) {
+        Ok(())
+    } else {
+        Err(ShadowError::InvalidAngularRadius(angular_radius_rad))
+    }
+}
+
+/// A light direction decomposed for marching over the grid.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct LightDir {
+    /// Unit vector, model space.
+    pub unit: Vector3<f64>,
+    /// Horizontal (model x/y) length of `unit`.
+    pub hor: f64,
+    /// Change of `col` per cell size (`px_m`) of horizontal travel toward the light.
+    pub dcol: f64,
+    /// Change of `row` per cell size of horizontal travel toward the light (rows grow south).
+    pub drow: f64,
+    /// Rise of the ray (model z) per metre of horizontal travel: `tan(elevation)`.
+    pub tan_el: f64,
+}
+
+impl LightDir {
+    /// Decomposes a unit vector. `hor` may be 0 (light at the model zenith or nadir).
+    pub fn new(unit: Vector3<f64>) -> Self {
+        let hor = (unit.x * unit.x + unit.y * unit.y).sqrt();
+        if hor < 1e-12 {
+            return LightDir {
+                unit,
+                hor: 0.0,
+                dcol: 0.0,
+                drow: 0.0,
+                tan_el: if unit.z > 0.0 {
+                    f64::INFINITY
+                } else {
+                    f64::NEG_INFINITY
+                },
+            };
+        }
+        LightDir {
+            unit,
+            hor,
+            dcol: unit.x / hor,
+            drow: -unit.y / hor,
+            tan_el: unit.z / hor,
+        }
+    }
+
+    /// Elevation above the model x/y plane, radians.
+    pub fn elevation_rad(&self) -> f64 {
+        self.unit.z.atan2(self.hor)
+    }
+}
+
+/// The observer of one cell: start of every ray of that cell.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Observer {
+    /// Fractional row of the observer (centre coordinates: integers are cell centres).
+    pub row: f64,
+    /// Fractional column of the observer.
+    pub col: f64,
+    /// Model z of the observer, metres.
+    pub z_m: f64,
+    /// Local radial ("up") direction at the observer, model space.
+    pub up: Vector3<f64>,
+}
+
+/// The observer standing `observer_height_m` above the surface point of cell (row, col), or
+/// `None` for a hole.
+#[inline]
+pub(crate) fn observer_at(
+    hf: &HeightField,
+    row: usize,
+    col: usize,
+    observer_height_m: f64,
+) -> Option<Observer> {
+    let z = hf.z_at(row as isize, col as isize)? as f64;
+    let (x, y) = hf.xy_from_row_col(row as f64, col as f64);
+    let up = hf.up_at(x, y, z);
+    let p = Vector3::new(x, y, z) + observer_height_m * up;
+    let (r, c) = hf.row_col_from_xy(p.x, p.y);
+    // The radial offset moves an edge cell's observer off the grid by at most
+    // h * sin(tilt) (1 cm for 2 m at 6° tilt); keep rays starting inside the grid.
+    Some(Observer {
+        row: r.clamp(0.0, (hf.rows - 1) as f64),
+        col: c.clamp(0.0, (hf.cols - 1) as f64),
+        z_m: p.z,
+        up,
+    })
+}
+
+/// Tangent of the elevation (above the model x/y plane) of the observer's local horizontal plane
+/// in the horizontal azimuth of `light`: directions below it point into the Moon.
+#[inline]
+pub(crate) fn local_horizon_tan(obs: &Observer, light: &LightDir) -> f64 {
+    if light.hor == 0.0 {
+        return f64::NEG_INFINITY;
+    }
+    // A direction (cos e * a, sin e) with a = horizontal unit azimuth is horizontal when
+    // up_xy . a cos e + up_z sin e = 0, i.e. tan e = -(up_xy . a) / up_z.
+    let ax = light.unit.x / light.hor;
+    let ay = light.unit.y / light.hor;
+    -(obs.up.x * ax + obs.up.y * ay) / obs.up.z
+}
+
+/// Largest valid height of the field (model z, m); `-inf` if all cells are holes.
+pub(crate) fn max_height_m(hf: &HeightField) -> f64 {
+    hf.z_m
+        .iter()
+        .filter(|z| !z.is_nan())
+        .fold(f64::NEG_INFINITY, |m, &z| m.max(z as f64))
+}
+
+/// Visible fraction of a uniform disc of angular radius `r` whose centre is `clearance_rad`
+/// above a straight horizon edge (negative: centre hidden). This is the circular-segment formula
+/// of paper 000/003 eq. 7, `(pi - acos d + d sqrt(1 - d^2)) / pi` with `d = clearance / r` clamped
+/// to [-1, 1] (d = 1: the edge touches the lower limb, fully visible). Paper eq. 6 writes `d`
+/// through J* and the normal N·N_L; here `d` is derived directly from the angular clearance
+/// (see [`dp`]), which is the same quantity without the small-angle factors.
+#[inline]
+pub fn disc_fraction_above_edge(clearance_rad: f64, angular_radius_rad: f64) -> f64 {
+    if angular_radius_rad <= 0.0 {
+        return if clearance_rad > 0.0 { 1.0 } else { 0.0 };
+    }
+    let d = (clearance_rad / angular_radius_rad).clamp(-1.0, 1.0);
+    (std::f64::consts::PI - d.acos() + d * (1.0 - d * d).sqrt()) / std::f64::consts::PI
+}
+
+/// Visible fraction of the disc from the minimum shadow cost `j_min = min over the ray of
+/// Δh / t` (tan units; `+inf` when nothing is along the ray) under the prism assumption of paper
+/// 000/003 §3.4: the occluder's edge is horizontal across the disc. With `tan(e_c)` the centre's
+/// elevation, the horizon along the centre azimuth has `tan(e_h) = tan(e_c) - J*`; the local
+/// horizontal plane `tan_local` is a second (lower-bound) horizon.
+#[inline]
+pub(crate) fn fraction_from_cost(
+    j_min: f64,
+    light: &LightDir,
+    tan_local: f64,
+    angular_radius_rad: f64,
+) -> f64 {
+    let e_c = light.elevation_rad();
+    let e_terrain = if j_min.is_finite() {
+        (light.tan_el - j_min).atan()
+    } else {
+        f64::NEG_INFINITY
+    };
+    let e_h = e_terrain.max(tan_local.atan());
+    disc_fraction_above_edge(e_c - e_h, angular_radius_rad)
+}
+
+/// Light direction of the disc's upper (`sign = +1`) or lower (`-1`) limb: the centre rotated
+/// by the angular radius in the vertical plane (model z) that contains it.
+pub(crate) fn limb_direction(light: &LightDir, angular_radius_rad: f64, sign: f64) -> [f64; 3] {
+    let e = light.elevation_rad() + sign * angular_radius_rad;
+    if light.hor == 0.0 {
+        // Zenith / nadir: tilt toward +x (any azimuth is as good).
+        let e = light.unit.z.signum() * std::f64::consts::FRAC_PI_2 + sign * angular_radius_rad;
+        return [e.cos(), 0.0, e.sin()];
+    }
+    let ax = light.unit.x / light.hor;
+    let ay = light.unit.y / light.hor;
+    [e.cos() * ax, e.cos() * ay, e.sin()]
+}
+
+/// Runs `f(row, col, observer)` for every cell in parallel over rows; holes give `nodata`.
+pub(crate) fn map_cells<T, F>(hf: &HeightField, observer_height_m: f64, nodata: T, f: F) -> Vec<T>
+where
+    T: Copy + Send + Sync,
+    F: Fn(usize, usize, &Observer) -> T + Sync,
+{
+    let mut out = vec![nodata; hf.rows * hf.cols];
+    if hf.cols == 0 {
+        return out;
+    }
+    out.par_chunks_mut(hf.cols)
+        .enumerate()
+        .for_each(|(row, line)| {
+            for (col, v) in line.iter_mut().enumerate() {
+                if let Some(obs) = observer_at(hf, row, col, observer_height_m) {
+                    *v = f(row, col, &obs);
+                }
+            }
+        });
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn disc_fraction_limits_and_half() {
+        let r = 0.01;
+        assert_eq!(disc_fraction_above_edge(r, r), 1.0);
+        assert_eq!(disc_fraction_above_edge(-r, r), 0.0);
+        assert!((disc_fraction_above_edge(0.0, r) - 0.5).abs() < 1e-12);
+        // Segment area, independent formula: area above a chord at distance d below the centre
+        // of a unit disc = pi - (acos(d) - d sqrt(1-d^2)).
+        let d: f64 = 0.3;
+        let seg_below = d.acos() - d * (1.0 - d * d).sqrt();
+        let expected = (std::f64::consts::PI - seg_below) / std::f64::consts::PI;
+        assert!((disc_fraction_above_edge(0.3 * r, r) - expected).abs() < 1e-12);
+    }
+
+    #[test]
+    fn invalid_lights_are_errors() {
+        assert!(matches!(
+            unit_light([0.0, 0.0, 0.0]),
+            Err(ShadowError::InvalidLight { .. })
+        ));
+        assert!(matches!(
+            unit_light([f64::NAN, 0.0, 1.0]),
+            Err(ShadowError::InvalidLight { .. })
+        ));
+        assert!(unit_light([0.0, 3.0, 4.0]).is_ok());
+    }
+
+    #[test]
+    fn limbs_are_radius_away_from_centre() {
+        let l = LightDir::new(Vector3::new(0.3, -0.9, 0.05).normalize());
+        let r = SUN_ANGULAR_RADIUS_RAD;
+        for s in [-1.0, 1.0] {
+            let limb = Vector3::from(limb_direction(&l, r, s));
+            assert!((limb.norm() - 1.0).abs() < 1e-12);
+            assert!((limb.dot(&l.unit).clamp(-1.0, 1.0).acos() - r).abs() < 1e-9);
+        }
+    }
+}

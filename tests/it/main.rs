@@ -4,5 +4,6 @@ mod ephem;
 mod horizon;
 mod illum;
 mod series;
+mod shadow;
 mod terrain;
 mod util;
