@@ -17,6 +17,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Run(args) => crate::scenario::run_file(&args),
         Command::Dem { command } => run_dem(command),
         Command::Series(args) => run_series(&args),
+        Command::Map(args) => run_map(&args),
         Command::Horizon(args) => {
             let stack = load_stack(&args.dem)?;
             crate::horizon::cli_run(&args, &stack)
@@ -374,4 +375,182 @@ pub fn epoch_step_s(args: &EpochArgs) -> anyhow::Result<f64> {
         Some(s) => ephem::time::parse_step(s)?.to_seconds(),
         None => 3600.0,
     })
+}
+
+/// Parses `x,y,z` into a non-zero finite vector.
+pub fn parse_vector3(text: &str) -> anyhow::Result<nalgebra::Vector3<f64>> {
+    let v: Vec<f64> = text
+        .split(',')
+        .map(|p| p.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| anyhow::anyhow!("--sun-dir-body '{text}': expected three numbers X,Y,Z"))?;
+    if v.len() != 3 {
+        anyhow::bail!("--sun-dir-body '{text}': expected three numbers X,Y,Z");
+    }
+    let v = nalgebra::Vector3::new(v[0], v[1], v[2]);
+    if !v.iter().all(|c| c.is_finite()) || v.norm() == 0.0 {
+        anyhow::bail!("--sun-dir-body '{text}': the direction must be finite and non-zero");
+    }
+    Ok(v)
+}
+
+fn run_map(args: &crate::cli::MapArgs) -> anyhow::Result<()> {
+    use crate::map::{MapGrid, epoch_lights, sweep, write_sweep};
+    let t0 = std::time::Instant::now();
+    if !(args.observer_height_m >= 0.0 && args.observer_height_m.is_finite()) {
+        anyhow::bail!(
+            "--observer-height-m {} must be a finite number >= 0",
+            args.observer_height_m
+        );
+    }
+    if !(args.sun_radius_deg > 0.0 && args.sun_radius_deg < 10.0) {
+        anyhow::bail!(
+            "--sun-radius-deg {} must be in (0, 10)",
+            args.sun_radius_deg
+        );
+    }
+    let engine: crate::shadow::Engine = args.engine.into();
+    let abcorr = AbCorr::parse(&args.abcorr)?;
+    let range = args.epochs.start.is_some();
+    if range && args.out_dir.is_none() {
+        anyhow::bail!("an epoch range needs --out-dir DIR for the statistics maps");
+    }
+    if !range
+        && args.out_fraction.is_none()
+        && args.out_mask.is_none()
+        && args.out_earth_fraction.is_none()
+    {
+        anyhow::bail!("nothing to write: give --out-fraction, --out-mask or --out-earth-fraction");
+    }
+    let explicit_dir = match &args.sun_dir_body {
+        Some(t) => Some(parse_vector3(t)?),
+        None => None,
+    };
+    if !range && explicit_dir.is_none() && args.sun_az_deg.is_none() && args.epochs.utc.is_none() {
+        anyhow::bail!("give the light: --utc T, --sun-dir-body X,Y,Z or --sun-az-deg/--sun-el-deg");
+    }
+    let epochs = if range || args.epochs.utc.is_some() {
+        epochs_from_args(&args.epochs)?
+    } else {
+        Vec::new()
+    };
+    let kernels = if epochs.is_empty() {
+        None
+    } else {
+        let k = load_kernels(&args.kernels)?;
+        ephem::moon_geometry_table(&k, &[epochs[0], *epochs.last().unwrap_or(&epochs[0])])?;
+        Some(k)
+    };
+    let (stack, dem_layers) = if args.synthetic {
+        let (stack, what) = synthetic_stack(&crate::terrain::synth::SynthParams::default())?;
+        (stack, vec![what])
+    } else {
+        (
+            load_stack(&args.dem)?,
+            args.dem.iter().map(|p| p.display().to_string()).collect(),
+        )
+    };
+    let grid = MapGrid::new(&stack)?;
+    eprintln!(
+        "penumbra: model grid {} x {} at {} m centred on ({:.4}, {:.4}) deg",
+        grid.hf.rows, grid.hf.cols, grid.hf.px_m, grid.hf.centre_lat_deg, grid.hf.centre_lon_deg
+    );
+
+    if range {
+        let (Some(kernels), Some(out_dir)) = (&kernels, &args.out_dir) else {
+            anyhow::bail!("an epoch range needs kernels and --out-dir");
+        };
+        let step_h = epoch_step_s(&args.epochs)? / 3600.0;
+        let lights = epoch_lights(&grid, kernels, &epochs, abcorr)?;
+        let progress = indicatif::ProgressBar::new(lights.len() as u64);
+        progress.set_style(
+            indicatif::ProgressStyle::with_template(
+                "{spinner} map sweep [{bar:30}] {pos}/{len} epochs (eta {eta})",
+            )
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
+            .progress_chars("=> "),
+        );
+        let stats = sweep(
+            &grid,
+            engine,
+            args.observer_height_m,
+            &lights,
+            step_h,
+            &progress,
+        )?;
+        progress.finish_and_clear();
+        std::fs::create_dir_all(out_dir)
+            .with_context(|| format!("creating output folder {}", out_dir.display()))?;
+        let span = format!(
+            "{} .. {} UTC, {} epochs",
+            format_utc(epochs[0]),
+            format_utc(*epochs.last().unwrap_or(&epochs[0])),
+            epochs.len()
+        );
+        let files = write_sweep(&grid, &stats, out_dir, &span)?;
+        let mut prov = crate::output::Provenance::new();
+        prov.kernels = kernels.files.clone();
+        prov.dem_layers = dem_layers;
+        prov.epoch_start_utc = format_utc(epochs[0]);
+        prov.epoch_stop_utc = format_utc(*epochs.last().unwrap_or(&epochs[0]));
+        prov.epoch_count = epochs.len();
+        prov.outputs = files;
+        prov.wall_time_s = t0.elapsed().as_secs_f64();
+        prov.write(&out_dir.join("run.json"))?;
+        eprintln!(
+            "penumbra: map statistics over {} epochs -> {} ({:.1} s)",
+            epochs.len(),
+            out_dir.display(),
+            prov.wall_time_s
+        );
+        return Ok(());
+    }
+
+    // One light.
+    let (sun, sun_radius_rad, earth) = match (&kernels, explicit_dir, args.sun_az_deg) {
+        (Some(k), _, _) => {
+            let l = epoch_lights(&grid, k, &epochs, abcorr)?[0];
+            (l.sun, l.sun_radius_rad, Some((l.earth, l.earth_radius_rad)))
+        }
+        (None, Some(d), _) => (
+            grid.light_from_moon_me(&d),
+            args.sun_radius_deg.to_radians(),
+            None,
+        ),
+        (None, None, Some(az)) => (
+            grid.light_from_az_el_deg(az, args.sun_el_deg.unwrap_or(0.0)),
+            args.sun_radius_deg.to_radians(),
+            None,
+        ),
+        (None, None, None) => anyhow::bail!("no light given"),
+    };
+    if let Some(path) = &args.out_fraction {
+        let f = engine.visible_fraction(&grid.hf, args.observer_height_m, sun, sun_radius_rad)?;
+        grid.write_f32(
+            path,
+            &grid.to_output_f32(&f),
+            "visible fraction of the Sun's disc",
+        )?;
+    }
+    if let Some(path) = &args.out_mask {
+        let m = engine.hard_mask(&grid.hf, args.observer_height_m, sun)?;
+        grid.write_u8(
+            path,
+            &grid.to_output_u8(&m),
+            "Sun disc centre: 1 lit, 0 shadow, 255 no data",
+        )?;
+    }
+    if let (Some(path), Some((dir, radius))) = (&args.out_earth_fraction, earth) {
+        let f = engine.visible_fraction(&grid.hf, args.observer_height_m, dir, radius)?;
+        grid.write_f32(
+            path,
+            &grid.to_output_f32(&f),
+            "visible fraction of the Earth's disc",
+        )?;
+    }
+    eprintln!(
+        "penumbra: map written ({:.1} s)",
+        t0.elapsed().as_secs_f64()
+    );
+    Ok(())
 }

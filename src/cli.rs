@@ -24,6 +24,9 @@ pub enum Command {
     Run(RunArgs),
     /// Terrain horizon (elevation vs azimuth) seen by an observer above a site.
     Horizon(HorizonArgs),
+    /// Illumination maps: one light (Sun fraction, hard mask, Earth fraction) or statistics over
+    /// an epoch range (average illumination, longest darkness, PSR, Earth visibility).
+    Map(MapArgs),
     /// Per-site illumination time series: Sun and Earth visible fractions, irradiance,
     /// statistics and plots.
     Series(SeriesArgs),
@@ -294,4 +297,85 @@ impl From<HorizonMethodArg> for crate::horizon::HorizonMethod {
             HorizonMethodArg::Exact => crate::horizon::HorizonMethod::Exact,
         }
     }
+}
+
+/// Shadow engine on the command line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum EngineArg {
+    /// Brute-force ray march (the reference; slow).
+    Brute,
+    /// SMap hard shadows (paper 004); soft fractions via SMap + DP.
+    Smap,
+    /// DP maximum-mipmap soft shadows everywhere (papers 000/003).
+    Dp,
+    /// SMap at the disc limbs + DP in the penumbra only (the design's combination).
+    Combined,
+    /// The best available: `combined`.
+    Auto,
+}
+
+impl From<EngineArg> for crate::shadow::Engine {
+    fn from(e: EngineArg) -> Self {
+        match e {
+            EngineArg::Brute => crate::shadow::Engine::Brute,
+            EngineArg::Smap => crate::shadow::Engine::Smap,
+            EngineArg::Dp => crate::shadow::Engine::Dp,
+            EngineArg::Combined | EngineArg::Auto => crate::shadow::Engine::Combined,
+        }
+    }
+}
+
+/// Arguments of `penumbra map`.
+#[derive(Debug, Clone, Args)]
+pub struct MapArgs {
+    /// DEM GeoTIFF layer; repeat for several layers. The map is on the finest layer's grid.
+    #[arg(
+        long = "dem",
+        value_name = "FILE",
+        required_unless_present = "synthetic"
+    )]
+    pub dem: Vec<PathBuf>,
+    /// Use penumbra's synthetic south-polar DEM (400 x 400 px at 100 m, seed 1) instead of --dem.
+    #[arg(long, conflicts_with = "dem")]
+    pub synthetic: bool,
+    /// Observer height above the ground, metres.
+    #[arg(long, default_value_t = 2.0, allow_hyphen_values = true)]
+    pub observer_height_m: f64,
+    /// Shadow engine.
+    #[arg(long, value_enum, default_value_t = EngineArg::Auto)]
+    pub engine: EngineArg,
+    /// Epoch(s), UTC: --utc for one light, --start/--stop/--step for statistics over a range.
+    #[command(flatten)]
+    pub epochs: EpochArgs,
+    /// The Sun's direction as a MOON_ME vector x,y,z (any length > 0) instead of an epoch.
+    #[arg(long, value_name = "X,Y,Z", allow_hyphen_values = true, conflicts_with_all = ["utc", "start", "sun_az_deg"])]
+    pub sun_dir_body: Option<String>,
+    /// The Sun's azimuth at the map centre, degrees clockwise from north (with --sun-el-deg).
+    #[arg(long, allow_hyphen_values = true, requires = "sun_el_deg", conflicts_with_all = ["utc", "start"])]
+    pub sun_az_deg: Option<f64>,
+    /// The Sun's elevation at the map centre, degrees.
+    #[arg(long, allow_hyphen_values = true, requires = "sun_az_deg")]
+    pub sun_el_deg: Option<f64>,
+    /// Angular radius of the Sun's disc for an explicit direction, degrees (epochs use the real
+    /// radius).
+    #[arg(long, default_value_t = 0.2666)]
+    pub sun_radius_deg: f64,
+    /// One light: write the Sun's visible fraction (float32 GeoTIFF, NaN = nodata).
+    #[arg(long, value_name = "FILE")]
+    pub out_fraction: Option<PathBuf>,
+    /// One light: write the hard mask of the disc centre (uint8 GeoTIFF: 1 lit, 0 shadow, 255 nodata).
+    #[arg(long, value_name = "FILE")]
+    pub out_mask: Option<PathBuf>,
+    /// One epoch: write the Earth's visible fraction (float32 GeoTIFF).
+    #[arg(long, value_name = "FILE", requires = "utc")]
+    pub out_earth_fraction: Option<PathBuf>,
+    /// Epoch range: output folder for the statistics GeoTIFFs and PNG previews.
+    #[arg(long, value_name = "DIR", requires = "start")]
+    pub out_dir: Option<PathBuf>,
+    /// Aberration correction: lt+s or none.
+    #[arg(long, default_value = "lt+s")]
+    pub abcorr: String,
+    /// Kernels.
+    #[command(flatten)]
+    pub kernels: KernelArgs,
 }

@@ -25,6 +25,7 @@ pub mod ephem;
 pub mod frames;
 pub mod horizon;
 pub mod illum;
+pub mod map;
 pub mod output;
 pub mod scenario;
 pub mod series;

@@ -470,6 +470,177 @@ pub fn write_horizon_polar_plot(
     Ok(())
 }
 
+/// How a map preview colours its values.
+#[derive(Debug, Clone)]
+pub enum MapLegend {
+    /// A continuous value from `min` to `max` (viridis colour bar) labelled with `unit`.
+    Continuous {
+        /// Value at the bottom of the colour bar.
+        min: f64,
+        /// Value at the top of the colour bar.
+        max: f64,
+        /// Label of the colour bar, with its unit.
+        unit: String,
+    },
+    /// Categories: (value, colour, label).
+    Categories(Vec<(f32, RGBColor, String)>),
+}
+
+/// The viridis colour map (5 stops, linear in between), `t` in 0..=1.
+pub fn viridis(t: f64) -> RGBColor {
+    const STOPS: [(f64, f64, f64); 5] = [
+        (68.0, 1.0, 84.0),
+        (59.0, 82.0, 139.0),
+        (33.0, 145.0, 140.0),
+        (94.0, 201.0, 98.0),
+        (253.0, 231.0, 37.0),
+    ];
+    let t = if t.is_finite() {
+        t.clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    let x = t * 4.0;
+    let i = (x.floor() as usize).min(3);
+    let f = x - i as f64;
+    let (a, b) = (STOPS[i], STOPS[i + 1]);
+    let mix = |p: f64, q: f64| (p + (q - p) * f).round().clamp(0.0, 255.0) as u8;
+    RGBColor(mix(a.0, b.0), mix(a.1, b.1), mix(a.2, b.2))
+}
+
+/// Renders a raster (row-major, `NaN` = nodata, drawn grey) as a PNG preview with a title and a
+/// colour bar or a legend. Large rasters are subsampled to at most 800 px on a side.
+pub fn render_map_png(
+    title: &str,
+    values: &[f32],
+    rows: usize,
+    cols: usize,
+    legend: &MapLegend,
+) -> Result<Vec<u8>, IllumError> {
+    const WHAT: &str = "map preview";
+    if rows == 0 || cols == 0 || values.len() != rows * cols {
+        return Err(IllumError::Plot {
+            what: WHAT,
+            message: format!("{} values for a {rows} x {cols} raster", values.len()),
+        });
+    }
+    let scale = (rows.max(cols) as f64 / 800.0).max(1.0);
+    let (w_map, h_map) = (
+        ((cols as f64 / scale).round() as u32).max(1),
+        ((rows as f64 / scale).round() as u32).max(1),
+    );
+    let (left, top) = (20_i32, 50_i32);
+    let size_px = ((w_map + 300).max(500), (h_map + 80).max(300));
+    let colour_of = |v: f32| -> RGBColor {
+        if v.is_nan() {
+            return RGBColor(200, 200, 200);
+        }
+        match legend {
+            MapLegend::Continuous { min, max, .. } => {
+                viridis((f64::from(v) - min) / (max - min).max(f64::MIN_POSITIVE))
+            }
+            MapLegend::Categories(cats) => cats
+                .iter()
+                .find(|(c, _, _)| *c == v)
+                .map(|(_, col, _)| *col)
+                .unwrap_or(RGBColor(255, 0, 255)),
+        }
+    };
+    render_png(WHAT, size_px, |root| {
+        // The title may carry a second line after " — ".
+        let (line1, line2) = title.split_once(" — ").unwrap_or((title, ""));
+        root.draw(&Text::new(
+            line1.to_string(),
+            (left, 6),
+            ("sans-serif", 16).into_font(),
+        ))
+        .map_err(plot_err(WHAT))?;
+        root.draw(&Text::new(
+            line2.to_string(),
+            (left, 27),
+            ("sans-serif", 13).into_font(),
+        ))
+        .map_err(plot_err(WHAT))?;
+        for py in 0..h_map {
+            let row = ((f64::from(py) + 0.5) * scale) as usize;
+            for px in 0..w_map {
+                let col = ((f64::from(px) + 0.5) * scale) as usize;
+                let v = values[row.min(rows - 1) * cols + col.min(cols - 1)];
+                root.draw_pixel((left + px as i32, top + py as i32), &colour_of(v))
+                    .map_err(plot_err(WHAT))?;
+            }
+        }
+        let x0 = left + w_map as i32 + 30;
+        match legend {
+            MapLegend::Continuous { min, max, unit } => {
+                let bar_h = (h_map as i32).min(400);
+                for k in 0..bar_h {
+                    let t = 1.0 - f64::from(k) / f64::from(bar_h - 1).max(1.0);
+                    root.draw(&Rectangle::new(
+                        [(x0, top + k), (x0 + 24, top + k + 1)],
+                        viridis(t).filled(),
+                    ))
+                    .map_err(plot_err(WHAT))?;
+                }
+                for j in 0..=4 {
+                    let t = f64::from(j) / 4.0;
+                    let y = top + ((1.0 - t) * f64::from(bar_h - 1)) as i32;
+                    let label = format!("{:.3}", min + t * (max - min));
+                    root.draw(&Text::new(
+                        label,
+                        (x0 + 30, y - 7),
+                        ("sans-serif", 14).into_font(),
+                    ))
+                    .map_err(plot_err(WHAT))?;
+                }
+                root.draw(&Text::new(
+                    unit.clone(),
+                    (x0, top + bar_h + 10),
+                    ("sans-serif", 14).into_font(),
+                ))
+                .map_err(plot_err(WHAT))?;
+            }
+            MapLegend::Categories(cats) => {
+                for (k, (_, colour, label)) in cats.iter().enumerate() {
+                    let y = top + 26 * k as i32;
+                    root.draw(&Rectangle::new(
+                        [(x0, y), (x0 + 18, y + 18)],
+                        colour.filled(),
+                    ))
+                    .map_err(plot_err(WHAT))?;
+                    root.draw(&Text::new(
+                        label.clone(),
+                        (x0 + 26, y + 2),
+                        ("sans-serif", 14).into_font(),
+                    ))
+                    .map_err(plot_err(WHAT))?;
+                }
+            }
+        }
+        root.draw(&Text::new(
+            "north up (grid rows); grey = no data".to_string(),
+            (left, top + h_map as i32 + 10),
+            ("sans-serif", 13).into_font(),
+        ))
+        .map_err(plot_err(WHAT))?;
+        Ok(())
+    })
+}
+
+/// Writes [`render_map_png`] to `path` atomically.
+pub fn write_map_preview(
+    path: &Path,
+    title: &str,
+    values: &[f32],
+    rows: usize,
+    cols: usize,
+    legend: &MapLegend,
+) -> Result<(), IllumError> {
+    let png = render_map_png(title, values, rows, cols, legend)?;
+    crate::output::write_bytes_atomic(path, &png)?;
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

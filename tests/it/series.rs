@@ -65,7 +65,10 @@ fn flat_terrain_series_matches_the_closed_form_segment() {
     // the remaining error is the flat-sky approximation of the disc (< 1e-4, docs/illum.md) and the
     // horizon scan's tolerance (≤ 0.002° ≈ 0.01 of a solar radius in the worst case).
     assert!(max_err < 0.01, "max |Δ fraction| {max_err}");
-    assert!(partial > 50, "the test month must contain partly hidden Suns, got {partial}");
+    assert!(
+        partial > 50,
+        "the test month must contain partly hidden Suns, got {partial}"
+    );
     eprintln!(
         "flat terrain: max |Δ fraction| {max_err:.2e} over {} epochs ({partial} partial)",
         epochs.len()

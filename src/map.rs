@@ -1,0 +1,473 @@
+//! Illumination maps (`penumbra map`): shadow engines run on the model-space height field, results
+//! resampled back onto the DEM's own grid so that every GeoTIFF carries the DEM's georeferencing.
+//!
+//! ```text
+//!  DEM layers ──resample──► HeightField (model space: tangent plane at the DEM centre,
+//!      ▲                    curvature in z; the finest layer's extent + margin, its pixel size)
+//!      │                                  │ shadow engine per light direction
+//!      │                                  ▼
+//!  output grid = finest layer ◄──bilinear/nearest── per-cell values in model space
+//! ```
+//!
+//! The Sun is one direction over the whole grid (its parallax over 184 km is 1.2e-6 rad). For the
+//! Earth the direction is taken at the map centre; over ±184 km it varies by up to
+//! 184 km / 384,400 km = 4.8e-4 rad = 0.027°, about 3% of the Earth's angular radius, which bounds
+//! the Earth-visibility error at the map edges.
+//!
+//! Terrain outside the model grid (the finest layer's extent) casts no shadow in a map; the
+//! per-site horizon engine ([`crate::horizon`]) does include every layer.
+
+use std::path::Path;
+
+use anyhow::Context as _;
+use hifitime::Epoch;
+use nalgebra::Vector3;
+use rayon::prelude::*;
+
+use crate::ephem::{self, AbCorr, Kernels, Site};
+use crate::illum::plot::{MapLegend, write_map_preview};
+use crate::shadow::{Engine, MASK_NODATA};
+use crate::terrain::model_space::{ModelFrame, ModelGridSpec, resample_to_model_space};
+use crate::terrain::{Dem, HeightField, TerrainStack};
+
+/// A disc counts as visible when its fraction exceeds this (as in [`crate::illum::stats`]).
+pub const VISIBLE_MIN_FRACTION: f32 = 1e-6;
+
+/// The model-space height field of a map and the way back to the output (DEM) grid.
+pub struct MapGrid {
+    /// The output grid: the finest DEM layer (its heights mark nodata).
+    pub dem: Dem,
+    /// The model-space height field the engines run on.
+    pub hf: HeightField,
+    /// For each output pixel, its fractional (row, col) in `hf`; NaN for nodata pixels.
+    rc_in_model: Vec<[f32; 2]>,
+}
+
+impl MapGrid {
+    /// Builds the model-space height field for the finest layer of `stack` (with every layer
+    /// resampled into it) and the mapping back to that layer's grid.
+    pub fn new(stack: &TerrainStack) -> anyhow::Result<Self> {
+        let dem = stack.layers.first().context("no DEM layer")?.clone();
+        let g = dem.grid;
+        let (cx, cy) = g.xy_from_row_col((g.rows as f64 - 1.0) / 2.0, (g.cols as f64 - 1.0) / 2.0);
+        let (centre_lat_deg, centre_lon_deg) = dem.projection.lat_lon_from_xy(cx, cy);
+        let frame = ModelFrame::new(centre_lat_deg, centre_lon_deg);
+        let px_m = dem.px_m();
+        // Model-space position of every output pixel centre (on its own surface).
+        let model_xy: Vec<Option<(f64, f64)>> = (0..g.rows * g.cols)
+            .into_par_iter()
+            .map(|i| {
+                let (row, col) = (i / g.cols, i % g.cols);
+                let h = dem.heights_m[i];
+                if h.is_nan() {
+                    return None;
+                }
+                let (x, y) = g.xy_from_row_col(row as f64, col as f64);
+                let (lat, lon) = dem.projection.lat_lon_from_xy(x, y);
+                let p = frame.model_from_lat_lon_height(lat, lon, f64::from(h));
+                Some((p.x, p.y))
+            })
+            .collect();
+        let (max_x, max_y) = model_xy
+            .iter()
+            .flatten()
+            .fold((0.0_f64, 0.0_f64), |(mx, my), (x, y)| {
+                (mx.max(x.abs()), my.max(y.abs()))
+            });
+        if max_x == 0.0 && max_y == 0.0 {
+            anyhow::bail!("the DEM {} has no valid heights", dem.name);
+        }
+        let half_cols = (max_x / px_m).ceil() as usize + 2;
+        let half_rows = (max_y / px_m).ceil() as usize + 2;
+        let spec = ModelGridSpec {
+            centre_lat_deg,
+            centre_lon_deg,
+            rows: 2 * half_rows,
+            cols: 2 * half_cols,
+            px_m,
+        };
+        let (hf, _) = resample_to_model_space(stack, &spec)?;
+        let rc_in_model = model_xy
+            .iter()
+            .map(|p| match p {
+                Some((x, y)) => {
+                    let (r, c) = hf.row_col_from_xy(*x, *y);
+                    [r as f32, c as f32]
+                }
+                None => [f32::NAN, f32::NAN],
+            })
+            .collect();
+        Ok(MapGrid {
+            dem,
+            hf,
+            rc_in_model,
+        })
+    }
+
+    /// A unit light direction in model space from a direction in `MOON_ME`.
+    pub fn light_from_moon_me(&self, dir_in_moon_me: &Vector3<f64>) -> [f64; 3] {
+        let v = self.hf.model_from_moon_me() * dir_in_moon_me;
+        let v = v / v.norm();
+        [v.x, v.y, v.z]
+    }
+
+    /// A unit light direction in model space from azimuth / elevation (deg) at the map centre.
+    pub fn light_from_az_el_deg(&self, az_deg: f64, el_deg: f64) -> [f64; 3] {
+        let v = crate::frames::enu_from_az_el_deg(az_deg, el_deg);
+        [v.x, v.y, v.z]
+    }
+
+    /// The map centre as a site on the sphere (for the ephemeris of the light directions).
+    pub fn centre_site(&self) -> anyhow::Result<Site> {
+        Ok(Site::new(
+            self.hf.centre_lat_deg,
+            self.hf.centre_lon_deg,
+            0.0,
+        )?)
+    }
+
+    /// Resamples model-space values onto the output grid: bilinear, NaN-aware (a NaN neighbour
+    /// falls back to the nearest cell).
+    pub fn to_output_f32(&self, model: &[f32]) -> Vec<f32> {
+        let (rows, cols) = (self.hf.rows, self.hf.cols);
+        let at = |r: isize, c: isize| -> f32 {
+            if r < 0 || c < 0 || r as usize >= rows || c as usize >= cols {
+                f32::NAN
+            } else {
+                model[r as usize * cols + c as usize]
+            }
+        };
+        self.rc_in_model
+            .par_iter()
+            .map(|&[r, c]| {
+                if r.is_nan() {
+                    return f32::NAN;
+                }
+                let (r0, c0) = (r.floor(), c.floor());
+                let (fr, fc) = (r - r0, c - c0);
+                let (r0, c0) = (r0 as isize, c0 as isize);
+                let v = [
+                    at(r0, c0),
+                    at(r0, c0 + 1),
+                    at(r0 + 1, c0),
+                    at(r0 + 1, c0 + 1),
+                ];
+                if v.iter().any(|x| x.is_nan()) {
+                    return at(r.round() as isize, c.round() as isize);
+                }
+                (v[0] * (1.0 - fc) + v[1] * fc) * (1.0 - fr) + (v[2] * (1.0 - fc) + v[3] * fc) * fr
+            })
+            .collect()
+    }
+
+    /// Resamples model-space bytes onto the output grid (nearest cell; `MASK_NODATA` outside).
+    pub fn to_output_u8(&self, model: &[u8]) -> Vec<u8> {
+        let (rows, cols) = (self.hf.rows, self.hf.cols);
+        self.rc_in_model
+            .par_iter()
+            .map(|&[r, c]| {
+                if r.is_nan() {
+                    return MASK_NODATA;
+                }
+                let (r, c) = (r.round() as isize, c.round() as isize);
+                if r < 0 || c < 0 || r as usize >= rows || c as usize >= cols {
+                    MASK_NODATA
+                } else {
+                    model[r as usize * cols + c as usize]
+                }
+            })
+            .collect()
+    }
+
+    /// Writes an f32 raster on the output grid (NaN = nodata) with provenance metadata.
+    pub fn write_f32(&self, path: &Path, values: &[f32], what: &str) -> anyhow::Result<()> {
+        crate::terrain::write_geotiff_f32(
+            path,
+            &self.dem.grid,
+            &self.dem.projection,
+            values,
+            Some(f32::NAN),
+            &metadata(what),
+        )
+        .with_context(|| format!("writing {}", path.display()))
+    }
+
+    /// Writes a u8 raster on the output grid (255 = nodata) with provenance metadata.
+    pub fn write_u8(&self, path: &Path, values: &[u8], what: &str) -> anyhow::Result<()> {
+        crate::terrain::write_geotiff_u8(
+            path,
+            &self.dem.grid,
+            &self.dem.projection,
+            values,
+            Some(MASK_NODATA),
+            &metadata(what),
+        )
+        .with_context(|| format!("writing {}", path.display()))
+    }
+}
+
+fn metadata(what: &str) -> Vec<(&'static str, &str)> {
+    vec![
+        ("software", concat!("penumbra ", env!("CARGO_PKG_VERSION"))),
+        ("git_commit", env!("PENUMBRA_GIT_COMMIT")),
+        ("content", what),
+    ]
+}
+
+/// Per-cell statistics of an epoch sweep, on the model grid.
+#[derive(Debug, Clone)]
+pub struct SweepStats {
+    /// Number of epochs.
+    pub epochs: usize,
+    /// Time step, hours.
+    pub step_h: f64,
+    /// Sum of the Sun's visible fraction over the epochs.
+    pub sun_fraction_sum: Vec<f64>,
+    /// Epochs with any part of the Sun visible.
+    pub sun_visible_count: Vec<u32>,
+    /// Longest run of consecutive epochs with the Sun entirely hidden.
+    pub longest_dark_epochs: Vec<u32>,
+    /// Epochs with any part of the Earth visible.
+    pub earth_visible_count: Vec<u32>,
+    /// Epochs with both the Sun and the Earth (partly) visible.
+    pub sun_and_earth_count: Vec<u32>,
+}
+
+/// Runs the engine for every epoch and accumulates the map statistics (CPU, rayon inside the
+/// engines). `progress` is advanced once per epoch.
+pub fn sweep(
+    grid: &MapGrid,
+    engine: Engine,
+    observer_height_m: f64,
+    lights: &[EpochLights],
+    step_h: f64,
+    progress: &indicatif::ProgressBar,
+) -> anyhow::Result<SweepStats> {
+    let n = grid.hf.rows * grid.hf.cols;
+    let mut s = SweepStats {
+        epochs: lights.len(),
+        step_h,
+        sun_fraction_sum: vec![0.0; n],
+        sun_visible_count: vec![0; n],
+        longest_dark_epochs: vec![0; n],
+        earth_visible_count: vec![0; n],
+        sun_and_earth_count: vec![0; n],
+    };
+    let mut current_dark = vec![0_u32; n];
+    for l in lights {
+        let sun = engine.visible_fraction(&grid.hf, observer_height_m, l.sun, l.sun_radius_rad)?;
+        let earth =
+            engine.visible_fraction(&grid.hf, observer_height_m, l.earth, l.earth_radius_rad)?;
+        s.sun_fraction_sum
+            .par_iter_mut()
+            .zip(s.sun_visible_count.par_iter_mut())
+            .zip(s.longest_dark_epochs.par_iter_mut())
+            .zip(s.earth_visible_count.par_iter_mut())
+            .zip(s.sun_and_earth_count.par_iter_mut())
+            .zip(current_dark.par_iter_mut())
+            .enumerate()
+            .for_each(|(i, (((((sum, vis), longest), ev), both), dark))| {
+                let (fs, fe) = (sun[i], earth[i]);
+                if fs.is_nan() {
+                    return;
+                }
+                *sum += f64::from(fs);
+                let sun_up = fs > VISIBLE_MIN_FRACTION;
+                let earth_up = fe > VISIBLE_MIN_FRACTION;
+                if sun_up {
+                    *vis += 1;
+                    *dark = 0;
+                } else {
+                    *dark += 1;
+                    *longest = (*longest).max(*dark);
+                }
+                if earth_up {
+                    *ev += 1;
+                }
+                if sun_up && earth_up {
+                    *both += 1;
+                }
+            });
+        progress.inc(1);
+    }
+    Ok(s)
+}
+
+/// The light directions (model space) and angular radii of one epoch.
+#[derive(Debug, Clone, Copy)]
+pub struct EpochLights {
+    /// The epoch.
+    pub epoch: Epoch,
+    /// Unit vector to the Sun, model space.
+    pub sun: [f64; 3],
+    /// The Sun's angular radius, radians.
+    pub sun_radius_rad: f64,
+    /// Unit vector to the Earth, model space.
+    pub earth: [f64; 3],
+    /// The Earth's angular radius, radians.
+    pub earth_radius_rad: f64,
+}
+
+/// Light directions for every epoch, seen from the map centre (f64 ephemeris reduced to unit
+/// vectors in model space).
+pub fn epoch_lights(
+    grid: &MapGrid,
+    kernels: &Kernels,
+    epochs: &[Epoch],
+    abcorr: AbCorr,
+) -> anyhow::Result<Vec<EpochLights>> {
+    let site = grid.centre_site()?;
+    let sky = ephem::sun_earth_series(kernels, &[site], epochs, abcorr)?;
+    Ok(epochs
+        .iter()
+        .zip(&sky[0])
+        .map(|(&epoch, v)| EpochLights {
+            epoch,
+            sun: grid.light_from_moon_me(&v.sun.pos_in_moon_me_km),
+            sun_radius_rad: v.sun.radius_deg.to_radians(),
+            earth: grid.light_from_moon_me(&v.earth.pos_in_moon_me_km),
+            earth_radius_rad: v.earth.radius_deg.to_radians(),
+        })
+        .collect())
+}
+
+/// Writes the statistics of a sweep as GeoTIFFs and PNG previews into `out_dir`; returns the file
+/// names.
+pub fn write_sweep(
+    grid: &MapGrid,
+    s: &SweepStats,
+    out_dir: &Path,
+    span: &str,
+) -> anyhow::Result<Vec<String>> {
+    let n_epochs = s.epochs.max(1) as f64;
+    let pct = |count: &[u32]| -> Vec<f32> {
+        count
+            .iter()
+            .map(|&c| (100.0 * f64::from(c) / n_epochs) as f32)
+            .collect()
+    };
+    let nodata_model: Vec<bool> = grid.hf.z_m.iter().map(|z| z.is_nan()).collect();
+    let mask_nodata = |v: Vec<f32>| -> Vec<f32> {
+        v.into_iter()
+            .zip(&nodata_model)
+            .map(|(x, &nd)| if nd { f32::NAN } else { x })
+            .collect()
+    };
+    let sun_mean_pct = mask_nodata(
+        s.sun_fraction_sum
+            .iter()
+            .map(|&x| (100.0 * x / n_epochs) as f32)
+            .collect(),
+    );
+    let longest_dark_h = mask_nodata(
+        s.longest_dark_epochs
+            .iter()
+            .map(|&k| (f64::from(k) * s.step_h) as f32)
+            .collect(),
+    );
+    let earth_pct = mask_nodata(pct(&s.earth_visible_count));
+    let both_pct = mask_nodata(pct(&s.sun_and_earth_count));
+    let psr: Vec<u8> = s
+        .sun_visible_count
+        .iter()
+        .zip(&nodata_model)
+        .map(|(&c, &nd)| if nd { MASK_NODATA } else { u8::from(c == 0) })
+        .collect();
+
+    let mut files = Vec::new();
+    let (rows, cols) = (grid.dem.grid.rows, grid.dem.grid.cols);
+    let span_h = n_epochs * s.step_h;
+    let continuous: [(&str, &str, Vec<f32>, f64, String); 4] = [
+        (
+            "sun_illumination_pct",
+            "average Sun illumination (time-mean visible fraction of the disc), %",
+            sun_mean_pct,
+            100.0,
+            "% of time (disc-weighted)".into(),
+        ),
+        (
+            "longest_dark_h",
+            "longest continuous darkness (Sun entirely hidden), hours",
+            longest_dark_h,
+            span_h,
+            "hours".into(),
+        ),
+        (
+            "earth_visible_pct",
+            "Earth visible (any part of the disc), % of time",
+            earth_pct,
+            100.0,
+            "% of time".into(),
+        ),
+        (
+            "sun_and_earth_pct",
+            "Sun and Earth both (partly) visible, % of time",
+            both_pct,
+            100.0,
+            "% of time".into(),
+        ),
+    ];
+    for (name, what, model, max, unit) in continuous {
+        let out = grid.to_output_f32(&model);
+        // Colour bar up to the data's maximum, rounded up to a tenth of the full scale.
+        let data_max = out
+            .iter()
+            .filter(|v| v.is_finite())
+            .fold(0.0_f32, |a, &b| a.max(b));
+        let tenth = max / 10.0;
+        let max = ((f64::from(data_max) / tenth).ceil() * tenth).clamp(tenth, max);
+        let tif = format!("{name}.tif");
+        grid.write_f32(&out_dir.join(&tif), &out, what)?;
+        let png = format!("{name}.png");
+        write_map_preview(
+            &out_dir.join(&png),
+            &format!("{what} — {span}"),
+            &out,
+            rows,
+            cols,
+            &MapLegend::Continuous {
+                min: 0.0,
+                max,
+                unit,
+            },
+        )?;
+        files.extend([tif, png]);
+    }
+    let psr_out = grid.to_output_u8(&psr);
+    grid.write_u8(
+        &out_dir.join("psr_mask.tif"),
+        &psr_out,
+        "permanently shadowed over the span: 1 never lit, 0 lit at least once, 255 no data",
+    )?;
+    let psr_f: Vec<f32> = psr_out
+        .iter()
+        .map(|&v| {
+            if v == MASK_NODATA {
+                f32::NAN
+            } else {
+                f32::from(v)
+            }
+        })
+        .collect();
+    write_map_preview(
+        &out_dir.join("psr_mask.png"),
+        &format!("Never lit (PSR over the span) — {span}"),
+        &psr_f,
+        rows,
+        cols,
+        &MapLegend::Categories(vec![
+            (
+                1.0,
+                plotters::style::RGBColor(20, 20, 60),
+                "never lit".into(),
+            ),
+            (
+                0.0,
+                plotters::style::RGBColor(250, 220, 90),
+                "lit at least once".into(),
+            ),
+        ]),
+    )?;
+    files.extend(["psr_mask.tif".to_string(), "psr_mask.png".to_string()]);
+    Ok(files)
+}
