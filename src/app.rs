@@ -15,6 +15,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Ephem(args) => run_ephem(&args),
         Command::Kernels(args) => run_kernels(&args),
         Command::Run(args) => crate::scenario::run_file(&args),
+        Command::GpuInfo(args) => run_gpu_info(&args),
     }
 }
 
@@ -146,7 +147,10 @@ fn run_kernels(args: &KernelArgs) -> anyhow::Result<()> {
     for (id, (s, e)) in domains {
         writeln!(out, "  {:>4} {}: {} .. {}", id, body_name(id), s, e)?;
     }
-    writeln!(out, "frames: J2000 (1), MOON_PA_DE421 (31006, binary PCK), MOON_ME = MOON_ME_DE421 (31007, from the frame kernel)")?;
+    writeln!(
+        out,
+        "frames: J2000 (1), MOON_PA_DE421 (31006, binary PCK), MOON_ME = MOON_ME_DE421 (31007, from the frame kernel)"
+    )?;
     if let Ok((s, e)) = kernels.almanac.bpc_domain(ephem::kernels::MOON_PA_DE421_ID) {
         writeln!(out, "  MOON_PA_DE421 orientation data: {s} .. {e}")?;
     }
@@ -181,4 +185,65 @@ fn body_name(id: i32) -> &'static str {
         9 => "Pluto barycentre",
         _ => "",
     }
+}
+
+fn run_gpu_info(args: &crate::cli::GpuInfoArgs) -> anyhow::Result<()> {
+    print_adapters()?;
+    if let Some(requested) = args.backend {
+        let resolved = crate::gpu::resolve_backend(requested)
+            .with_context(|| format!("resolving --backend {}", requested.as_str()))?;
+        println!("backend {}: {}", requested.as_str(), resolved.describe());
+    }
+    Ok(())
+}
+
+#[cfg(feature = "gpu")]
+fn print_adapters() -> anyhow::Result<()> {
+    let adapters = crate::gpu::adapter_report();
+    let mut out = String::new();
+    use std::fmt::Write as _;
+    if adapters.is_empty() {
+        writeln!(
+            out,
+            "no GPU adapter found (WGPU_BACKEND={}); --backend auto will use the CPU",
+            std::env::var("WGPU_BACKEND").unwrap_or_else(|_| "unset".into())
+        )?;
+    }
+    for (i, a) in adapters.iter().enumerate() {
+        writeln!(out, "adapter {i}: {}", a.name)?;
+        writeln!(
+            out,
+            "  backend: {}, device type: {}, driver: {}",
+            a.backend, a.device_type, a.driver
+        )?;
+        writeln!(
+            out,
+            "  max_storage_buffer_binding_size: {} B",
+            a.max_storage_buffer_binding_size
+        )?;
+        writeln!(out, "  max_buffer_size: {} B", a.max_buffer_size)?;
+        writeln!(
+            out,
+            "  max_compute_workgroup_size_x: {}",
+            a.max_compute_workgroup_size_x
+        )?;
+        writeln!(
+            out,
+            "  max_compute_invocations_per_workgroup: {}",
+            a.max_compute_invocations_per_workgroup
+        )?;
+        writeln!(
+            out,
+            "  max_compute_workgroups_per_dimension: {}",
+            a.max_compute_workgroups_per_dimension
+        )?;
+    }
+    print!("{out}");
+    Ok(())
+}
+
+#[cfg(not(feature = "gpu"))]
+fn print_adapters() -> anyhow::Result<()> {
+    println!("this penumbra was built without the `gpu` cargo feature: no GPU adapters");
+    Ok(())
 }

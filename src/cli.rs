@@ -22,6 +22,9 @@ pub enum Command {
     Kernels(KernelArgs),
     /// Run a scenario file (scenarios/*.toml).
     Run(RunArgs),
+    /// List the GPU adapters wgpu finds (honours WGPU_BACKEND): name, backend, device type,
+    /// driver and the compute limits that bound penumbra's kernels.
+    GpuInfo(GpuInfoArgs),
 }
 
 /// Output formats for tables.
@@ -99,4 +102,13 @@ pub struct RunArgs {
     /// Kernels (overrides the scenario's `kernels`).
     #[command(flatten)]
     pub kernels: KernelArgs,
+}
+
+/// Arguments of `penumbra gpu-info`.
+#[derive(Debug, Clone, Args)]
+pub struct GpuInfoArgs {
+    /// Also resolve this backend choice (as `--backend` of the compute commands does) and print
+    /// the result: `auto` falls back to the CPU with one warning, `gpu` fails without an adapter.
+    #[arg(long, value_enum, value_name = "BACKEND")]
+    pub backend: Option<crate::gpu::Backend>,
 }

@@ -1,4 +1,5 @@
 //! penumbra's integration tests: one binary, one module per area (anise/ripgrep layout).
 
 mod ephem;
+mod gpu;
 mod util;
