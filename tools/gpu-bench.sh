@@ -3,7 +3,8 @@
 #
 #   tools/gpu-bench.sh --prepare   (on the build machine) builds the release bench binary,
 #                                  the release penumbra and the debug integration-test binary,
-#                                  and stages them in target/gpu-bench/ (git-ignored, ~60 MB);
+#                                  strips them and stages them in target/gpu-bench/ (git-ignored,
+#                                  ~25 MB: small enough to carry to a GPU machine);
 #   tools/gpu-bench.sh [DIR]       (on the GPU machine, DIR defaults to target/gpu-bench) prints
 #                                  `penumbra gpu-info`, runs the GPU-vs-CPU parity tests with
 #                                  PENUMBRA_REQUIRE_GPU=1, then the criterion groups
@@ -12,7 +13,7 @@
 #
 # By hand, --prepare is: `cargo bench --bench gpu --no-run` (it prints the binary path,
 # target/release/deps/gpu-<hash>), `cargo build --release`, `cargo test --test it --no-run`
-# (target/debug/deps/it-<hash>); copy the three files into one folder and carry it.
+# (target/debug/deps/it-<hash>); copy the three files into one folder, `strip` them, carry it.
 set -euo pipefail
 
 if [[ "${1:-}" == "--prepare" ]]; then
@@ -27,6 +28,8 @@ if [[ "${1:-}" == "--prepare" ]]; then
     cp "$bench" "$out/gpu-bench"
     cp "$tests" "$out/it-tests"
     cp target/release/penumbra "$out/penumbra"
+    # Debug info makes them ~300 MB; stripped they are ~25 MB (the device tool carries <= 64 MiB).
+    strip "$out/gpu-bench" "$out/it-tests" "$out/penumbra"
     ls -l "$out"
     exit 0
 fi

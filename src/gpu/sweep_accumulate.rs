@@ -3,7 +3,7 @@
 //! per-cell [`CellStats`] (lit-epoch count, current and longest dark run, ever lit).
 //!
 //! The light table (one f32 unit vector per epoch, reduced on the CPU) is uploaded once; per
-//! submit only the [`STEP_SLOT_BYTES`]-strided epoch indices of that submit are written (256 B per
+//! submit only the `STEP_SLOT_BYTES`-strided epoch indices of that submit are written (256 B per
 //! epoch); nothing is read back until a band's last epoch. Device and pipelines come from the
 //! [`GpuContext`], built once. Bands are processed one after the other (all epochs of a band,
 //! then its statistics are read back), so GPU memory is heights + table + 20 B per band cell.
