@@ -22,6 +22,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
             let stack = load_stack(&args.dem)?;
             crate::horizon::cli_run(&args, &stack)
         }
+        Command::GpuInfo(args) => run_gpu_info(&args),
     }
 }
 
@@ -552,5 +553,67 @@ fn run_map(args: &crate::cli::MapArgs) -> anyhow::Result<()> {
         "penumbra: map written ({:.1} s)",
         t0.elapsed().as_secs_f64()
     );
+    Ok(())
+}
+
+/// `penumbra gpu-info`: adapters, and optionally the backend that `--backend` resolves to.
+fn run_gpu_info(args: &crate::cli::GpuInfoArgs) -> anyhow::Result<()> {
+    print_adapters()?;
+    if let Some(requested) = args.backend {
+        let resolved = crate::gpu::resolve_backend(requested)
+            .with_context(|| format!("resolving --backend {}", requested.as_str()))?;
+        println!("backend {}: {}", requested.as_str(), resolved.describe());
+    }
+    Ok(())
+}
+
+#[cfg(feature = "gpu")]
+fn print_adapters() -> anyhow::Result<()> {
+    let adapters = crate::gpu::adapter_report();
+    let mut out = String::new();
+    use std::fmt::Write as _;
+    if adapters.is_empty() {
+        writeln!(
+            out,
+            "no GPU adapter found (WGPU_BACKEND={}); --backend auto will use the CPU",
+            std::env::var("WGPU_BACKEND").unwrap_or_else(|_| "unset".into())
+        )?;
+    }
+    for (i, a) in adapters.iter().enumerate() {
+        writeln!(out, "adapter {i}: {}", a.name)?;
+        writeln!(
+            out,
+            "  backend: {}, device type: {}, driver: {}",
+            a.backend, a.device_type, a.driver
+        )?;
+        writeln!(
+            out,
+            "  max_storage_buffer_binding_size: {} B",
+            a.max_storage_buffer_binding_size
+        )?;
+        writeln!(out, "  max_buffer_size: {} B", a.max_buffer_size)?;
+        writeln!(
+            out,
+            "  max_compute_workgroup_size_x: {}",
+            a.max_compute_workgroup_size_x
+        )?;
+        writeln!(
+            out,
+            "  max_compute_invocations_per_workgroup: {}",
+            a.max_compute_invocations_per_workgroup
+        )?;
+        writeln!(
+            out,
+            "  max_compute_workgroups_per_dimension: {}",
+            a.max_compute_workgroups_per_dimension
+        )?;
+    }
+    print!("{out}");
+    Ok(())
+}
+
+#[cfg(not(feature = "gpu"))]
+fn print_adapters() -> anyhow::Result<()> {
+    println!("this penumbra was built without the `gpu` cargo feature: no GPU adapters");
     Ok(())
 }

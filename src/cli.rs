@@ -36,6 +36,9 @@ pub enum Command {
         #[command(subcommand)]
         command: DemCommand,
     },
+    /// List the GPU adapters wgpu finds (honours WGPU_BACKEND): name, backend, device type,
+    /// driver and the compute limits that bound penumbra's kernels.
+    GpuInfo(GpuInfoArgs),
 }
 
 /// Output formats for tables.
@@ -378,4 +381,13 @@ pub struct MapArgs {
     /// Kernels.
     #[command(flatten)]
     pub kernels: KernelArgs,
+}
+
+/// Arguments of `penumbra gpu-info`.
+#[derive(Debug, Clone, Args)]
+pub struct GpuInfoArgs {
+    /// Also resolve this backend choice (as `--backend` of the compute commands does) and print
+    /// the result: `auto` falls back to the CPU with one warning, `gpu` fails without an adapter.
+    #[arg(long, value_enum, value_name = "BACKEND")]
+    pub backend: Option<crate::gpu::Backend>,
 }

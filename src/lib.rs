@@ -23,6 +23,7 @@ pub mod app;
 pub mod cli;
 pub mod ephem;
 pub mod frames;
+pub mod gpu;
 pub mod horizon;
 pub mod illum;
 pub mod map;

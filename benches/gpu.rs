@@ -1,0 +1,128 @@
+//! GPU vs CPU twin, side by side in one criterion group per kernel (anise `crit_*` layout):
+//! the hard-shadow march (one Sun direction, 1.5° elevation) and the epoch sweep (32 epochs)
+//! on synthetic hills of 128² and 256² cells. Throughput is cells (march) or cell-epochs (sweep).
+//!
+//! Run: `WGPU_BACKEND=vulkan cargo bench --bench gpu` (GPU part skipped with a printed reason
+//! when no adapter exists). On a GPU machine without cargo: `tools/gpu-bench.sh`.
+
+#![allow(missing_docs, reason = "criterion's macros generate undocumented items")]
+
+use std::time::Duration;
+
+use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
+use nalgebra::Vector3;
+use penumbra::gpu::GpuContext;
+use penumbra::gpu::shadow_march::{DEFAULT_BAND_BYTES, GpuMarchGrid, shadow_march_gpu};
+use penumbra::gpu::sweep_accumulate::{SweepOptions, sweep_stats_gpu};
+use penumbra::shadow::gpu_twins::{self, MarchGrid, RowBand};
+use penumbra::terrain::HeightField;
+
+const SIZES: [usize; 2] = [128, 256];
+const SWEEP_EPOCHS: usize = 32;
+
+fn sun_dir(az_deg: f64, el_deg: f64) -> Vector3<f64> {
+    let (az, el) = (az_deg.to_radians(), el_deg.to_radians());
+    Vector3::new(az.sin() * el.cos(), az.cos() * el.cos(), el.sin())
+}
+
+/// 20 m cells: three Gaussian hills and the Moon's curvature drop.
+fn hills(n: usize) -> MarchGrid {
+    let mut hf = HeightField::flat(n, n, 20.0);
+    let half_m = n as f64 * 10.0;
+    for row in 0..n {
+        for col in 0..n {
+            let (x, y) = hf.xy_from_row_col(row as f64, col as f64);
+            let mut z = -(x * x + y * y) / (2.0 * penumbra::MOON_RADIUS_M);
+            for (cx, cy, h, s) in [
+                (0.2, 0.3, 400.0, 600.0),
+                (-0.5, -0.1, 250.0, 300.0),
+                (0.6, -0.6, 300.0, 400.0),
+            ] {
+                let (dx, dy) = (x - cx * half_m, y - cy * half_m);
+                z += h * (-(dx * dx + dy * dy) / (2.0 * s * s)).exp();
+            }
+            hf.z_m[row * n + col] = z as f32;
+        }
+    }
+    MarchGrid::from_height_field(&hf, 2.0).expect("valid grid")
+}
+
+fn context() -> Option<GpuContext> {
+    match GpuContext::new() {
+        Ok(ctx) => {
+            eprintln!(
+                "GPU bench adapter: {} ({})",
+                ctx.adapter_name(),
+                ctx.adapter_kind()
+            );
+            Some(ctx)
+        }
+        Err(e) => {
+            eprintln!("skipping the GPU half of the bench: {e}");
+            None
+        }
+    }
+}
+
+fn bench_march(c: &mut Criterion, ctx: Option<&GpuContext>) {
+    let mut group = c.benchmark_group("shadow_march");
+    group
+        .sample_size(10)
+        .measurement_time(Duration::from_secs(4));
+    let light = gpu_twins::light_to_f32(&sun_dir(151.0, 1.5));
+    for n in SIZES {
+        let grid = hills(n);
+        group.throughput(Throughput::Elements(grid.cells() as u64));
+        group.bench_with_input(BenchmarkId::new("cpu_twin", n), &grid, |b, grid| {
+            b.iter(|| gpu_twins::shadow_march(grid, &[light], 0, RowBand::whole(grid)))
+        });
+        if let Some(ctx) = ctx {
+            let gpu_grid = GpuMarchGrid::upload(ctx, &grid).expect("upload");
+            group.bench_with_input(BenchmarkId::new("gpu", n), &gpu_grid, |b, gpu_grid| {
+                b.iter(|| {
+                    shadow_march_gpu(ctx, gpu_grid, light, DEFAULT_BAND_BYTES).expect("gpu march")
+                })
+            });
+        }
+    }
+    group.finish();
+}
+
+fn bench_sweep(c: &mut Criterion, ctx: Option<&GpuContext>) {
+    let mut group = c.benchmark_group("sweep_accumulate");
+    group
+        .sample_size(10)
+        .measurement_time(Duration::from_secs(6));
+    let lights: Vec<[f32; 4]> = (0..SWEEP_EPOCHS)
+        .map(|k| {
+            let phase = k as f64 / SWEEP_EPOCHS as f64;
+            gpu_twins::light_to_f32(&sun_dir(360.0 * phase, 1.5 + (8.0 * phase).sin()))
+        })
+        .collect();
+    for n in SIZES {
+        let grid = hills(n);
+        group.throughput(Throughput::Elements((grid.cells() * SWEEP_EPOCHS) as u64));
+        group.bench_with_input(BenchmarkId::new("cpu_twin", n), &grid, |b, grid| {
+            b.iter(|| gpu_twins::sweep_stats(grid, &lights, RowBand::whole(grid)))
+        });
+        if let Some(ctx) = ctx {
+            let gpu_grid = GpuMarchGrid::upload(ctx, &grid).expect("upload");
+            group.bench_with_input(BenchmarkId::new("gpu", n), &gpu_grid, |b, gpu_grid| {
+                b.iter(|| {
+                    sweep_stats_gpu(ctx, gpu_grid, &lights, SweepOptions::default())
+                        .expect("gpu sweep")
+                })
+            });
+        }
+    }
+    group.finish();
+}
+
+fn bench_gpu(c: &mut Criterion) {
+    let ctx = context();
+    bench_march(c, ctx.as_ref());
+    bench_sweep(c, ctx.as_ref());
+}
+
+criterion_group!(benches, bench_gpu);
+criterion_main!(benches);

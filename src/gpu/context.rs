@@ -1,0 +1,225 @@
+//! The wgpu instance, adapter, device, queue and compute pipelines, built once per process
+//! ([`GpuContext::new`]) and reused for every kernel call and every epoch (wgpu
+//! `repeated_compute` pattern), plus the adapter listing of `penumbra gpu-info`.
+
+use std::sync::mpsc;
+
+use super::GpuError;
+use super::shadow_march::MarchPipelines;
+use super::sweep_accumulate::AccumulatePipeline;
+
+/// A ready-to-use GPU: device, queue and every penumbra compute pipeline.
+pub struct GpuContext {
+    pub(crate) device: wgpu::Device,
+    pub(crate) queue: wgpu::Queue,
+    info: wgpu::AdapterInfo,
+    limits: wgpu::Limits,
+    pub(crate) march: MarchPipelines,
+    pub(crate) accumulate: AccumulatePipeline,
+}
+
+impl std::fmt::Debug for GpuContext {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("GpuContext")
+            .field("adapter", &self.info.name)
+            .finish_non_exhaustive()
+    }
+}
+
+/// The wgpu instance for the backends allowed by `WGPU_BACKEND` (all compiled ones by default).
+fn instance() -> wgpu::Instance {
+    wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env())
+}
+
+impl GpuContext {
+    /// Picks the high-performance adapter (honouring `WGPU_BACKEND`), requests a device with
+    /// the adapter's own limits (so that large height fields fit in one storage binding) and
+    /// builds every pipeline. Returns [`GpuError::NoAdapter`] rather than panicking when no
+    /// adapter exists.
+    pub fn new() -> Result<Self, GpuError> {
+        let instance = instance();
+        let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
+            power_preference: wgpu::PowerPreference::HighPerformance,
+            force_fallback_adapter: false,
+            compatible_surface: None,
+            apply_limit_buckets: false,
+        }))
+        .map_err(|e| GpuError::NoAdapter {
+            reason: e.to_string(),
+        })?;
+        let info = adapter.get_info();
+        let limits = adapter.limits();
+        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("penumbra device"),
+            required_features: wgpu::Features::empty(),
+            required_limits: limits.clone(),
+            ..Default::default()
+        }))
+        .map_err(|e| GpuError::RequestDevice {
+            adapter: info.name.clone(),
+            source: Box::new(e),
+        })?;
+        // Errors are caught with error scopes around every kernel call; anything that escapes
+        // them is a bug, reported on stderr instead of wgpu's default panic.
+        device.on_uncaptured_error(std::sync::Arc::new(|e: wgpu::Error| {
+            eprintln!("penumbra: GPU error outside an error scope: {e}");
+        }));
+        let scope = ErrorScope::push(&device);
+        let march = MarchPipelines::new(&device);
+        let accumulate = AccumulatePipeline::new(&device);
+        scope.pop("building the compute pipelines")?;
+        Ok(GpuContext {
+            device,
+            queue,
+            info,
+            limits,
+            march,
+            accumulate,
+        })
+    }
+
+    /// The adapter's name (e.g. `llvmpipe (LLVM 15.0.7, 256 bits)` for lavapipe).
+    pub fn adapter_name(&self) -> &str {
+        &self.info.name
+    }
+
+    /// The adapter's backend and device type, e.g. `Vulkan Cpu`.
+    pub fn adapter_kind(&self) -> String {
+        format!("{:?} {:?}", self.info.backend, self.info.device_type)
+    }
+
+    /// The device limits (the adapter's own).
+    pub(crate) fn limits(&self) -> &wgpu::Limits {
+        &self.limits
+    }
+
+    /// Copies `size` bytes of `src` into a fresh mappable buffer, waits, and returns them.
+    pub(crate) fn read_back(
+        &self,
+        src: &wgpu::Buffer,
+        size: u64,
+        what: &'static str,
+    ) -> Result<Vec<u8>, GpuError> {
+        let staging = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("penumbra readback staging"),
+            size,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut encoder = self
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("penumbra readback"),
+            });
+        encoder.copy_buffer_to_buffer(src, 0, &staging, 0, size);
+        self.queue.submit([encoder.finish()]);
+        let (tx, rx) = mpsc::channel();
+        staging.map_async(wgpu::MapMode::Read, .., move |r| {
+            tx.send(r).ok();
+        });
+        self.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| GpuError::Readback {
+                what,
+                message: e.to_string(),
+            })?;
+        rx.recv()
+            .map_err(|e| GpuError::Readback {
+                what,
+                message: e.to_string(),
+            })?
+            .map_err(|e| GpuError::Readback {
+                what,
+                message: e.to_string(),
+            })?;
+        let bytes = {
+            let view = staging
+                .get_mapped_range(..)
+                .map_err(|e| GpuError::Readback {
+                    what,
+                    message: e.to_string(),
+                })?;
+            view.to_vec()
+        };
+        staging.unmap();
+        Ok(bytes)
+    }
+}
+
+/// Validation + out-of-memory error scopes around a group of GPU calls, turned into
+/// [`GpuError::Device`] when popped.
+pub(crate) struct ErrorScope {
+    validation: wgpu::ErrorScopeGuard,
+    oom: wgpu::ErrorScopeGuard,
+}
+
+impl ErrorScope {
+    /// Pushes the scopes.
+    pub(crate) fn push(device: &wgpu::Device) -> Self {
+        let validation = device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let oom = device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+        ErrorScope { validation, oom }
+    }
+
+    /// Pops the scopes (innermost first) and reports the first error.
+    pub(crate) fn pop(self, action: &'static str) -> Result<(), GpuError> {
+        let oom = pollster::block_on(self.oom.pop());
+        let validation = pollster::block_on(self.validation.pop());
+        match oom.or(validation) {
+            Some(e) => Err(GpuError::Device {
+                action,
+                message: e.to_string(),
+            }),
+            None => Ok(()),
+        }
+    }
+}
+
+/// What `penumbra gpu-info` prints for one adapter.
+#[derive(Debug, Clone)]
+pub struct AdapterSummary {
+    /// Adapter name.
+    pub name: String,
+    /// Backend (Vulkan, Gl, ...).
+    pub backend: String,
+    /// Device type (DiscreteGpu, Cpu, ...).
+    pub device_type: String,
+    /// Driver name and version.
+    pub driver: String,
+    /// Largest storage-buffer binding, bytes (bounds the height field in one binding).
+    pub max_storage_buffer_binding_size: u64,
+    /// Largest buffer, bytes.
+    pub max_buffer_size: u64,
+    /// Largest compute workgroup along x.
+    pub max_compute_workgroup_size_x: u32,
+    /// Most invocations in one workgroup.
+    pub max_compute_invocations_per_workgroup: u32,
+    /// Most workgroups along one dispatch dimension.
+    pub max_compute_workgroups_per_dimension: u32,
+}
+
+/// Every adapter wgpu finds for the backends allowed by `WGPU_BACKEND` (empty: none).
+pub fn adapter_report() -> Vec<AdapterSummary> {
+    let instance = instance();
+    let backends = wgpu::Backends::from_env().unwrap_or(wgpu::Backends::all());
+    pollster::block_on(instance.enumerate_adapters(backends))
+        .into_iter()
+        .map(|a| {
+            let info = a.get_info();
+            let limits = a.limits();
+            AdapterSummary {
+                name: info.name,
+                backend: format!("{:?}", info.backend),
+                device_type: format!("{:?}", info.device_type),
+                driver: format!("{} {}", info.driver, info.driver_info)
+                    .trim()
+                    .to_string(),
+                max_storage_buffer_binding_size: limits.max_storage_buffer_binding_size,
+                max_buffer_size: limits.max_buffer_size,
+                max_compute_workgroup_size_x: limits.max_compute_workgroup_size_x,
+                max_compute_invocations_per_workgroup: limits.max_compute_invocations_per_workgroup,
+                max_compute_workgroups_per_dimension: limits.max_compute_workgroups_per_dimension,
+            }
+        })
+        .collect()
+}

@@ -1,0 +1,34 @@
+//! The wgpu compute backend: GPU versions of the shadow kernels, checked against their CPU twins
+//! in [`crate::shadow::gpu_twins`].
+//!
+//! This is the only module that imports `wgpu`, and only behind the `gpu` cargo feature (on by
+//! default; `--no-default-features` builds a CPU-only binary). [`Backend`], [`GpuError`] and
+//! [`resolve_backend`] are always compiled so that the command line can offer
+//! `--backend cpu|gpu|auto` in every build.
+//!
+//! Layout (vello/rerun): [`GpuContext`] builds the instance, adapter, device, queue and every
+//! compute pipeline once; one module per shader (`shadow_march`, `sweep_accumulate`) holds its
+//! runner and its `mod gpu_data` mirror structs. The WGSL lives in `shaders/` at the crate root
+//! and is embedded with `include_str!`.
+
+mod backend;
+mod error;
+
+pub use backend::{Backend, ResolvedBackend, resolve_backend};
+pub use error::GpuError;
+
+#[cfg(feature = "gpu")]
+mod context;
+#[cfg(feature = "gpu")]
+pub mod shadow_march;
+#[cfg(feature = "gpu")]
+pub mod sweep_accumulate;
+
+#[cfg(feature = "gpu")]
+pub use context::{AdapterSummary, GpuContext, adapter_report};
+
+/// Stand-in for the GPU context in builds without the `gpu` feature: it has no values, so
+/// [`ResolvedBackend::Gpu`] can never be constructed there.
+#[cfg(not(feature = "gpu"))]
+#[derive(Debug)]
+pub enum GpuContext {}

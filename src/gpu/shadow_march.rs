@@ -1,0 +1,449 @@
+//! GPU runners of `shaders/shadow_march.wgsl` (hard shadow) and `shaders/shadow_march_soft.wgsl`
+//! (visible fraction of a disc of directions), with row-band tiling of the output.
+//!
+//! **Tiling (issue 7 item 4).** A ray may cross the whole grid (at 0.5° elevation it rises only
+//! 8.7 m per km), so every band needs the whole height field: the heights are uploaded once into
+//! one storage buffer (4 B/cell: 1.6 GB for 20,000², within an H100's 2-4 GiB storage binding
+//! limit). What is tiled is everything per-cell beyond the heights: the output buffer and its
+//! readback staging hold one *row band* of at most [`DEFAULT_BAND_BYTES`] (64 MiB: 4,194 rows of
+//! 4,000 cells, 838 rows of 20,000) at a time, so GPU memory is heights + O(band), not
+//! heights + O(grid) per output. The band also keeps each dispatch below the 65,535-workgroup
+//! limit per dimension and a band's readback short enough to overlap nothing critical.
+
+use bytemuck::{Pod, Zeroable};
+use wgpu::util::DeviceExt as _;
+
+use super::GpuError;
+use super::context::{ErrorScope, GpuContext};
+use crate::shadow::gpu_twins::MarchGrid;
+
+/// Output bytes per row band by default (64 MiB): small against any GPU, large enough that a
+/// 4,096² map is one band.
+pub const DEFAULT_BAND_BYTES: u64 = 64 << 20;
+/// Workgroup size of the march kernels. Keep in sync with shaders/shadow_march*.wgsl.
+const WORKGROUP_SIZE_XY: u32 = 8;
+/// Stride of the dynamic-offset `StepParams` slots (the largest allowed
+/// `min_uniform_buffer_offset_alignment`, so valid on every adapter).
+pub(crate) const STEP_SLOT_BYTES: u64 = 256;
+
+const SHADOW_MARCH_WGSL: &str = concat!(
+    include_str!(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/shaders/shared/march.wgsl"
+    )),
+    include_str!(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/shaders/shadow_march.wgsl"
+    ))
+);
+const SHADOW_MARCH_SOFT_WGSL: &str = concat!(
+    include_str!(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/shaders/shared/march.wgsl"
+    )),
+    include_str!(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/shaders/shadow_march_soft.wgsl"
+    ))
+);
+
+/// Mirrors of the WGSL structs.
+pub(crate) mod gpu_data {
+    use super::{Pod, Zeroable};
+
+    /// Keep in sync with `GridParams` in shaders/shared/march.wgsl.
+    #[repr(C)]
+    #[derive(Debug, Clone, Copy, Pod, Zeroable)]
+    pub(crate) struct GridParams {
+        pub rows: u32,
+        pub cols: u32,
+        pub px_m: f32,
+        pub observer_height_m: f32,
+        pub x0_m: f32,
+        pub y0_m: f32,
+        pub z_max_m: f32,
+        pub z_ref_plus_radius_m: f32,
+    }
+    const _: () = assert!(size_of::<GridParams>() == 32);
+
+    /// Keep in sync with `StepParams` in shaders/shared/march.wgsl.
+    #[repr(C)]
+    #[derive(Debug, Clone, Copy, Pod, Zeroable)]
+    pub(crate) struct StepParams {
+        pub light_index: u32,
+        pub band_row0: u32,
+        pub band_rows: u32,
+        pub _pad: u32,
+    }
+    const _: () = assert!(size_of::<StepParams>() == 16);
+}
+use gpu_data::{GridParams, StepParams};
+
+/// The bind group layout and pipelines of the two march kernels (built once, in
+/// [`GpuContext::new`]).
+pub(crate) struct MarchPipelines {
+    pub(crate) layout: wgpu::BindGroupLayout,
+    pub(crate) hard: wgpu::ComputePipeline,
+    pub(crate) soft: wgpu::ComputePipeline,
+}
+
+fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Storage { read_only },
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    }
+}
+
+fn uniform_entry(binding: u32, has_dynamic_offset: bool) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Uniform,
+            has_dynamic_offset,
+            min_binding_size: None,
+        },
+        count: None,
+    }
+}
+
+pub(crate) fn compute_pipeline(
+    device: &wgpu::Device,
+    layout: &wgpu::BindGroupLayout,
+    label: &str,
+    source: &str,
+    entry_point: &str,
+) -> wgpu::ComputePipeline {
+    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some(label),
+        source: wgpu::ShaderSource::Wgsl(source.into()),
+    });
+    let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: Some(label),
+        bind_group_layouts: &[Some(layout)],
+        immediate_size: 0,
+    });
+    device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+        label: Some(label),
+        layout: Some(&pipeline_layout),
+        module: &module,
+        entry_point: Some(entry_point),
+        compilation_options: Default::default(),
+        cache: None,
+    })
+}
+
+impl MarchPipelines {
+    pub(crate) fn new(device: &wgpu::Device) -> Self {
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("penumbra march layout"),
+            entries: &[
+                uniform_entry(0, false),
+                storage_entry(1, true),
+                storage_entry(2, true),
+                uniform_entry(3, true),
+                storage_entry(4, false),
+            ],
+        });
+        let hard = compute_pipeline(
+            device,
+            &layout,
+            "shadow_march",
+            SHADOW_MARCH_WGSL,
+            "shadow_march",
+        );
+        let soft = compute_pipeline(
+            device,
+            &layout,
+            "shadow_march_soft",
+            SHADOW_MARCH_SOFT_WGSL,
+            "shadow_march_soft",
+        );
+        MarchPipelines { layout, hard, soft }
+    }
+}
+
+/// A [`MarchGrid`] resident on the GPU: grid uniform + heights, uploaded once and reused by
+/// every map and every epoch of a sweep.
+pub struct GpuMarchGrid {
+    pub(crate) params: wgpu::Buffer,
+    pub(crate) heights: wgpu::Buffer,
+    pub(crate) rows: u32,
+    pub(crate) cols: u32,
+}
+
+impl GpuMarchGrid {
+    /// Uploads `grid`. Fails when the heights exceed the device's storage binding limit or the
+    /// grid is wider than one dispatch row allows.
+    pub fn upload(ctx: &GpuContext, grid: &MarchGrid) -> Result<Self, GpuError> {
+        let heights_bytes = grid.heights_m.len() as u64 * 4;
+        let limits = ctx.limits();
+        if heights_bytes
+            > limits
+                .max_storage_buffer_binding_size
+                .min(limits.max_buffer_size)
+        {
+            return Err(GpuError::InvalidInput {
+                kernel: "shadow_march",
+                message: format!(
+                    "the height field ({heights_bytes} B) exceeds the adapter's storage binding \
+                     limit ({} B)",
+                    limits.max_storage_buffer_binding_size
+                ),
+            });
+        }
+        if grid.cols.div_ceil(WORKGROUP_SIZE_XY) > limits.max_compute_workgroups_per_dimension {
+            return Err(GpuError::InvalidInput {
+                kernel: "shadow_march",
+                message: format!("{} columns exceed one dispatch row", grid.cols),
+            });
+        }
+        let params = GridParams {
+            rows: grid.rows,
+            cols: grid.cols,
+            px_m: grid.px_m,
+            observer_height_m: grid.observer_height_m,
+            x0_m: grid.x0_m,
+            y0_m: grid.y0_m,
+            z_max_m: grid.z_max_m,
+            z_ref_plus_radius_m: grid.z_ref_plus_radius_m,
+        };
+        let scope = ErrorScope::push(&ctx.device);
+        let params = ctx
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("penumbra grid params"),
+                contents: bytemuck::bytes_of(&params),
+                usage: wgpu::BufferUsages::UNIFORM,
+            });
+        let heights = ctx
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("penumbra heights"),
+                contents: bytemuck::cast_slice(&grid.heights_m),
+                usage: wgpu::BufferUsages::STORAGE,
+            });
+        scope.pop("uploading the height field")?;
+        Ok(GpuMarchGrid {
+            params,
+            heights,
+            rows: grid.rows,
+            cols: grid.cols,
+        })
+    }
+
+    /// Rows per band for `band_bytes` of 4-byte outputs per band (at least 1, at most the grid,
+    /// and within the dispatch limit).
+    pub fn band_rows(&self, ctx: &GpuContext, band_bytes: u64) -> u32 {
+        let by_budget = (band_bytes / (u64::from(self.cols) * 4)).max(1);
+        let by_dispatch = u64::from(ctx.limits().max_compute_workgroups_per_dimension)
+            * u64::from(WORKGROUP_SIZE_XY);
+        by_budget.min(by_dispatch).min(u64::from(self.rows)) as u32
+    }
+
+    pub(crate) fn workgroups(&self, band_rows: u32) -> (u32, u32) {
+        (
+            self.cols.div_ceil(WORKGROUP_SIZE_XY),
+            band_rows.div_ceil(WORKGROUP_SIZE_XY),
+        )
+    }
+}
+
+/// Uploads `data` as a read-only storage buffer.
+pub(crate) fn storage_init(ctx: &GpuContext, label: &str, data: &[u8]) -> wgpu::Buffer {
+    ctx.device
+        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some(label),
+            contents: data,
+            usage: wgpu::BufferUsages::STORAGE,
+        })
+}
+
+/// A uniform buffer of `slots` [`StepParams`] slots, [`STEP_SLOT_BYTES`] apart.
+pub(crate) fn step_slots(ctx: &GpuContext, slots: u32) -> wgpu::Buffer {
+    ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("penumbra step slots"),
+        size: u64::from(slots) * STEP_SLOT_BYTES,
+        usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    })
+}
+
+/// Writes `steps` into consecutive slots of `slots`.
+pub(crate) fn write_steps(
+    ctx: &GpuContext,
+    slots: &wgpu::Buffer,
+    steps: impl Iterator<Item = (u32, u32, u32)>,
+) {
+    let mut bytes = Vec::new();
+    for (light_index, band_row0, band_rows) in steps {
+        let mut slot = [0_u8; STEP_SLOT_BYTES as usize];
+        let step = StepParams {
+            light_index,
+            band_row0,
+            band_rows,
+            _pad: 0,
+        };
+        slot[..size_of::<StepParams>()].copy_from_slice(bytemuck::bytes_of(&step));
+        bytes.extend_from_slice(&slot);
+    }
+    ctx.queue.write_buffer(slots, 0, &bytes);
+}
+
+/// The march bind group: grid, heights, lights, step slots (dynamic), output.
+pub(crate) fn march_bind_group(
+    ctx: &GpuContext,
+    grid: &GpuMarchGrid,
+    lights: &wgpu::Buffer,
+    slots: &wgpu::Buffer,
+    out: &wgpu::Buffer,
+) -> wgpu::BindGroup {
+    ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("penumbra march bind group"),
+        layout: &ctx.march.layout,
+        entries: &[
+            wgpu::BindGroupEntry {
+                binding: 0,
+                resource: grid.params.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 1,
+                resource: grid.heights.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 2,
+                resource: lights.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 3,
+                resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                    buffer: slots,
+                    offset: 0,
+                    size: wgpu::BufferSize::new(size_of::<StepParams>() as u64),
+                }),
+            },
+            wgpu::BindGroupEntry {
+                binding: 4,
+                resource: out.as_entire_binding(),
+            },
+        ],
+    })
+}
+
+/// A storage buffer for one band of 4-byte outputs.
+pub(crate) fn band_buffer(
+    ctx: &GpuContext,
+    label: &str,
+    cells: u64,
+    extra: wgpu::BufferUsages,
+) -> wgpu::Buffer {
+    ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size: cells.max(1) * 4,
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | extra,
+        mapped_at_creation: false,
+    })
+}
+
+/// Runs `pipeline` band by band over the grid and returns the whole map (row-major, 4-byte
+/// cells), reading each band back before the next one is computed.
+fn run_banded<T: Pod>(
+    ctx: &GpuContext,
+    grid: &GpuMarchGrid,
+    pipeline: &wgpu::ComputePipeline,
+    lights: &[[f32; 4]],
+    light_index: u32,
+    band_bytes: u64,
+    action: &'static str,
+) -> Result<Vec<T>, GpuError> {
+    let band_rows = grid.band_rows(ctx, band_bytes);
+    let cols = u64::from(grid.cols);
+    let scope = ErrorScope::push(&ctx.device);
+    let lights_buf = storage_init(ctx, "penumbra lights", bytemuck::cast_slice(lights));
+    let slots = step_slots(ctx, 1);
+    let out = band_buffer(
+        ctx,
+        "penumbra march band",
+        u64::from(band_rows) * cols,
+        wgpu::BufferUsages::empty(),
+    );
+    let bind_group = march_bind_group(ctx, grid, &lights_buf, &slots, &out);
+    let mut map: Vec<T> = Vec::with_capacity(grid.rows as usize * grid.cols as usize);
+    let mut row0 = 0;
+    while row0 < grid.rows {
+        let rows = band_rows.min(grid.rows - row0);
+        write_steps(ctx, &slots, std::iter::once((light_index, row0, rows)));
+        let mut encoder = ctx
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some(action),
+            });
+        {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some(action),
+                timestamp_writes: None,
+            });
+            pass.set_pipeline(pipeline);
+            pass.set_bind_group(0, &bind_group, &[0]);
+            let (gx, gy) = grid.workgroups(rows);
+            pass.dispatch_workgroups(gx, gy, 1);
+        }
+        ctx.queue.submit([encoder.finish()]);
+        let bytes = ctx.read_back(&out, u64::from(rows) * cols * 4, "a shadow band")?;
+        map.extend_from_slice(bytemuck::cast_slice(&bytes));
+        row0 += rows;
+    }
+    scope.pop(action)?;
+    Ok(map)
+}
+
+/// GPU `shadow_march`: the hard-shadow map (1 lit, 0 shadow, 255 nodata; row-major) of the
+/// light `light` (from [`crate::shadow::gpu_twins::light_to_f32`]), computed in row bands of at
+/// most `band_bytes` of output (use [`DEFAULT_BAND_BYTES`]).
+pub fn shadow_march_gpu(
+    ctx: &GpuContext,
+    grid: &GpuMarchGrid,
+    light: [f32; 4],
+    band_bytes: u64,
+) -> Result<Vec<u32>, GpuError> {
+    run_banded(
+        ctx,
+        grid,
+        &ctx.march.hard,
+        &[light],
+        0,
+        band_bytes,
+        "running shadow_march",
+    )
+}
+
+/// GPU `shadow_march_soft`: per cell the fraction of `disc_dirs` (from
+/// [`crate::shadow::gpu_twins::sun_disc_directions`]) that is lit, -1 for nodata.
+pub fn shadow_march_soft_gpu(
+    ctx: &GpuContext,
+    grid: &GpuMarchGrid,
+    disc_dirs: &[[f32; 4]],
+    band_bytes: u64,
+) -> Result<Vec<f32>, GpuError> {
+    if disc_dirs.is_empty() {
+        return Err(GpuError::InvalidInput {
+            kernel: "shadow_march_soft",
+            message: "no disc directions".into(),
+        });
+    }
+    run_banded(
+        ctx,
+        grid,
+        &ctx.march.soft,
+        disc_dirs,
+        0,
+        band_bytes,
+        "running shadow_march_soft",
+    )
+}

@@ -1,0 +1,50 @@
+#!/usr/bin/env bash
+# The whole GPU benchmark set in one command, on a machine that has a GPU but no cargo.
+#
+#   tools/gpu-bench.sh --prepare   (on the build machine) builds the release bench binary,
+#                                  the release penumbra and the debug integration-test binary,
+#                                  strips them and stages them in target/gpu-bench/ (git-ignored,
+#                                  ~25 MB: small enough to carry to a GPU machine);
+#   tools/gpu-bench.sh [DIR]       (on the GPU machine, DIR defaults to target/gpu-bench) prints
+#                                  `penumbra gpu-info`, runs the GPU-vs-CPU parity tests with
+#                                  PENUMBRA_REQUIRE_GPU=1, then the criterion groups
+#                                  shadow_march and sweep_accumulate (GPU and CPU twin side by
+#                                  side), with WGPU_BACKEND=vulkan (the GL backend fails on NVIDIA).
+#
+# By hand, --prepare is: `cargo bench --bench gpu --no-run` (it prints the binary path,
+# target/release/deps/gpu-<hash>), `cargo build --release`, `cargo test --test it --no-run`
+# (target/debug/deps/it-<hash>); copy the three files into one folder, `strip` them, carry it.
+set -euo pipefail
+
+if [[ "${1:-}" == "--prepare" ]]; then
+    out=target/gpu-bench
+    mkdir -p "$out"
+    bench=$(cargo bench --bench gpu --no-run --message-format=json 2>/dev/null |
+        sed -n 's/.*"executable":"\([^"]*\/gpu-[0-9a-f]*\)".*/\1/p' | tail -1)
+    tests=$(cargo test --test it --no-run --message-format=json 2>/dev/null |
+        sed -n 's/.*"executable":"\([^"]*\/it-[0-9a-f]*\)".*/\1/p' | tail -1)
+    cargo build --release --bin penumbra
+    [[ -x "$bench" && -x "$tests" ]] || { echo "gpu-bench: build failed (bench '$bench', tests '$tests')" >&2; exit 2; }
+    cp "$bench" "$out/gpu-bench"
+    cp "$tests" "$out/it-tests"
+    cp target/release/penumbra "$out/penumbra"
+    # Debug info makes them ~300 MB; stripped they are ~25 MB (the device tool carries <= 64 MiB).
+    strip "$out/gpu-bench" "$out/it-tests" "$out/penumbra"
+    ls -l "$out"
+    exit 0
+fi
+
+dir=${1:-target/gpu-bench}
+for f in penumbra gpu-bench it-tests; do
+    [[ -x "$dir/$f" ]] || { echo "gpu-bench: $dir/$f is missing; run tools/gpu-bench.sh --prepare where cargo exists" >&2; exit 2; }
+done
+export WGPU_BACKEND=${WGPU_BACKEND:-vulkan}
+export XDG_RUNTIME_DIR=${XDG_RUNTIME_DIR:-/tmp}
+
+echo "== penumbra gpu-info"
+"$dir/penumbra" gpu-info
+echo "== GPU-vs-CPU parity (PENUMBRA_REQUIRE_GPU=1)"
+PENUMBRA_REQUIRE_GPU=1 "$dir/it-tests" gpu::on_gpu --nocapture --test-threads=1 2>&1 |
+    grep -E "adapter|differ|max \|Δ\||equal stats|test result|FAILED|panicked" || true
+echo "== criterion: shadow_march, sweep_accumulate"
+"$dir/gpu-bench" --bench 2>&1 | grep -Ev "^\s*$|Warming up|Collecting|Analyzing|Benchmarking .*: (Warming|Collecting|Analyzing)"
