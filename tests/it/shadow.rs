@@ -401,7 +401,7 @@ fn shadow_accuracy_table() {
         |map: &[f32]| -> Vec<f32> { cells.iter().map(|&(r, c)| map[r * hf.cols + c]).collect() };
     println!(
         "| el° | az° | shadow % | SMap Δmask % | DP Δmask % | DP mean/p99 |Δf| (penumbra mean) \
-         | combined mean/p99 | uniform 1 cell mean/p99 | uniform 4 cells mean/p99 | DP cells % |"
+         | combined mean/p99 | uniform 0.5 cell mean/p99 | uniform 1 cell mean/p99 | DP cells % |"
     );
     println!("|---|---|---|---|---|---|---|---|---|---|");
     for el in ELEVATIONS_DEG {
@@ -416,10 +416,10 @@ fn shadow_accuracy_table() {
             let soft = brute::visible_fraction_at(&hf, 2.0, l, r, 256, &cells).unwrap();
             let dp_map = dp::visible_fraction(&hf, 2.0, l, r, &Default::default()).unwrap();
             let (comb, stats) = dp::soft_combined(&hf, 2.0, l, r).unwrap();
+            let u05 = brute::visible_fraction_uniform(&hf, 2.0, l, r, 0.5).unwrap();
             let u1 = brute::visible_fraction_uniform(&hf, 2.0, l, r, 1.0).unwrap();
-            let u4 = brute::visible_fraction_uniform(&hf, 2.0, l, r, 4.0).unwrap();
             let f = |m: &[f32]| compare_fractions(&soft, &pick(m));
-            let (fd, fc, f1, f4) = (f(&dp_map), f(&comb), f(&u1), f(&u4));
+            let (fd, fc, f05, f1) = (f(&dp_map), f(&comb), f(&u05), f(&u1));
             println!(
                 "| {el} | {az} | {:.1} | {:.3} | {:.3} | {:.4}/{:.3} ({:.3}) | {:.4}/{:.3} \
                  | {:.4}/{:.3} | {:.4}/{:.3} | {:.1} |",
@@ -431,10 +431,10 @@ fn shadow_accuracy_table() {
                 fd.mean_abs_penumbra,
                 fc.mean_abs,
                 fc.p99_abs,
+                f05.mean_abs,
+                f05.p99_abs,
                 f1.mean_abs,
                 f1.p99_abs,
-                f4.mean_abs,
-                f4.p99_abs,
                 100.0 * stats.dp_fraction()
             );
         }
