@@ -5,7 +5,10 @@
 //! Run: `WGPU_BACKEND=vulkan cargo bench --bench gpu` (GPU part skipped with a printed reason
 //! when no adapter exists). On a GPU machine without cargo: `tools/gpu-bench.sh`.
 
-#![allow(missing_docs, reason = "criterion's macros generate undocumented items")]
+#![allow(
+    missing_docs,
+    reason = "criterion's macros generate undocumented items"
+)]
 
 use std::time::Duration;
 

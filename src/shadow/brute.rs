@@ -130,11 +130,11 @@ pub(crate) fn ray_blocked(hf: &HeightField, obs: &Observer, dir: &LightDir, z_ma
         if h_ray > z_max_m {
             return false;
         }
-        if let Some(z) = z {
-            if z > h_ray {
-                blocked = true;
-                return false;
-            }
+        if let Some(z) = z
+            && z > h_ray
+        {
+            blocked = true;
+            return false;
         }
         true
     });
