@@ -71,6 +71,26 @@ pub struct Scenario {
     pub terrain: Option<TerrainSpec>,
     /// Per-site illumination series (needs `[terrain]`); present = enabled.
     pub series: Option<crate::series::SeriesConfig>,
+    /// Illumination maps over the scenario's span (needs `[terrain]`); present = enabled.
+    pub map: Option<MapSpec>,
+}
+
+/// Illumination-map statistics in a scenario (written to `<output_dir>/map/`).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MapSpec {
+    /// Time step of the map sweep (maps cost far more per epoch than series), e.g. `1d`.
+    pub step: String,
+    /// Observer height above the ground, metres (default 2).
+    #[serde(default = "default_height_above_ground_m")]
+    pub observer_height_m: f64,
+    /// Shadow engine: `brute`, `smap`, `dp` or `combined` (default).
+    #[serde(default = "default_engine")]
+    pub engine: String,
+}
+
+fn default_engine() -> String {
+    "combined".into()
 }
 
 /// The terrain of a scenario.
@@ -200,6 +220,17 @@ impl Scenario {
                 )));
             }
         }
+        if self.map.is_some() && self.terrain.is_none() {
+            return Err(invalid("[map] needs [terrain]".into()));
+        }
+        if let Some(m) = &self.map
+            && !["brute", "smap", "dp", "combined"].contains(&m.engine.as_str())
+        {
+            return Err(invalid(format!(
+                "[map] engine '{}': use brute, smap, dp or combined",
+                m.engine
+            )));
+        }
         if self.series.is_some() && self.terrain.is_none() {
             return Err(invalid("[series] needs [terrain]".into()));
         }
@@ -311,6 +342,19 @@ pub fn run_file(args: &crate::cli::RunArgs) -> anyhow::Result<()> {
             }
         }
     }
+    if let (Some(stack), Some(spec)) = (&stack, &scenario.map) {
+        let files = run_map_spec(
+            spec,
+            stack,
+            &kernels,
+            start,
+            stop,
+            scenario.abcorr,
+            &out_dir,
+        )?;
+        prov.outputs
+            .extend(files.into_iter().map(|f| format!("map/{f}")));
+    }
     prov.wall_time_s = t0.elapsed().as_secs_f64();
     prov.write(&out_dir.join("run.json"))?;
     eprintln!(
@@ -355,4 +399,47 @@ fn load_terrain(
     let paths: Vec<PathBuf> = spec.layers.iter().map(|p| base.join(p)).collect();
     prov.dem_layers = paths.iter().map(|p| p.display().to_string()).collect();
     Ok(crate::terrain::TerrainStack::load(&paths)?)
+}
+
+/// Runs a scenario's `[map]`: the sweep statistics over the scenario's span at the map's step.
+fn run_map_spec(
+    spec: &MapSpec,
+    stack: &crate::terrain::TerrainStack,
+    kernels: &ephem::Kernels,
+    start: hifitime::Epoch,
+    stop: hifitime::Epoch,
+    abcorr: AbCorr,
+    out_dir: &Path,
+) -> anyhow::Result<Vec<String>> {
+    use crate::shadow::Engine;
+    let step = ephem::time::parse_step(&spec.step).context("[map] step")?;
+    let epochs = ephem::time::epoch_range(start, stop, step)?;
+    let engine = match spec.engine.as_str() {
+        "brute" => Engine::Brute,
+        "smap" => Engine::Smap,
+        "dp" => Engine::Dp,
+        _ => Engine::Combined,
+    };
+    let grid = crate::map::MapGrid::new(stack)?;
+    let lights = crate::map::epoch_lights(&grid, kernels, &epochs, abcorr)?;
+    let progress = indicatif::ProgressBar::new(lights.len() as u64);
+    let stats = crate::map::sweep(
+        &grid,
+        engine,
+        spec.observer_height_m,
+        &lights,
+        step.to_seconds() / 3600.0,
+        &progress,
+    )?;
+    progress.finish_and_clear();
+    let dir = out_dir.join("map");
+    std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+    let span = format!(
+        "{} .. {} UTC, {} epochs every {}",
+        ephem::time::format_utc(epochs[0]),
+        ephem::time::format_utc(*epochs.last().unwrap_or(&epochs[0])),
+        epochs.len(),
+        spec.step
+    );
+    crate::map::write_sweep(&grid, &stats, &dir, &span)
 }

@@ -4,6 +4,7 @@ mod ephem;
 mod gpu;
 mod horizon;
 mod illum;
+mod map;
 mod series;
 mod shadow;
 mod terrain;
