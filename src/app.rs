@@ -331,15 +331,7 @@ fn run_series(args: &crate::cli::SeriesArgs) -> anyhow::Result<()> {
     };
     let epochs = epochs_from_args(&args.epochs)?;
     let step_s = epoch_step_s(&args.epochs)?;
-    let (stack, dem_layers) = if args.synthetic {
-        let (stack, what) = synthetic_stack(&crate::terrain::synth::SynthParams::default())?;
-        (stack, vec![what])
-    } else {
-        (
-            load_stack(&args.dem)?,
-            args.dem.iter().map(|p| p.display().to_string()).collect(),
-        )
-    };
+    let (stack, dem_layers) = load_terrain(&args.terrain)?;
     let kernels = load_kernels(&args.kernels)?;
     let (_, outputs) = series::run_series(
         &kernels,
@@ -353,9 +345,7 @@ fn run_series(args: &crate::cli::SeriesArgs) -> anyhow::Result<()> {
     let mut prov = crate::output::Provenance::new();
     prov.kernels = kernels.files.clone();
     prov.dem_layers = dem_layers;
-    prov.epoch_start_utc = format_utc(epochs[0]);
-    prov.epoch_stop_utc = format_utc(*epochs.last().unwrap_or(&epochs[0]));
-    prov.epoch_count = epochs.len();
+    prov.set_epochs(&epochs);
     prov.outputs = outputs;
     prov.wall_time_s = t0.elapsed().as_secs_f64();
     prov.write(&args.out_dir.join("run.json"))?;
@@ -442,15 +432,7 @@ fn run_map(args: &crate::cli::MapArgs) -> anyhow::Result<()> {
         ephem::moon_geometry_table(&k, &[epochs[0], *epochs.last().unwrap_or(&epochs[0])])?;
         Some(k)
     };
-    let (stack, dem_layers) = if args.synthetic {
-        let (stack, what) = synthetic_stack(&crate::terrain::synth::SynthParams::default())?;
-        (stack, vec![what])
-    } else {
-        (
-            load_stack(&args.dem)?,
-            args.dem.iter().map(|p| p.display().to_string()).collect(),
-        )
-    };
+    let (stack, dem_layers) = load_terrain(&args.terrain)?;
     let grid = MapGrid::new(&stack)?;
     eprintln!(
         "penumbra: model grid {} x {} at {} m centred on ({:.4}, {:.4}) deg",
@@ -492,9 +474,7 @@ fn run_map(args: &crate::cli::MapArgs) -> anyhow::Result<()> {
         let mut prov = crate::output::Provenance::new();
         prov.kernels = kernels.files.clone();
         prov.dem_layers = dem_layers;
-        prov.epoch_start_utc = format_utc(epochs[0]);
-        prov.epoch_stop_utc = format_utc(*epochs.last().unwrap_or(&epochs[0]));
-        prov.epoch_count = epochs.len();
+        prov.set_epochs(&epochs);
         prov.outputs = files;
         prov.wall_time_s = t0.elapsed().as_secs_f64();
         prov.write(&out_dir.join("run.json"))?;
@@ -616,4 +596,19 @@ fn print_adapters() -> anyhow::Result<()> {
 fn print_adapters() -> anyhow::Result<()> {
     println!("this penumbra was built without the `gpu` cargo feature: no GPU adapters");
     Ok(())
+}
+
+/// The terrain of `--dem FILE…` or `--synthetic`, and its description for provenance.
+pub fn load_terrain(
+    args: &crate::cli::TerrainArgs,
+) -> anyhow::Result<(crate::terrain::TerrainStack, Vec<String>)> {
+    if args.synthetic {
+        let (stack, what) = synthetic_stack(&crate::terrain::synth::SynthParams::default())?;
+        Ok((stack, vec![what]))
+    } else {
+        Ok((
+            load_stack(&args.dem)?,
+            args.dem.iter().map(|p| p.display().to_string()).collect(),
+        ))
+    }
 }

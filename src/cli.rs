@@ -59,6 +59,22 @@ pub struct KernelArgs {
     pub kernels: Option<PathBuf>,
 }
 
+/// DEM layers or the synthetic DEM.
+#[derive(Debug, Clone, Args)]
+pub struct TerrainArgs {
+    /// DEM GeoTIFF layer; repeat for several layers (the finest with data is used at each point;
+    /// maps are on the finest layer's grid).
+    #[arg(
+        long = "dem",
+        value_name = "FILE",
+        required_unless_present = "synthetic"
+    )]
+    pub dem: Vec<PathBuf>,
+    /// Use penumbra's synthetic south-polar DEM (400 x 400 px at 100 m, seed 1) instead of --dem.
+    #[arg(long, conflicts_with = "dem")]
+    pub synthetic: bool,
+}
+
 /// An epoch or a range of epochs (UTC).
 #[derive(Debug, Clone, Args)]
 pub struct EpochArgs {
@@ -211,16 +227,9 @@ pub enum HorizonFormat {
 /// Arguments of `penumbra series`.
 #[derive(Debug, Clone, Args)]
 pub struct SeriesArgs {
-    /// DEM GeoTIFF layer; repeat for several layers (the finest with data is used at each point).
-    #[arg(
-        long = "dem",
-        value_name = "FILE",
-        required_unless_present = "synthetic"
-    )]
-    pub dem: Vec<PathBuf>,
-    /// Use penumbra's synthetic south-polar DEM (400 x 400 px at 100 m, seed 1) instead of --dem.
-    #[arg(long, conflicts_with = "dem")]
-    pub synthetic: bool,
+    /// Terrain: DEM layers or the synthetic DEM.
+    #[command(flatten)]
+    pub terrain: TerrainArgs,
     /// A site as NAME,LAT_DEG,LON_DEG[,HEIGHT_ABOVE_GROUND_M] (planetocentric latitude, east
     /// longitude, degrees; height in metres); repeatable.
     #[arg(long, value_name = "SITE", allow_hyphen_values = true)]
@@ -331,16 +340,9 @@ impl From<EngineArg> for crate::shadow::Engine {
 /// Arguments of `penumbra map`.
 #[derive(Debug, Clone, Args)]
 pub struct MapArgs {
-    /// DEM GeoTIFF layer; repeat for several layers. The map is on the finest layer's grid.
-    #[arg(
-        long = "dem",
-        value_name = "FILE",
-        required_unless_present = "synthetic"
-    )]
-    pub dem: Vec<PathBuf>,
-    /// Use penumbra's synthetic south-polar DEM (400 x 400 px at 100 m, seed 1) instead of --dem.
-    #[arg(long, conflicts_with = "dem")]
-    pub synthetic: bool,
+    /// Terrain: DEM layers or the synthetic DEM.
+    #[command(flatten)]
+    pub terrain: TerrainArgs,
     /// Observer height above the ground, metres.
     #[arg(long, default_value_t = 2.0, allow_hyphen_values = true)]
     pub observer_height_m: f64,

@@ -112,15 +112,7 @@ fn longest_run(n: usize, pred: impl Fn(usize) -> bool) -> Option<Run> {
 
 /// Formats an epoch as ISO 8601 UTC, `YYYY-MM-DDTHH:MM:SSZ` (milliseconds added when non-zero).
 pub fn format_utc(epoch: Epoch) -> String {
-    let (y, mo, d, h, mi, s, ns) = epoch.to_gregorian_utc();
-    if ns == 0 {
-        format!("{y:04}-{mo:02}-{d:02}T{h:02}:{mi:02}:{s:02}Z")
-    } else {
-        format!(
-            "{y:04}-{mo:02}-{d:02}T{h:02}:{mi:02}:{s:02}.{:03}Z",
-            ns / 1_000_000
-        )
-    }
+    format!("{}Z", crate::ephem::time::format_utc(epoch))
 }
 
 /// Percentage of samples in `0..n` for which `pred` holds.

@@ -121,6 +121,16 @@ impl Provenance {
         }
     }
 
+    /// Records the epoch range (first, last, count; UTC).
+    pub fn set_epochs(&mut self, epochs: &[hifitime::Epoch]) {
+        use crate::ephem::time::format_utc;
+        if let (Some(first), Some(last)) = (epochs.first(), epochs.last()) {
+            self.epoch_start_utc = format_utc(*first);
+            self.epoch_stop_utc = format_utc(*last);
+        }
+        self.epoch_count = epochs.len();
+    }
+
     /// Writes the record as pretty JSON to `path`, atomically.
     pub fn write(&self, path: &Path) -> Result<(), OutputError> {
         let mut bytes = serde_json::to_vec_pretty(self).map_err(|e| OutputError::Io {

@@ -275,9 +275,7 @@ pub fn run_file(args: &crate::cli::RunArgs) -> anyhow::Result<()> {
     prov.scenario_file = Some(path.display().to_string());
     prov.scenario = Some(serde_json::to_value(&scenario)?);
     prov.kernels = kernels.files.clone();
-    prov.epoch_start_utc = ephem::time::format_utc(epochs[0]);
-    prov.epoch_stop_utc = ephem::time::format_utc(*epochs.last().unwrap_or(&epochs[0]));
-    prov.epoch_count = epochs.len();
+    prov.set_epochs(&epochs);
 
     let stack = match &scenario.terrain {
         None => None,
