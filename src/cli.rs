@@ -230,8 +230,8 @@ pub struct SeriesArgs {
     /// Terrain: DEM layers or the synthetic DEM.
     #[command(flatten)]
     pub terrain: TerrainArgs,
-    /// A site as NAME,LAT_DEG,LON_DEG[,HEIGHT_ABOVE_GROUND_M] (planetocentric latitude, east
-    /// longitude, degrees; height in metres); repeatable.
+    /// A site as NAME,LAT_DEG,LON_DEG or NAME,LAT_DEG,LON_DEG,HEIGHT_ABOVE_GROUND_M
+    /// (planetocentric latitude, east longitude, degrees; height in metres); repeatable.
     #[arg(long, value_name = "SITE", allow_hyphen_values = true)]
     pub site: Vec<String>,
     /// Latitude of a single site named "site", degrees (alternative to --site).

@@ -17,8 +17,8 @@
 //!
 //! The **minimum shadow cost** `J* = min Δh / t` over the centre ray (Δh the ray's height above
 //! the surface at horizontal distance `t`) is also computed here exactly over every crossing
-//! ([`exact_cost`]); the DP engine approximates it. The **uniform-stepping** baseline of paper
-//! 000/003 samples the ray at a constant step instead ([`uniform_cost`]).
+//! (`exact_cost`); the DP engine approximates it. The **uniform-stepping** baseline of paper
+//! 000/003 samples the ray at a constant step instead (`uniform_cost`).
 
 use nalgebra::Vector3;
 

@@ -1,7 +1,7 @@
 //! Shadow engines on the model-space height field (CPU reference implementations).
 //!
 //! Every engine answers the same two questions for each cell of a
-//! [`HeightField`](crate::terrain::HeightField), for an observer standing `observer_height_m`
+//! [`crate::terrain::HeightField`], for an observer standing `observer_height_m`
 //! above the cell's surface point (along the exact radial direction
 //! [`HeightField::up_at`](crate::terrain::HeightField::up_at)) and a light at infinity given by
 //! one constant unit direction `light_in_model` (model space; `z > 0` is above the tangent plane
