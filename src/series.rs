@@ -178,6 +178,24 @@ pub fn site_fractions(
 ) -> anyhow::Result<(Vec<f64>, Vec<f64>)> {
     let profile = HorizonProfile::new(&horizon.elevation_deg)?;
     let limb = config.limb_darkening.law();
+    // The horizon is the polyline through its samples, so a disc entirely above the highest
+    // sample is fully visible and one entirely below the lowest is hidden, whatever the method:
+    // most epochs at a polar site end here without looking at the profile.
+    let (h_min_deg, h_max_deg) = horizon
+        .elevation_deg
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &e| {
+            (lo.min(e), hi.max(e))
+        });
+    let fraction = |disc: &Disc, limb: &LimbDarkening| -> f64 {
+        if disc.el_deg - disc.radius_deg >= h_max_deg {
+            1.0
+        } else if disc.el_deg + disc.radius_deg <= h_min_deg {
+            0.0
+        } else {
+            illum::visible_fraction(&profile, disc, config.disc_method, limb)
+        }
+    };
     let mut sun_fraction = Vec::with_capacity(table.len());
     let mut earth_fraction = Vec::with_capacity(table.len());
     for (k, geo) in table.iter().enumerate() {
@@ -192,18 +210,22 @@ pub fn site_fractions(
             el_deg: v.earth.el_deg,
             radius_deg: v.earth.radius_deg,
         };
-        let sun_f = illum::visible_fraction(&profile, &sun_disc, config.disc_method, &limb);
-        let earth_f = illum::visible_fraction(
-            &profile,
-            &earth_disc,
-            config.disc_method,
-            &LimbDarkening::UNIFORM,
-        );
+        let sun_f = fraction(&sun_disc, &limb);
+        let earth_f = fraction(&earth_disc, &LimbDarkening::UNIFORM);
+        // The horizon at the bodies' azimuths is only needed for the CSV columns.
+        let (sun_horizon_el_deg, earth_horizon_el_deg) = if config.write_csv {
+            (
+                profile.el_at_az_deg(v.sun.az_deg),
+                profile.el_at_az_deg(v.earth.az_deg),
+            )
+        } else {
+            (f64::NAN, f64::NAN)
+        };
         let r = SeriesRow {
             sun: v.sun,
             earth: v.earth,
-            sun_horizon_el_deg: profile.el_at_az_deg(v.sun.az_deg),
-            earth_horizon_el_deg: profile.el_at_az_deg(v.earth.az_deg),
+            sun_horizon_el_deg,
+            earth_horizon_el_deg,
             sun_fraction: sun_f,
             earth_fraction: earth_f,
         };
@@ -221,9 +243,9 @@ pub struct SeriesRow {
     pub sun: ephem::Apparent,
     /// The Earth seen from the site.
     pub earth: ephem::Apparent,
-    /// Horizon elevation at the Sun's azimuth, degrees.
+    /// Horizon elevation at the Sun's azimuth, degrees (`NaN` when no CSV is written).
     pub sun_horizon_el_deg: f64,
-    /// Horizon elevation at the Earth's azimuth, degrees.
+    /// Horizon elevation at the Earth's azimuth, degrees (`NaN` when no CSV is written).
     pub earth_horizon_el_deg: f64,
     /// Visible (flux) fraction of the Sun's disc.
     pub sun_fraction: f64,

@@ -154,6 +154,10 @@ impl MoonGeometry {
 
 /// SPICE `stelab`: the apparent position of an object at `pos` for an observer moving at `vel_km_s`
 /// relative to the solar-system barycentre.
+///
+/// SPICE rotates `pos` about `u × v/c` by `φ = asin(|u × v/c|)`. The rotation needs only `sin φ`
+/// (the norm itself) and `cos φ = sqrt(1 − sin² φ)` (φ < 1e-3 rad, so no quadrant question), which
+/// is what is used here instead of `asin` followed by `sin`/`cos`.
 pub fn stellar_aberration(pos: &Vector3<f64>, obs_vel_km_s: &Vector3<f64>) -> Vector3<f64> {
     let Some(u) = pos.try_normalize(0.0) else {
         return *pos;
@@ -164,14 +168,10 @@ pub fn stellar_aberration(pos: &Vector3<f64>, obs_vel_km_s: &Vector3<f64>) -> Ve
     if sin_phi == 0.0 {
         return *pos;
     }
-    let phi = sin_phi.asin();
-    rotate_about(pos, &(h / sin_phi), phi)
-}
-
-/// Rodrigues rotation of `v` about the unit axis `k` by `angle_rad` (right-handed), SPICE `vrotv`.
-fn rotate_about(v: &Vector3<f64>, k: &Vector3<f64>, angle_rad: f64) -> Vector3<f64> {
-    let (s, c) = angle_rad.sin_cos();
-    v * c + k.cross(v) * s + k * (k.dot(v) * (1.0 - c))
+    let cos_phi = (1.0 - sin_phi * sin_phi).sqrt();
+    let k = h / sin_phi;
+    // Rodrigues rotation of `pos` about the unit axis `k` (SPICE `vrotv`).
+    pos * cos_phi + k.cross(pos) * sin_phi + k * (k.dot(pos) * (1.0 - cos_phi))
 }
 
 /// A site fixed on the Moon, with its body-fixed position and local frame precomputed.
@@ -242,6 +242,27 @@ pub struct SunEarth {
     pub earth: Apparent,
 }
 
+/// The site's position and barycentric velocity in J2000 at the epoch of a [`MoonGeometry`],
+/// shared by every target seen from it.
+#[derive(Debug, Clone, Copy)]
+pub struct Observer {
+    /// Site position relative to the Moon's centre, J2000, km.
+    pub pos_j2000_km: Vector3<f64>,
+    /// Site velocity relative to the solar-system barycentre, J2000, km/s.
+    pub vel_ssb_km_s: Vector3<f64>,
+}
+
+impl Observer {
+    /// The observer state of `site` at the epoch of `geo`.
+    pub fn new(geo: &MoonGeometry, site: &Site) -> Self {
+        Observer {
+            pos_j2000_km: geo.moon_me_from_j2000.tr_mul(&site.pos_in_moon_me_km),
+            vel_ssb_km_s: geo.moon_wrt_ssb.vel_km_s
+                + geo.moon_me_from_j2000_dt.tr_mul(&site.pos_in_moon_me_km),
+        }
+    }
+}
+
 /// Topocentric position of a target in `MOON_ME` for a site (see the module docs).
 pub fn target_from_site(
     geo: &MoonGeometry,
@@ -249,18 +270,24 @@ pub fn target_from_site(
     site: &Site,
     abcorr: AbCorr,
 ) -> Vector3<f64> {
-    let rt = geo.moon_me_from_j2000.transpose();
-    let site_j2000 = rt * site.pos_in_moon_me_km;
-    let rel_geometric = target_wrt_moon.pos_km - site_j2000;
+    target_from_observer(geo, target_wrt_moon, &Observer::new(geo, site), abcorr)
+}
+
+/// [`target_from_site`] for an observer state computed once per site and epoch.
+pub fn target_from_observer(
+    geo: &MoonGeometry,
+    target_wrt_moon: &StateJ2000,
+    obs: &Observer,
+    abcorr: AbCorr,
+) -> Vector3<f64> {
+    let rel_geometric = target_wrt_moon.pos_km - obs.pos_j2000_km;
     let rel = match abcorr {
         AbCorr::None => rel_geometric,
         AbCorr::LtS => {
-            let site_vel_j2000 = geo.moon_me_from_j2000_dt.transpose() * site.pos_in_moon_me_km;
-            let obs_vel_ssb = geo.moon_wrt_ssb.vel_km_s + site_vel_j2000;
             let target_vel_ssb = target_wrt_moon.vel_km_s + geo.moon_wrt_ssb.vel_km_s;
             let lt_s = rel_geometric.norm() / SPEED_OF_LIGHT_KM_S;
             let rel_lt = rel_geometric - target_vel_ssb * lt_s;
-            stellar_aberration(&rel_lt, &obs_vel_ssb)
+            stellar_aberration(&rel_lt, &obs.vel_ssb_km_s)
         }
     };
     geo.moon_me_from_j2000 * rel
@@ -281,14 +308,15 @@ fn apparent(pos_in_moon_me_km: Vector3<f64>, site: &Site, body_radius_km: f64) -
 
 /// The Sun and the Earth seen from `site` for the epoch of `geo`.
 pub fn sun_earth(geo: &MoonGeometry, site: &Site, abcorr: AbCorr) -> SunEarth {
+    let obs = Observer::new(geo, site);
     SunEarth {
         sun: apparent(
-            target_from_site(geo, &geo.sun_wrt_moon, site, abcorr),
+            target_from_observer(geo, &geo.sun_wrt_moon, &obs, abcorr),
             site,
             SUN_RADIUS_KM,
         ),
         earth: apparent(
-            target_from_site(geo, &geo.earth_wrt_moon, site, abcorr),
+            target_from_observer(geo, &geo.earth_wrt_moon, &obs, abcorr),
             site,
             EARTH_RADIUS_KM,
         ),
