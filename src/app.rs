@@ -413,6 +413,16 @@ fn run_map(args: &crate::cli::MapArgs) -> anyhow::Result<()> {
     {
         anyhow::bail!("nothing to write: give --out-fraction, --out-mask or --out-earth-fraction");
     }
+    // Only the epoch-range sweep has a GPU path; resolve before any heavy work so that a missing
+    // adapter is one error line (or one warning line with `auto`).
+    let backend = if range {
+        Some(
+            crate::gpu::resolve_backend(args.backend)
+                .with_context(|| format!("resolving --backend {}", args.backend.as_str()))?,
+        )
+    } else {
+        None
+    };
     let explicit_dir = match &args.sun_dir_body {
         Some(t) => Some(parse_vector3(t)?),
         None => None,
@@ -453,14 +463,39 @@ fn run_map(args: &crate::cli::MapArgs) -> anyhow::Result<()> {
             .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
             .progress_chars("=> "),
         );
-        let stats = sweep(
-            &grid,
-            engine,
-            args.observer_height_m,
-            &lights,
-            step_h,
-            &progress,
-        )?;
+        let Some(backend) = backend else {
+            anyhow::bail!("an epoch range needs a resolved backend");
+        };
+        let (stats, backend_note) = match &backend {
+            crate::gpu::ResolvedBackend::Cpu => {
+                let stats = sweep(
+                    &grid,
+                    engine,
+                    args.observer_height_m,
+                    &lights,
+                    step_h,
+                    &progress,
+                )?;
+                (stats, format!("cpu: {engine:?} soft shadows of the discs"))
+            }
+            #[cfg(feature = "gpu")]
+            crate::gpu::ResolvedBackend::Gpu(ctx) => {
+                let stats =
+                    crate::map::sweep_gpu(ctx, &grid, args.observer_height_m, &lights, step_h)?;
+                progress.inc(lights.len() as u64);
+                (
+                    stats,
+                    format!(
+                        "{}: hard shadows of the disc centres (brute-force march); \
+                         sun_illumination_pct counts epochs with the Sun's centre visible; \
+                         sun_and_earth_pct not computed (all NaN)",
+                        backend.describe()
+                    ),
+                )
+            }
+            #[cfg(not(feature = "gpu"))]
+            crate::gpu::ResolvedBackend::Gpu(ctx) => match **ctx {},
+        };
         progress.finish_and_clear();
         std::fs::create_dir_all(out_dir)
             .with_context(|| format!("creating output folder {}", out_dir.display()))?;
@@ -476,6 +511,7 @@ fn run_map(args: &crate::cli::MapArgs) -> anyhow::Result<()> {
         prov.dem_layers = dem_layers;
         prov.set_epochs(&epochs);
         prov.outputs = files;
+        prov.backend = backend_note;
         prov.wall_time_s = t0.elapsed().as_secs_f64();
         prov.write(&out_dir.join("run.json"))?;
         eprintln!(

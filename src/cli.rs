@@ -377,6 +377,12 @@ pub struct MapArgs {
     /// Epoch range: output folder for the statistics GeoTIFFs and PNG previews.
     #[arg(long, value_name = "DIR", requires = "start")]
     pub out_dir: Option<PathBuf>,
+    /// Compute backend of an epoch-range sweep: `gpu` (hard shadows of the disc centres, brute
+    /// force march; no Sun-and-Earth statistic), `cpu` (the soft-shadow engines) or `auto` (the
+    /// GPU when an adapter exists, else the CPU with one warning line). One-light maps always
+    /// run on the CPU.
+    #[arg(long, value_enum, default_value_t = crate::gpu::Backend::Auto)]
+    pub backend: crate::gpu::Backend,
     /// Aberration correction: lt+s or none.
     #[arg(long, default_value = "lt+s")]
     pub abcorr: String,

@@ -229,8 +229,9 @@ pub struct SweepStats {
     pub longest_dark_epochs: Vec<u32>,
     /// Epochs with any part of the Earth visible.
     pub earth_visible_count: Vec<u32>,
-    /// Epochs with both the Sun and the Earth (partly) visible.
-    pub sun_and_earth_count: Vec<u32>,
+    /// Epochs with both the Sun and the Earth (partly) visible; `None` when the sweep cannot tell
+    /// (the GPU sweep folds each light separately), written as an all-NaN map.
+    pub sun_and_earth_count: Option<Vec<u32>>,
 }
 
 /// Runs the engine for every epoch and accumulates the map statistics (CPU, rayon inside the
@@ -251,8 +252,9 @@ pub fn sweep(
         sun_visible_count: vec![0; n],
         longest_dark_epochs: vec![0; n],
         earth_visible_count: vec![0; n],
-        sun_and_earth_count: vec![0; n],
+        sun_and_earth_count: None,
     };
+    let mut sun_and_earth_count = vec![0_u32; n];
     let mut current_dark = vec![0_u32; n];
     for l in lights {
         let sun = engine.visible_fraction(&grid.hf, observer_height_m, l.sun, l.sun_radius_rad)?;
@@ -263,7 +265,7 @@ pub fn sweep(
             .zip(s.sun_visible_count.par_iter_mut())
             .zip(s.longest_dark_epochs.par_iter_mut())
             .zip(s.earth_visible_count.par_iter_mut())
-            .zip(s.sun_and_earth_count.par_iter_mut())
+            .zip(sun_and_earth_count.par_iter_mut())
             .zip(current_dark.par_iter_mut())
             .enumerate()
             .for_each(|(i, (((((sum, vis), longest), ev), both), dark))| {
@@ -290,7 +292,47 @@ pub fn sweep(
             });
         progress.inc(1);
     }
+    s.sun_and_earth_count = Some(sun_and_earth_count);
     Ok(s)
+}
+
+/// The GPU twin of [`sweep`]: two GPU-resident sweeps
+/// ([`crate::gpu::sweep_accumulate::sweep_stats_gpu`], brute-force march), one over the Sun's
+/// directions and one over the Earth's, each a hard shadow of the disc centre. So, unlike the
+/// CPU sweep, `sun_fraction_sum` is the count of epochs with the Sun's centre visible, a cell is
+/// "visible" when the disc centre is (not any part of the disc), and `sun_and_earth_count` is
+/// `None` (the sweep keeps no per-epoch masks to combine). Holes (NaN heights) are left untouched
+/// by the kernel and masked by [`write_sweep`].
+#[cfg(feature = "gpu")]
+pub fn sweep_gpu(
+    ctx: &crate::gpu::GpuContext,
+    grid: &MapGrid,
+    observer_height_m: f64,
+    lights: &[EpochLights],
+    step_h: f64,
+) -> anyhow::Result<SweepStats> {
+    use crate::gpu::shadow_march::GpuMarchGrid;
+    use crate::gpu::sweep_accumulate::{SweepOptions, sweep_stats_gpu};
+    use crate::shadow::gpu_twins::{MarchGrid, light_to_f32};
+    let march = MarchGrid::from_height_field(&grid.hf, observer_height_m)?;
+    let on_gpu = GpuMarchGrid::upload(ctx, &march)?;
+    let table = |pick: fn(&EpochLights) -> [f64; 3]| -> Vec<[f32; 4]> {
+        lights
+            .iter()
+            .map(|l| light_to_f32(&Vector3::from(pick(l))))
+            .collect()
+    };
+    let sun = sweep_stats_gpu(ctx, &on_gpu, &table(|l| l.sun), SweepOptions::default())?;
+    let earth = sweep_stats_gpu(ctx, &on_gpu, &table(|l| l.earth), SweepOptions::default())?;
+    Ok(SweepStats {
+        epochs: lights.len(),
+        step_h,
+        sun_fraction_sum: sun.iter().map(|c| f64::from(c.lit_epochs)).collect(),
+        sun_visible_count: sun.iter().map(|c| c.lit_epochs).collect(),
+        longest_dark_epochs: sun.iter().map(|c| c.longest_dark_run_epochs).collect(),
+        earth_visible_count: earth.iter().map(|c| c.lit_epochs).collect(),
+        sun_and_earth_count: None,
+    })
 }
 
 /// The light directions (model space) and angular radii of one epoch.
@@ -366,7 +408,15 @@ pub fn write_sweep(
             .collect(),
     );
     let earth_pct = mask_nodata(pct(&s.earth_visible_count));
-    let both_pct = mask_nodata(pct(&s.sun_and_earth_count));
+    let both_what = if s.sun_and_earth_count.is_some() {
+        "Sun and Earth both (partly) visible, % of time"
+    } else {
+        "Sun and Earth both visible, % of time: not computed by the GPU sweep (all NaN)"
+    };
+    let both_pct = match &s.sun_and_earth_count {
+        Some(count) => mask_nodata(pct(count)),
+        None => vec![f32::NAN; nodata_model.len()],
+    };
     let psr: Vec<u8> = s
         .sun_visible_count
         .iter()
@@ -401,7 +451,7 @@ pub fn write_sweep(
         ),
         (
             "sun_and_earth_pct",
-            "Sun and Earth both (partly) visible, % of time",
+            both_what,
             both_pct,
             100.0,
             "% of time".into(),
