@@ -23,6 +23,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
             crate::horizon::cli_run(&args, &stack)
         }
         Command::GpuInfo(args) => run_gpu_info(&args),
+        Command::HorizonMap { command } => run_horizon_map(command),
     }
 }
 
@@ -646,5 +647,53 @@ pub fn load_terrain(
             load_stack(&args.dem)?,
             args.dem.iter().map(|p| p.display().to_string()).collect(),
         ))
+    }
+}
+
+/// `penumbra horizon-map build|info`.
+fn run_horizon_map(command: crate::cli::HorizonMapCommand) -> anyhow::Result<()> {
+    use crate::shadow::fourier::HorizonMap;
+    match command {
+        crate::cli::HorizonMapCommand::Build(args) => {
+            let (stack, _) = load_terrain(&args.terrain)?;
+            let grid = crate::map::MapGrid::new(&stack)?;
+            let hf = &grid.hf;
+            let max_d = args.max_distance_cells.unwrap_or(hf.rows + hf.cols);
+            let t0 = std::time::Instant::now();
+            let map = HorizonMap::build(hf, args.observer_height_m, args.azimuths, max_d)?;
+            map.write_tiff(&args.out)?;
+            eprintln!(
+                "penumbra: horizon map {} x {} ({} azimuths, {} coefficients) in {:.1} s -> {}",
+                hf.rows,
+                hf.cols,
+                args.azimuths,
+                map.meta.n_coeffs,
+                t0.elapsed().as_secs_f64(),
+                args.out.display()
+            );
+            Ok(())
+        }
+        crate::cli::HorizonMapCommand::Info { file } => {
+            let map = HorizonMap::read_tiff(&file)?;
+            let m = &map.meta;
+            println!("file: {}", file.display());
+            println!("grid: {} rows x {} cols at {} m", m.rows, m.cols, m.px_m);
+            println!(
+                "model origin: lat {:.6} deg, lon {:.6} deg; x_left {} m, y_top {} m",
+                m.centre_lat_deg, m.centre_lon_deg, m.x_left_m, m.y_top_m
+            );
+            println!(
+                "observer height: {} m; azimuths: {}; max distance: {} cells",
+                m.observer_height_m, m.n_azimuths, m.max_distance_cells
+            );
+            println!("coefficients: {} complex (f16)", m.n_coeffs);
+            let amps: Vec<String> = map
+                .mean_amplitudes_rad()
+                .iter()
+                .map(|a| format!("{:.4}", a.to_degrees()))
+                .collect();
+            println!("mean |X_k| (deg): {}", amps.join(" "));
+            Ok(())
+        }
     }
 }

@@ -39,6 +39,12 @@ pub enum Command {
     /// List the GPU adapters wgpu finds (honours WGPU_BACKEND): name, backend, device type,
     /// driver and the compute limits that bound penumbra's kernels.
     GpuInfo(GpuInfoArgs),
+    /// Fourier-compressed horizon maps (paper 001): build one from a DEM, or describe one.
+    HorizonMap {
+        /// The horizon-map action.
+        #[command(subcommand)]
+        command: HorizonMapCommand,
+    },
 }
 
 /// Output formats for tables.
@@ -398,4 +404,37 @@ pub struct GpuInfoArgs {
     /// the result: `auto` falls back to the CPU with one warning, `gpu` fails without an adapter.
     #[arg(long, value_enum, value_name = "BACKEND")]
     pub backend: Option<crate::gpu::Backend>,
+}
+
+/// Actions of `penumbra horizon-map`.
+#[derive(Debug, Clone, Subcommand)]
+pub enum HorizonMapCommand {
+    /// Build a Fourier-compressed horizon map (16 f16 complex coefficients per cell) and write
+    /// it as a multi-page TIFF.
+    Build(HorizonMapBuildArgs),
+    /// Describe a horizon-map TIFF: geometry, parameters, mean coefficient amplitudes.
+    Info {
+        /// The horizon-map TIFF.
+        file: PathBuf,
+    },
+}
+
+/// Arguments of `penumbra horizon-map build`.
+#[derive(Debug, Clone, Args)]
+pub struct HorizonMapBuildArgs {
+    /// The terrain.
+    #[command(flatten)]
+    pub terrain: TerrainArgs,
+    /// Observer height above the ground (radial), metres.
+    #[arg(long, default_value_t = 2.0, allow_negative_numbers = true)]
+    pub observer_height_m: f64,
+    /// Number of sampled azimuths before the DFT (at least 32).
+    #[arg(long, default_value_t = crate::shadow::fourier::DEFAULT_AZIMUTHS)]
+    pub azimuths: usize,
+    /// Longest horizon ray, cells (default: the grid's rows + columns, i.e. the whole grid).
+    #[arg(long)]
+    pub max_distance_cells: Option<usize>,
+    /// Output TIFF.
+    #[arg(long, value_name = "FILE")]
+    pub out: PathBuf,
 }

@@ -1,6 +1,7 @@
 //! penumbra's integration tests: one binary, one module per area (anise/ripgrep layout).
 
 mod ephem;
+mod fourier;
 mod gpu;
 mod horizon;
 mod illum;
