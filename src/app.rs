@@ -401,7 +401,7 @@ fn run_map(args: &crate::cli::MapArgs) -> anyhow::Result<()> {
             args.sun_radius_deg
         );
     }
-    let engine: crate::shadow::Engine = args.engine.into();
+    let engine_kind: crate::map::MapEngineKind = args.engine.into();
     let abcorr = AbCorr::parse(&args.abcorr)?;
     let range = args.epochs.start.is_some();
     if range && args.out_dir.is_none() {
@@ -469,15 +469,20 @@ fn run_map(args: &crate::cli::MapArgs) -> anyhow::Result<()> {
         };
         let (stats, backend_note) = match &backend {
             crate::gpu::ResolvedBackend::Cpu => {
+                let engine =
+                    crate::map::MapEngine::new(engine_kind, &grid, args.observer_height_m)?;
                 let stats = sweep(
                     &grid,
-                    engine,
+                    &engine,
                     args.observer_height_m,
                     &lights,
                     step_h,
                     &progress,
                 )?;
-                (stats, format!("cpu: {engine:?} soft shadows of the discs"))
+                (
+                    stats,
+                    format!("cpu: {} soft shadows of the discs", engine.describe()),
+                )
             }
             #[cfg(feature = "gpu")]
             crate::gpu::ResolvedBackend::Gpu(ctx) => {
@@ -525,6 +530,7 @@ fn run_map(args: &crate::cli::MapArgs) -> anyhow::Result<()> {
     }
 
     // One light.
+    let engine = crate::map::MapEngine::new(engine_kind, &grid, args.observer_height_m)?;
     let (sun, sun_radius_rad, earth) = match (&kernels, explicit_dir, args.sun_az_deg) {
         (Some(k), _, _) => {
             let l = epoch_lights(&grid, k, &epochs, abcorr)?[0];

@@ -328,17 +328,23 @@ pub enum EngineArg {
     Dp,
     /// SMap at the disc limbs + DP in the penumbra only (the design's combination).
     Combined,
+    /// Fourier-compressed horizon maps (paper 001): per-cell horizons at 64 azimuths, 16 complex
+    /// DFT coefficients in f16, built once; each light is then a cheap evaluation.
+    Fourier,
     /// The best available: `combined`.
     Auto,
 }
 
-impl From<EngineArg> for crate::shadow::Engine {
+impl From<EngineArg> for crate::map::MapEngineKind {
     fn from(e: EngineArg) -> Self {
+        use crate::map::MapEngineKind;
+        use crate::shadow::Engine;
         match e {
-            EngineArg::Brute => crate::shadow::Engine::Brute,
-            EngineArg::Smap => crate::shadow::Engine::Smap,
-            EngineArg::Dp => crate::shadow::Engine::Dp,
-            EngineArg::Combined | EngineArg::Auto => crate::shadow::Engine::Combined,
+            EngineArg::Brute => MapEngineKind::Direct(Engine::Brute),
+            EngineArg::Smap => MapEngineKind::Direct(Engine::Smap),
+            EngineArg::Dp => MapEngineKind::Direct(Engine::Dp),
+            EngineArg::Combined | EngineArg::Auto => MapEngineKind::Direct(Engine::Combined),
+            EngineArg::Fourier => MapEngineKind::Fourier,
         }
     }
 }

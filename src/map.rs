@@ -234,11 +234,106 @@ pub struct SweepStats {
     pub sun_and_earth_count: Option<Vec<u32>>,
 }
 
+/// Which shadow engine a map uses.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum MapEngineKind {
+    /// A per-light engine of [`crate::shadow::Engine`].
+    Direct(Engine),
+    /// A Fourier-compressed horizon map built once for the grid ([`crate::shadow::fourier`]).
+    Fourier,
+}
+
+impl MapEngineKind {
+    /// Parses a scenario's engine name (`brute`, `smap`, `dp`, `combined`, `fourier`).
+    pub fn parse(name: &str) -> Option<Self> {
+        Some(match name {
+            "brute" => MapEngineKind::Direct(Engine::Brute),
+            "smap" => MapEngineKind::Direct(Engine::Smap),
+            "dp" => MapEngineKind::Direct(Engine::Dp),
+            "combined" => MapEngineKind::Direct(Engine::Combined),
+            "fourier" => MapEngineKind::Fourier,
+            _ => return None,
+        })
+    }
+}
+
+/// A shadow engine ready for a map grid: per-light engines run on the height field for each light;
+/// the Fourier engine builds its horizon map once (the expensive part) and evaluates it per light.
+pub enum MapEngine {
+    /// A per-light engine.
+    Direct(Engine),
+    /// A horizon map of the grid.
+    Fourier(Box<crate::shadow::fourier::HorizonMap>),
+}
+
+impl MapEngine {
+    /// Prepares `kind` for `grid` (builds the horizon map for [`MapEngineKind::Fourier`]).
+    pub fn new(
+        kind: MapEngineKind,
+        grid: &MapGrid,
+        observer_height_m: f64,
+    ) -> anyhow::Result<Self> {
+        Ok(match kind {
+            MapEngineKind::Direct(e) => MapEngine::Direct(e),
+            MapEngineKind::Fourier => {
+                let max_cells = grid.hf.rows.max(grid.hf.cols);
+                MapEngine::Fourier(Box::new(crate::shadow::fourier::HorizonMap::build(
+                    &grid.hf,
+                    observer_height_m,
+                    crate::shadow::fourier::DEFAULT_AZIMUTHS,
+                    max_cells,
+                )?))
+            }
+        })
+    }
+
+    /// Visible fraction of a disc per model cell (`NaN` for holes).
+    pub fn visible_fraction(
+        &self,
+        hf: &HeightField,
+        observer_height_m: f64,
+        light_in_model: [f64; 3],
+        angular_radius_rad: f64,
+    ) -> anyhow::Result<Vec<f32>> {
+        Ok(match self {
+            MapEngine::Direct(e) => {
+                e.visible_fraction(hf, observer_height_m, light_in_model, angular_radius_rad)?
+            }
+            MapEngine::Fourier(map) => {
+                crate::shadow::fourier::visible_fraction(map, light_in_model, angular_radius_rad)?
+            }
+        })
+    }
+
+    /// Hard mask of the disc centre per model cell (1 lit, 0 shadow, 255 nodata).
+    pub fn hard_mask(
+        &self,
+        hf: &HeightField,
+        observer_height_m: f64,
+        light_in_model: [f64; 3],
+    ) -> anyhow::Result<Vec<u8>> {
+        Ok(match self {
+            MapEngine::Direct(e) => e.hard_mask(hf, observer_height_m, light_in_model)?,
+            MapEngine::Fourier(map) => crate::shadow::fourier::hard_mask(map, light_in_model)?,
+        })
+    }
+
+    /// A short description for provenance.
+    pub fn describe(&self) -> String {
+        match self {
+            MapEngine::Direct(e) => format!("{e:?}"),
+            MapEngine::Fourier(_) => {
+                "Fourier horizon map (paper 001, 64 azimuths, 16 coefficients)".into()
+            }
+        }
+    }
+}
+
 /// Runs the engine for every epoch and accumulates the map statistics (CPU, rayon inside the
 /// engines). `progress` is advanced once per epoch.
 pub fn sweep(
     grid: &MapGrid,
-    engine: Engine,
+    engine: &MapEngine,
     observer_height_m: f64,
     lights: &[EpochLights],
     step_h: f64,

@@ -84,7 +84,7 @@ pub struct MapSpec {
     /// Observer height above the ground, metres (default 2).
     #[serde(default = "default_height_above_ground_m")]
     pub observer_height_m: f64,
-    /// Shadow engine: `brute`, `smap`, `dp` or `combined` (default).
+    /// Shadow engine: `brute`, `smap`, `dp`, `combined` (default) or `fourier`.
     #[serde(default = "default_engine")]
     pub engine: String,
 }
@@ -224,10 +224,10 @@ impl Scenario {
             return Err(invalid("[map] needs [terrain]".into()));
         }
         if let Some(m) = &self.map
-            && !["brute", "smap", "dp", "combined"].contains(&m.engine.as_str())
+            && crate::map::MapEngineKind::parse(&m.engine).is_none()
         {
             return Err(invalid(format!(
-                "[map] engine '{}': use brute, smap, dp or combined",
+                "[map] engine '{}': use brute, smap, dp, combined or fourier",
                 m.engine
             )));
         }
@@ -409,21 +409,17 @@ fn run_map_spec(
     abcorr: AbCorr,
     out_dir: &Path,
 ) -> anyhow::Result<Vec<String>> {
-    use crate::shadow::Engine;
     let step = ephem::time::parse_step(&spec.step).context("[map] step")?;
     let epochs = ephem::time::epoch_range(start, stop, step)?;
-    let engine = match spec.engine.as_str() {
-        "brute" => Engine::Brute,
-        "smap" => Engine::Smap,
-        "dp" => Engine::Dp,
-        _ => Engine::Combined,
-    };
+    let kind = crate::map::MapEngineKind::parse(&spec.engine)
+        .with_context(|| format!("[map] engine '{}'", spec.engine))?;
     let grid = crate::map::MapGrid::new(stack)?;
+    let engine = crate::map::MapEngine::new(kind, &grid, spec.observer_height_m)?;
     let lights = crate::map::epoch_lights(&grid, kernels, &epochs, abcorr)?;
     let progress = indicatif::ProgressBar::new(lights.len() as u64);
     let stats = crate::map::sweep(
         &grid,
-        engine,
+        &engine,
         spec.observer_height_m,
         &lights,
         step.to_seconds() / 3600.0,
