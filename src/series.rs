@@ -168,12 +168,15 @@ pub fn site_horizons(
 }
 
 /// Sun and Earth fractions of one site for every epoch of the shared table, calling `row` for each
-/// epoch (in order) with the values of the CSV row.
+/// epoch (in order) with the values of the CSV row. Azimuths are computed for the epochs where
+/// `need_azimuths(k)` is true (CSV rows, plot tracks) and wherever a disc is cut by the horizon;
+/// elsewhere they are `NaN`.
 pub fn site_fractions(
     table: &[MoonGeometry],
     site: &Site,
     horizon: &Horizon,
     config: &SeriesConfig,
+    need_azimuths: impl Fn(usize) -> bool,
     mut row: impl FnMut(usize, &SeriesRow) -> anyhow::Result<()>,
 ) -> anyhow::Result<(Vec<f64>, Vec<f64>)> {
     let profile = HorizonProfile::new(&horizon.elevation_deg)?;
@@ -187,43 +190,54 @@ pub fn site_fractions(
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &e| {
             (lo.min(e), hi.max(e))
         });
-    let fraction = |disc: &Disc, limb: &LimbDarkening| -> f64 {
-        if disc.el_deg - disc.radius_deg >= h_max_deg {
+    let fraction = |body: &mut ephem::Apparent, limb: &LimbDarkening| -> f64 {
+        if body.el_deg - body.radius_deg >= h_max_deg {
             1.0
-        } else if disc.el_deg + disc.radius_deg <= h_min_deg {
+        } else if body.el_deg + body.radius_deg <= h_min_deg {
             0.0
         } else {
-            illum::visible_fraction(&profile, disc, config.disc_method, limb)
+            body.fill_azimuth(site);
+            let disc = Disc {
+                az_deg: body.az_deg,
+                el_deg: body.el_deg,
+                radius_deg: body.radius_deg,
+            };
+            illum::visible_fraction(&profile, &disc, config.disc_method, limb)
         }
     };
     let mut sun_fraction = Vec::with_capacity(table.len());
     let mut earth_fraction = Vec::with_capacity(table.len());
     for (k, geo) in table.iter().enumerate() {
-        let v = ephem::topo::sun_earth(geo, site, config.abcorr);
-        let sun_disc = Disc {
-            az_deg: v.sun.az_deg,
-            el_deg: v.sun.el_deg,
-            radius_deg: v.sun.radius_deg,
+        let obs = ephem::topo::Observer::new(geo, site);
+        let sun_pos =
+            ephem::topo::target_from_observer(geo, &geo.sun_wrt_moon, &obs, config.abcorr);
+        let earth_pos =
+            ephem::topo::target_from_observer(geo, &geo.earth_wrt_moon, &obs, config.abcorr);
+        let (mut sun, mut earth) = if need_azimuths(k) {
+            (
+                ephem::topo::apparent(sun_pos, site, crate::SUN_RADIUS_KM),
+                ephem::topo::apparent(earth_pos, site, crate::EARTH_RADIUS_KM),
+            )
+        } else {
+            (
+                ephem::topo::apparent_without_azimuth(sun_pos, site, crate::SUN_RADIUS_KM),
+                ephem::topo::apparent_without_azimuth(earth_pos, site, crate::EARTH_RADIUS_KM),
+            )
         };
-        let earth_disc = Disc {
-            az_deg: v.earth.az_deg,
-            el_deg: v.earth.el_deg,
-            radius_deg: v.earth.radius_deg,
-        };
-        let sun_f = fraction(&sun_disc, &limb);
-        let earth_f = fraction(&earth_disc, &LimbDarkening::UNIFORM);
+        let sun_f = fraction(&mut sun, &limb);
+        let earth_f = fraction(&mut earth, &LimbDarkening::UNIFORM);
         // The horizon at the bodies' azimuths is only needed for the CSV columns.
         let (sun_horizon_el_deg, earth_horizon_el_deg) = if config.write_csv {
             (
-                profile.el_at_az_deg(v.sun.az_deg),
-                profile.el_at_az_deg(v.earth.az_deg),
+                profile.el_at_az_deg(sun.az_deg),
+                profile.el_at_az_deg(earth.az_deg),
             )
         } else {
             (f64::NAN, f64::NAN)
         };
         let r = SeriesRow {
-            sun: v.sun,
-            earth: v.earth,
+            sun,
+            earth,
             sun_horizon_el_deg,
             earth_horizon_el_deg,
             sun_fraction: sun_f,
@@ -371,7 +385,8 @@ fn run_one_site(
     let mut fractions = (Vec::new(), Vec::new());
     let mut compute = |w: Option<&mut dyn Write>| -> anyhow::Result<()> {
         let mut w = w;
-        fractions = site_fractions(table, &site, &horizon, config, |k, r| {
+        let need_azimuths = |k: usize| config.write_csv || k.is_multiple_of(track_stride);
+        fractions = site_fractions(table, &site, &horizon, config, need_azimuths, |k, r| {
             if let Some(w) = w.as_deref_mut() {
                 write_row(w, epochs[k], r)?;
             }

@@ -293,7 +293,8 @@ pub fn target_from_observer(
     geo.moon_me_from_j2000 * rel
 }
 
-fn apparent(pos_in_moon_me_km: Vector3<f64>, site: &Site, body_radius_km: f64) -> Apparent {
+/// A body at `pos_in_moon_me_km` (relative to the site) seen from `site`.
+pub fn apparent(pos_in_moon_me_km: Vector3<f64>, site: &Site, body_radius_km: f64) -> Apparent {
     let enu = site.enu_from_moon_me * pos_in_moon_me_km;
     let (az_deg, el_deg) = az_el_deg_from_enu(&enu);
     let range_km = pos_in_moon_me_km.norm();
@@ -303,6 +304,38 @@ fn apparent(pos_in_moon_me_km: Vector3<f64>, site: &Site, body_radius_km: f64) -
         range_km,
         radius_deg: (body_radius_km / range_km).asin().to_degrees(),
         pos_in_moon_me_km,
+    }
+}
+
+/// As [`apparent`] without the azimuth (`az_deg` is `NaN`; [`Apparent::fill_azimuth`] computes
+/// it): the elevation is `asin(up · p / |p|)`, equal to [`apparent`]'s `atan2` form. Long series
+/// need the azimuth only for the few epochs when a disc is cut by the horizon.
+pub fn apparent_without_azimuth(
+    pos_in_moon_me_km: Vector3<f64>,
+    site: &Site,
+    body_radius_km: f64,
+) -> Apparent {
+    let range_km = pos_in_moon_me_km.norm();
+    let up = site.enu_from_moon_me.row(2).transpose();
+    Apparent {
+        az_deg: f64::NAN,
+        el_deg: (up.dot(&pos_in_moon_me_km) / range_km)
+            .clamp(-1.0, 1.0)
+            .asin()
+            .to_degrees(),
+        range_km,
+        radius_deg: (body_radius_km / range_km).asin().to_degrees(),
+        pos_in_moon_me_km,
+    }
+}
+
+impl Apparent {
+    /// Computes the azimuth if it is missing (see [`apparent_without_azimuth`]).
+    pub fn fill_azimuth(&mut self, site: &Site) {
+        if self.az_deg.is_nan() {
+            let enu = site.enu_from_moon_me * self.pos_in_moon_me_km;
+            self.az_deg = az_el_deg_from_enu(&enu).0;
+        }
     }
 }
 
