@@ -47,6 +47,11 @@ fn flat_plane_matches_lambert() {
         .unwrap();
         let img = scene.render(&cam, 16, 12).unwrap();
         let want = lambert_w_m2_sr(sun_el_deg);
+        let max_rel = img
+            .iter()
+            .map(|s| (terrain_radiance(*s) - want).abs() / want)
+            .fold(0.0_f64, f64::max);
+        eprintln!("sun el {sun_el_deg} deg: analytic {want:.4}, max relative error {max_rel:.2e}");
         for s in img {
             let got = terrain_radiance(s);
             let rel = (got - want).abs() / want;
