@@ -23,6 +23,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
             crate::horizon::cli_run(&args, &stack)
         }
         Command::GpuInfo(args) => run_gpu_info(&args),
+        Command::Render(args) => run_render(&args),
         Command::HorizonMap { command } => run_horizon_map(command),
     }
 }
@@ -654,6 +655,109 @@ pub fn load_terrain(
             args.dem.iter().map(|p| p.display().to_string()).collect(),
         ))
     }
+}
+
+/// `penumbra render`: one frame of the CPU reference renderer.
+fn run_render(args: &crate::cli::RenderArgs) -> anyhow::Result<()> {
+    use crate::render::{Camera, Lights, Scene};
+    let t0 = std::time::Instant::now();
+    crate::render::check_size(args.width, args.height)?;
+    if !(args.fov_deg > 0.0 && args.fov_deg < 180.0) {
+        anyhow::bail!("--fov-deg {} must be in (0, 180)", args.fov_deg);
+    }
+    if !(args.height_m >= 0.0 && args.height_m.is_finite()) {
+        anyhow::bail!(
+            "--height-m {} puts the camera below the terrain surface: give a finite height >= 0",
+            args.height_m
+        );
+    }
+    if let Some(e) = args.exposure
+        && !(e > 0.0 && e.is_finite())
+    {
+        anyhow::bail!("--exposure {e} must be a finite number > 0");
+    }
+    let epoch = ephem::time::parse_utc(&args.utc)?;
+    let abcorr = AbCorr::parse(&args.abcorr)?;
+    let (stack, _) = load_terrain(&args.terrain)?;
+    let (ground_m, _) = stack.height_at_lat_lon_m_checked(args.lat_deg, args.lon_deg)?;
+    let grid = crate::map::MapGrid::new(&stack)?;
+    let hf = &grid.hf;
+    let pos = crate::terrain::model_space::ModelFrame::of(hf).model_from_lat_lon_height(
+        args.lat_deg,
+        args.lon_deg,
+        ground_m + args.height_m,
+    );
+    let model_from_enu = hf.model_from_moon_me()
+        * crate::frames::enu_from_moon_me(args.lat_deg, args.lon_deg).transpose();
+    let camera = Camera::from_az_el_deg(
+        pos,
+        &model_from_enu,
+        args.look_az_deg,
+        args.look_el_deg,
+        args.fov_deg,
+    )?;
+    let kernels = load_kernels(&args.kernels)?;
+    let l = crate::map::epoch_lights(&grid, &kernels, &[epoch], abcorr)?[0];
+    let lights = Lights {
+        sun: l.sun,
+        sun_radius_rad: l.sun_radius_rad,
+        earth: l.earth,
+        earth_radius_rad: l.earth_radius_rad,
+    };
+    let scene = Scene::new(hf, lights, crate::shadow::Engine::Combined)?;
+    if let Some(z) = scene.surface_z_m(pos.x, pos.y) {
+        // The model-space surface is a resampling of the DEM; allow its interpolation error.
+        if pos.z < z - 0.5 {
+            anyhow::bail!(
+                "the camera ({:.1} m above the DEM) is below the model-space terrain surface",
+                args.height_m
+            );
+        }
+    }
+    let samples = scene.render(&camera, args.width, args.height)?;
+    let exposure = args
+        .exposure
+        .unwrap_or_else(|| crate::render::auto_exposure(&samples));
+    let rgb = crate::render::tone_map(&samples, exposure);
+    // Sun elevation at the camera site (above the plane normal to the local up).
+    let up = model_from_enu * nalgebra::Vector3::new(0.0, 0.0, 1.0);
+    let sun_el_deg = nalgebra::Vector3::from(l.sun)
+        .dot(&up)
+        .clamp(-1.0, 1.0)
+        .asin()
+        .to_degrees();
+    let text = [
+        (
+            "Software",
+            format!("penumbra {}", env!("CARGO_PKG_VERSION")),
+        ),
+        ("penumbra:epoch_utc", format_utc(epoch)),
+        ("penumbra:sun_elevation_deg", format!("{sun_el_deg:.4}")),
+        (
+            "penumbra:camera",
+            format!(
+                "lat_deg={} lon_deg={} height_m={} look_az_deg={} look_el_deg={} fov_deg={}",
+                args.lat_deg,
+                args.lon_deg,
+                args.height_m,
+                args.look_az_deg,
+                args.look_el_deg,
+                args.fov_deg
+            ),
+        ),
+        ("penumbra:exposure", format!("{exposure:.6e}")),
+    ];
+    let png = crate::render::encode_png(&rgb, args.width, args.height, &text)?;
+    crate::output::write_bytes_atomic(&args.out, &png)?;
+    eprintln!(
+        "penumbra: rendered {} x {} px at {} (Sun elevation {sun_el_deg:.3} deg) to {} in {:.2} s",
+        args.width,
+        args.height,
+        format_utc(epoch),
+        args.out.display(),
+        t0.elapsed().as_secs_f64()
+    );
+    Ok(())
 }
 
 /// `penumbra horizon-map build|info`.

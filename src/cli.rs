@@ -39,6 +39,9 @@ pub enum Command {
     /// List the GPU adapters wgpu finds (honours WGPU_BACKEND): name, backend, device type,
     /// driver and the compute limits that bound penumbra's kernels.
     GpuInfo(GpuInfoArgs),
+    /// Render the terrain seen from a camera at one epoch (CPU reference renderer): Lambert
+    /// sunlight + earthshine with soft shadows, 8-bit sRGB PNG.
+    Render(RenderArgs),
     /// Fourier-compressed horizon maps (paper 001): build one from a DEM, or describe one.
     HorizonMap {
         /// The horizon-map action.
@@ -347,6 +350,54 @@ impl From<EngineArg> for crate::map::MapEngineKind {
             EngineArg::Fourier => MapEngineKind::Fourier,
         }
     }
+}
+
+/// Arguments of `penumbra render`.
+#[derive(Debug, Clone, Args)]
+pub struct RenderArgs {
+    /// The terrain.
+    #[command(flatten)]
+    pub terrain: TerrainArgs,
+    /// Camera site latitude (planetocentric), degrees.
+    #[arg(long, allow_hyphen_values = true)]
+    pub lat_deg: f64,
+    /// Camera site east longitude, degrees.
+    #[arg(long, allow_hyphen_values = true)]
+    pub lon_deg: f64,
+    /// Camera height above the ground (DEM), metres.
+    #[arg(long, default_value_t = 2.0, allow_hyphen_values = true)]
+    pub height_m: f64,
+    /// View azimuth, degrees from north clockwise (local frame of the site).
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    pub look_az_deg: f64,
+    /// View elevation above the local horizontal, degrees.
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    pub look_el_deg: f64,
+    /// Horizontal field of view, degrees, in (0, 180).
+    #[arg(long, default_value_t = 60.0, allow_hyphen_values = true)]
+    pub fov_deg: f64,
+    /// The epoch, UTC (e.g. 2027-02-05T00:00).
+    #[arg(long, value_name = "UTC")]
+    pub utc: String,
+    /// Image width, pixels.
+    #[arg(long, default_value_t = 640)]
+    pub width: u32,
+    /// Image height, pixels.
+    #[arg(long, default_value_t = 480)]
+    pub height: u32,
+    /// Exposure, 1/(W m^-2 sr^-1), applied before the Reinhard curve; default: automatic
+    /// (the 99th percentile of the terrain radiance maps to 2).
+    #[arg(long)]
+    pub exposure: Option<f64>,
+    /// Output PNG file.
+    #[arg(long, value_name = "FILE.png")]
+    pub out: PathBuf,
+    /// Aberration correction: lt+s or none.
+    #[arg(long, default_value = "lt+s")]
+    pub abcorr: String,
+    /// SPICE kernels.
+    #[command(flatten)]
+    pub kernels: KernelArgs,
 }
 
 /// Arguments of `penumbra map`.

@@ -28,6 +28,7 @@ pub mod horizon;
 pub mod illum;
 pub mod map;
 pub mod output;
+pub mod render;
 pub mod scenario;
 pub mod series;
 pub mod shadow;

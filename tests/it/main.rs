@@ -6,6 +6,7 @@ mod gpu;
 mod horizon;
 mod illum;
 mod map;
+mod render;
 mod series;
 mod shadow;
 mod terrain;

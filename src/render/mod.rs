@@ -1,0 +1,472 @@
+//! A CPU reference renderer (issue 8, first cut): the terrain height field seen from a camera at
+//! one epoch, lit by the Sun and by earthshine, tone mapped to an 8-bit sRGB PNG.
+//!
+//! Everything happens in model space (see [`crate::terrain::HeightField`]): each pixel's view ray
+//! is marched through the height field in uniform steps of half a cell, the first crossing is
+//! refined by bisection, and the hit point is shaded with a Lambert BRDF (albedo
+//! [`DEFAULT_ALBEDO`]). The Sun's and the Earth's visible fractions come from a shadow engine run
+//! ONCE per frame for the whole grid ([`crate::shadow::Engine::visible_fraction`]) and are looked
+//! up bilinearly at the hit point. Earthshine assumes a full-Earth irradiance of
+//! [`FULL_EARTH_IRRADIANCE_W_M2`] scaled by the Earth's illuminated fraction `(1 + cos phase) / 2`;
+//! see docs/render.md for the assumptions and what is missing (GPU path, Hapke, golden images).
+
+use nalgebra::{Matrix3, Vector3};
+use rayon::prelude::*;
+
+use crate::SOLAR_CONSTANT_W_M2;
+use crate::shadow::{Engine, ShadowError};
+use crate::terrain::HeightField;
+
+/// Lambert albedo of the regolith (a typical mean for the lunar highlands).
+pub const DEFAULT_ALBEDO: f64 = 0.12;
+
+/// Irradiance of a full Earth at the Moon, W/m² (an order-of-magnitude assumption: ~0.1 W/m²;
+/// scaled by the Earth's illuminated fraction).
+pub const FULL_EARTH_IRRADIANCE_W_M2: f64 = 0.1;
+
+/// Errors of the renderer.
+#[derive(Debug, thiserror::Error)]
+pub enum RenderError {
+    /// The camera parameters are not usable (field of view, position, direction).
+    #[error("bad camera: {0}")]
+    BadCamera(String),
+    /// The image has a zero or absurd size.
+    #[error("bad image size {width} x {height} px: both must be in 1..=16384")]
+    BadImageSize {
+        /// Width asked for, pixels.
+        width: u32,
+        /// Height asked for, pixels.
+        height: u32,
+    },
+    /// A shadow engine failed.
+    #[error(transparent)]
+    Shadow(#[from] ShadowError),
+    /// PNG encoding failed.
+    #[error("encoding PNG: {0}")]
+    Png(String),
+}
+
+/// Result alias for the renderer.
+pub type Result<T, E = RenderError> = std::result::Result<T, E>;
+
+/// A pinhole camera in model space.
+#[derive(Debug, Clone, Copy)]
+pub struct Camera {
+    /// Position, model space, metres.
+    pub pos_model_m: Vector3<f64>,
+    /// Unit view direction, model space.
+    pub forward_model: Vector3<f64>,
+    /// Unit right vector, model space.
+    pub right_model: Vector3<f64>,
+    /// Unit up vector of the image, model space.
+    pub up_model: Vector3<f64>,
+    /// Horizontal field of view, degrees.
+    pub fov_deg: f64,
+}
+
+impl Camera {
+    /// A camera at `pos_model_m` looking at azimuth / elevation (deg, azimuth from north
+    /// clockwise) in a local ENU frame whose axes in model space are the columns of
+    /// `model_from_enu`; the image's up is the local up.
+    pub fn from_az_el_deg(
+        pos_model_m: Vector3<f64>,
+        model_from_enu: &Matrix3<f64>,
+        look_az_deg: f64,
+        look_el_deg: f64,
+        fov_deg: f64,
+    ) -> Result<Self> {
+        if !(fov_deg > 0.0 && fov_deg < 180.0) {
+            return Err(RenderError::BadCamera(format!(
+                "field of view {fov_deg} deg must be in (0, 180)"
+            )));
+        }
+        if !(look_el_deg.abs() < 89.9 && look_az_deg.is_finite()) {
+            return Err(RenderError::BadCamera(format!(
+                "look elevation {look_el_deg} deg must be in (-89.9, 89.9) and the azimuth finite"
+            )));
+        }
+        if !pos_model_m.iter().all(|v| v.is_finite()) {
+            return Err(RenderError::BadCamera("position is not finite".into()));
+        }
+        let forward = model_from_enu * crate::frames::enu_from_az_el_deg(look_az_deg, look_el_deg);
+        let up_hint = model_from_enu * Vector3::new(0.0, 0.0, 1.0);
+        let right = forward.cross(&up_hint).normalize();
+        let up = right.cross(&forward).normalize();
+        Ok(Camera {
+            pos_model_m,
+            forward_model: forward.normalize(),
+            right_model: right,
+            up_model: up,
+            fov_deg,
+        })
+    }
+
+    /// Unit ray direction (model space) through the centre of pixel (`px_row`, `px_col`) of a
+    /// `width` x `height` image (row 0 at the top).
+    pub fn ray_dir(&self, px_row: u32, px_col: u32, width: u32, height: u32) -> Vector3<f64> {
+        let t = (self.fov_deg.to_radians() / 2.0).tan();
+        let u = (2.0 * (f64::from(px_col) + 0.5) / f64::from(width) - 1.0) * t;
+        let v = (1.0 - 2.0 * (f64::from(px_row) + 0.5) / f64::from(height)) * t * f64::from(height)
+            / f64::from(width);
+        (self.forward_model + u * self.right_model + v * self.up_model).normalize()
+    }
+}
+
+/// The light sources of a frame, model space.
+#[derive(Debug, Clone, Copy)]
+pub struct Lights {
+    /// Unit vector to the Sun.
+    pub sun: [f64; 3],
+    /// The Sun's angular radius, radians.
+    pub sun_radius_rad: f64,
+    /// Unit vector to the Earth.
+    pub earth: [f64; 3],
+    /// The Earth's angular radius, radians.
+    pub earth_radius_rad: f64,
+}
+
+impl Lights {
+    /// Earthshine irradiance on a surface facing the Earth, W/m²: [`FULL_EARTH_IRRADIANCE_W_M2`]
+    /// times the Earth's illuminated fraction `(1 + cos phase) / 2`, with the phase angle
+    /// (Sun-Earth-Moon) taken as `pi - elongation` (Sun-Moon-Earth angle), exact to the Moon's
+    /// parallax (~0.15 deg).
+    pub fn earth_irradiance_w_m2(&self) -> f64 {
+        let cos_elong = dot(self.sun, self.earth).clamp(-1.0, 1.0);
+        FULL_EARTH_IRRADIANCE_W_M2 * (1.0 - cos_elong) / 2.0
+    }
+}
+
+/// What a view ray sees.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Sample {
+    /// Terrain with its radiance, W/(m² sr).
+    Terrain {
+        /// Reflected radiance, W/(m² sr).
+        radiance_w_m2_sr: f32,
+    },
+    /// The Sun's disc.
+    Sun,
+    /// The Earth's disc.
+    Earth,
+    /// Black sky.
+    Sky,
+}
+
+/// A height field with its lights and per-cell visible fractions, ready to render.
+pub struct Scene<'a> {
+    hf: &'a HeightField,
+    lights: Lights,
+    sun_fraction: Vec<f32>,
+    earth_fraction: Vec<f32>,
+    albedo: f64,
+    z_min_m: f64,
+    z_max_m: f64,
+}
+
+impl<'a> Scene<'a> {
+    /// Runs `engine` once for the Sun and once for the Earth (ground level, observer height 0)
+    /// over the whole grid.
+    pub fn new(hf: &'a HeightField, lights: Lights, engine: Engine) -> Result<Self> {
+        let sun_fraction = engine.visible_fraction(hf, 0.0, lights.sun, lights.sun_radius_rad)?;
+        let earth_fraction =
+            engine.visible_fraction(hf, 0.0, lights.earth, lights.earth_radius_rad)?;
+        Ok(Self::with_fractions(
+            hf,
+            lights,
+            sun_fraction,
+            earth_fraction,
+        ))
+    }
+
+    /// A scene with given per-cell visible fractions (row-major like `hf.z_m`).
+    pub fn with_fractions(
+        hf: &'a HeightField,
+        lights: Lights,
+        sun_fraction: Vec<f32>,
+        earth_fraction: Vec<f32>,
+    ) -> Self {
+        let (z_min_m, z_max_m) = hf
+            .z_m
+            .iter()
+            .filter(|z| !z.is_nan())
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &z| {
+                (lo.min(f64::from(z)), hi.max(f64::from(z)))
+            });
+        Scene {
+            hf,
+            lights,
+            sun_fraction,
+            earth_fraction,
+            albedo: DEFAULT_ALBEDO,
+            z_min_m,
+            z_max_m,
+        }
+    }
+
+    /// The lights of the scene.
+    pub fn lights(&self) -> &Lights {
+        &self.lights
+    }
+
+    /// Bilinear terrain height (m) at model x/y; `None` outside the grid or next to a hole.
+    pub fn surface_z_m(&self, x_m: f64, y_m: f64) -> Option<f64> {
+        bilinear(self.hf, &self.hf.z_m, x_m, y_m, false)
+    }
+
+    /// Unit surface normal at model x/y from central differences (one cell each side).
+    pub fn normal_at(&self, x_m: f64, y_m: f64) -> Option<Vector3<f64>> {
+        let d = self.hf.px_m;
+        let zx0 = self.surface_z_m(x_m - d, y_m);
+        let zx1 = self.surface_z_m(x_m + d, y_m);
+        let zy0 = self.surface_z_m(x_m, y_m - d);
+        let zy1 = self.surface_z_m(x_m, y_m + d);
+        let z = self.surface_z_m(x_m, y_m)?;
+        // One-sided differences at the grid edge.
+        let dzdx = match (zx0, zx1) {
+            (Some(a), Some(b)) => (b - a) / (2.0 * d),
+            (None, Some(b)) => (b - z) / d,
+            (Some(a), None) => (z - a) / d,
+            (None, None) => 0.0,
+        };
+        let dzdy = match (zy0, zy1) {
+            (Some(a), Some(b)) => (b - a) / (2.0 * d),
+            (None, Some(b)) => (b - z) / d,
+            (Some(a), None) => (z - a) / d,
+            (None, None) => 0.0,
+        };
+        Some(Vector3::new(-dzdx, -dzdy, 1.0).normalize())
+    }
+
+    /// Lambert radiance (W/(m² sr)) of the terrain at model x/y:
+    /// `albedo / pi * (S * f_sun * max(0, n.sun) + E_earth * f_earth * max(0, n.earth))`.
+    pub fn radiance_at(&self, x_m: f64, y_m: f64) -> Option<f64> {
+        let n = self.normal_at(x_m, y_m)?;
+        let f_sun = bilinear(self.hf, &self.sun_fraction, x_m, y_m, true).unwrap_or(0.0);
+        let f_earth = bilinear(self.hf, &self.earth_fraction, x_m, y_m, true).unwrap_or(0.0);
+        let sun = Vector3::from(self.lights.sun);
+        let earth = Vector3::from(self.lights.earth);
+        let e = SOLAR_CONSTANT_W_M2 * f_sun * n.dot(&sun).max(0.0)
+            + self.lights.earth_irradiance_w_m2() * f_earth * n.dot(&earth).max(0.0);
+        Some(self.albedo * e / std::f64::consts::PI)
+    }
+
+    /// The first terrain crossing of the ray `origin + t * dir` (t > 0): model point, or `None`.
+    pub fn trace(&self, origin: &Vector3<f64>, dir: &Vector3<f64>) -> Option<Vector3<f64>> {
+        let hf = self.hf;
+        let x0 = hf.x_left_m;
+        let x1 = hf.x_left_m + hf.cols as f64 * hf.px_m;
+        let y1 = hf.y_top_m;
+        let y0 = hf.y_top_m - hf.rows as f64 * hf.px_m;
+        let (t_in, t_out) = slab(
+            origin,
+            dir,
+            [x0, y0, self.z_min_m - 1.0],
+            [x1, y1, self.z_max_m + 1.0],
+        )?;
+        let horiz = dir.x.hypot(dir.y).max(0.05);
+        let dt = 0.5 * hf.px_m / horiz;
+        let above = |t: f64| -> Option<bool> {
+            let p = origin + t * dir;
+            self.surface_z_m(p.x, p.y).map(|z| p.z > z)
+        };
+        let mut t_prev = t_in.max(0.0);
+        let mut prev = above(t_prev);
+        if prev == Some(false) {
+            return Some(origin + t_prev * dir);
+        }
+        let mut t = t_prev;
+        while t < t_out {
+            t = (t + dt).min(t_out);
+            let now = above(t);
+            if prev == Some(true) && now == Some(false) {
+                let (mut lo, mut hi) = (t_prev, t);
+                for _ in 0..30 {
+                    let mid = 0.5 * (lo + hi);
+                    if above(mid) == Some(false) {
+                        hi = mid;
+                    } else {
+                        lo = mid;
+                    }
+                }
+                return Some(origin + hi * dir);
+            }
+            if now.is_some() {
+                prev = now;
+                t_prev = t;
+            }
+            if t >= t_out {
+                break;
+            }
+        }
+        None
+    }
+
+    /// What the ray `origin + t * dir` sees: terrain radiance, the Sun's or the Earth's disc, or
+    /// black sky.
+    pub fn sample(&self, origin: &Vector3<f64>, dir: &Vector3<f64>) -> Sample {
+        if let Some(p) = self.trace(origin, dir)
+            && let Some(l) = self.radiance_at(p.x, p.y)
+        {
+            return Sample::Terrain {
+                radiance_w_m2_sr: l as f32,
+            };
+        }
+        let ang = |v: [f64; 3]| dir.dot(&Vector3::from(v)).clamp(-1.0, 1.0).acos();
+        if ang(self.lights.sun) <= self.lights.sun_radius_rad {
+            Sample::Sun
+        } else if ang(self.lights.earth) <= self.lights.earth_radius_rad {
+            Sample::Earth
+        } else {
+            Sample::Sky
+        }
+    }
+
+    /// Renders a `width` x `height` image (row-major, row 0 at the top), one ray per pixel centre,
+    /// rows in parallel (rayon).
+    pub fn render(&self, camera: &Camera, width: u32, height: u32) -> Result<Vec<Sample>> {
+        check_size(width, height)?;
+        Ok((0..height * width)
+            .into_par_iter()
+            .map(|i| {
+                let (r, c) = (i / width, i % width);
+                self.sample(&camera.pos_model_m, &camera.ray_dir(r, c, width, height))
+            })
+            .collect())
+    }
+}
+
+/// Checks an image size.
+pub fn check_size(width: u32, height: u32) -> Result<()> {
+    if width == 0 || height == 0 || width > 16384 || height > 16384 {
+        return Err(RenderError::BadImageSize { width, height });
+    }
+    Ok(())
+}
+
+/// Exposure (1/(W/(m² sr))) that maps the 99th percentile of the terrain radiance to 2 before
+/// the Reinhard curve (about 67 % of white); 1 when no terrain is lit.
+pub fn auto_exposure(samples: &[Sample]) -> f64 {
+    let mut l: Vec<f32> = samples
+        .iter()
+        .filter_map(|s| match s {
+            Sample::Terrain { radiance_w_m2_sr } if *radiance_w_m2_sr > 0.0 => {
+                Some(*radiance_w_m2_sr)
+            }
+            _ => None,
+        })
+        .collect();
+    if l.is_empty() {
+        return 1.0;
+    }
+    l.sort_by(f32::total_cmp);
+    let p99 = l[((l.len() - 1) as f64 * 0.99).round() as usize];
+    2.0 / f64::from(p99)
+}
+
+/// Tone maps samples to 8-bit sRGB (RGB, row-major): terrain grey `reinhard(exposure * L)`,
+/// the Sun's disc near-white, the Earth's disc blue-grey, sky black.
+pub fn tone_map(samples: &[Sample], exposure: f64) -> Vec<u8> {
+    let mut rgb = Vec::with_capacity(samples.len() * 3);
+    for s in samples {
+        let px = match s {
+            Sample::Terrain { radiance_w_m2_sr } => {
+                let x = exposure * f64::from(*radiance_w_m2_sr);
+                let v = srgb_u8(x / (1.0 + x));
+                [v, v, v]
+            }
+            Sample::Sun => [255, 250, 230],
+            Sample::Earth => [120, 140, 170],
+            Sample::Sky => [0, 0, 0],
+        };
+        rgb.extend_from_slice(&px);
+    }
+    rgb
+}
+
+/// Encodes an RGB8 image as PNG with `text` as tEXt chunks (keyword, value).
+pub fn encode_png(rgb: &[u8], width: u32, height: u32, text: &[(&str, String)]) -> Result<Vec<u8>> {
+    let mut buf = Vec::new();
+    {
+        let mut enc = png::Encoder::new(&mut buf, width, height);
+        enc.set_color(png::ColorType::Rgb);
+        enc.set_depth(png::BitDepth::Eight);
+        enc.set_source_srgb(png::SrgbRenderingIntent::Perceptual);
+        for (k, v) in text {
+            enc.add_text_chunk((*k).to_string(), v.clone())
+                .map_err(|e| RenderError::Png(e.to_string()))?;
+        }
+        let mut w = enc
+            .write_header()
+            .map_err(|e| RenderError::Png(e.to_string()))?;
+        w.write_image_data(rgb)
+            .map_err(|e| RenderError::Png(e.to_string()))?;
+    }
+    Ok(buf)
+}
+
+fn srgb_u8(linear: f64) -> u8 {
+    let c = linear.clamp(0.0, 1.0);
+    let s = if c <= 0.003_130_8 {
+        12.92 * c
+    } else {
+        1.055 * c.powf(1.0 / 2.4) - 0.055
+    };
+    (s * 255.0).round() as u8
+}
+
+fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+/// Ray / box intersection: the `t` interval inside the box, or `None`.
+fn slab(o: &Vector3<f64>, d: &Vector3<f64>, lo: [f64; 3], hi: [f64; 3]) -> Option<(f64, f64)> {
+    let (mut t0, mut t1) = (f64::NEG_INFINITY, f64::INFINITY);
+    for k in 0..3 {
+        if d[k].abs() < 1e-15 {
+            if o[k] < lo[k] || o[k] > hi[k] {
+                return None;
+            }
+        } else {
+            let a = (lo[k] - o[k]) / d[k];
+            let b = (hi[k] - o[k]) / d[k];
+            t0 = t0.max(a.min(b));
+            t1 = t1.min(a.max(b));
+        }
+    }
+    (t1 >= t0.max(0.0)).then_some((t0, t1))
+}
+
+/// Bilinear interpolation of per-cell values at model x/y. With `skip_nan`, NaN corners are
+/// left out (weights renormalised); else any NaN corner gives `None`. Outside the cell-centre
+/// hull the nearest edge cells are used (clamped).
+fn bilinear(hf: &HeightField, v: &[f32], x_m: f64, y_m: f64, skip_nan: bool) -> Option<f64> {
+    let (r, c) = hf.row_col_from_xy(x_m, y_m);
+    let (rows, cols) = (hf.rows as f64, hf.cols as f64);
+    if !(r >= -0.5 && c >= -0.5 && r <= rows - 0.5 && c <= cols - 0.5) {
+        return None;
+    }
+    let r = r.clamp(0.0, rows - 1.0);
+    let c = c.clamp(0.0, cols - 1.0);
+    let (r0, c0) = (r.floor() as usize, c.floor() as usize);
+    let (r1, c1) = ((r0 + 1).min(hf.rows - 1), (c0 + 1).min(hf.cols - 1));
+    let (fr, fc) = (r - r0 as f64, c - c0 as f64);
+    let mut acc = 0.0;
+    let mut wsum = 0.0;
+    for (rr, cc, w) in [
+        (r0, c0, (1.0 - fr) * (1.0 - fc)),
+        (r0, c1, (1.0 - fr) * fc),
+        (r1, c0, fr * (1.0 - fc)),
+        (r1, c1, fr * fc),
+    ] {
+        let z = v[rr * hf.cols + cc];
+        if z.is_nan() {
+            if !skip_nan && w > 0.0 {
+                return None;
+            }
+            continue;
+        }
+        acc += w * f64::from(z);
+        wsum += w;
+    }
+    (wsum > 0.0).then(|| acc / wsum)
+}
