@@ -47,6 +47,14 @@ where
         fill(&mut buf)?;
         buf.flush().map_err(io_err)?;
     }
+    // Temporary files are created private (0600); an output file gets the usual 0644.
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt as _;
+        tmp.as_file()
+            .set_permissions(std::fs::Permissions::from_mode(0o644))
+            .map_err(io_err)?;
+    }
     tmp.persist(path).map_err(|e| io_err(e.error))?;
     Ok(())
 }
@@ -145,5 +153,36 @@ impl Provenance {
 impl Default for Provenance {
     fn default() -> Self {
         Self::new()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn atomic_write_replaces_whole_files_and_leaves_no_temp_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("a.txt");
+        write_bytes_atomic(&path, b"first").unwrap();
+        write_bytes_atomic(&path, b"second").unwrap();
+        assert_eq!(std::fs::read(&path).unwrap(), b"second");
+        // A failing writer leaves the old file untouched and no temporary file behind.
+        let err = write_atomic(&path, |w| {
+            w.write_all(b"half").ok();
+            Err(OutputError::Io {
+                path: "x".into(),
+                source: std::io::Error::other("boom"),
+            })
+        });
+        assert!(err.is_err());
+        assert_eq!(std::fs::read(&path).unwrap(), b"second");
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt as _;
+            let mode = std::fs::metadata(&path).unwrap().permissions().mode() & 0o777;
+            assert_eq!(mode, 0o644, "outputs are world-readable like any written file");
+        }
     }
 }
