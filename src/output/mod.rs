@@ -182,7 +182,10 @@ mod tests {
         {
             use std::os::unix::fs::PermissionsExt as _;
             let mode = std::fs::metadata(&path).unwrap().permissions().mode() & 0o777;
-            assert_eq!(mode, 0o644, "outputs are world-readable like any written file");
+            assert_eq!(
+                mode, 0o644,
+                "outputs are world-readable like any written file"
+            );
         }
     }
 }
