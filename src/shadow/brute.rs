@@ -268,15 +268,14 @@ pub fn disc_directions(centre: Vector3<f64>, radius_rad: f64, n: usize) -> Vec<V
         .collect()
 }
 
-/// Brute-force visible fraction of a uniform disc: the fraction of `samples` directions over the
-/// disc ([`disc_directions`]) whose ray is unblocked. `NaN` for nodata.
-pub fn visible_fraction(
-    hf: &HeightField,
+/// Validates the inputs of a disc-sampling computation and returns the sample directions
+/// ([`disc_directions`]) ready for marching.
+fn disc_sample_dirs(
     observer_height_m: f64,
     light_in_model: [f64; 3],
     angular_radius_rad: f64,
     samples: usize,
-) -> Result<Vec<f32>> {
+) -> Result<Vec<LightDir>> {
     check_observer_height(observer_height_m)?;
     check_radius(angular_radius_rad)?;
     if samples == 0 {
@@ -286,10 +285,27 @@ pub fn visible_fraction(
         });
     }
     let centre = unit_light(light_in_model)?;
-    let dirs: Vec<LightDir> = disc_directions(centre, angular_radius_rad, samples)
+    Ok(disc_directions(centre, angular_radius_rad, samples)
         .into_iter()
         .map(LightDir::new)
-        .collect();
+        .collect())
+}
+
+/// Brute-force visible fraction of a uniform disc: the fraction of `samples` directions over the
+/// disc ([`disc_directions`]) whose ray is unblocked. `NaN` for nodata.
+pub fn visible_fraction(
+    hf: &HeightField,
+    observer_height_m: f64,
+    light_in_model: [f64; 3],
+    angular_radius_rad: f64,
+    samples: usize,
+) -> Result<Vec<f32>> {
+    let dirs = disc_sample_dirs(
+        observer_height_m,
+        light_in_model,
+        angular_radius_rad,
+        samples,
+    )?;
     let z_max = max_height_m(hf);
     Ok(map_cells(hf, observer_height_m, f32::NAN, |_, _, obs| {
         let lit = dirs
@@ -311,19 +327,12 @@ pub fn visible_fraction_at(
     cells: &[(usize, usize)],
 ) -> Result<Vec<f32>> {
     use rayon::prelude::*;
-    check_observer_height(observer_height_m)?;
-    check_radius(angular_radius_rad)?;
-    if samples == 0 {
-        return Err(ShadowError::InvalidParameter {
-            name: "samples",
-            reason: "must be at least 1",
-        });
-    }
-    let centre = unit_light(light_in_model)?;
-    let dirs: Vec<LightDir> = disc_directions(centre, angular_radius_rad, samples)
-        .into_iter()
-        .map(LightDir::new)
-        .collect();
+    let dirs = disc_sample_dirs(
+        observer_height_m,
+        light_in_model,
+        angular_radius_rad,
+        samples,
+    )?;
     let z_max = max_height_m(hf);
     Ok(cells
         .par_iter()
