@@ -657,15 +657,17 @@ pub fn load_terrain(
     }
 }
 
-/// `penumbra render`: one frame of the CPU reference renderer.
+/// `penumbra render`: one frame (`--utc`) or numbered frames (`--start/--stop/--step`) of the
+/// CPU reference renderer, from a site or an orbital camera.
 fn run_render(args: &crate::cli::RenderArgs) -> anyhow::Result<()> {
-    use crate::render::{Camera, Lights, Scene};
+    use crate::cli::{BrdfArg, CameraArg};
+    use crate::render::{Brdf, Camera, HapkeParams, Lights, Scene};
     let t0 = std::time::Instant::now();
     crate::render::check_size(args.width, args.height)?;
     if !(args.fov_deg > 0.0 && args.fov_deg < 180.0) {
         anyhow::bail!("--fov-deg {} must be in (0, 180)", args.fov_deg);
     }
-    if !(args.height_m >= 0.0 && args.height_m.is_finite()) {
+    if args.camera == CameraArg::Site && !(args.height_m >= 0.0 && args.height_m.is_finite()) {
         anyhow::bail!(
             "--height-m {} puts the camera below the terrain surface: give a finite height >= 0",
             args.height_m
@@ -676,87 +678,204 @@ fn run_render(args: &crate::cli::RenderArgs) -> anyhow::Result<()> {
     {
         anyhow::bail!("--exposure {e} must be a finite number > 0");
     }
-    let epoch = ephem::time::parse_utc(&args.utc)?;
+    let brdf = match (args.brdf, args.albedo) {
+        (BrdfArg::Hapke, None) => Brdf::Hapke(HapkeParams::MOON_643NM),
+        (BrdfArg::Hapke, Some(_)) => {
+            anyhow::bail!("--albedo applies to --brdf lambert only")
+        }
+        (BrdfArg::Lambert, a) => {
+            let albedo = a.unwrap_or(crate::render::DEFAULT_ALBEDO);
+            if !(0.0..=1.0).contains(&albedo) {
+                anyhow::bail!("--albedo {albedo} must be in [0, 1]");
+            }
+            Brdf::Lambert { albedo }
+        }
+    };
+    let epochs = epochs_from_args(&args.epochs)?;
     let abcorr = AbCorr::parse(&args.abcorr)?;
     let (stack, _) = load_terrain(&args.terrain)?;
-    let (ground_m, _) = stack.height_at_lat_lon_m_checked(args.lat_deg, args.lon_deg)?;
     let grid = crate::map::MapGrid::new(&stack)?;
     let hf = &grid.hf;
-    let pos = crate::terrain::model_space::ModelFrame::of(hf).model_from_lat_lon_height(
-        args.lat_deg,
-        args.lon_deg,
-        ground_m + args.height_m,
-    );
-    let model_from_enu = hf.model_from_moon_me()
-        * crate::frames::enu_from_moon_me(args.lat_deg, args.lon_deg).transpose();
-    let camera = Camera::from_az_el_deg(
-        pos,
-        &model_from_enu,
-        args.look_az_deg,
-        args.look_el_deg,
-        args.fov_deg,
-    )?;
-    let kernels = load_kernels(&args.kernels)?;
-    let l = crate::map::epoch_lights(&grid, &kernels, &[epoch], abcorr)?[0];
-    let lights = Lights {
-        sun: l.sun,
-        sun_radius_rad: l.sun_radius_rad,
-        earth: l.earth,
-        earth_radius_rad: l.earth_radius_rad,
+    let frame = crate::terrain::model_space::ModelFrame::of(hf);
+    let model_from_enu_at = |lat_deg: f64, lon_deg: f64| {
+        hf.model_from_moon_me() * crate::frames::enu_from_moon_me(lat_deg, lon_deg).transpose()
     };
-    let scene = Scene::new(hf, lights, crate::shadow::Engine::Combined)?;
-    if let Some(z) = scene.surface_z_m(pos.x, pos.y) {
-        // The model-space surface is a resampling of the DEM; allow its interpolation error.
-        if pos.z < z - 0.5 {
-            anyhow::bail!(
-                "the camera ({:.1} m above the DEM) is below the model-space terrain surface",
-                args.height_m
+    // The camera, the point whose local up defines the reported Sun elevation, and a label.
+    let (camera, ref_lat_lon, what) = match args.camera {
+        CameraArg::Site => {
+            let (ground_m, _) = stack.height_at_lat_lon_m_checked(args.lat_deg, args.lon_deg)?;
+            let pos = frame.model_from_lat_lon_height(
+                args.lat_deg,
+                args.lon_deg,
+                ground_m + args.height_m,
             );
-        }
-    }
-    let samples = scene.render(&camera, args.width, args.height)?;
-    let exposure = args
-        .exposure
-        .unwrap_or_else(|| crate::render::auto_exposure(&samples));
-    let rgb = crate::render::tone_map(&samples, exposure);
-    // Sun elevation at the camera site (above the plane normal to the local up).
-    let up = model_from_enu * nalgebra::Vector3::new(0.0, 0.0, 1.0);
-    let sun_el_deg = nalgebra::Vector3::from(l.sun)
-        .dot(&up)
-        .clamp(-1.0, 1.0)
-        .asin()
-        .to_degrees();
-    let text = [
-        (
-            "Software",
-            format!("penumbra {}", env!("CARGO_PKG_VERSION")),
-        ),
-        ("penumbra:epoch_utc", format_utc(epoch)),
-        ("penumbra:sun_elevation_deg", format!("{sun_el_deg:.4}")),
-        (
-            "penumbra:camera",
-            format!(
-                "lat_deg={} lon_deg={} height_m={} look_az_deg={} look_el_deg={} fov_deg={}",
+            if let Some(z) = crate::render::terrain_z_m(hf, pos.x, pos.y) {
+                // The model-space surface is a resampling of the DEM; allow its interpolation error.
+                if pos.z < z - 0.5 {
+                    anyhow::bail!(
+                        "the camera ({:.1} m above the DEM) is below the model-space terrain surface",
+                        args.height_m
+                    );
+                }
+            }
+            let camera = Camera::from_az_el_deg(
+                pos,
+                &model_from_enu_at(args.lat_deg, args.lon_deg),
+                args.look_az_deg,
+                args.look_el_deg,
+                args.fov_deg,
+            )?;
+            let what = format!(
+                "site lat_deg={} lon_deg={} height_m={} look_az_deg={} look_el_deg={} fov_deg={}",
                 args.lat_deg,
                 args.lon_deg,
                 args.height_m,
                 args.look_az_deg,
                 args.look_el_deg,
                 args.fov_deg
+            );
+            (camera, (args.lat_deg, args.lon_deg), what)
+        }
+        CameraArg::Orbit => {
+            let Some(alt_km) = args.altitude_km else {
+                anyhow::bail!("--camera orbit needs --altitude-km");
+            };
+            if !alt_km.is_finite() {
+                anyhow::bail!("--altitude-km {alt_km} must be finite");
+            }
+            let tlat = args.target_lat_deg.unwrap_or(args.lat_deg);
+            let tlon = args.target_lon_deg.unwrap_or(args.lon_deg);
+            let (target_ground_m, _) = stack
+                .height_at_lat_lon_m_checked(tlat, tlon)
+                .context("the orbit camera's target point")?;
+            let pos = frame.model_from_lat_lon_height(args.lat_deg, args.lon_deg, alt_km * 1e3);
+            let below = match crate::render::terrain_z_m(hf, pos.x, pos.y) {
+                Some(z) => pos.z < z,
+                None => {
+                    // Outside the grid: compare with the DEM there, if any, else with the
+                    // highest point of the DEM layers.
+                    match stack.height_at_lat_lon_m_checked(args.lat_deg, args.lon_deg) {
+                        Ok((g, _)) => alt_km * 1e3 < g,
+                        Err(_) => {
+                            let top_m = stack
+                                .layers
+                                .iter()
+                                .flat_map(|l| l.heights_m.iter())
+                                .filter(|h| h.is_finite())
+                                .fold(f64::NEG_INFINITY, |a, &h| a.max(f64::from(h)));
+                            alt_km * 1e3 < top_m
+                        }
+                    }
+                }
+            };
+            if below {
+                anyhow::bail!(
+                    "the camera (--altitude-km {alt_km} above the 1737.4 km sphere) is inside the terrain"
+                );
+            }
+            let target = frame.model_from_lat_lon_height(tlat, tlon, target_ground_m);
+            let north = model_from_enu_at(args.lat_deg, args.lon_deg) * nalgebra::Vector3::y();
+            let camera = Camera::look_at(pos, target, north, args.fov_deg)?;
+            let what = format!(
+                "orbit lat_deg={} lon_deg={} altitude_km={alt_km} target_lat_deg={tlat} \
+                 target_lon_deg={tlon} fov_deg={}",
+                args.lat_deg, args.lon_deg, args.fov_deg
+            );
+            (camera, (tlat, tlon), what)
+        }
+    };
+    let kernels = load_kernels(&args.kernels)?;
+    let lights_all = crate::map::epoch_lights(&grid, &kernels, &epochs, abcorr)?;
+    let up = model_from_enu_at(ref_lat_lon.0, ref_lat_lon.1) * nalgebra::Vector3::z();
+    let many = epochs.len() > 1;
+    let progress = indicatif::ProgressBar::new(epochs.len() as u64);
+    if many {
+        progress.set_style(
+            indicatif::ProgressStyle::with_template(
+                "rendering {bar:40} {pos}/{len} frames, eta {eta}",
+            )
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
+            .progress_chars("=> "),
+        );
+    } else {
+        progress.set_draw_target(indicatif::ProgressDrawTarget::hidden());
+    }
+    for (k, (epoch, l)) in epochs.iter().zip(&lights_all).enumerate() {
+        let lights = Lights {
+            sun: l.sun,
+            sun_radius_rad: l.sun_radius_rad,
+            earth: l.earth,
+            earth_radius_rad: l.earth_radius_rad,
+        };
+        let scene = Scene::new(hf, lights, crate::shadow::Engine::Combined)?.with_brdf(brdf);
+        let samples = scene.render(&camera, args.width, args.height)?;
+        let exposure = args
+            .exposure
+            .unwrap_or_else(|| crate::render::auto_exposure(&samples));
+        let mut rgb = crate::render::tone_map(&samples, exposure);
+        crate::render::add_sun_glare(&mut rgb, &scene, &camera, args.width, args.height);
+        // Sun elevation at the site (or the orbit camera's target), above the plane normal to
+        // the local up.
+        let sun_el_deg = nalgebra::Vector3::from(l.sun)
+            .dot(&up)
+            .clamp(-1.0, 1.0)
+            .asin()
+            .to_degrees();
+        let text = [
+            (
+                "Software",
+                format!("penumbra {}", env!("CARGO_PKG_VERSION")),
             ),
-        ),
-        ("penumbra:exposure", format!("{exposure:.6e}")),
-    ];
-    let png = crate::render::encode_png(&rgb, args.width, args.height, &text)?;
-    crate::output::write_bytes_atomic(&args.out, &png)?;
-    eprintln!(
-        "penumbra: rendered {} x {} px at {} (Sun elevation {sun_el_deg:.3} deg) to {} in {:.2} s",
-        args.width,
-        args.height,
-        format_utc(epoch),
-        args.out.display(),
-        t0.elapsed().as_secs_f64()
-    );
+            ("penumbra:epoch_utc", format_utc(*epoch)),
+            ("penumbra:sun_elevation_deg", format!("{sun_el_deg:.4}")),
+            ("penumbra:camera", what.clone()),
+            ("penumbra:brdf", format!("{brdf:?}")),
+            ("penumbra:exposure", format!("{exposure:.6e}")),
+        ];
+        let png = crate::render::encode_png(&rgb, args.width, args.height, &text)?;
+        let out = if many {
+            crate::render::numbered_path(&args.out, k)
+        } else {
+            args.out.clone()
+        };
+        if let Some(tif) = &args.out_radiance {
+            let tif = if many {
+                crate::render::numbered_path(tif, k)
+            } else {
+                tif.clone()
+            };
+            let bytes = crate::render::encode_f32_tiff(
+                &crate::render::radiance_image(&samples),
+                args.width,
+                args.height,
+            )?;
+            crate::output::write_bytes_atomic(&tif, &bytes)?;
+        }
+        crate::output::write_bytes_atomic(&out, &png)?;
+        progress.inc(1);
+        if !many {
+            eprintln!(
+                "penumbra: rendered {} x {} px at {} (Sun elevation {sun_el_deg:.3} deg) to {} in {:.2} s",
+                args.width,
+                args.height,
+                format_utc(*epoch),
+                out.display(),
+                t0.elapsed().as_secs_f64()
+            );
+        }
+    }
+    progress.finish_and_clear();
+    if many {
+        eprintln!(
+            "penumbra: rendered {} frames of {} x {} px to {} ... {} in {:.2} s",
+            epochs.len(),
+            args.width,
+            args.height,
+            crate::render::numbered_path(&args.out, 0).display(),
+            crate::render::numbered_path(&args.out, epochs.len() - 1).display(),
+            t0.elapsed().as_secs_f64()
+        );
+    }
     Ok(())
 }
 

@@ -3,12 +3,12 @@
 //!
 //! Everything happens in model space (see [`crate::terrain::HeightField`]): each pixel's view ray
 //! is marched through the height field in uniform steps of half a cell, the first crossing is
-//! refined by bisection, and the hit point is shaded with a Lambert BRDF (albedo
-//! [`DEFAULT_ALBEDO`]). The Sun's and the Earth's visible fractions come from a shadow engine run
+//! refined by bisection, and the hit point is shaded with a [`Brdf`] (Hapke 2012 with lunar
+//! parameters, or Lambert with albedo [`DEFAULT_ALBEDO`]; see [`brdf`]). The Sun's and the Earth's visible fractions come from a shadow engine run
 //! ONCE per frame for the whole grid ([`crate::shadow::Engine::visible_fraction`]) and are looked
 //! up bilinearly at the hit point. Earthshine assumes a full-Earth irradiance of
 //! [`FULL_EARTH_IRRADIANCE_W_M2`] scaled by the Earth's illuminated fraction `(1 + cos phase) / 2`;
-//! see docs/render.md for the assumptions and what is missing (GPU path, Hapke, golden images).
+//! see docs/render.md for the assumptions and what is missing.
 
 use nalgebra::{Matrix3, Vector3};
 use rayon::prelude::*;
@@ -16,6 +16,9 @@ use rayon::prelude::*;
 use crate::SOLAR_CONSTANT_W_M2;
 use crate::shadow::{Engine, ShadowError};
 use crate::terrain::HeightField;
+
+pub mod brdf;
+pub use brdf::{Brdf, HapkeParams};
 
 /// Lambert albedo of the regolith (a typical mean for the lunar highlands).
 pub const DEFAULT_ALBEDO: f64 = 0.12;
@@ -44,6 +47,9 @@ pub enum RenderError {
     /// PNG encoding failed.
     #[error("encoding PNG: {0}")]
     Png(String),
+    /// TIFF encoding failed.
+    #[error("encoding TIFF: {0}")]
+    Tiff(String),
 }
 
 /// Result alias for the renderer.
@@ -101,6 +107,53 @@ impl Camera {
         })
     }
 
+    /// A camera at `pos_model_m` looking at `target_model_m`, the image's up as close as possible
+    /// to `up_hint_model` (e.g. local north for an orbital camera looking down).
+    pub fn look_at(
+        pos_model_m: Vector3<f64>,
+        target_model_m: Vector3<f64>,
+        up_hint_model: Vector3<f64>,
+        fov_deg: f64,
+    ) -> Result<Self> {
+        if !(fov_deg > 0.0 && fov_deg < 180.0) {
+            return Err(RenderError::BadCamera(format!(
+                "field of view {fov_deg} deg must be in (0, 180)"
+            )));
+        }
+        if !(pos_model_m
+            .iter()
+            .chain(target_model_m.iter())
+            .all(|v| v.is_finite()))
+        {
+            return Err(RenderError::BadCamera("position is not finite".into()));
+        }
+        let d = target_model_m - pos_model_m;
+        if d.norm() < 1e-6 {
+            return Err(RenderError::BadCamera(
+                "the camera is at its target point".into(),
+            ));
+        }
+        let forward = d.normalize();
+        let mut right = forward.cross(&up_hint_model);
+        if right.norm() < 1e-9 {
+            // Looking along the hint: take any perpendicular.
+            let alt = if forward.x.abs() < 0.9 {
+                Vector3::x()
+            } else {
+                Vector3::y()
+            };
+            right = forward.cross(&alt);
+        }
+        let right = right.normalize();
+        Ok(Camera {
+            pos_model_m,
+            forward_model: forward,
+            right_model: right,
+            up_model: right.cross(&forward).normalize(),
+            fov_deg,
+        })
+    }
+
     /// Unit ray direction (model space) through the centre of pixel (`px_row`, `px_col`) of a
     /// `width` x `height` image (row 0 at the top).
     pub fn ray_dir(&self, px_row: u32, px_col: u32, width: u32, height: u32) -> Vector3<f64> {
@@ -146,8 +199,10 @@ pub enum Sample {
     },
     /// The Sun's disc.
     Sun,
-    /// The Earth's disc.
+    /// The day side of the Earth's disc.
     Earth,
+    /// The night side of the Earth's disc (the part of the disc facing away from the Sun).
+    EarthNight,
     /// Black sky.
     Sky,
 }
@@ -158,7 +213,7 @@ pub struct Scene<'a> {
     lights: Lights,
     sun_fraction: Vec<f32>,
     earth_fraction: Vec<f32>,
-    albedo: f64,
+    brdf: Brdf,
     z_min_m: f64,
     z_max_m: f64,
 }
@@ -197,10 +252,24 @@ impl<'a> Scene<'a> {
             lights,
             sun_fraction,
             earth_fraction,
-            albedo: DEFAULT_ALBEDO,
+            brdf: Brdf::Lambert {
+                albedo: DEFAULT_ALBEDO,
+            },
             z_min_m,
             z_max_m,
         }
+    }
+
+    /// The same scene shaded with `brdf` (the default of [`Scene::new`] and
+    /// [`Scene::with_fractions`] is Lambert with [`DEFAULT_ALBEDO`]).
+    pub fn with_brdf(mut self, brdf: Brdf) -> Self {
+        self.brdf = brdf;
+        self
+    }
+
+    /// The BRDF of the scene.
+    pub fn brdf(&self) -> &Brdf {
+        &self.brdf
     }
 
     /// The lights of the scene.
@@ -237,17 +306,37 @@ impl<'a> Scene<'a> {
         Some(Vector3::new(-dzdx, -dzdy, 1.0).normalize())
     }
 
-    /// Lambert radiance (W/(m² sr)) of the terrain at model x/y:
-    /// `albedo / pi * (S * f_sun * max(0, n.sun) + E_earth * f_earth * max(0, n.earth))`.
+    /// Radiance (W/(m² sr)) of the terrain at model x/y seen from straight above the facet
+    /// (viewer along the surface normal): [`Scene::radiance_toward`] with `to_viewer = n`. For
+    /// Lambert: `albedo / pi * (S * f_sun * max(0, n.sun) + E_earth * f_earth * max(0, n.earth))`.
     pub fn radiance_at(&self, x_m: f64, y_m: f64) -> Option<f64> {
+        let n = self.normal_at(x_m, y_m)?;
+        self.radiance_toward(x_m, y_m, &n)
+    }
+
+    /// Radiance (W/(m² sr)) of the terrain at model x/y towards the unit vector `to_viewer`:
+    /// `f(i_sun, e, g_sun) * S * f_sun * cos i_sun + f(i_earth, e, g_earth) * E_earth * f_earth *
+    /// cos i_earth` with `f` the scene's BRDF ([`Brdf::per_sr`]), `S` the solar constant and
+    /// `E_earth` the earthshine irradiance ([`Lights::earth_irradiance_w_m2`]).
+    pub fn radiance_toward(&self, x_m: f64, y_m: f64, to_viewer: &Vector3<f64>) -> Option<f64> {
         let n = self.normal_at(x_m, y_m)?;
         let f_sun = bilinear(self.hf, &self.sun_fraction, x_m, y_m, true).unwrap_or(0.0);
         let f_earth = bilinear(self.hf, &self.earth_fraction, x_m, y_m, true).unwrap_or(0.0);
         let sun = Vector3::from(self.lights.sun);
         let earth = Vector3::from(self.lights.earth);
-        let e = SOLAR_CONSTANT_W_M2 * f_sun * n.dot(&sun).max(0.0)
-            + self.lights.earth_irradiance_w_m2() * f_earth * n.dot(&earth).max(0.0);
-        Some(self.albedo * e / std::f64::consts::PI)
+        let cos_e = n.dot(to_viewer);
+        let mut l = 0.0;
+        for (dir, e_normal, frac) in [
+            (sun, SOLAR_CONSTANT_W_M2, f_sun),
+            (earth, self.lights.earth_irradiance_w_m2(), f_earth),
+        ] {
+            let cos_i = n.dot(&dir);
+            if cos_i > 0.0 && frac > 0.0 {
+                let f = self.brdf.per_sr(cos_i, cos_e, dir.dot(to_viewer));
+                l += f * e_normal * frac * cos_i;
+            }
+        }
+        Some(l)
     }
 
     /// The first terrain crossing of the ray `origin + t * dir` (t > 0): model point, or `None`.
@@ -305,7 +394,7 @@ impl<'a> Scene<'a> {
     /// black sky.
     pub fn sample(&self, origin: &Vector3<f64>, dir: &Vector3<f64>) -> Sample {
         if let Some(p) = self.trace(origin, dir)
-            && let Some(l) = self.radiance_at(p.x, p.y)
+            && let Some(l) = self.radiance_toward(p.x, p.y, &(-dir))
         {
             return Sample::Terrain {
                 radiance_w_m2_sr: l as f32,
@@ -315,10 +404,29 @@ impl<'a> Scene<'a> {
         if ang(self.lights.sun) <= self.lights.sun_radius_rad {
             Sample::Sun
         } else if ang(self.lights.earth) <= self.lights.earth_radius_rad {
-            Sample::Earth
+            if self.earth_point_is_day(dir) {
+                Sample::Earth
+            } else {
+                Sample::EarthNight
+            }
         } else {
             Sample::Sky
         }
+    }
+
+    /// Whether the point of the Earth's disc seen along the unit `dir` is on the day side: the
+    /// ray meets the Earth's sphere (centre along `lights.earth` at unit distance, radius
+    /// `sin(earth_radius_rad)`) at `t = d.e - sqrt((d.e)^2 - cos^2 rho)`, where the outward normal
+    /// `n = (t d - e) / sin rho` is lit when `n . sun > 0` (the Sun's direction from the Earth
+    /// equals the one from the Moon within the Moon's parallax, ~0.15 deg).
+    pub fn earth_point_is_day(&self, dir: &Vector3<f64>) -> bool {
+        let e = Vector3::from(self.lights.earth);
+        let (sin_r, cos_r) = self.lights.earth_radius_rad.sin_cos();
+        let de = dir.dot(&e);
+        let disc = (de * de - cos_r * cos_r).max(0.0);
+        let t = de - disc.sqrt();
+        let n = (t * dir - e) / sin_r;
+        n.dot(&Vector3::from(self.lights.sun)) > 0.0
     }
 
     /// Renders a `width` x `height` image (row-major, row 0 at the top), one ray per pixel centre,
@@ -333,6 +441,49 @@ impl<'a> Scene<'a> {
             })
             .collect())
     }
+}
+
+/// Bilinear terrain height (m) of `hf` at model x/y; `None` outside the grid or next to a hole.
+pub fn terrain_z_m(hf: &HeightField, x_m: f64, y_m: f64) -> Option<f64> {
+    bilinear(hf, &hf.z_m, x_m, y_m, false)
+}
+
+/// The terrain radiance of each sample, W/(m² sr); 0 for the sky, the Sun's and the Earth's
+/// discs (row-major like the samples).
+pub fn radiance_image(samples: &[Sample]) -> Vec<f32> {
+    samples
+        .iter()
+        .map(|s| match s {
+            Sample::Terrain { radiance_w_m2_sr } => *radiance_w_m2_sr,
+            _ => 0.0,
+        })
+        .collect()
+}
+
+/// Encodes a `width` x `height` f32 image (row-major, row 0 at the top) as a single-band 32-bit
+/// float TIFF.
+pub fn encode_f32_tiff(values: &[f32], width: u32, height: u32) -> Result<Vec<u8>> {
+    let mut buf = std::io::Cursor::new(Vec::new());
+    {
+        let mut enc = tiff::encoder::TiffEncoder::new(&mut buf)
+            .map_err(|e| RenderError::Tiff(e.to_string()))?;
+        enc.write_image::<tiff::encoder::colortype::Gray32Float>(width, height, values)
+            .map_err(|e| RenderError::Tiff(e.to_string()))?;
+    }
+    Ok(buf.into_inner())
+}
+
+/// The path of frame `index` of a sequence: `<dir>/<stem>_<index:04>.<ext>`.
+pub fn numbered_path(path: &std::path::Path, index: usize) -> std::path::PathBuf {
+    let stem = path
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let name = match path.extension() {
+        Some(ext) => format!("{stem}_{index:04}.{}", ext.to_string_lossy()),
+        None => format!("{stem}_{index:04}"),
+    };
+    path.with_file_name(name)
 }
 
 /// Checks an image size.
@@ -376,11 +527,69 @@ pub fn tone_map(samples: &[Sample], exposure: f64) -> Vec<u8> {
             }
             Sample::Sun => [255, 250, 230],
             Sample::Earth => [120, 140, 170],
+            Sample::EarthNight => [12, 14, 20],
             Sample::Sky => [0, 0, 0],
         };
         rgb.extend_from_slice(&px);
     }
     rgb
+}
+
+/// Cosmetic veiling glare of the Sun (PNG only, not in the radiance): when the Sun's disc is
+/// visible from the camera (fraction `v` of 9 points over the disc not hidden by the terrain),
+/// every pixel at angle `theta` from the Sun's centre gets `255 * v * 0.5 * (rho / theta)^1.5`
+/// added (warm white), with `rho` the Sun's angular radius; pixels inside the disc are left as
+/// they are. The Sun may lie outside the image: its halo still shows at the edge.
+pub fn add_sun_glare(rgb: &mut [u8], scene: &Scene, camera: &Camera, width: u32, height: u32) {
+    let l = scene.lights();
+    let sun = Vector3::from(l.sun);
+    let rho = l.sun_radius_rad;
+    // A frame perpendicular to the Sun's direction for the disc sample points.
+    let a = if sun.z.abs() < 0.9 {
+        Vector3::z()
+    } else {
+        Vector3::x()
+    };
+    let u = sun.cross(&a).normalize();
+    let w = sun.cross(&u);
+    let mut visible = 0;
+    let mut total = 0;
+    for (du, dw) in [
+        (0.0, 0.0),
+        (0.7, 0.0),
+        (-0.7, 0.0),
+        (0.0, 0.7),
+        (0.0, -0.7),
+        (0.5, 0.5),
+        (-0.5, 0.5),
+        (0.5, -0.5),
+        (-0.5, -0.5),
+    ] {
+        let d = (sun + rho * (du * u + dw * w)).normalize();
+        total += 1;
+        if scene.trace(&camera.pos_model_m, &d).is_none() {
+            visible += 1;
+        }
+    }
+    let v = f64::from(visible) / f64::from(total);
+    if v == 0.0 {
+        return;
+    }
+    for row in 0..height {
+        for col in 0..width {
+            let d = camera.ray_dir(row, col, width, height);
+            let theta = d.dot(&sun).clamp(-1.0, 1.0).acos();
+            if theta <= rho {
+                continue;
+            }
+            let g = v * 0.5 * (rho / theta).powf(1.5);
+            let i = 3 * (row * width + col) as usize;
+            for (k, tint) in [1.0, 0.97, 0.88].iter().enumerate() {
+                let add = 255.0 * g * tint;
+                rgb[i + k] = (f64::from(rgb[i + k]) + add).min(255.0).round() as u8;
+            }
+        }
+    }
 }
 
 /// Encodes an RGB8 image as PNG with `text` as tEXt chunks (keyword, value).
