@@ -659,7 +659,7 @@ pub fn load_terrain(
 
 /// `penumbra render`: one frame (`--utc`) or numbered frames (`--start/--stop/--step`) of the
 /// CPU reference renderer, from a site or an orbital camera.
-fn run_render(args: &crate::cli::RenderArgs) -> anyhow::Result<()> {
+pub fn run_render(args: &crate::cli::RenderArgs) -> anyhow::Result<()> {
     use crate::cli::{BrdfArg, CameraArg};
     use crate::render::{Brdf, Camera, HapkeParams, Lights, Scene};
     let t0 = std::time::Instant::now();

@@ -6,9 +6,8 @@
 //! refined by bisection, and the hit point is shaded with a [`Brdf`] (Hapke 2012 with lunar
 //! parameters, or Lambert with albedo [`DEFAULT_ALBEDO`]; see [`brdf`]). The Sun's and the Earth's visible fractions come from a shadow engine run
 //! ONCE per frame for the whole grid ([`crate::shadow::Engine::visible_fraction`]) and are looked
-//! up bilinearly at the hit point. Earthshine assumes a full-Earth irradiance of
-//! [`FULL_EARTH_IRRADIANCE_W_M2`] scaled by the Earth's illuminated fraction `(1 + cos phase) / 2`;
-//! see docs/render.md for the assumptions and what is missing.
+//! up bilinearly at the hit point. Earthshine models the Earth as a Lambert sphere of Bond albedo
+//! [`EARTH_BOND_ALBEDO`] ([`Lights::earth_irradiance_w_m2`]); see docs/render.md for the assumptions and what is missing.
 
 use nalgebra::{Matrix3, Vector3};
 use rayon::prelude::*;
@@ -23,9 +22,14 @@ pub use brdf::{Brdf, HapkeParams};
 /// Lambert albedo of the regolith (a typical mean for the lunar highlands).
 pub const DEFAULT_ALBEDO: f64 = 0.12;
 
-/// Irradiance of a full Earth at the Moon, W/m² (an order-of-magnitude assumption: ~0.1 W/m²;
-/// scaled by the Earth's illuminated fraction).
-pub const FULL_EARTH_IRRADIANCE_W_M2: f64 = 0.1;
+/// The Earth's Bond albedo, 0.306 (NASA Earth Fact Sheet, Williams 2024; CERES-era value ~0.29-0.31).
+pub const EARTH_BOND_ALBEDO: f64 = 0.306;
+
+/// Irradiance of a full Earth at the Moon's mean distance (384,400 km), W/m²: a Lambert sphere
+/// of Bond albedo `A` has geometric albedo `p = 2A/3`, so `E = p * S * (R_earth / d)^2` =
+/// 0.204 * 1360.8 * (6378.1 / 384400)^2 = 0.0764 W/m² ([`Lights::earth_irradiance_w_m2`] uses
+/// the actual distance and phase).
+pub const FULL_EARTH_IRRADIANCE_W_M2: f64 = 0.076_4;
 
 /// Errors of the renderer.
 #[derive(Debug, thiserror::Error)]
@@ -179,13 +183,20 @@ pub struct Lights {
 }
 
 impl Lights {
-    /// Earthshine irradiance on a surface facing the Earth, W/m²: [`FULL_EARTH_IRRADIANCE_W_M2`]
-    /// times the Earth's illuminated fraction `(1 + cos phase) / 2`, with the phase angle
-    /// (Sun-Earth-Moon) taken as `pi - elongation` (Sun-Moon-Earth angle), exact to the Moon's
-    /// parallax (~0.15 deg).
+    /// Earthshine irradiance on a surface facing the Earth, W/m²: the Earth as a Lambert sphere
+    /// of Bond albedo [`EARTH_BOND_ALBEDO`] (geometric albedo `p = 2A/3`) lit by the solar
+    /// constant `S`: `E = p * S * sin^2(rho) * Phi(alpha)`, with `sin(rho) = R_earth / d` from the
+    /// Earth's angular radius and the Lambert-sphere phase law
+    /// `Phi(alpha) = (sin alpha + (pi - alpha) cos alpha) / pi` (Russell 1916), where the phase
+    /// angle alpha (Sun-Earth-Moon) is taken as `pi - elongation` (Sun-Moon-Earth angle), exact
+    /// to the Moon's parallax (~0.15 deg).
     pub fn earth_irradiance_w_m2(&self) -> f64 {
         let cos_elong = dot(self.sun, self.earth).clamp(-1.0, 1.0);
-        FULL_EARTH_IRRADIANCE_W_M2 * (1.0 - cos_elong) / 2.0
+        let alpha = std::f64::consts::PI - cos_elong.acos();
+        let phi =
+            (alpha.sin() + (std::f64::consts::PI - alpha) * alpha.cos()) / std::f64::consts::PI;
+        let p = 2.0 / 3.0 * EARTH_BOND_ALBEDO;
+        p * SOLAR_CONSTANT_W_M2 * self.earth_radius_rad.sin().powi(2) * phi.max(0.0)
     }
 }
 

@@ -73,6 +73,112 @@ pub struct Scenario {
     pub series: Option<crate::series::SeriesConfig>,
     /// Illumination maps over the scenario's span (needs `[terrain]`); present = enabled.
     pub map: Option<MapSpec>,
+    /// Rendered views (needs `[terrain]`), written to `<output_dir>/render/`.
+    pub render: Option<RenderSpec>,
+}
+
+/// The `[render]` table of a scenario: `[[render.views]]`.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RenderSpec {
+    /// The views, each one `penumbra render` run (one frame, or numbered frames over a range).
+    #[serde(default)]
+    pub views: Vec<ViewSpec>,
+}
+
+/// One `[[render.views]]` entry: the options of `penumbra render` (same names, same defaults;
+/// the terrain, kernels and aberration correction are the scenario's).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ViewSpec {
+    /// Output PNG file name under `<output_dir>/render/` (numbered `<stem>_0000.png`, ... for a
+    /// range).
+    pub out: String,
+    /// `site` (default) or `orbit`.
+    pub camera: Option<String>,
+    /// Camera latitude, degrees.
+    pub lat_deg: f64,
+    /// Camera east longitude, degrees.
+    pub lon_deg: f64,
+    /// Site camera: height above the ground, metres.
+    pub height_m: Option<f64>,
+    /// Site camera: view azimuth, degrees from north clockwise.
+    pub look_az_deg: Option<f64>,
+    /// Site camera: view elevation, degrees.
+    pub look_el_deg: Option<f64>,
+    /// Orbit camera: altitude above the 1737.4 km sphere, kilometres.
+    pub altitude_km: Option<f64>,
+    /// Orbit camera: target latitude, degrees.
+    pub target_lat_deg: Option<f64>,
+    /// Orbit camera: target east longitude, degrees.
+    pub target_lon_deg: Option<f64>,
+    /// Horizontal field of view, degrees.
+    pub fov_deg: Option<f64>,
+    /// One epoch, UTC (or `start`/`stop`/`step`).
+    pub utc: Option<String>,
+    /// First epoch of a range, UTC.
+    pub start: Option<String>,
+    /// Last epoch of a range, UTC.
+    pub stop: Option<String>,
+    /// Step of the range (e.g. `6h`).
+    pub step: Option<String>,
+    /// Image width, pixels.
+    pub width: Option<u32>,
+    /// Image height, pixels.
+    pub height: Option<u32>,
+    /// `hapke` (default) or `lambert`.
+    pub brdf: Option<String>,
+    /// Lambert albedo (with `brdf = "lambert"`).
+    pub albedo: Option<f64>,
+    /// Fixed exposure, 1/(W m^-2 sr^-1).
+    pub exposure: Option<f64>,
+    /// Also write the float radiance TIFF under `render/` with this name.
+    pub out_radiance: Option<String>,
+}
+
+impl ViewSpec {
+    /// The `penumbra render` command line of this view (after `render`), without the terrain,
+    /// kernel and aberration options.
+    fn render_argv(&self, render_dir: &Path) -> Vec<String> {
+        let mut a: Vec<String> = Vec::new();
+        let mut opt = |k: &str, v: Option<String>| {
+            if let Some(v) = v {
+                a.push(format!("--{k}"));
+                a.push(v);
+            }
+        };
+        let f = |x: Option<f64>| x.map(|v| v.to_string());
+        opt("camera", self.camera.clone());
+        opt("lat-deg", Some(self.lat_deg.to_string()));
+        opt("lon-deg", Some(self.lon_deg.to_string()));
+        opt("height-m", f(self.height_m));
+        opt("look-az-deg", f(self.look_az_deg));
+        opt("look-el-deg", f(self.look_el_deg));
+        opt("altitude-km", f(self.altitude_km));
+        opt("target-lat-deg", f(self.target_lat_deg));
+        opt("target-lon-deg", f(self.target_lon_deg));
+        opt("fov-deg", f(self.fov_deg));
+        opt("utc", self.utc.clone());
+        opt("start", self.start.clone());
+        opt("stop", self.stop.clone());
+        opt("step", self.step.clone());
+        opt("width", self.width.map(|v| v.to_string()));
+        opt("height", self.height.map(|v| v.to_string()));
+        opt("brdf", self.brdf.clone());
+        opt("albedo", f(self.albedo));
+        opt("exposure", f(self.exposure));
+        opt(
+            "out",
+            Some(render_dir.join(&self.out).display().to_string()),
+        );
+        opt(
+            "out-radiance",
+            self.out_radiance
+                .as_ref()
+                .map(|r| render_dir.join(r).display().to_string()),
+        );
+        a
+    }
 }
 
 /// Illumination-map statistics in a scenario (written to `<output_dir>/map/`).
@@ -352,6 +458,53 @@ pub fn run_file(args: &crate::cli::RunArgs) -> anyhow::Result<()> {
         )?;
         prov.outputs
             .extend(files.into_iter().map(|f| format!("map/{f}")));
+    }
+    if let Some(spec) = &scenario.render {
+        if stack.is_none() {
+            anyhow::bail!("scenario {}: [render] needs [terrain]", path.display());
+        }
+        let terrain = match &scenario.terrain {
+            Some(TerrainSpec {
+                synthetic: Some(_), ..
+            }) => vec![out_dir.join("terrain_synthetic.tif")],
+            Some(t) => t.layers.iter().map(|p| base.join(p)).collect(),
+            None => Vec::new(),
+        };
+        let abcorr = match scenario.abcorr {
+            AbCorr::LtS => "lt+s",
+            AbCorr::None => "none",
+        };
+        let render_dir = out_dir.join("render");
+        std::fs::create_dir_all(&render_dir)
+            .with_context(|| format!("creating {}", render_dir.display()))?;
+        for view in &spec.views {
+            let mut argv = vec!["penumbra".to_string(), "render".to_string()];
+            for t in &terrain {
+                argv.push("--dem".into());
+                argv.push(t.display().to_string());
+            }
+            argv.extend(view.render_argv(&render_dir));
+            argv.extend([
+                "--kernels".to_string(),
+                kernel_dir.display().to_string(),
+                "--abcorr".to_string(),
+                abcorr.to_string(),
+            ]);
+            let cli = <crate::cli::Cli as clap::Parser>::try_parse_from(&argv).map_err(|e| {
+                anyhow::anyhow!(
+                    "scenario {}: [[render.views]] '{}': {}",
+                    path.display(),
+                    view.out,
+                    e.to_string().lines().next().unwrap_or("bad view")
+                )
+            })?;
+            let crate::cli::Command::Render(args) = cli.command else {
+                anyhow::bail!("internal: the view did not parse as `penumbra render`")
+            };
+            crate::app::run_render(&args)
+                .with_context(|| format!("[[render.views]] '{}'", view.out))?;
+            prov.outputs.push(format!("render/{}", view.out));
+        }
     }
     prov.wall_time_s = t0.elapsed().as_secs_f64();
     prov.write(&out_dir.join("run.json"))?;
