@@ -56,8 +56,7 @@ fn gpu_horizon(
     params: &HorizonParams,
 ) -> anyhow::Result<Horizon> {
     let site = (args.lat_deg, args.lon_deg, params.observer_height_m);
-    let mut hz =
-        crate::gpu::horizon::horizons_gpu(ctx, stack, None, &[site], params.az_step_deg)?;
+    let mut hz = crate::gpu::horizon::horizons_gpu(ctx, stack, None, &[site], params.az_step_deg)?;
     hz.pop().context("the GPU horizon scan returned no site")
 }
 

@@ -645,6 +645,10 @@ fn line_t(line: f32, va: f32, dv: f32) -> f32 {
 
 /// The twin of the `horizon_scan` entry point for one (site, azimuth): `(tan el, ground angle
 /// rad)`, `tan el` = [`NO_SAMPLE`] when the path met no terrain.
+#[expect(
+    clippy::neg_cmp_op_on_partial_ord,
+    reason = "line by line with the WGSL, where a NaN ground angle also ends the loop"
+)]
 pub fn scan_azimuth(terrain: &ScanTerrain, site: &SiteParams, sin_cos_az: [f32; 2]) -> [f32; 2] {
     let [sa, ca] = sin_cos_az;
     let d = [

@@ -235,7 +235,11 @@ impl<'a> HorizonEngine<'a> {
     }
 
     /// Ground height at the site from the finest layer with a surface there, and that layer.
-    pub(super) fn ground_at(&self, lat_deg: f64, lon_deg: f64) -> Result<(f64, usize), HorizonError> {
+    pub(super) fn ground_at(
+        &self,
+        lat_deg: f64,
+        lon_deg: f64,
+    ) -> Result<(f64, usize), HorizonError> {
         if let Some(found) = self.stack.height_at_lat_lon_m(lat_deg, lon_deg) {
             return Ok(found);
         }
