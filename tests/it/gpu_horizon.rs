@@ -5,7 +5,7 @@
 //! exact scan on the synthetic DEM and on the real LOLA grids (skipped with a reason when absent).
 //! No adapter: skipped with a printed reason, unless `PENUMBRA_REQUIRE_GPU=1`.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use penumbra::MOON_RADIUS_M;
 use penumbra::horizon::gpu_twin::{self, ScanParams, SiteParams};
@@ -126,7 +126,8 @@ fn twin_matches_exact_scan_on_synthetic_dem() {
     assert!(max < 2e-3 && p99 < 1e-3, "max {max} p99 {p99}");
 }
 
-fn data_path(name: &str) -> Option<PathBuf> {
+#[cfg(feature = "gpu")]
+fn data_path(name: &str) -> Option<std::path::PathBuf> {
     let p = Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("../shared/data/lola-south-pole-moondao")
         .join(name);
@@ -138,14 +139,19 @@ fn data_path(name: &str) -> Option<PathBuf> {
     }
 }
 
+#[cfg(feature = "gpu")]
 fn real_stack(names: &[&str]) -> Option<TerrainStack> {
-    let paths: Option<Vec<PathBuf>> = names.iter().map(|n| data_path(n)).collect();
+    let paths: Option<Vec<std::path::PathBuf>> = names.iter().map(|n| data_path(n)).collect();
     Some(TerrainStack::load(&paths?).unwrap())
 }
 
+#[cfg(feature = "gpu")]
 const INNER: &str = "ldem75s_crop_240m_pm184km.tif";
+#[cfg(feature = "gpu")]
 const FAR: &str = "ldem75s_far_1787m_pm457km_feathered.tif";
+#[cfg(feature = "gpu")]
 const SITE01: &str = "site01_connecting_ridge_10m.tif";
+#[cfg(feature = "gpu")]
 /// Connecting Ridge (as tests/it/horizon.rs) and a point on the Shackleton rim side.
 const REAL_SITES: [(f64, f64); 2] = [(-89.45, 222.7), (-89.68, 200.0)];
 
