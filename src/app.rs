@@ -330,6 +330,7 @@ fn run_series(args: &crate::cli::SeriesArgs) -> anyhow::Result<()> {
         horizon_method: args.horizon_method.into(),
         plots: !args.no_plots,
         write_csv: !args.no_csv,
+        backend: args.backend,
     };
     let epochs = epochs_from_args(&args.epochs)?;
     let step_s = epoch_step_s(&args.epochs)?;

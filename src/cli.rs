@@ -213,6 +213,10 @@ pub struct HorizonArgs {
     /// Output file (written atomically); stdout when absent.
     #[arg(long, value_name = "FILE")]
     pub out: Option<PathBuf>,
+    /// Compute backend: `gpu` runs the GPU horizon scan (sampled like `--method exact`;
+    /// `--method` is then ignored), `auto` the GPU when an adapter exists else the CPU.
+    #[arg(long, value_enum, default_value_t = crate::gpu::Backend::Cpu)]
+    pub backend: crate::gpu::Backend,
 }
 
 /// Horizon scan method on the command line.
@@ -282,6 +286,10 @@ pub struct SeriesArgs {
     /// Do not write the per-epoch series.csv files (statistics only).
     #[arg(long)]
     pub no_csv: bool,
+    /// Compute backend of the horizons: `gpu` (GPU horizon scan, sampled like the exact
+    /// method; `--horizon-method` is then ignored), `auto` (GPU when an adapter exists) or `cpu`.
+    #[arg(long, value_enum, default_value_t = crate::gpu::Backend::Cpu)]
+    pub backend: crate::gpu::Backend,
     /// Kernels.
     #[command(flatten)]
     pub kernels: KernelArgs,

@@ -88,6 +88,30 @@ pub struct SeriesConfig {
     pub plots: bool,
     /// Whether to write the per-epoch CSV (statistics are always written).
     pub write_csv: bool,
+    /// Where the horizons are computed: `cpu` (default), `gpu` (the GPU horizon scan, sampled
+    /// like the exact method; `horizon_method` is then ignored) or `auto` (see docs/gpu.md).
+    #[serde(with = "backend_serde")]
+    pub backend: crate::gpu::Backend,
+}
+
+mod backend_serde {
+    use crate::gpu::Backend;
+    use serde::{Deserialize as _, Deserializer, Serializer};
+
+    pub fn serialize<S: Serializer>(b: &Backend, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(b.as_str())
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Backend, D::Error> {
+        match String::deserialize(d)?.as_str() {
+            "cpu" => Ok(Backend::Cpu),
+            "gpu" => Ok(Backend::Gpu),
+            "auto" => Ok(Backend::Auto),
+            other => Err(serde::de::Error::custom(format!(
+                "unknown backend '{other}' (use cpu, gpu or auto)"
+            ))),
+        }
+    }
 }
 
 mod horizon_method_serde {
@@ -122,6 +146,7 @@ impl Default for SeriesConfig {
             horizon_method: HorizonMethod::Fast,
             plots: true,
             write_csv: true,
+            backend: crate::gpu::Backend::Cpu,
         }
     }
 }
@@ -144,12 +169,21 @@ pub struct SiteOutcome {
     pub files: Vec<String>,
 }
 
-/// Computes the horizons of every site (in order), failing with the site's name.
+/// Computes the horizons of every site (in order), failing with the site's name. With
+/// `config.backend` other than `cpu` the backend is resolved here (`auto`: one warning line and
+/// the CPU when no adapter exists) and on the GPU all sites go to the GPU horizon scan at once.
 pub fn site_horizons(
     stack: &TerrainStack,
     sites: &[SeriesSite],
     config: &SeriesConfig,
 ) -> anyhow::Result<Vec<Horizon>> {
+    if config.backend != crate::gpu::Backend::Cpu {
+        let resolved = crate::gpu::resolve_backend(config.backend)
+            .with_context(|| format!("resolving backend {}", config.backend.as_str()))?;
+        if let crate::gpu::ResolvedBackend::Gpu(ctx) = resolved {
+            return gpu_site_horizons(&ctx, stack, sites, config);
+        }
+    }
     let engine = horizon::HorizonEngine::new(stack);
     sites
         .iter()
@@ -165,6 +199,42 @@ pub fn site_horizons(
                 .with_context(|| format!("horizon of site '{}'", s.name))
         })
         .collect()
+}
+
+/// The GPU path of [`site_horizons`].
+#[cfg(feature = "gpu")]
+fn gpu_site_horizons(
+    ctx: &crate::gpu::GpuContext,
+    stack: &TerrainStack,
+    sites: &[SeriesSite],
+    config: &SeriesConfig,
+) -> anyhow::Result<Vec<Horizon>> {
+    let engine = horizon::HorizonEngine::new(stack);
+    for s in sites {
+        horizon::gpu_twin::site_setup(&engine, s.lat_deg, s.lon_deg, s.height_above_ground_m)
+            .with_context(|| format!("horizon of site '{}'", s.name))?;
+    }
+    let specs: Vec<(f64, f64, f64)> = sites
+        .iter()
+        .map(|s| (s.lat_deg, s.lon_deg, s.height_above_ground_m))
+        .collect();
+    Ok(crate::gpu::horizon::horizons_gpu(
+        ctx,
+        stack,
+        None,
+        &specs,
+        config.az_step_deg,
+    )?)
+}
+
+#[cfg(not(feature = "gpu"))]
+fn gpu_site_horizons(
+    ctx: &crate::gpu::GpuContext,
+    _stack: &TerrainStack,
+    _sites: &[SeriesSite],
+    _config: &SeriesConfig,
+) -> anyhow::Result<Vec<Horizon>> {
+    match *ctx {}
 }
 
 /// Sun and Earth fractions of one site for every epoch of the shared table, calling `row` for each

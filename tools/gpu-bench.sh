@@ -23,11 +23,14 @@ if [[ "${1:-}" == "--prepare" ]]; then
         sed -n 's/.*"executable":"\([^"]*\/gpu-[0-9a-f]*\)".*/\1/p' | tail -1)
     tests=$(cargo test --test it --no-run --message-format=json 2>/dev/null |
         sed -n 's/.*"executable":"\([^"]*\/it-[0-9a-f]*\)".*/\1/p' | tail -1)
+    hbench=$(cargo bench --bench gpu_horizon --no-run --message-format=json 2>/dev/null |
+        sed -n 's/.*"executable":"\([^"]*\/gpu_horizon-[0-9a-f]*\)".*/\1/p' | tail -1)
     cargo build --release --bin penumbra
     [[ -x "$bench" && -x "$tests" ]] || { echo "gpu-bench: build failed (bench '$bench', tests '$tests')" >&2; exit 2; }
     cp "$bench" "$out/gpu-bench"
     cp "$tests" "$out/it-tests"
     cp target/release/penumbra "$out/penumbra"
+    if [[ -x "$hbench" ]]; then cp "$hbench" "$out/gpu-horizon-bench"; strip "$out/gpu-horizon-bench"; fi
     # Debug info makes them ~300 MB; stripped they are ~25 MB (the device tool carries <= 64 MiB).
     strip "$out/gpu-bench" "$out/it-tests" "$out/penumbra"
     ls -l "$out"
@@ -44,7 +47,15 @@ export XDG_RUNTIME_DIR=${XDG_RUNTIME_DIR:-/tmp}
 echo "== penumbra gpu-info"
 "$dir/penumbra" gpu-info
 echo "== GPU-vs-CPU parity (PENUMBRA_REQUIRE_GPU=1)"
-PENUMBRA_REQUIRE_GPU=1 "$dir/it-tests" gpu::on_gpu --nocapture --test-threads=1 2>&1 |
-    grep -E "adapter|differ|max \|Δ\||equal stats|test result|FAILED|panicked" || true
+PENUMBRA_REQUIRE_GPU=1 "$dir/it-tests" gpu --nocapture --test-threads=1 2>&1 |
+    grep -E "adapter|differ|max \|Δ\||GPU vs|equal stats|test result|FAILED|panicked" || true
 echo "== criterion: shadow_march, sweep_accumulate"
 "$dir/gpu-bench" --bench 2>&1 | grep -Ev "^\s*$|Warming up|Collecting|Analyzing|Benchmarking .*: (Warming|Collecting|Analyzing)"
+if [[ -x "$dir/gpu-horizon-bench" ]]; then
+    # Per-site horizons, 100 sites: 360 azimuths, then the CLI default 1440 (0.25 deg).
+    echo "== criterion: site_horizons (100 sites x 360 az, then x 1440 az)"
+    for step in 1 0.25; do
+        PENUMBRA_BENCH_AZ_STEP_DEG=$step "$dir/gpu-horizon-bench" --bench 2>&1 |
+            grep -Ev "^\s*$|Warming up|Collecting|Analyzing|Benchmarking .*: (Warming|Collecting|Analyzing)"
+    done
+fi

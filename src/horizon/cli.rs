@@ -2,6 +2,8 @@
 
 use std::io::Write;
 
+use anyhow::Context as _;
+
 use super::{Horizon, HorizonEngine, HorizonMethod, HorizonParams};
 use crate::cli::{HorizonArgs, HorizonFormat, HorizonMethodArg};
 use crate::terrain::TerrainStack;
@@ -18,7 +20,14 @@ pub fn cli_run(args: &HorizonArgs, stack: &TerrainStack) -> anyhow::Result<()> {
         },
         ..HorizonParams::default()
     };
-    let horizon = HorizonEngine::new(stack).horizon(args.lat_deg, args.lon_deg, &params)?;
+    let horizon = match crate::gpu::resolve_backend(args.backend)
+        .with_context(|| format!("resolving --backend {}", args.backend.as_str()))?
+    {
+        crate::gpu::ResolvedBackend::Cpu => {
+            HorizonEngine::new(stack).horizon(args.lat_deg, args.lon_deg, &params)?
+        }
+        crate::gpu::ResolvedBackend::Gpu(ctx) => gpu_horizon(&ctx, stack, args, &params)?,
+    };
     let fill = |w: &mut dyn Write| -> anyhow::Result<()> {
         match args.format {
             HorizonFormat::Csv => write_csv(&horizon, w)?,
@@ -36,6 +45,29 @@ pub fn cli_run(args: &HorizonArgs, stack: &TerrainStack) -> anyhow::Result<()> {
             Ok(())
         }
     }
+}
+
+/// One site on the GPU (validated as on the CPU).
+#[cfg(feature = "gpu")]
+fn gpu_horizon(
+    ctx: &crate::gpu::GpuContext,
+    stack: &TerrainStack,
+    args: &HorizonArgs,
+    params: &HorizonParams,
+) -> anyhow::Result<Horizon> {
+    let site = (args.lat_deg, args.lon_deg, params.observer_height_m);
+    let mut hz = crate::gpu::horizon::horizons_gpu(ctx, stack, None, &[site], params.az_step_deg)?;
+    hz.pop().context("the GPU horizon scan returned no site")
+}
+
+#[cfg(not(feature = "gpu"))]
+fn gpu_horizon(
+    ctx: &crate::gpu::GpuContext,
+    _stack: &TerrainStack,
+    _args: &HorizonArgs,
+    _params: &HorizonParams,
+) -> anyhow::Result<Horizon> {
+    match *ctx {}
 }
 
 /// Writes `az_deg,horizon_el_deg,distance_m`, one row per azimuth (`NaN` distance where there is

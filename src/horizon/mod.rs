@@ -37,6 +37,7 @@
 //! outside the layers.
 
 mod cli;
+pub mod gpu_twin;
 mod scan;
 
 pub use cli::{cli_run, write_csv, write_json};
@@ -101,6 +102,12 @@ pub enum HorizonError {
     BadAzStep {
         /// Step given, degrees.
         az_step_deg: f64,
+    },
+    /// The terrain stack cannot go to the GPU horizon scan (layer count, projection, size).
+    #[error("the GPU horizon scan does not support this terrain stack: {reason}")]
+    GpuUnsupported {
+        /// What is unsupported.
+        reason: String,
     },
     /// The fast method's tolerance is negative or not finite.
     #[error("fast-method tolerance {tolerance_deg} deg must be a finite number >= 0")]

@@ -166,6 +166,11 @@ impl<'a> HorizonEngine<'a> {
         }
     }
 
+    /// The terrain stack this engine scans.
+    pub fn stack(&self) -> &'a TerrainStack {
+        self.stack
+    }
+
     /// The horizon of a site; see [`crate::horizon`] for the definitions.
     pub fn horizon(
         &self,
@@ -230,7 +235,11 @@ impl<'a> HorizonEngine<'a> {
     }
 
     /// Ground height at the site from the finest layer with a surface there, and that layer.
-    fn ground_at(&self, lat_deg: f64, lon_deg: f64) -> Result<(f64, usize), HorizonError> {
+    pub(super) fn ground_at(
+        &self,
+        lat_deg: f64,
+        lon_deg: f64,
+    ) -> Result<(f64, usize), HorizonError> {
         if let Some(found) = self.stack.height_at_lat_lon_m(lat_deg, lon_deg) {
             return Ok(found);
         }
@@ -260,7 +269,7 @@ impl<'a> HorizonEngine<'a> {
 
     /// The largest ground angle from the observer to any point of any layer (outer edges sampled
     /// densely), plus a 1% margin.
-    fn theta_max_rad(&self, up: &Vector3<f64>) -> f64 {
+    pub(super) fn theta_max_rad(&self, up: &Vector3<f64>) -> f64 {
         let mut theta_max: f64 = 0.0;
         for dem in &self.stack.layers {
             let (x0, y0, x1, y1) = dem.grid.bounds_m();

@@ -3,6 +3,7 @@
 mod ephem;
 mod fourier;
 mod gpu;
+mod gpu_horizon;
 mod horizon;
 mod illum;
 mod map;

@@ -1,0 +1,261 @@
+//! GPU runner of `shaders/horizon_scan.wgsl`: per-site terrain horizons, one invocation per
+//! (site, azimuth), over the layers of a [`TerrainStack`] in their own grids (the terrain of the
+//! CPU [`HorizonEngine`]). The data layout and the CPU twin are in
+//! [`crate::horizon::gpu_twin`].
+//!
+//! [`GpuHorizonScan::new`] builds the pipeline and uploads the concatenated heights once;
+//! [`GpuHorizonScan::scan`] runs any number of sites (dispatches of at most
+//! [`SITES_PER_DISPATCH`] sites, so that one submit stays short) and reads the `(tan el, ground
+//! angle)` pairs back once. [`horizons_gpu`] is the whole path from sites to [`Horizon`]s.
+
+use wgpu::util::DeviceExt as _;
+
+use super::GpuError;
+use super::context::{ErrorScope, GpuContext};
+use super::shadow_march::compute_pipeline;
+use crate::horizon::gpu_twin::{
+    ScanParams, ScanTerrain, SiteParams, azimuth_table, site_setup, to_horizon,
+};
+use crate::horizon::{Horizon, HorizonEngine, HorizonError};
+use crate::terrain::TerrainStack;
+
+/// Sites per dispatch (one submit each).
+pub const SITES_PER_DISPATCH: u32 = 64;
+/// Workgroup size along the azimuths. Keep in sync with shaders/horizon_scan.wgsl.
+const WORKGROUP_SIZE: u32 = 64;
+
+const HORIZON_SCAN_WGSL: &str = include_str!(concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/shaders/horizon_scan.wgsl"
+));
+
+/// Errors of the GPU horizon path: a bad site or terrain (as on the CPU), or a GPU failure.
+#[derive(Debug, thiserror::Error)]
+pub enum GpuHorizonError {
+    /// The site, the observer height, the azimuth step or the terrain stack is invalid.
+    #[error(transparent)]
+    Horizon(#[from] HorizonError),
+    /// The GPU failed (device, validation, readback, limits).
+    #[error(transparent)]
+    Gpu(#[from] GpuError),
+}
+
+/// The horizon-scan pipeline and a terrain stack resident on the GPU.
+pub struct GpuHorizonScan {
+    layout: wgpu::BindGroupLayout,
+    pipeline: wgpu::ComputePipeline,
+    params: ScanParams,
+    params_buf: wgpu::Buffer,
+    heights: wgpu::Buffer,
+}
+
+fn entry(binding: u32, ty: wgpu::BufferBindingType) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Buffer {
+            ty,
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    }
+}
+
+impl GpuHorizonScan {
+    /// Builds the pipeline and uploads `terrain`. Fails when the heights exceed the adapter's
+    /// storage binding limit.
+    pub fn new(ctx: &GpuContext, terrain: &ScanTerrain) -> Result<Self, GpuError> {
+        let bytes = terrain.heights_m.len() as u64 * 4;
+        let limits = ctx.limits();
+        if bytes
+            > limits
+                .max_storage_buffer_binding_size
+                .min(limits.max_buffer_size)
+        {
+            return Err(GpuError::InvalidInput {
+                kernel: "horizon_scan",
+                message: format!(
+                    "the terrain layers ({bytes} B) exceed the adapter's storage binding limit \
+                     ({} B)",
+                    limits.max_storage_buffer_binding_size
+                ),
+            });
+        }
+        let scope = ErrorScope::push(&ctx.device);
+        let storage = |read_only| wgpu::BufferBindingType::Storage { read_only };
+        let layout = ctx
+            .device
+            .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                label: Some("penumbra horizon_scan layout"),
+                entries: &[
+                    entry(0, wgpu::BufferBindingType::Uniform),
+                    entry(1, storage(true)),
+                    entry(2, storage(true)),
+                    entry(3, storage(true)),
+                    entry(4, storage(false)),
+                ],
+            });
+        let pipeline = compute_pipeline(
+            &ctx.device,
+            &layout,
+            "horizon_scan",
+            HORIZON_SCAN_WGSL,
+            "horizon_scan",
+        );
+        let params_buf = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("penumbra horizon_scan params"),
+            size: size_of::<ScanParams>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let heights = ctx
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("penumbra horizon_scan heights"),
+                contents: bytemuck::cast_slice(&terrain.heights_m),
+                usage: wgpu::BufferUsages::STORAGE,
+            });
+        scope.pop("building the horizon_scan pipeline")?;
+        Ok(GpuHorizonScan {
+            layout,
+            pipeline,
+            params: terrain.params,
+            params_buf,
+            heights,
+        })
+    }
+
+    /// `(tan el, ground angle rad)` for every (site, azimuth), `site * n_az + az` (as the twin
+    /// [`crate::horizon::gpu_twin::scan_twin`]).
+    pub fn scan(
+        &self,
+        ctx: &GpuContext,
+        sites: &[SiteParams],
+        azimuths: &[[f32; 2]],
+    ) -> Result<Vec<[f32; 2]>, GpuError> {
+        let n_out = sites.len() as u64 * azimuths.len() as u64;
+        if n_out == 0 {
+            return Ok(Vec::new());
+        }
+        let groups_x = (azimuths.len() as u32).div_ceil(WORKGROUP_SIZE);
+        if groups_x > ctx.limits().max_compute_workgroups_per_dimension {
+            return Err(GpuError::InvalidInput {
+                kernel: "horizon_scan",
+                message: format!("{} azimuths exceed one dispatch row", azimuths.len()),
+            });
+        }
+        let scope = ErrorScope::push(&ctx.device);
+        let site_buf = ctx
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("penumbra horizon_scan sites"),
+                contents: bytemuck::cast_slice(sites),
+                usage: wgpu::BufferUsages::STORAGE,
+            });
+        let az_buf = ctx
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("penumbra horizon_scan azimuths"),
+                contents: bytemuck::cast_slice(azimuths),
+                usage: wgpu::BufferUsages::STORAGE,
+            });
+        let out = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("penumbra horizon_scan out"),
+            size: n_out * 8,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let bind_group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("penumbra horizon_scan bind group"),
+            layout: &self.layout,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: self.params_buf.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: self.heights.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: site_buf.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 3,
+                    resource: az_buf.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 4,
+                    resource: out.as_entire_binding(),
+                },
+            ],
+        });
+        let n_sites = sites.len() as u32;
+        let mut site0 = 0;
+        while site0 < n_sites {
+            let chunk = SITES_PER_DISPATCH.min(n_sites - site0);
+            let params = ScanParams {
+                n_sites: chunk,
+                n_az: azimuths.len() as u32,
+                site0,
+                ..self.params
+            };
+            ctx.queue
+                .write_buffer(&self.params_buf, 0, bytemuck::bytes_of(&params));
+            let mut encoder = ctx
+                .device
+                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                    label: Some("horizon_scan"),
+                });
+            {
+                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("horizon_scan"),
+                    timestamp_writes: None,
+                });
+                pass.set_pipeline(&self.pipeline);
+                pass.set_bind_group(0, &bind_group, &[]);
+                pass.dispatch_workgroups(groups_x, chunk, 1);
+            }
+            ctx.queue.submit([encoder.finish()]);
+            site0 += chunk;
+        }
+        let bytes = ctx.read_back(&out, n_out * 8, "the horizons")?;
+        scope.pop("running horizon_scan")?;
+        Ok(bytemuck::cast_slice(&bytes).to_vec())
+    }
+}
+
+/// Horizons of `sites` (`(lat_deg, lon_deg, observer_height_m)`) on the GPU: sites validated and
+/// set up on the CPU exactly as [`HorizonEngine::horizon`] does, the scan on the GPU, `atan` on the
+/// CPU. Pass a prepared `scan` (terrain uploaded once) to reuse it across calls.
+pub fn horizons_gpu(
+    ctx: &GpuContext,
+    stack: &TerrainStack,
+    scan: Option<&GpuHorizonScan>,
+    sites: &[(f64, f64, f64)],
+    az_step_deg: f64,
+) -> Result<Vec<Horizon>, GpuHorizonError> {
+    let engine = HorizonEngine::new(stack);
+    let azimuths = azimuth_table(az_step_deg)?;
+    let setups = sites
+        .iter()
+        .map(|&(lat, lon, h)| site_setup(&engine, lat, lon, h))
+        .collect::<Result<Vec<_>, _>>()?;
+    let owned;
+    let scan = match scan {
+        Some(s) => s,
+        None => {
+            owned = GpuHorizonScan::new(ctx, &ScanTerrain::new(stack)?)?;
+            &owned
+        }
+    };
+    let recs: Vec<SiteParams> = setups.iter().map(|s| s.site).collect();
+    let out = scan.scan(ctx, &recs, &azimuths)?;
+    Ok(setups
+        .iter()
+        .zip(out.chunks(azimuths.len()))
+        .map(|(s, o)| to_horizon(s, az_step_deg, o))
+        .collect())
+}
