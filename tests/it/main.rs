@@ -3,6 +3,7 @@
 mod ephem;
 mod fourier;
 mod gpu;
+mod gpu_dp;
 mod horizon;
 mod illum;
 mod map;
