@@ -73,8 +73,11 @@ fn dp_height(row: i32, col: i32) -> f32 {
     return dp_heights[u32(row) * dp_grid.cols + u32(col)];
 }
 
-// Bilinear surface height at (v, u) (cell units, clamped into the lattice).
-fn dp_surface(v_in: f32, u_in: f32) -> f32 {
+// Surface height where the ray crosses a lattice line (as brute.rs line_height): on a row line
+// (axis 1: v = k) linear along u between (k, c0) and (k, c0 + 1); on a column line (axis 2)
+// linear along v; off the lines (axis 0: only a forced step) the bilinear interpolant. Holes
+// (-1e30) with a non-zero weight give a far-below value (no terrain).
+fn dp_surface(axis: u32, v_in: f32, u_in: f32) -> f32 {
     let rows = i32(dp_grid.rows);
     let cols = i32(dp_grid.cols);
     let v = clamp(v_in, 0.0, f32(rows - 1));
@@ -83,6 +86,13 @@ fn dp_surface(v_in: f32, u_in: f32) -> f32 {
     let c0 = min(i32(floor(u)), cols - 2);
     let fr = v - f32(r0);
     let fc = u - f32(c0);
+    if axis == 1u {
+        let k = i32(round(v));
+        return dp_height(k, c0) * (1.0 - fc) + dp_height(k, c0 + 1) * fc;
+    } else if axis == 2u {
+        let k = i32(round(u));
+        return dp_height(r0, k) * (1.0 - fr) + dp_height(r0 + 1, k) * fr;
+    }
     let top = dp_height(r0, c0) * (1.0 - fc) + dp_height(r0, c0 + 1) * fc;
     let bottom = dp_height(r0 + 1, c0) * (1.0 - fc) + dp_height(r0 + 1, c0 + 1) * fc;
     return top * (1.0 - fr) + bottom * fr;
@@ -137,8 +147,12 @@ fn dp_cost(obs: DpObserver, light: vec3<f32>, cap: f32) -> f32 {
     let dv = -light.y / hor;
     let tan_el = light.z / hor;
     let px = dp_grid.px_m;
-    let s_exit = max(min(dp_axis_exit(obs.v0, dv, f32(dp_grid.rows - 1u)),
-                         dp_axis_exit(obs.u0, du, f32(dp_grid.cols - 1u))), 0.0);
+    let exit_v = dp_axis_exit(obs.v0, dv, f32(dp_grid.rows - 1u));
+    let exit_u = dp_axis_exit(obs.u0, du, f32(dp_grid.cols - 1u));
+    let s_exit = max(min(exit_v, exit_u), 0.0);
+    // Which lattice line the ray is on at s (and at s_out): 0 none, 1 a row line, 2 a column line.
+    let exit_axis = select(2u, 1u, exit_v <= exit_u);
+    var s_axis = 0u;
     let n_levels = i32(arrayLength(&dp_levels));
     let top = n_levels - 1;
     let max_iter = 8 * i32(dp_grid.rows + dp_grid.cols) + 32 * n_levels;
@@ -154,8 +168,18 @@ fn dp_cost(obs: DpObserver, light: vec3<f32>, cap: f32) -> f32 {
         let sm = s + 1.0e-3 + 1.0e-6 * s;
         let i = clamp(dp_texel_index(obs.v0 + sm * dv, size), 0, i32(lv.x) - 1);
         let j = clamp(dp_texel_index(obs.u0 + sm * du, size), 0, i32(lv.y) - 1);
-        let s_out = max(min(min(dp_texel_exit(i, size, obs.v0, dv),
-                                dp_texel_exit(j, size, obs.u0, du)), s_exit), sm);
+        let t_v = dp_texel_exit(i, size, obs.v0, dv);
+        let t_u = dp_texel_exit(j, size, obs.u0, du);
+        var s_out = min(t_v, t_u);
+        var out_axis = select(2u, 1u, t_v <= t_u);
+        if s_exit <= s_out {
+            s_out = s_exit;
+            out_axis = exit_axis;
+        }
+        if sm > s_out {
+            s_out = sm;
+            out_axis = 0u;
+        }
         let m_z = dp_mip[lv.z + u32(i) * lv.y + u32(j)];
         let dz = m_z - obs.z0;
         var lb = tan_el;
@@ -166,15 +190,19 @@ fn dp_cost(obs: DpObserver, light: vec3<f32>, cap: f32) -> f32 {
         }
         if lb >= min(best, cap) {
             s = s_out;
+            s_axis = out_axis;
             m = min(m + 1, top);
         } else if m == 0 {
-            if s > 1.0e-4 {
-                let z = dp_surface(obs.v0 + s * dv, obs.u0 + s * du);
+            if s_axis != 0u {
+                let z = dp_surface(s_axis, obs.v0 + s * dv, obs.u0 + s * du);
                 best = min(best, (obs.z0 - z) / (s * px) + tan_el);
             }
-            let z = dp_surface(obs.v0 + s_out * dv, obs.u0 + s_out * du);
-            best = min(best, (obs.z0 - z) / (s_out * px) + tan_el);
+            if out_axis != 0u {
+                let z = dp_surface(out_axis, obs.v0 + s_out * dv, obs.u0 + s_out * du);
+                best = min(best, (obs.z0 - z) / (s_out * px) + tan_el);
+            }
             s = s_out;
+            s_axis = out_axis;
             m = min(m + 1, top);
         } else {
             m = m - 1;

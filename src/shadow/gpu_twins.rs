@@ -493,8 +493,9 @@ pub struct DpObserver {
     pub up: [f32; 3],
 }
 
-/// Twin of `dp_surface`: bilinear surface height at (v, u) in cell units.
-fn dp_surface(grid: &MarchGrid, v_in: f32, u_in: f32) -> f32 {
+/// Twin of `dp_surface`: the surface where the ray crosses a lattice line (`axis` 1: a row line,
+/// linear along the columns; 2: a column line; 0: off the lines, bilinear).
+fn dp_surface(grid: &MarchGrid, axis: u32, v_in: f32, u_in: f32) -> f32 {
     let rows = grid.rows as i32;
     let cols = grid.cols as i32;
     let v = v_in.clamp(0.0, (rows - 1) as f32);
@@ -503,6 +504,13 @@ fn dp_surface(grid: &MarchGrid, v_in: f32, u_in: f32) -> f32 {
     let c0 = (u.floor() as i32).min(cols - 2);
     let fr = v - r0 as f32;
     let fc = u - c0 as f32;
+    if axis == 1 {
+        let k = v.round() as i32;
+        return grid.height_at(k, c0) * (1.0 - fc) + grid.height_at(k, c0 + 1) * fc;
+    } else if axis == 2 {
+        let k = u.round() as i32;
+        return grid.height_at(r0, k) * (1.0 - fr) + grid.height_at(r0 + 1, k) * fr;
+    }
     let top = grid.height_at(r0, c0) * (1.0 - fc) + grid.height_at(r0, c0 + 1) * fc;
     let bottom = grid.height_at(r0 + 1, c0) * (1.0 - fc) + grid.height_at(r0 + 1, c0 + 1) * fc;
     top * (1.0 - fr) + bottom * fr
@@ -555,9 +563,11 @@ pub fn dp_cost(grid: &MarchGrid, mip: &DpMip, obs: &DpObserver, light: [f32; 3],
     let dv = -light[1] / hor;
     let tan_el = light[2] / hor;
     let px = grid.px_m;
-    let s_exit = dp_axis_exit(obs.v0, dv, (grid.rows - 1) as f32)
-        .min(dp_axis_exit(obs.u0, du, (grid.cols - 1) as f32))
-        .max(0.0);
+    let exit_v = dp_axis_exit(obs.v0, dv, (grid.rows - 1) as f32);
+    let exit_u = dp_axis_exit(obs.u0, du, (grid.cols - 1) as f32);
+    let s_exit = exit_v.min(exit_u).max(0.0);
+    let exit_axis = if exit_v <= exit_u { 1 } else { 2 };
+    let mut s_axis = 0_u32;
     let n_levels = mip.levels.len() as i32;
     let top = n_levels - 1;
     let max_iter = 8 * (grid.rows + grid.cols) as i32 + 32 * n_levels;
@@ -573,10 +583,18 @@ pub fn dp_cost(grid: &MarchGrid, mip: &DpMip, obs: &DpObserver, light: [f32; 3],
         let sm = s + 1.0e-3 + 1.0e-6 * s;
         let i = (((obs.v0 + sm * dv) / size).floor() as i32).clamp(0, lv[0] as i32 - 1);
         let j = (((obs.u0 + sm * du) / size).floor() as i32).clamp(0, lv[1] as i32 - 1);
-        let s_out = dp_texel_exit(i, size, obs.v0, dv)
-            .min(dp_texel_exit(j, size, obs.u0, du))
-            .min(s_exit)
-            .max(sm);
+        let t_v = dp_texel_exit(i, size, obs.v0, dv);
+        let t_u = dp_texel_exit(j, size, obs.u0, du);
+        let mut s_out = t_v.min(t_u);
+        let mut out_axis = if t_v <= t_u { 1 } else { 2 };
+        if s_exit <= s_out {
+            s_out = s_exit;
+            out_axis = exit_axis;
+        }
+        if sm > s_out {
+            s_out = sm;
+            out_axis = 0;
+        }
         let m_z = mip.texels[(lv[2] + i as u32 * lv[1] + j as u32) as usize];
         let dz = m_z - obs.z0;
         let lb = if dz > 0.0 {
@@ -590,15 +608,19 @@ pub fn dp_cost(grid: &MarchGrid, mip: &DpMip, obs: &DpObserver, light: [f32; 3],
         };
         if lb >= best.min(cap) {
             s = s_out;
+            s_axis = out_axis;
             m = (m + 1).min(top);
         } else if m == 0 {
-            if s > 1.0e-4 {
-                let z = dp_surface(grid, obs.v0 + s * dv, obs.u0 + s * du);
+            if s_axis != 0 {
+                let z = dp_surface(grid, s_axis, obs.v0 + s * dv, obs.u0 + s * du);
                 best = best.min((obs.z0 - z) / (s * px) + tan_el);
             }
-            let z = dp_surface(grid, obs.v0 + s_out * dv, obs.u0 + s_out * du);
-            best = best.min((obs.z0 - z) / (s_out * px) + tan_el);
+            if out_axis != 0 {
+                let z = dp_surface(grid, out_axis, obs.v0 + s_out * dv, obs.u0 + s_out * du);
+                best = best.min((obs.z0 - z) / (s_out * px) + tan_el);
+            }
             s = s_out;
+            s_axis = out_axis;
             m = (m + 1).min(top);
         } else {
             m -= 1;

@@ -148,8 +148,8 @@ fn dp_twin_matches_reference_engines() {
 }
 
 /// Bounds measured on the hills fixtures (see docs/VALIDATION.md).
-const TWIN_VS_DP_MAX: f64 = 0.02;
-const TWIN_VS_DP_MEAN: f64 = 1e-4;
+const TWIN_VS_DP_MAX: f64 = 1e-2;
+const TWIN_VS_DP_MEAN: f64 = 5e-6;
 const TWIN_VS_BRUTE_HARD_FRACTION: f64 = 1e-3;
 
 #[cfg(feature = "gpu")]
@@ -226,8 +226,8 @@ mod on_gpu {
     }
 
     /// Bounds measured on lavapipe (docs/VALIDATION.md).
-    const GPU_VS_TWIN_MAX: f64 = 1e-3;
-    const GPU_VS_TWIN_MEAN: f64 = 1e-6;
+    const GPU_VS_TWIN_MAX: f64 = 2e-4;
+    const GPU_VS_TWIN_MEAN: f64 = 2e-6;
 
     /// Row bands of 1 and 13 rows give the same map as one band.
     #[test]
@@ -305,4 +305,135 @@ fn sweep_lights(epochs: usize) -> Vec<[f32; 4]> {
             ]
         })
         .collect()
+}
+
+/// `penumbra map` over 2027-02-01..05 step 12h (9 epochs) on the synthetic DEM with
+/// `--engine dp --backend B`, in `cwd/B`.
+#[cfg(feature = "gpu")]
+fn map_range_dp(cwd: &std::path::Path, backend: &str) -> std::process::Output {
+    let k = crate::util::kernels_dir();
+    std::process::Command::new(env!("CARGO_BIN_EXE_penumbra"))
+        .args([
+            "map",
+            "--synthetic",
+            "--start",
+            "2027-02-01",
+            "--stop",
+            "2027-02-05",
+            "--step",
+            "12h",
+            "--engine",
+            "dp",
+            "--out-dir",
+            backend,
+            "--kernels",
+            k.to_str().unwrap(),
+            "--backend",
+            backend,
+        ])
+        .current_dir(cwd)
+        .env("XDG_RUNTIME_DIR", "/tmp")
+        .env_remove("PENUMBRA_KERNELS")
+        .output()
+        .unwrap()
+}
+
+/// The soft GPU sweep against the CPU `map::sweep` (engine DP, f64) with the same definitions:
+/// every statistic map of `--backend gpu` vs `--backend cpu` on the synthetic DEM, same nodata,
+/// max / mean |Δ| per map within the bounds measured on lavapipe (docs/VALIDATION.md).
+#[cfg(feature = "gpu")]
+#[test]
+fn map_sweep_gpu_soft_matches_cpu_sweep() {
+    if let Err(e) = penumbra::gpu::GpuContext::new() {
+        let required = std::env::var("PENUMBRA_REQUIRE_GPU").is_ok_and(|v| v == "1");
+        assert!(!required, "PENUMBRA_REQUIRE_GPU=1 but no GPU context: {e}");
+        eprintln!("skipping GPU test: {e}");
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    for backend in ["cpu", "gpu"] {
+        let out = map_range_dp(dir.path(), backend);
+        assert!(
+            out.status.success(),
+            "--backend {backend}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+    let read = |b: &str, name: &str| {
+        penumbra::terrain::read_geotiff(&dir.path().join(b).join(format!("{name}.tif")))
+            .unwrap()
+            .heights_m
+    };
+    let mut failures = 0;
+    // (map, max |Δ| bound, share of valid pixels allowed to differ at all). Counts are in % of
+    // 9 epochs (one epoch = 11.1 %) or hours (one epoch = 12 h); a grazing f32 tie flips one epoch.
+    for (name, max_bound, differ_bound) in [
+        ("sun_illumination_pct", 1.0, 1.0),
+        ("longest_dark_h", 12.0, 1e-3),
+        ("psr_mask", 1.0, 1e-3),
+        ("earth_visible_pct", 100.0 / 9.0, 1e-3),
+        ("sun_and_earth_pct", 100.0 / 9.0, 1e-3),
+    ] {
+        let (cpu, gpu) = (read("cpu", name), read("gpu", name));
+        assert_eq!(cpu.len(), gpu.len());
+        let nodata = |v: f32| v.is_nan() || (name == "psr_mask" && v == 255.0);
+        let (mut valid, mut differ, mut max, mut sum) = (0usize, 0usize, 0.0_f64, 0.0_f64);
+        let mut worst = (0usize, 0.0_f32, 0.0_f32);
+        for (k, (&c, &g)) in cpu.iter().zip(&gpu).enumerate() {
+            assert_eq!(nodata(c), nodata(g), "{name}: nodata masks differ");
+            if nodata(c) {
+                continue;
+            }
+            valid += 1;
+            let d = f64::from((c - g).abs());
+            differ += usize::from(d > 1e-3);
+            if d > max {
+                worst = (k, c, g);
+            }
+            max = max.max(d);
+            sum += d;
+        }
+        let mean = sum / valid as f64;
+        eprintln!(
+            "map sweep gpu vs cpu (dp) {name}: {valid} valid, max |Δ| {max:.3e}, mean |Δ| {mean:.3e}, {differ} pixels differ > 1e-3, worst (index, cpu, gpu) {worst:?}"
+        );
+        failures += usize::from(max > max_bound || differ as f64 > differ_bound * valid as f64);
+        assert!(valid > 10_000);
+    }
+    assert_eq!(failures, 0, "maps out of bounds (see stderr)");
+}
+
+/// Next to large holes (a nodata margin, as at the edge of a resampled DEM) the twin's radius-0
+/// mask equals the brute-force reference (lattice-line crossings, `brute::hard_mask`); the
+/// count of cells where the CPU DP engine differs from brute force is printed for the docs.
+#[test]
+fn dp_twin_hard_matches_brute_next_to_holes() {
+    let n = 96;
+    let mut hf = hills(n);
+    for row in 0..n {
+        for col in 0..(5 + row % 7) {
+            hf.z_m[row * n + col] = f32::NAN;
+        }
+    }
+    let grid = MarchGrid::from_height_field(&hf, OBSERVER_M).unwrap();
+    let mip = DpMip::build(&grid);
+    for (el_deg, az_deg) in [(0.5, 265.0), (1.5, 290.0), (1.0, 240.0)] {
+        let dir = sun_dir(az_deg, el_deg);
+        let brute = Engine::Brute.hard_mask(&hf, OBSERVER_M, dir.into()).unwrap();
+        let cpu_dp = Engine::Dp.hard_mask(&hf, OBSERVER_M, dir.into()).unwrap();
+        let hard = gpu_twins::disc_light_to_f32(&dir, 0.0);
+        let twin = gpu_twins::dp_visible(&grid, &mip, &[hard], 0, RowBand::whole(&grid));
+        let twin_vs_brute = brute
+            .iter()
+            .zip(&twin)
+            .filter(|(b, t)| **b != 255 && f32::from(**b) != **t)
+            .count();
+        let dp_vs_brute = brute.iter().zip(&cpu_dp).filter(|(b, d)| b != d).count();
+        let dark = brute.iter().filter(|&&b| b == 0).count();
+        eprintln!(
+            "holes el {el_deg}° az {az_deg}°: twin vs brute {twin_vs_brute}, cpu dp vs brute {dp_vs_brute}, brute dark {dark}"
+        );
+        assert!(dark > 100);
+        assert!(twin_vs_brute as f64 <= TWIN_VS_BRUTE_HARD_FRACTION * (n * n) as f64);
+    }
 }
