@@ -365,14 +365,17 @@ fn map_sweep_gpu_soft_matches_cpu_sweep() {
             .heights_m
     };
     let mut failures = 0;
-    // (map, max |Δ| bound, share of valid pixels allowed to differ at all). Counts are in % of
-    // 9 epochs (one epoch = 11.1 %) or hours (one epoch = 12 h); a grazing f32 tie flips one epoch.
-    for (name, max_bound, differ_bound) in [
-        ("sun_illumination_pct", 1.0, 1.0),
-        ("longest_dark_h", 12.0, 1e-3),
-        ("psr_mask", 1.0, 1e-3),
-        ("earth_visible_pct", 100.0 / 9.0, 1e-3),
-        ("sun_and_earth_pct", 100.0 / 9.0, 1e-3),
+    // (map, a difference that counts (in the map's unit), mean |Δ| bound). One epoch is 11.1 %
+    // or 12 h. Measured on lavapipe: sun_illumination_pct mean |Δ| 3.3e-3 %, longest_dark_h
+    // 3.8e-3 h, psr_mask 5e-5, earth and sun-and-earth 0; the few large differences (≤ 0.1 % of
+    // pixels) are cells where the CPU DP engine misses an occluder that brute force and the GPU
+    // kernel both see (test dp_twin_vs_cpu_dp_on_synthetic_dem, docs/VALIDATION.md).
+    for (name, counts_m, mean_bound) in [
+        ("sun_illumination_pct", 1.0, 0.02),
+        ("longest_dark_h", 0.5, 0.02),
+        ("psr_mask", 0.5, 3e-4),
+        ("earth_visible_pct", 1.0, 0.02),
+        ("sun_and_earth_pct", 1.0, 0.02),
     ] {
         let (cpu, gpu) = (read("cpu", name), read("gpu", name));
         assert_eq!(cpu.len(), gpu.len());
@@ -386,7 +389,7 @@ fn map_sweep_gpu_soft_matches_cpu_sweep() {
             }
             valid += 1;
             let d = f64::from((c - g).abs());
-            differ += usize::from(d > 1e-3);
+            differ += usize::from(d > counts_m);
             if d > max {
                 worst = (k, c, g);
             }
@@ -395,9 +398,9 @@ fn map_sweep_gpu_soft_matches_cpu_sweep() {
         }
         let mean = sum / valid as f64;
         eprintln!(
-            "map sweep gpu vs cpu (dp) {name}: {valid} valid, max |Δ| {max:.3e}, mean |Δ| {mean:.3e}, {differ} pixels differ > 1e-3, worst (index, cpu, gpu) {worst:?}"
+            "map sweep gpu vs cpu (dp) {name}: {valid} valid, max |Δ| {max:.3e}, mean |Δ| {mean:.3e}, {differ} pixels differ > {counts_m}, worst (index, cpu, gpu) {worst:?}"
         );
-        failures += usize::from(max > max_bound || differ as f64 > differ_bound * valid as f64);
+        failures += usize::from(mean > mean_bound || differ as f64 > 1e-3 * valid as f64);
         assert!(valid > 10_000);
     }
     assert_eq!(failures, 0, "maps out of bounds (see stderr)");
@@ -436,4 +439,55 @@ fn dp_twin_hard_matches_brute_next_to_holes() {
         assert!(dark > 100);
         assert!(twin_vs_brute as f64 <= TWIN_VS_BRUTE_HARD_FRACTION * (n * n) as f64);
     }
+}
+
+/// The twin vs the CPU DP engine on the built-in synthetic DEM's model grid (404², 100 m) for a
+/// 1° Sun from three western azimuths: wherever they differ by > 0.01, brute force (64 disc
+/// samples, the oracle) must not be closer to the CPU DP than to the twin. Measured: 9, 0, 33
+/// differing cells of 163,216; in every one the twin matches brute force (e.g. cpu 1, twin 0,
+/// brute 0) — the CPU DP engine misses occluders there.
+#[test]
+#[ignore = "slow in debug builds (brute-force soft map of 163k cells, ~40 s)"]
+fn dp_twin_vs_cpu_dp_on_synthetic_dem() {
+    let (stack, _) =
+        penumbra::app::synthetic_stack(&penumbra::terrain::synth::SynthParams::default()).unwrap();
+    let grid = penumbra::map::MapGrid::new(&stack).unwrap();
+    let hf = &grid.hf;
+    let march = MarchGrid::from_height_field(hf, OBSERVER_M).unwrap();
+    let mip = DpMip::build(&march);
+    let mut closer_to_cpu = 0;
+    for az in [250.0, 270.0, 290.0] {
+        let dir = sun_dir(az, 1.0);
+        let reference = dp::visible_fraction(
+            hf,
+            OBSERVER_M,
+            dir.into(),
+            SUN_ANGULAR_RADIUS_RAD,
+            &dp::DpConfig::default(),
+        )
+        .unwrap();
+        let light = gpu_twins::disc_light_to_f32(&dir, SUN_ANGULAR_RADIUS_RAD);
+        let twin = gpu_twins::dp_visible(&march, &mip, &[light], 0, RowBand::whole(&march));
+        let brute = Engine::Brute
+            .visible_fraction(hf, OBSERVER_M, dir.into(), SUN_ANGULAR_RADIUS_RAD)
+            .unwrap();
+        let mut bad = 0;
+        for (k, (a, b)) in reference.iter().zip(&twin).enumerate() {
+            if !a.is_nan() && (a - b).abs() > 0.01 {
+                // Brute force samples the disc with 64 rays: ±1/64 plus the prism model.
+                closer_to_cpu += usize::from((b - brute[k]).abs() > (a - brute[k]).abs() + 0.02);
+                if bad < 5 {
+                    eprintln!(
+                        "az {az}: cell ({}, {}) cpu {a} twin {b} brute(64 samples) {}",
+                        k / hf.cols,
+                        k % hf.cols,
+                        brute[k]
+                    );
+                }
+                bad += 1;
+            }
+        }
+        eprintln!("az {az}: {bad} cells differ > 0.01 of {}", reference.len());
+    }
+    assert_eq!(closer_to_cpu, 0, "cells where the CPU DP is closer to brute force than the twin");
 }
