@@ -44,7 +44,7 @@ export XDG_RUNTIME_DIR=${XDG_RUNTIME_DIR:-/tmp}
 echo "== penumbra gpu-info"
 "$dir/penumbra" gpu-info
 echo "== GPU-vs-CPU parity (PENUMBRA_REQUIRE_GPU=1)"
-PENUMBRA_REQUIRE_GPU=1 "$dir/it-tests" gpu::on_gpu --nocapture --test-threads=1 2>&1 |
-    grep -E "adapter|differ|max \|Δ\||equal stats|test result|FAILED|panicked" || true
-echo "== criterion: shadow_march, sweep_accumulate"
+PENUMBRA_REQUIRE_GPU=1 "$dir/it-tests" gpu::on_gpu gpu_dp:: --nocapture --test-threads=1 2>&1 |
+    grep -E "adapter|differ|gpu vs|max \|Δ\||equal stats|test result|FAILED|panicked" || true
+echo "== criterion: shadow_march, sweep_accumulate, dp_soft"
 "$dir/gpu-bench" --bench 2>&1 | grep -Ev "^\s*$|Warming up|Collecting|Analyzing|Benchmarking .*: (Warming|Collecting|Analyzing)"

@@ -444,7 +444,10 @@ impl DpMip {
         let mut texels: Vec<f32> = (0..r0 * c0)
             .map(|k| {
                 let (i, j) = (k / c0, k % c0);
-                h(i, j).max(h(i + 1, j)).max(h(i, j + 1)).max(h(i + 1, j + 1))
+                h(i, j)
+                    .max(h(i + 1, j))
+                    .max(h(i, j + 1))
+                    .max(h(i + 1, j + 1))
             })
             .collect();
         let mut levels = vec![[r0 as u32, c0 as u32, 0, 0]];

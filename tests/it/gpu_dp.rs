@@ -130,7 +130,9 @@ fn dp_twin_matches_reference_engines() {
         assert!(partial > 50, "fixture needs penumbra cells");
         assert!(max <= TWIN_VS_DP_MAX && mean <= TWIN_VS_DP_MEAN);
 
-        let brute = Engine::Brute.hard_mask(&hf, OBSERVER_M, dir.into()).unwrap();
+        let brute = Engine::Brute
+            .hard_mask(&hf, OBSERVER_M, dir.into())
+            .unwrap();
         let hard = gpu_twins::disc_light_to_f32(&dir, 0.0);
         let twin_hard = gpu_twins::dp_visible(&grid, &mip, &[hard], 0, RowBand::whole(&grid));
         let differ = brute
@@ -214,7 +216,9 @@ mod on_gpu {
 
             let hard = gpu_twins::disc_light_to_f32(&dir, 0.0);
             let gpu_hard = dp_visible_gpu(ctx, &on_gpu, hard, 50 * n as u64 * 4).unwrap();
-            let brute = Engine::Brute.hard_mask(&hf, OBSERVER_M, dir.into()).unwrap();
+            let brute = Engine::Brute
+                .hard_mask(&hf, OBSERVER_M, dir.into())
+                .unwrap();
             let differ = brute
                 .iter()
                 .zip(&gpu_hard)
@@ -280,7 +284,11 @@ mod on_gpu {
             .zip(&gpu_stats)
             .map(|(a, b)| f64::from((a.sun_fraction_sum - b.sun_fraction_sum).abs()))
             .fold(0.0, f64::max);
-        let longest = twin.iter().map(|s| s.longest_dark_run_epochs).max().unwrap();
+        let longest = twin
+            .iter()
+            .map(|s| s.longest_dark_run_epochs)
+            .max()
+            .unwrap();
         eprintln!(
             "dp_sweep gpu vs twin {n}² × 40: {equal}/{} cells with equal counts, max |Δ sun_fraction_sum| {max_sum:.2e}, longest dark {longest}",
             twin.len()
@@ -300,7 +308,10 @@ fn sweep_lights(epochs: usize) -> Vec<[f32; 4]> {
             let sun_el = 2.75 + 2.25 * (4.0 * std::f64::consts::TAU * phase).sin();
             let earth_el = 2.0 + (std::f64::consts::TAU * phase).sin();
             [
-                gpu_twins::disc_light_to_f32(&sun_dir(360.0 * phase, sun_el), SUN_ANGULAR_RADIUS_RAD),
+                gpu_twins::disc_light_to_f32(
+                    &sun_dir(360.0 * phase, sun_el),
+                    SUN_ANGULAR_RADIUS_RAD,
+                ),
                 gpu_twins::disc_light_to_f32(&sun_dir(300.0, earth_el), 0.95_f64.to_radians()),
             ]
         })
@@ -422,7 +433,9 @@ fn dp_twin_hard_matches_brute_next_to_holes() {
     let mip = DpMip::build(&grid);
     for (el_deg, az_deg) in [(0.5, 265.0), (1.5, 290.0), (1.0, 240.0)] {
         let dir = sun_dir(az_deg, el_deg);
-        let brute = Engine::Brute.hard_mask(&hf, OBSERVER_M, dir.into()).unwrap();
+        let brute = Engine::Brute
+            .hard_mask(&hf, OBSERVER_M, dir.into())
+            .unwrap();
         let cpu_dp = Engine::Dp.hard_mask(&hf, OBSERVER_M, dir.into()).unwrap();
         let hard = gpu_twins::disc_light_to_f32(&dir, 0.0);
         let twin = gpu_twins::dp_visible(&grid, &mip, &[hard], 0, RowBand::whole(&grid));
@@ -489,5 +502,8 @@ fn dp_twin_vs_cpu_dp_on_synthetic_dem() {
         }
         eprintln!("az {az}: {bad} cells differ > 0.01 of {}", reference.len());
     }
-    assert_eq!(closer_to_cpu, 0, "cells where the CPU DP is closer to brute force than the twin");
+    assert_eq!(
+        closer_to_cpu, 0,
+        "cells where the CPU DP is closer to brute force than the twin"
+    );
 }
