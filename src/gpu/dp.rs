@@ -366,7 +366,7 @@ pub fn dp_sweep_gpu(
     options: DpSweepOptions,
 ) -> Result<Vec<DpCellStats>, GpuError> {
     if lights.is_empty()
-        || lights.len() % 2 != 0
+        || !lights.len().is_multiple_of(2)
         || options.epochs_per_dispatch == 0
         || options.dispatches_per_submit == 0
     {
