@@ -507,3 +507,73 @@ fn dp_twin_vs_cpu_dp_on_synthetic_dem() {
         "cells where the CPU DP is closer to brute force than the twin"
     );
 }
+
+/// One-light maps: `penumbra map --synthetic --sun-az-deg 151 --sun-el-deg 1.5 --engine dp
+/// --out-fraction/--out-mask` with `--backend gpu` vs `--backend cpu`: same nodata, fraction
+/// mean |Δ| ≤ 1e-3 and ≤ 0.1 % of pixels off by > 0.01, masks differ on ≤ 0.1 % of pixels.
+#[cfg(feature = "gpu")]
+#[test]
+fn map_one_light_gpu_matches_cpu() {
+    if let Err(e) = penumbra::gpu::GpuContext::new() {
+        let required = std::env::var("PENUMBRA_REQUIRE_GPU").is_ok_and(|v| v == "1");
+        assert!(!required, "PENUMBRA_REQUIRE_GPU=1 but no GPU context: {e}");
+        eprintln!("skipping GPU test: {e}");
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    for backend in ["cpu", "gpu"] {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_penumbra"))
+            .args([
+                "map",
+                "--synthetic",
+                "--sun-az-deg",
+                "151",
+                "--sun-el-deg",
+                "1.5",
+                "--engine",
+                "dp",
+                "--out-fraction",
+                &format!("f_{backend}.tif"),
+                "--out-mask",
+                &format!("m_{backend}.tif"),
+                "--backend",
+                backend,
+            ])
+            .current_dir(dir.path())
+            .env("XDG_RUNTIME_DIR", "/tmp")
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{backend}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+    let read = |f: &str| {
+        penumbra::terrain::read_geotiff(&dir.path().join(f))
+            .unwrap()
+            .heights_m
+    };
+    let (fc, fg) = (read("f_cpu.tif"), read("f_gpu.tif"));
+    let (mut n, mut sum, mut off) = (0usize, 0.0_f64, 0usize);
+    for (&c, &g) in fc.iter().zip(&fg) {
+        assert_eq!(c.is_nan(), g.is_nan());
+        if c.is_nan() {
+            continue;
+        }
+        n += 1;
+        let d = f64::from((c - g).abs());
+        sum += d;
+        off += usize::from(d > 0.01);
+    }
+    let (mc, mg) = (read("m_cpu.tif"), read("m_gpu.tif"));
+    let mask_differ = mc.iter().zip(&mg).filter(|(a, b)| a != b).count();
+    eprintln!(
+        "one-light gpu vs cpu (dp): {n} px, fraction mean |Δ| {:.2e}, {off} px off > 0.01, masks differ {mask_differ}",
+        sum / n as f64
+    );
+    assert!(n > 10_000);
+    assert!(sum / n as f64 <= 1e-3);
+    assert!(off as f64 <= 1e-3 * n as f64);
+    assert!(mask_differ as f64 <= 1e-3 * mc.len() as f64);
+}
