@@ -30,6 +30,11 @@ fn sun_dir(az_deg: f64, el_deg: f64) -> Vector3<f64> {
 
 /// 20 m cells: three Gaussian hills and the Moon's curvature drop.
 fn hills(n: usize) -> MarchGrid {
+    MarchGrid::from_height_field(&hills_hf(n), 2.0).expect("valid grid")
+}
+
+/// The height field behind [`hills`].
+fn hills_hf(n: usize) -> HeightField {
     let mut hf = HeightField::flat(n, n, 20.0);
     let half_m = n as f64 * 10.0;
     for row in 0..n {
@@ -47,7 +52,7 @@ fn hills(n: usize) -> MarchGrid {
             hf.z_m[row * n + col] = z as f32;
         }
     }
-    MarchGrid::from_height_field(&hf, 2.0).expect("valid grid")
+    hf
 }
 
 fn context() -> Option<GpuContext> {
@@ -121,10 +126,53 @@ fn bench_sweep(c: &mut Criterion, ctx: Option<&GpuContext>) {
     group.finish();
 }
 
+/// One soft-shadow map (Sun disc, DP max-mipmap cost + disc occlusion) at 1.5°: the f64 CPU
+/// engine (`dp::visible_fraction`, rayon), the f32 twin and the GPU kernel (mipmap built and
+/// uploaded once, outside the timing, as in a sweep).
+fn bench_dp_soft(c: &mut Criterion, ctx: Option<&GpuContext>) {
+    use penumbra::gpu::dp::{GpuDpGrid, dp_visible_gpu};
+    use penumbra::shadow::{SUN_ANGULAR_RADIUS_RAD, dp};
+    let mut group = c.benchmark_group("dp_soft");
+    group
+        .sample_size(10)
+        .measurement_time(Duration::from_secs(6));
+    let dir = sun_dir(151.0, 1.5);
+    let light = gpu_twins::disc_light_to_f32(&dir, SUN_ANGULAR_RADIUS_RAD);
+    for n in [256, 512] {
+        let hf = hills_hf(n);
+        let grid = MarchGrid::from_height_field(&hf, 2.0).expect("valid grid");
+        let mip = gpu_twins::DpMip::build(&grid);
+        group.throughput(Throughput::Elements(grid.cells() as u64));
+        group.bench_with_input(BenchmarkId::new("cpu_dp", n), &hf, |b, hf| {
+            b.iter(|| {
+                dp::visible_fraction(
+                    hf,
+                    2.0,
+                    dir.into(),
+                    SUN_ANGULAR_RADIUS_RAD,
+                    &dp::DpConfig::default(),
+                )
+                .expect("cpu dp")
+            })
+        });
+        group.bench_with_input(BenchmarkId::new("cpu_twin", n), &grid, |b, grid| {
+            b.iter(|| gpu_twins::dp_visible(grid, &mip, &[light], 0, RowBand::whole(grid)))
+        });
+        if let Some(ctx) = ctx {
+            let gpu_grid = GpuDpGrid::upload(ctx, &grid, &mip).expect("upload");
+            group.bench_with_input(BenchmarkId::new("gpu", n), &gpu_grid, |b, gpu_grid| {
+                b.iter(|| dp_visible_gpu(ctx, gpu_grid, light, DEFAULT_BAND_BYTES).expect("gpu dp"))
+            });
+        }
+    }
+    group.finish();
+}
+
 fn bench_gpu(c: &mut Criterion) {
     let ctx = context();
     bench_march(c, ctx.as_ref());
     bench_sweep(c, ctx.as_ref());
+    bench_dp_soft(c, ctx.as_ref());
 }
 
 criterion_group!(benches, bench_gpu);

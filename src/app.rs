@@ -416,9 +416,9 @@ fn run_map(args: &crate::cli::MapArgs) -> anyhow::Result<()> {
     {
         anyhow::bail!("nothing to write: give --out-fraction, --out-mask or --out-earth-fraction");
     }
-    // Only the epoch-range sweep has a GPU path; resolve before any heavy work so that a missing
-    // adapter is one error line (or one warning line with `auto`).
-    let backend = if range {
+    // Resolve before any heavy work so that a missing adapter is one error line (or one warning
+    // line with `auto`). One-light maps of the Fourier engine have no GPU path (CPU).
+    let backend = if range || !matches!(engine_kind, crate::map::MapEngineKind::Fourier) {
         Some(
             crate::gpu::resolve_backend(args.backend)
                 .with_context(|| format!("resolving --backend {}", args.backend.as_str()))?,
@@ -488,15 +488,19 @@ fn run_map(args: &crate::cli::MapArgs) -> anyhow::Result<()> {
             }
             #[cfg(feature = "gpu")]
             crate::gpu::ResolvedBackend::Gpu(ctx) => {
-                let stats =
-                    crate::map::sweep_gpu(ctx, &grid, args.observer_height_m, &lights, step_h)?;
+                let stats = crate::map::sweep_gpu_soft(
+                    ctx,
+                    &grid,
+                    args.observer_height_m,
+                    &lights,
+                    step_h,
+                )?;
                 progress.inc(lights.len() as u64);
                 (
                     stats,
                     format!(
-                        "{}: hard shadows of the disc centres (brute-force march); \
-                         sun_illumination_pct counts epochs with the Sun's centre visible; \
-                         sun_and_earth_pct not computed (all NaN)",
+                        "{}: DP max-mipmap soft shadows of the Sun and Earth discs \
+                         (GPU-resident sweep; --engine is not used on the GPU)",
                         backend.describe()
                     ),
                 )
@@ -532,7 +536,6 @@ fn run_map(args: &crate::cli::MapArgs) -> anyhow::Result<()> {
     }
 
     // One light.
-    let engine = crate::map::MapEngine::new(engine_kind, &grid, args.observer_height_m)?;
     let (sun, sun_radius_rad, earth) = match (&kernels, explicit_dir, args.sun_az_deg) {
         (Some(k), _, _) => {
             let l = epoch_lights(&grid, k, &epochs, abcorr)?[0];
@@ -550,8 +553,25 @@ fn run_map(args: &crate::cli::MapArgs) -> anyhow::Result<()> {
         ),
         (None, None, None) => anyhow::bail!("no light given"),
     };
+    // The GPU runs the DP max-mipmap kernel for every engine but Fourier (docs/gpu.md).
+    #[cfg(feature = "gpu")]
+    let gpu_ctx = match &backend {
+        Some(crate::gpu::ResolvedBackend::Gpu(ctx)) => Some(ctx),
+        _ => None,
+    };
+    #[cfg(not(feature = "gpu"))]
+    let gpu_ctx: Option<&crate::gpu::GpuContext> = None;
+    let engine = crate::map::MapEngine::new(engine_kind, &grid, args.observer_height_m)?;
+    let h_m = args.observer_height_m;
+    let fraction = |light: [f64; 3], radius: f64| -> anyhow::Result<Vec<f32>> {
+        match gpu_ctx {
+            #[cfg(feature = "gpu")]
+            Some(ctx) => crate::map::visible_fraction_gpu(ctx, &grid.hf, h_m, light, radius),
+            _ => engine.visible_fraction(&grid.hf, h_m, light, radius),
+        }
+    };
     if let Some(path) = &args.out_fraction {
-        let f = engine.visible_fraction(&grid.hf, args.observer_height_m, sun, sun_radius_rad)?;
+        let f = fraction(sun, sun_radius_rad)?;
         grid.write_f32(
             path,
             &grid.to_output_f32(&f),
@@ -559,7 +579,11 @@ fn run_map(args: &crate::cli::MapArgs) -> anyhow::Result<()> {
         )?;
     }
     if let Some(path) = &args.out_mask {
-        let m = engine.hard_mask(&grid.hf, args.observer_height_m, sun)?;
+        let m = match gpu_ctx {
+            #[cfg(feature = "gpu")]
+            Some(ctx) => crate::map::hard_mask_gpu(ctx, &grid.hf, h_m, sun)?,
+            _ => engine.hard_mask(&grid.hf, h_m, sun)?,
+        };
         grid.write_u8(
             path,
             &grid.to_output_u8(&m),
@@ -567,7 +591,7 @@ fn run_map(args: &crate::cli::MapArgs) -> anyhow::Result<()> {
         )?;
     }
     if let (Some(path), Some((dir, radius))) = (&args.out_earth_fraction, earth) {
-        let f = engine.visible_fraction(&grid.hf, args.observer_height_m, dir, radius)?;
+        let f = fraction(dir, radius)?;
         grid.write_f32(
             path,
             &grid.to_output_f32(&f),

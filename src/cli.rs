@@ -491,10 +491,10 @@ pub struct MapArgs {
     /// Epoch range: output folder for the statistics GeoTIFFs and PNG previews.
     #[arg(long, value_name = "DIR", requires = "start")]
     pub out_dir: Option<PathBuf>,
-    /// Compute backend of an epoch-range sweep: `gpu` (hard shadows of the disc centres, brute
-    /// force march; no Sun-and-Earth statistic), `cpu` (the soft-shadow engines) or `auto` (the
-    /// GPU when an adapter exists, else the CPU with one warning line). One-light maps always
-    /// run on the CPU.
+    /// Compute backend: `gpu` (DP max-mipmap soft shadows of the discs for sweeps and one-light
+    /// maps, whatever `--engine` says; `fourier` one-light maps stay on the CPU), `cpu` (the
+    /// engine of `--engine`) or `auto` (the GPU when an adapter exists, else the CPU with one
+    /// warning line).
     #[arg(long, value_enum, default_value_t = crate::gpu::Backend::Auto)]
     pub backend: crate::gpu::Backend,
     /// Aberration correction: lt+s or none.

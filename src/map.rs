@@ -430,6 +430,100 @@ pub fn sweep_gpu(
     })
 }
 
+/// The soft GPU twin of [`sweep`] (issue 7 item 3): one GPU-resident sweep
+/// ([`crate::gpu::dp::dp_sweep_gpu`]) computes per epoch the DP visible fractions of the Sun's
+/// and the Earth's discs (max-mipmap shadow cost `J*` + disc occlusion, as
+/// [`crate::shadow::dp::visible_fraction`]) and folds them with the same definitions as [`sweep`]
+/// (mean visible fraction, "visible" = fraction > [`VISIBLE_MIN_FRACTION`], longest Sun-dark
+/// run, Earth and Sun-and-Earth counts). The light table goes up once (two f32 discs per epoch);
+/// nothing is read back per epoch. Whatever `--engine` says, the GPU runs DP.
+#[cfg(feature = "gpu")]
+pub fn sweep_gpu_soft(
+    ctx: &crate::gpu::GpuContext,
+    grid: &MapGrid,
+    observer_height_m: f64,
+    lights: &[EpochLights],
+    step_h: f64,
+) -> anyhow::Result<SweepStats> {
+    use crate::gpu::dp::{DpSweepOptions, GpuDpGrid, dp_sweep_gpu};
+    use crate::shadow::gpu_twins::{DpMip, MarchGrid, disc_light_to_f32};
+    let march = MarchGrid::from_height_field(&grid.hf, observer_height_m)?;
+    let mip = DpMip::build(&march);
+    let on_gpu = GpuDpGrid::upload(ctx, &march, &mip)?;
+    let table: Vec<[f32; 4]> = lights
+        .iter()
+        .flat_map(|l| {
+            [
+                disc_light_to_f32(&Vector3::from(l.sun), l.sun_radius_rad),
+                disc_light_to_f32(&Vector3::from(l.earth), l.earth_radius_rad),
+            ]
+        })
+        .collect();
+    let stats = dp_sweep_gpu(ctx, &on_gpu, &table, DpSweepOptions::default())?;
+    Ok(SweepStats {
+        epochs: lights.len(),
+        step_h,
+        sun_fraction_sum: stats
+            .iter()
+            .map(|c| f64::from(c.sun_fraction_sum) - f64::from(c.sun_fraction_comp))
+            .collect(),
+        sun_visible_count: stats.iter().map(|c| c.sun_visible_epochs).collect(),
+        longest_dark_epochs: stats.iter().map(|c| c.longest_dark_run_epochs).collect(),
+        earth_visible_count: stats.iter().map(|c| c.earth_visible_epochs).collect(),
+        sun_and_earth_count: Some(stats.iter().map(|c| c.sun_and_earth_epochs).collect()),
+    })
+}
+
+/// One-light maps on the GPU (issue 7 item 2): the DP visible fraction of a disc of angular
+/// radius `angular_radius_rad` per model cell (`NaN` for holes), or with `angular_radius_rad` =
+/// 0 the hard mask of the disc centre. Every `--engine` except `fourier` maps to this kernel on
+/// the GPU (see docs/gpu.md).
+#[cfg(feature = "gpu")]
+pub fn visible_fraction_gpu(
+    ctx: &crate::gpu::GpuContext,
+    hf: &HeightField,
+    observer_height_m: f64,
+    light_in_model: [f64; 3],
+    angular_radius_rad: f64,
+) -> anyhow::Result<Vec<f32>> {
+    use crate::gpu::dp::{GpuDpGrid, dp_visible_gpu};
+    use crate::gpu::shadow_march::DEFAULT_BAND_BYTES;
+    use crate::shadow::gpu_twins::{DpMip, MarchGrid, disc_light_to_f32};
+    let march = MarchGrid::from_height_field(hf, observer_height_m)?;
+    let mip = DpMip::build(&march);
+    let on_gpu = GpuDpGrid::upload(ctx, &march, &mip)?;
+    let light = disc_light_to_f32(&Vector3::from(light_in_model), angular_radius_rad);
+    let out = dp_visible_gpu(ctx, &on_gpu, light, DEFAULT_BAND_BYTES)?;
+    Ok(out
+        .into_iter()
+        .map(|f| if f < 0.0 { f32::NAN } else { f })
+        .collect())
+}
+
+/// [`visible_fraction_gpu`] at radius 0 as a mask: 1 lit, 0 shadow, 255 nodata.
+#[cfg(feature = "gpu")]
+pub fn hard_mask_gpu(
+    ctx: &crate::gpu::GpuContext,
+    hf: &HeightField,
+    observer_height_m: f64,
+    light_in_model: [f64; 3],
+) -> anyhow::Result<Vec<u8>> {
+    Ok(
+        visible_fraction_gpu(ctx, hf, observer_height_m, light_in_model, 0.0)?
+            .into_iter()
+            .map(|f| {
+                if f.is_nan() {
+                    crate::shadow::MASK_NODATA
+                } else if f > 0.5 {
+                    crate::shadow::MASK_LIT
+                } else {
+                    crate::shadow::MASK_SHADOW
+                }
+            })
+            .collect(),
+    )
+}
+
 /// The light directions (model space) and angular radii of one epoch.
 #[derive(Debug, Clone, Copy)]
 pub struct EpochLights {

@@ -48,8 +48,8 @@ echo "== penumbra gpu-info"
 "$dir/penumbra" gpu-info
 echo "== GPU-vs-CPU parity (PENUMBRA_REQUIRE_GPU=1)"
 PENUMBRA_REQUIRE_GPU=1 "$dir/it-tests" gpu --nocapture --test-threads=1 2>&1 |
-    grep -E "adapter|differ|max \|Δ\||GPU vs|equal stats|test result|FAILED|panicked" || true
-echo "== criterion: shadow_march, sweep_accumulate"
+    grep -E "adapter|differ|gpu vs|GPU vs|max \|Δ\||equal stats|test result|FAILED|panicked" || true
+echo "== criterion: shadow_march, sweep_accumulate, dp_soft"
 "$dir/gpu-bench" --bench 2>&1 | grep -Ev "^\s*$|Warming up|Collecting|Analyzing|Benchmarking .*: (Warming|Collecting|Analyzing)"
 if [[ -x "$dir/gpu-horizon-bench" ]]; then
     # Per-site horizons, 100 sites: 360 azimuths, then the CLI default 1440 (0.25 deg).

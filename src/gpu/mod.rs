@@ -21,6 +21,7 @@ pub use error::GpuError;
 mod context;
 #[cfg(feature = "gpu")]
 pub mod horizon;
+pub mod dp;
 #[cfg(feature = "gpu")]
 pub mod shadow_march;
 #[cfg(feature = "gpu")]

@@ -193,6 +193,20 @@ pub struct MapSpec {
     /// Shadow engine: `brute`, `smap`, `dp`, `combined` (default) or `fourier`.
     #[serde(default = "default_engine")]
     pub engine: String,
+    /// Where the sweep runs: `cpu`, `gpu` or `auto` (default: the GPU when an adapter exists,
+    /// else the CPU with one warning line). The GPU sweep is DP soft shadows whatever `engine`
+    /// says (docs/gpu.md).
+    #[serde(default = "default_map_backend")]
+    pub backend: String,
+}
+
+fn default_map_backend() -> String {
+    "auto".into()
+}
+
+/// Parses a `[map] backend` value.
+fn parse_map_backend(name: &str) -> Option<crate::gpu::Backend> {
+    <crate::gpu::Backend as clap::ValueEnum>::from_str(name, false).ok()
 }
 
 fn default_engine() -> String {
@@ -335,6 +349,14 @@ impl Scenario {
             return Err(invalid(format!(
                 "[map] engine '{}': use brute, smap, dp, combined or fourier",
                 m.engine
+            )));
+        }
+        if let Some(m) = &self.map
+            && parse_map_backend(&m.backend).is_none()
+        {
+            return Err(invalid(format!(
+                "[map] backend '{}': use cpu, gpu or auto",
+                m.backend
             )));
         }
         if self.series.is_some() && self.terrain.is_none() {
@@ -566,18 +588,33 @@ fn run_map_spec(
     let epochs = ephem::time::epoch_range(start, stop, step)?;
     let kind = crate::map::MapEngineKind::parse(&spec.engine)
         .with_context(|| format!("[map] engine '{}'", spec.engine))?;
+    let requested = parse_map_backend(&spec.backend)
+        .with_context(|| format!("[map] backend '{}'", spec.backend))?;
+    let backend = crate::gpu::resolve_backend(requested)
+        .with_context(|| format!("[map] backend '{}'", spec.backend))?;
     let grid = crate::map::MapGrid::new(stack)?;
-    let engine = crate::map::MapEngine::new(kind, &grid, spec.observer_height_m)?;
     let lights = crate::map::epoch_lights(&grid, kernels, &epochs, abcorr)?;
+    let step_h = step.to_seconds() / 3600.0;
     let progress = indicatif::ProgressBar::new(lights.len() as u64);
-    let stats = crate::map::sweep(
-        &grid,
-        &engine,
-        spec.observer_height_m,
-        &lights,
-        step.to_seconds() / 3600.0,
-        &progress,
-    )?;
+    let stats = match &backend {
+        crate::gpu::ResolvedBackend::Cpu => {
+            let engine = crate::map::MapEngine::new(kind, &grid, spec.observer_height_m)?;
+            crate::map::sweep(
+                &grid,
+                &engine,
+                spec.observer_height_m,
+                &lights,
+                step_h,
+                &progress,
+            )?
+        }
+        #[cfg(feature = "gpu")]
+        crate::gpu::ResolvedBackend::Gpu(ctx) => {
+            crate::map::sweep_gpu_soft(ctx, &grid, spec.observer_height_m, &lights, step_h)?
+        }
+        #[cfg(not(feature = "gpu"))]
+        crate::gpu::ResolvedBackend::Gpu(ctx) => match **ctx {},
+    };
     progress.finish_and_clear();
     let dir = out_dir.join("map");
     std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;

@@ -416,3 +416,364 @@ pub fn sweep_stats(grid: &MarchGrid, lights: &[[f32; 4]], band: RowBand) -> Vec<
         });
     stats
 }
+
+// ---------------------------------------------------------------------------------------------
+// DP / maximum-mipmap kernels (`shaders/shared/dp.wgsl`, `dp_visible.wgsl`, `dp_sweep.wgsl`).
+// ---------------------------------------------------------------------------------------------
+
+const DP_PI: f32 = std::f32::consts::PI;
+
+/// The maximum mipmap of a [`MarchGrid`] as the GPU stores it (the twin of the `dp_mip` and
+/// `dp_levels` buffers of `shaders/shared/dp.wgsl`): level 0 has one texel per dual cell (the max
+/// of its four corner heights, holes being [`HOLE_Z_M`]), level `m` the max of 2 × 2 texels of
+/// level `m − 1`, down to one texel. Same values as [`crate::shadow::dp::MaxMipmap`] (relative to
+/// `z_ref_m`, `-inf` there is [`HOLE_Z_M`] here).
+#[derive(Debug, Clone)]
+pub struct DpMip {
+    /// Per level: `[rows, cols, offset into texels, 0]`, level 0 first.
+    pub levels: Vec<[u32; 4]>,
+    /// Every level's texels, row-major, concatenated.
+    pub texels: Vec<f32>,
+}
+
+impl DpMip {
+    /// Builds every level of `grid`'s maximum mipmap.
+    pub fn build(grid: &MarchGrid) -> Self {
+        let (r0, c0) = (grid.rows as usize - 1, grid.cols as usize - 1);
+        let h = |r: usize, c: usize| grid.heights_m[r * grid.cols as usize + c];
+        let mut texels: Vec<f32> = (0..r0 * c0)
+            .map(|k| {
+                let (i, j) = (k / c0, k % c0);
+                h(i, j)
+                    .max(h(i + 1, j))
+                    .max(h(i, j + 1))
+                    .max(h(i + 1, j + 1))
+            })
+            .collect();
+        let mut levels = vec![[r0 as u32, c0 as u32, 0, 0]];
+        let (mut r, mut c, mut offset) = (r0, c0, 0_usize);
+        while r > 1 || c > 1 {
+            let (nr, nc) = (r.div_ceil(2), c.div_ceil(2));
+            let next_offset = texels.len();
+            for i in 0..nr {
+                for j in 0..nc {
+                    let mut m = HOLE_Z_M;
+                    for (a, b) in [(2 * i, 2 * j), (2 * i + 1, 2 * j), (2 * i, 2 * j + 1)]
+                        .into_iter()
+                        .chain(std::iter::once((2 * i + 1, 2 * j + 1)))
+                    {
+                        if a < r && b < c {
+                            m = m.max(texels[offset + a * c + b]);
+                        }
+                    }
+                    texels.push(m);
+                }
+            }
+            levels.push([nr as u32, nc as u32, next_offset as u32, 0]);
+            (r, c, offset) = (nr, nc, next_offset);
+        }
+        DpMip { levels, texels }
+    }
+}
+
+/// A disc for the DP kernels: unit direction (model space, normalised in f64 and rounded once)
+/// in `xyz`, angular radius (rad) in `w` (0: the hard mask of the centre).
+pub fn disc_light_to_f32(light_in_model: &Vector3<f64>, angular_radius_rad: f64) -> [f32; 4] {
+    let [x, y, z, _] = light_to_f32(light_in_model);
+    [x, y, z, angular_radius_rad as f32]
+}
+
+/// Twin of `DpObserver` in `shaders/shared/dp.wgsl`.
+#[derive(Debug, Clone, Copy)]
+pub struct DpObserver {
+    /// Column of the observer, cell units.
+    pub u0: f32,
+    /// Row of the observer, cell units.
+    pub v0: f32,
+    /// Height of the observer relative to `z_ref_m`, metres.
+    pub z0: f32,
+    /// Radial up direction, model space.
+    pub up: [f32; 3],
+}
+
+/// Twin of `dp_surface`: the surface where the ray crosses a lattice line (`axis` 1: a row line,
+/// linear along the columns; 2: a column line; 0: off the lines, bilinear).
+fn dp_surface(grid: &MarchGrid, axis: u32, v_in: f32, u_in: f32) -> f32 {
+    let rows = grid.rows as i32;
+    let cols = grid.cols as i32;
+    let v = v_in.clamp(0.0, (rows - 1) as f32);
+    let u = u_in.clamp(0.0, (cols - 1) as f32);
+    let r0 = (v.floor() as i32).min(rows - 2);
+    let c0 = (u.floor() as i32).min(cols - 2);
+    let fr = v - r0 as f32;
+    let fc = u - c0 as f32;
+    if axis == 1 {
+        let k = v.round() as i32;
+        return grid.height_at(k, c0) * (1.0 - fc) + grid.height_at(k, c0 + 1) * fc;
+    } else if axis == 2 {
+        let k = u.round() as i32;
+        return grid.height_at(r0, k) * (1.0 - fr) + grid.height_at(r0 + 1, k) * fr;
+    }
+    let top = grid.height_at(r0, c0) * (1.0 - fc) + grid.height_at(r0, c0 + 1) * fc;
+    let bottom = grid.height_at(r0 + 1, c0) * (1.0 - fc) + grid.height_at(r0 + 1, c0 + 1) * fc;
+    top * (1.0 - fr) + bottom * fr
+}
+
+/// Twin of `dp_observer` (the caller checks for holes).
+pub fn dp_observer(grid: &MarchGrid, row: u32, col: u32) -> DpObserver {
+    let z_cell = grid.heights_m[(row * grid.cols + col) as usize];
+    let x_m = grid.x0_m + col as f32 * grid.px_m;
+    let y_m = grid.y0_m - row as f32 * grid.px_m;
+    let up = normalize3([x_m, y_m, z_cell + grid.z_ref_plus_radius_m]);
+    let u0 = (col as f32 + grid.observer_height_m * up[0] / grid.px_m)
+        .clamp(0.0, (grid.cols - 1) as f32);
+    let v0 = (row as f32 - grid.observer_height_m * up[1] / grid.px_m)
+        .clamp(0.0, (grid.rows - 1) as f32);
+    let z0 = z_cell + grid.observer_height_m * up[2];
+    DpObserver { u0, v0, z0, up }
+}
+
+fn dp_axis_exit(p: f32, d: f32, max_p: f32) -> f32 {
+    if d > 0.0 {
+        (max_p - p) / d
+    } else if d < 0.0 {
+        -p / d
+    } else {
+        FAR_CELLS
+    }
+}
+
+fn dp_texel_exit(i: i32, size: f32, p0: f32, d: f32) -> f32 {
+    if d > 0.0 {
+        ((i + 1) as f32 * size - p0) / d
+    } else if d < 0.0 {
+        (i as f32 * size - p0) / d
+    } else {
+        FAR_CELLS
+    }
+}
+
+/// Twin of `dp_cost` in `shaders/shared/dp.wgsl`: `J* = min Δh/t` (tan units) of the ray from
+/// `obs` towards `light` over every lattice-line crossing, by a stackless front-to-back walk of
+/// the maximum mipmap; costs at or above `cap` may be reported as any value `>= cap`;
+/// `1e30` when nothing is along the ray.
+pub fn dp_cost(grid: &MarchGrid, mip: &DpMip, obs: &DpObserver, light: [f32; 3], cap: f32) -> f32 {
+    let hor = (light[0] * light[0] + light[1] * light[1]).sqrt();
+    if hor < MIN_HORIZ {
+        return FAR_CELLS;
+    }
+    let du = light[0] / hor;
+    let dv = -light[1] / hor;
+    let tan_el = light[2] / hor;
+    let px = grid.px_m;
+    let exit_v = dp_axis_exit(obs.v0, dv, (grid.rows - 1) as f32);
+    let exit_u = dp_axis_exit(obs.u0, du, (grid.cols - 1) as f32);
+    let s_exit = exit_v.min(exit_u).max(0.0);
+    let exit_axis = if exit_v <= exit_u { 1 } else { 2 };
+    let mut s_axis = 0_u32;
+    let n_levels = mip.levels.len() as i32;
+    let top = n_levels - 1;
+    let max_iter = 8 * (grid.rows + grid.cols) as i32 + 32 * n_levels;
+    let mut best = FAR_CELLS;
+    let mut m = top;
+    let mut s = 0.0_f32;
+    for _ in 0..max_iter {
+        if s >= s_exit {
+            break;
+        }
+        let lv = mip.levels[m as usize];
+        let size = (1_u32 << m as u32) as f32;
+        let sm = s + 1.0e-3 + 1.0e-6 * s;
+        let i = (((obs.v0 + sm * dv) / size).floor() as i32).clamp(0, lv[0] as i32 - 1);
+        let j = (((obs.u0 + sm * du) / size).floor() as i32).clamp(0, lv[1] as i32 - 1);
+        let t_v = dp_texel_exit(i, size, obs.v0, dv);
+        let t_u = dp_texel_exit(j, size, obs.u0, du);
+        let mut s_out = t_v.min(t_u);
+        let mut out_axis = if t_v <= t_u { 1 } else { 2 };
+        if s_exit <= s_out {
+            s_out = s_exit;
+            out_axis = exit_axis;
+        }
+        if sm > s_out {
+            s_out = sm;
+            out_axis = 0;
+        }
+        let m_z = mip.texels[(lv[2] + i as u32 * lv[1] + j as u32) as usize];
+        let dz = m_z - obs.z0;
+        let lb = if dz > 0.0 {
+            if s > 0.0 {
+                tan_el - dz / (s * px)
+            } else {
+                -FAR_CELLS
+            }
+        } else {
+            tan_el - dz / (s_out * px)
+        };
+        if lb >= best.min(cap) {
+            s = s_out;
+            s_axis = out_axis;
+            m = (m + 1).min(top);
+        } else if m == 0 {
+            if s_axis != 0 {
+                let z = dp_surface(grid, s_axis, obs.v0 + s * dv, obs.u0 + s * du);
+                best = best.min((obs.z0 - z) / (s * px) + tan_el);
+            }
+            if out_axis != 0 {
+                let z = dp_surface(grid, out_axis, obs.v0 + s_out * dv, obs.u0 + s_out * du);
+                best = best.min((obs.z0 - z) / (s_out * px) + tan_el);
+            }
+            s = s_out;
+            s_axis = out_axis;
+            m = (m + 1).min(top);
+        } else {
+            m -= 1;
+        }
+    }
+    best
+}
+
+/// Twin of `dp_fraction`: visible fraction of the disc `light` (`xyz` unit direction, `w`
+/// angular radius) from `obs` under the prism assumption (paper 000/003 eq. 6–7, as
+/// [`crate::shadow::disc_fraction_above_edge`]); radius 0 gives 1 (lit) or 0 (shadow).
+pub fn dp_fraction(grid: &MarchGrid, mip: &DpMip, obs: &DpObserver, light: [f32; 4]) -> f32 {
+    let l = [light[0], light[1], light[2]];
+    let r = light[3];
+    let hor = (l[0] * l[0] + l[1] * l[1]).sqrt();
+    let e_c = l[2].atan2(hor);
+    let mut cap = 0.0;
+    if r > 0.0 {
+        let e_low = e_c - r;
+        cap = if e_low > -0.5 * DP_PI + 1.0e-6 {
+            l[2] / hor.max(MIN_HORIZ) - e_low.tan()
+        } else {
+            FAR_CELLS
+        };
+    }
+    let mut e_h = -0.5 * DP_PI;
+    if hor >= MIN_HORIZ {
+        let j = dp_cost(grid, mip, obs, l, cap);
+        if j < 0.5 * FAR_CELLS {
+            e_h = (l[2] / hor - j).atan();
+        }
+        let tan_local = -(obs.up[0] * l[0] / hor + obs.up[1] * l[1] / hor) / obs.up[2];
+        e_h = e_h.max(tan_local.atan());
+    }
+    let clearance = e_c - e_h;
+    if r <= 0.0 {
+        return if clearance > 0.0 { 1.0 } else { 0.0 };
+    }
+    let d = (clearance / r).clamp(-1.0, 1.0);
+    (DP_PI - d.acos() + d * (1.0 - d * d).sqrt()) / DP_PI
+}
+
+fn dp_is_hole(grid: &MarchGrid, row: u32, col: u32) -> bool {
+    grid.heights_m[(row * grid.cols + col) as usize] < HOLE_TEST_M
+}
+
+/// Twin of `shaders/dp_visible.wgsl`: per cell of `band` the visible fraction of the disc
+/// `lights[light_index]` ([`disc_light_to_f32`]), [`NODATA_FRACTION`] for a hole. Rayon over rows.
+pub fn dp_visible(
+    grid: &MarchGrid,
+    mip: &DpMip,
+    lights: &[[f32; 4]],
+    light_index: u32,
+    band: RowBand,
+) -> Vec<f32> {
+    let cols = grid.cols as usize;
+    let light = lights[light_index as usize];
+    let mut out = vec![NODATA_FRACTION; band.rows as usize * cols];
+    out.par_chunks_mut(cols)
+        .enumerate()
+        .for_each(|(band_row, out_row)| {
+            let row = band.row0 + band_row as u32;
+            for (col, o) in out_row.iter_mut().enumerate() {
+                if !dp_is_hole(grid, row, col as u32) {
+                    let obs = dp_observer(grid, row, col as u32);
+                    *o = dp_fraction(grid, mip, &obs, light);
+                }
+            }
+        });
+    out
+}
+
+/// A disc fraction above this counts as visible (as `map::VISIBLE_MIN_FRACTION`).
+pub const DP_VISIBLE_MIN_FRACTION: f32 = 1e-6;
+
+/// Running per-cell statistics of the soft epoch sweep (twin of `DpCellStats` in
+/// `shaders/dp_sweep.wgsl`); the definitions are those of the CPU `map::sweep`.
+// Keep in sync with shaders/dp_sweep.wgsl.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct DpCellStats {
+    /// Sum of the Sun's visible fraction over the epochs (Kahan-compensated f32).
+    pub sun_fraction_sum: f32,
+    /// Kahan compensation of `sun_fraction_sum`.
+    pub sun_fraction_comp: f32,
+    /// Epochs with any part of the Sun visible (fraction > 1e-6).
+    pub sun_visible_epochs: u32,
+    /// The dark run (Sun entirely hidden) still going on at the last epoch folded in.
+    pub dark_run_epochs: u32,
+    /// Longest run of consecutive epochs with the Sun entirely hidden.
+    pub longest_dark_run_epochs: u32,
+    /// Epochs with any part of the Earth visible.
+    pub earth_visible_epochs: u32,
+    /// Epochs with both (partly) visible.
+    pub sun_and_earth_epochs: u32,
+    /// Padding to 32 bytes.
+    pub _pad: u32,
+}
+const _: () = assert!(size_of::<DpCellStats>() == 32);
+
+/// Twin of the loop body of `shaders/dp_sweep.wgsl`: folds one epoch's Sun and Earth fractions.
+pub fn dp_sweep_accumulate(fs: f32, fe: f32, s: &mut DpCellStats) {
+    let y = fs - s.sun_fraction_comp;
+    let t = s.sun_fraction_sum + y;
+    s.sun_fraction_comp = (t - s.sun_fraction_sum) - y;
+    s.sun_fraction_sum = t;
+    let sun_up = fs > DP_VISIBLE_MIN_FRACTION;
+    let earth_up = fe > DP_VISIBLE_MIN_FRACTION;
+    if sun_up {
+        s.sun_visible_epochs += 1;
+        s.dark_run_epochs = 0;
+    } else {
+        s.dark_run_epochs += 1;
+        s.longest_dark_run_epochs = s.longest_dark_run_epochs.max(s.dark_run_epochs);
+    }
+    if earth_up {
+        s.earth_visible_epochs += 1;
+    }
+    if sun_up && earth_up {
+        s.sun_and_earth_epochs += 1;
+    }
+}
+
+/// Twin of the whole soft sweep: `lights` holds two discs per epoch (Sun at `2e`, Earth at
+/// `2e + 1`, from [`disc_light_to_f32`]); per cell of `band` every epoch is folded in time order.
+/// Holes keep zero statistics. Rayon over rows.
+pub fn dp_sweep(
+    grid: &MarchGrid,
+    mip: &DpMip,
+    lights: &[[f32; 4]],
+    band: RowBand,
+) -> Vec<DpCellStats> {
+    let cols = grid.cols as usize;
+    let mut stats = vec![DpCellStats::default(); band.rows as usize * cols];
+    stats
+        .par_chunks_mut(cols)
+        .enumerate()
+        .for_each(|(band_row, stats_row)| {
+            let row = band.row0 + band_row as u32;
+            for (col, s) in stats_row.iter_mut().enumerate() {
+                if dp_is_hole(grid, row, col as u32) {
+                    continue;
+                }
+                let obs = dp_observer(grid, row, col as u32);
+                for pair in lights.chunks_exact(2) {
+                    let fs = dp_fraction(grid, mip, &obs, pair[0]);
+                    let fe = dp_fraction(grid, mip, &obs, pair[1]);
+                    dp_sweep_accumulate(fs, fe, s);
+                }
+            }
+        });
+    stats
+}

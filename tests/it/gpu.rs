@@ -448,7 +448,7 @@ fn map_backend_gpu_matches_cpu_psr_mask() {
     }
     let run_json = std::fs::read_to_string(dir.path().join("gpu/run.json")).unwrap();
     assert!(
-        run_json.contains("hard shadows of the disc centres"),
+        run_json.contains("DP max-mipmap soft shadows"),
         "{run_json}"
     );
     let read = |b: &str| {

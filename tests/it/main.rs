@@ -4,6 +4,7 @@ mod ephem;
 mod fourier;
 mod gpu;
 mod gpu_horizon;
+mod gpu_dp;
 mod horizon;
 mod illum;
 mod map;

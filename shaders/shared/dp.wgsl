@@ -1,0 +1,245 @@
+// Shared by dp_visible.wgsl and dp_sweep.wgsl (prepended by the Rust side and by the naga test):
+// the DP / maximum-mipmap shadow cost of one cell towards one disc and the disc's visible
+// fraction. CPU twin: `dp_cell_fraction` and friends in src/shadow/gpu_twins.rs (line by line).
+//
+// Shadow cost (papers 000/003, eq. 2): J* = min over the ray of dh / t, dh the ray's height above
+// the surface at horizontal distance t, evaluated at every crossing of the ray with the lattice
+// lines joining cell centres (the brute-force reference's samples, src/shadow/brute.rs).
+// Traversal: the maximum mipmap (level 0 = one texel per dual cell, max of its four corners;
+// level m = max of 2x2 texels of level m-1) is walked front to back without a stack: at the ray
+// position s the texel of level m containing the ray is bounded by tan(e) - (max - z0) / t
+// (t the nearer end of the ray's chord through it when max > z0, else the farther end). If the
+// bound cannot lower min(J*, cap) the whole chord is skipped and the walk goes up one level;
+// otherwise it goes down one level; at level 0 the exact cost is evaluated where the ray enters
+// and leaves the dual cell (both are lattice-line crossings). This is Algorithm 1's coarse-to-fine
+// search with the exact (non-greedy) branch and bound of src/shadow/dp.rs, in a GPU-friendly
+// order; the interval concatenation of the paper is not needed (the top level covers the grid).
+//
+// Disc occlusion (paper eq. 6-7, prism assumption, as src/shadow/mod.rs fraction_from_cost):
+// e_h = max(atan(tan e_c - J*), local horizontal), d = clamp((e_c - e_h) / r, -1, 1),
+// visible = (pi - acos d + d sqrt(1 - d^2)) / pi; r = 0 gives the hard mask (1 iff e_c > e_h).
+//
+// Precision (f32): heights relative to the grid's z_ref (as shared/march.wgsl), positions in cell
+// units; texel lookup uses the point 1e-3 cells (+ 1e-6 s) past s, so that f32 rounding never
+// puts it back into the texel just left; a dual cell clipped by less than that is still covered
+// because its entry and exit are the exit/entry of its neighbours (evaluated or bounded).
+
+// Keep in sync with `DpGridParams` in src/gpu/dp.rs (mod gpu_data); same fields as GridParams.
+struct DpGridParams {
+    rows: u32,
+    cols: u32,
+    px_m: f32,
+    observer_height_m: f32,
+    x0_m: f32,
+    y0_m: f32,
+    z_max_m: f32,
+    z_ref_plus_radius_m: f32,
+}
+
+// Keep in sync with `DpStep` in src/gpu/dp.rs (mod gpu_data).
+struct DpStep {
+    // First light (dp_visible) or first epoch (dp_sweep) of this dispatch, and how many epochs.
+    light0: u32,
+    count: u32,
+    // First row of the band this dispatch writes, and its number of rows.
+    band_row0: u32,
+    band_rows: u32,
+}
+
+// Observer of one cell: position in cell units, height (m, relative to z_ref), radial up.
+struct DpObserver {
+    u0: f32,
+    v0: f32,
+    z0: f32,
+    up: vec3<f32>,
+}
+
+const DP_HOLE_TEST_M: f32 = -1.0e29;
+const DP_FAR: f32 = 1.0e30;
+const DP_MIN_HORIZ: f32 = 1.0e-7;
+const DP_PI: f32 = 3.14159265358979;
+
+@group(0) @binding(0) var<uniform> dp_grid: DpGridParams;
+@group(0) @binding(1) var<storage, read> dp_heights: array<f32>;
+// Every mipmap level, concatenated; holes as -1e30.
+@group(0) @binding(2) var<storage, read> dp_mip: array<f32>;
+// Per level: (rows, cols, offset into dp_mip, 0); level 0 first.
+@group(0) @binding(3) var<storage, read> dp_levels: array<vec4<u32>>;
+// Per light: unit direction (model space) in xyz, angular radius (rad) in w.
+@group(0) @binding(4) var<storage, read> dp_lights: array<vec4<f32>>;
+@group(0) @binding(5) var<uniform> dp_step: DpStep;
+
+fn dp_height(row: i32, col: i32) -> f32 {
+    return dp_heights[u32(row) * dp_grid.cols + u32(col)];
+}
+
+// Surface height where the ray crosses a lattice line (as brute.rs line_height): on a row line
+// (axis 1: v = k) linear along u between (k, c0) and (k, c0 + 1); on a column line (axis 2)
+// linear along v; off the lines (axis 0: only a forced step) the bilinear interpolant. Holes
+// (-1e30) with a non-zero weight give a far-below value (no terrain).
+fn dp_surface(axis: u32, v_in: f32, u_in: f32) -> f32 {
+    let rows = i32(dp_grid.rows);
+    let cols = i32(dp_grid.cols);
+    let v = clamp(v_in, 0.0, f32(rows - 1));
+    let u = clamp(u_in, 0.0, f32(cols - 1));
+    let r0 = min(i32(floor(v)), rows - 2);
+    let c0 = min(i32(floor(u)), cols - 2);
+    let fr = v - f32(r0);
+    let fc = u - f32(c0);
+    if axis == 1u {
+        let k = i32(round(v));
+        return dp_height(k, c0) * (1.0 - fc) + dp_height(k, c0 + 1) * fc;
+    } else if axis == 2u {
+        let k = i32(round(u));
+        return dp_height(r0, k) * (1.0 - fr) + dp_height(r0 + 1, k) * fr;
+    }
+    let top = dp_height(r0, c0) * (1.0 - fc) + dp_height(r0, c0 + 1) * fc;
+    let bottom = dp_height(r0 + 1, c0) * (1.0 - fc) + dp_height(r0 + 1, c0 + 1) * fc;
+    return top * (1.0 - fr) + bottom * fr;
+}
+
+// The observer of cell (row, col) (the caller checks for holes), clamped into the lattice like
+// src/shadow/mod.rs observer_at.
+fn dp_observer(row: u32, col: u32) -> DpObserver {
+    let z_cell = dp_heights[row * dp_grid.cols + col];
+    let x_m = dp_grid.x0_m + f32(col) * dp_grid.px_m;
+    let y_m = dp_grid.y0_m - f32(row) * dp_grid.px_m;
+    let up = normalize(vec3<f32>(x_m, y_m, z_cell + dp_grid.z_ref_plus_radius_m));
+    let u0 = clamp(f32(col) + dp_grid.observer_height_m * up.x / dp_grid.px_m, 0.0, f32(dp_grid.cols - 1u));
+    let v0 = clamp(f32(row) - dp_grid.observer_height_m * up.y / dp_grid.px_m, 0.0, f32(dp_grid.rows - 1u));
+    let z0 = z_cell + dp_grid.observer_height_m * up.z;
+    return DpObserver(u0, v0, z0, up);
+}
+
+// Distance (cells) to the lattice edge along one axis.
+fn dp_axis_exit(p: f32, d: f32, max_p: f32) -> f32 {
+    if d > 0.0 {
+        return (max_p - p) / d;
+    } else if d < 0.0 {
+        return -p / d;
+    }
+    return DP_FAR;
+}
+
+// Texel index along one axis of the point p, direction-aware, texel size `size` cells.
+fn dp_texel_index(p: f32, size: f32) -> i32 {
+    return i32(floor(p / size));
+}
+
+// Distance (cells) from the observer to the far side of texel `i` along one axis.
+fn dp_texel_exit(i: i32, size: f32, p0: f32, d: f32) -> f32 {
+    if d > 0.0 {
+        return (f32(i + 1) * size - p0) / d;
+    } else if d < 0.0 {
+        return (f32(i) * size - p0) / d;
+    }
+    return DP_FAR;
+}
+
+// J* (tan units) of the ray from `obs` towards `light` (unit), pruned at `cap`: costs at or above
+// `cap` may be reported as any value >= cap; DP_FAR when nothing is along the ray.
+fn dp_cost(obs: DpObserver, light: vec3<f32>, cap: f32) -> f32 {
+    let hor = sqrt(light.x * light.x + light.y * light.y);
+    if hor < DP_MIN_HORIZ {
+        return DP_FAR;
+    }
+    let du = light.x / hor;
+    let dv = -light.y / hor;
+    let tan_el = light.z / hor;
+    let px = dp_grid.px_m;
+    let exit_v = dp_axis_exit(obs.v0, dv, f32(dp_grid.rows - 1u));
+    let exit_u = dp_axis_exit(obs.u0, du, f32(dp_grid.cols - 1u));
+    let s_exit = max(min(exit_v, exit_u), 0.0);
+    // Which lattice line the ray is on at s (and at s_out): 0 none, 1 a row line, 2 a column line.
+    let exit_axis = select(2u, 1u, exit_v <= exit_u);
+    var s_axis = 0u;
+    let n_levels = i32(arrayLength(&dp_levels));
+    let top = n_levels - 1;
+    let max_iter = 8 * i32(dp_grid.rows + dp_grid.cols) + 32 * n_levels;
+    var best = DP_FAR;
+    var m = top;
+    var s = 0.0;
+    for (var it = 0; it < max_iter; it++) {
+        if s >= s_exit {
+            break;
+        }
+        let lv = dp_levels[m];
+        let size = f32(1u << u32(m));
+        let sm = s + 1.0e-3 + 1.0e-6 * s;
+        let i = clamp(dp_texel_index(obs.v0 + sm * dv, size), 0, i32(lv.x) - 1);
+        let j = clamp(dp_texel_index(obs.u0 + sm * du, size), 0, i32(lv.y) - 1);
+        let t_v = dp_texel_exit(i, size, obs.v0, dv);
+        let t_u = dp_texel_exit(j, size, obs.u0, du);
+        var s_out = min(t_v, t_u);
+        var out_axis = select(2u, 1u, t_v <= t_u);
+        if s_exit <= s_out {
+            s_out = s_exit;
+            out_axis = exit_axis;
+        }
+        if sm > s_out {
+            s_out = sm;
+            out_axis = 0u;
+        }
+        let m_z = dp_mip[lv.z + u32(i) * lv.y + u32(j)];
+        let dz = m_z - obs.z0;
+        var lb = tan_el;
+        if dz > 0.0 {
+            lb = select(-DP_FAR, tan_el - dz / (s * px), s > 0.0);
+        } else {
+            lb = tan_el - dz / (s_out * px);
+        }
+        if lb >= min(best, cap) {
+            s = s_out;
+            s_axis = out_axis;
+            m = min(m + 1, top);
+        } else if m == 0 {
+            if s_axis != 0u {
+                let z = dp_surface(s_axis, obs.v0 + s * dv, obs.u0 + s * du);
+                best = min(best, (obs.z0 - z) / (s * px) + tan_el);
+            }
+            if out_axis != 0u {
+                let z = dp_surface(out_axis, obs.v0 + s_out * dv, obs.u0 + s_out * du);
+                best = min(best, (obs.z0 - z) / (s_out * px) + tan_el);
+            }
+            s = s_out;
+            s_axis = out_axis;
+            m = min(m + 1, top);
+        } else {
+            m = m - 1;
+        }
+    }
+    return best;
+}
+
+// Visible fraction of the disc `light` (xyz unit direction, w angular radius, rad) from `obs`.
+fn dp_fraction(obs: DpObserver, light: vec4<f32>) -> f32 {
+    let l = light.xyz;
+    let r = light.w;
+    let hor = sqrt(l.x * l.x + l.y * l.y);
+    let e_c = atan2(l.z, hor);
+    var cap = 0.0;
+    if r > 0.0 {
+        let e_low = e_c - r;
+        cap = select(DP_FAR, l.z / max(hor, DP_MIN_HORIZ) - tan(e_low), e_low > -0.5 * DP_PI + 1.0e-6);
+    }
+    var e_h = -0.5 * DP_PI;
+    if hor >= DP_MIN_HORIZ {
+        let j = dp_cost(obs, l, cap);
+        if j < 0.5 * DP_FAR {
+            e_h = atan(l.z / hor - j);
+        }
+        let tan_local = -(obs.up.x * l.x / hor + obs.up.y * l.y / hor) / obs.up.z;
+        e_h = max(e_h, atan(tan_local));
+    }
+    let clearance = e_c - e_h;
+    if r <= 0.0 {
+        return select(0.0, 1.0, clearance > 0.0);
+    }
+    let d = clamp(clearance / r, -1.0, 1.0);
+    return (DP_PI - acos(d) + d * sqrt(1.0 - d * d)) / DP_PI;
+}
+
+// Whether cell (row, col) is a hole.
+fn dp_is_hole(row: u32, col: u32) -> bool {
+    return dp_heights[row * dp_grid.cols + col] < DP_HOLE_TEST_M;
+}

@@ -1,0 +1,461 @@
+//! GPU DP soft shadows over maximum mipmaps: `shaders/dp_visible.wgsl` (one map: the visible
+//! fraction of one disc per cell, radius 0 = hard mask) and `shaders/dp_sweep.wgsl` (the soft
+//! epoch sweep: Sun and Earth fractions folded into per-cell statistics, GPU-resident). Both
+//! share `shaders/shared/dp.wgsl`; CPU twins: `dp_visible`, `dp_sweep` in
+//! [`crate::shadow::gpu_twins`].
+//!
+//! The heights and every mipmap level are uploaded once ([`GpuDpGrid::upload`]: 4 B/cell + about
+//! 4/3 × 4 B/cell), the light table once per map or sweep. Outputs are computed in row bands
+//! (as [`super::shadow_march`]) so that output memory is bounded by the band, not the grid.
+
+use bytemuck::{Pod, Zeroable};
+use wgpu::util::DeviceExt as _;
+
+use super::GpuError;
+use super::context::{ErrorScope, GpuContext};
+use super::shadow_march::{STEP_SLOT_BYTES, band_buffer, compute_pipeline, storage_init};
+use crate::shadow::gpu_twins::{DpCellStats, DpMip, MarchGrid};
+
+/// Workgroup size of the DP kernels. Keep in sync with shaders/dp_*.wgsl.
+const WORKGROUP_SIZE_XY: u32 = 8;
+/// Epochs per dispatch of the soft sweep by default (each invocation loops over them).
+pub const DEFAULT_EPOCHS_PER_DISPATCH: u32 = 16;
+/// Dispatches per queue submit of the soft sweep by default.
+pub const DEFAULT_DISPATCHES_PER_SUBMIT: u32 = 16;
+
+const SHARED_DP_WGSL: &str = include_str!(concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/shaders/shared/dp.wgsl"
+));
+const DP_VISIBLE_WGSL: &str = include_str!(concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/shaders/dp_visible.wgsl"
+));
+const DP_SWEEP_WGSL: &str = include_str!(concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/shaders/dp_sweep.wgsl"
+));
+
+/// Mirrors of the WGSL structs.
+pub(crate) mod gpu_data {
+    use super::{Pod, Zeroable};
+
+    /// Keep in sync with `DpGridParams` in shaders/shared/dp.wgsl.
+    #[repr(C)]
+    #[derive(Debug, Clone, Copy, Pod, Zeroable)]
+    pub(crate) struct DpGridParams {
+        pub rows: u32,
+        pub cols: u32,
+        pub px_m: f32,
+        pub observer_height_m: f32,
+        pub x0_m: f32,
+        pub y0_m: f32,
+        pub z_max_m: f32,
+        pub z_ref_plus_radius_m: f32,
+    }
+    const _: () = assert!(size_of::<DpGridParams>() == 32);
+
+    /// Keep in sync with `DpStep` in shaders/shared/dp.wgsl.
+    #[repr(C)]
+    #[derive(Debug, Clone, Copy, Pod, Zeroable)]
+    pub(crate) struct DpStep {
+        pub light0: u32,
+        pub count: u32,
+        pub band_row0: u32,
+        pub band_rows: u32,
+    }
+    const _: () = assert!(size_of::<DpStep>() == 16);
+}
+use gpu_data::{DpGridParams, DpStep};
+
+/// Bind group layout and pipelines of the DP kernels (built once, in [`GpuContext::new`]).
+pub(crate) struct DpPipelines {
+    layout: wgpu::BindGroupLayout,
+    visible: wgpu::ComputePipeline,
+    sweep: wgpu::ComputePipeline,
+}
+
+fn entry(binding: u32, ty: wgpu::BufferBindingType, dynamic: bool) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Buffer {
+            ty,
+            has_dynamic_offset: dynamic,
+            min_binding_size: None,
+        },
+        count: None,
+    }
+}
+
+impl DpPipelines {
+    pub(crate) fn new(device: &wgpu::Device) -> Self {
+        use wgpu::BufferBindingType::{Storage, Uniform};
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("penumbra dp layout"),
+            entries: &[
+                entry(0, Uniform, false),
+                entry(1, Storage { read_only: true }, false),
+                entry(2, Storage { read_only: true }, false),
+                entry(3, Storage { read_only: true }, false),
+                entry(4, Storage { read_only: true }, false),
+                entry(5, Uniform, true),
+                entry(6, Storage { read_only: false }, false),
+            ],
+        });
+        let visible_src = format!("{SHARED_DP_WGSL}{DP_VISIBLE_WGSL}");
+        let sweep_src = format!("{SHARED_DP_WGSL}{DP_SWEEP_WGSL}");
+        let visible = compute_pipeline(device, &layout, "dp_visible", &visible_src, "dp_visible");
+        let sweep = compute_pipeline(device, &layout, "dp_sweep", &sweep_src, "dp_sweep");
+        DpPipelines {
+            layout,
+            visible,
+            sweep,
+        }
+    }
+}
+
+/// A [`MarchGrid`] and its [`DpMip`] resident on the GPU, uploaded once and reused by every map
+/// and every epoch.
+pub struct GpuDpGrid {
+    params: wgpu::Buffer,
+    heights: wgpu::Buffer,
+    mip: wgpu::Buffer,
+    levels: wgpu::Buffer,
+    rows: u32,
+    cols: u32,
+}
+
+impl GpuDpGrid {
+    /// Uploads `grid` and `mip` (from [`DpMip::build`] of the same grid). Fails when a buffer
+    /// exceeds the device's storage binding limit or the grid is too wide for one dispatch row.
+    pub fn upload(ctx: &GpuContext, grid: &MarchGrid, mip: &DpMip) -> Result<Self, GpuError> {
+        let limits = ctx.limits();
+        let max_binding = limits
+            .max_storage_buffer_binding_size
+            .min(limits.max_buffer_size);
+        let biggest = (grid.heights_m.len().max(mip.texels.len()) as u64) * 4;
+        if biggest > max_binding {
+            return Err(GpuError::InvalidInput {
+                kernel: "dp_visible",
+                message: format!(
+                    "the height field or its mipmap ({biggest} B) exceeds the adapter's storage \
+                     binding limit ({max_binding} B); use tiles (gpu::dp::dp_visible_tiled)"
+                ),
+            });
+        }
+        if grid.cols.div_ceil(WORKGROUP_SIZE_XY) > limits.max_compute_workgroups_per_dimension {
+            return Err(GpuError::InvalidInput {
+                kernel: "dp_visible",
+                message: format!("{} columns exceed one dispatch row", grid.cols),
+            });
+        }
+        let params = DpGridParams {
+            rows: grid.rows,
+            cols: grid.cols,
+            px_m: grid.px_m,
+            observer_height_m: grid.observer_height_m,
+            x0_m: grid.x0_m,
+            y0_m: grid.y0_m,
+            z_max_m: grid.z_max_m,
+            z_ref_plus_radius_m: grid.z_ref_plus_radius_m,
+        };
+        let scope = ErrorScope::push(&ctx.device);
+        let params = ctx
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("penumbra dp grid params"),
+                contents: bytemuck::bytes_of(&params),
+                usage: wgpu::BufferUsages::UNIFORM,
+            });
+        let heights = storage_init(
+            ctx,
+            "penumbra dp heights",
+            bytemuck::cast_slice(&grid.heights_m),
+        );
+        let mip_buf = storage_init(ctx, "penumbra dp mipmap", bytemuck::cast_slice(&mip.texels));
+        let levels = storage_init(
+            ctx,
+            "penumbra dp mipmap levels",
+            bytemuck::cast_slice(&mip.levels),
+        );
+        scope.pop("uploading the height field and its maximum mipmap")?;
+        Ok(GpuDpGrid {
+            params,
+            heights,
+            mip: mip_buf,
+            levels,
+            rows: grid.rows,
+            cols: grid.cols,
+        })
+    }
+
+    /// Rows per band for `band_bytes` of `bytes_per_cell` outputs (at least 1, at most the grid
+    /// and the dispatch limit).
+    fn band_rows(&self, ctx: &GpuContext, band_bytes: u64, bytes_per_cell: u64) -> u32 {
+        let by_budget = (band_bytes / (u64::from(self.cols) * bytes_per_cell)).max(1);
+        let by_dispatch = u64::from(ctx.limits().max_compute_workgroups_per_dimension)
+            * u64::from(WORKGROUP_SIZE_XY);
+        by_budget.min(by_dispatch).min(u64::from(self.rows)) as u32
+    }
+
+    fn bind_group(
+        &self,
+        ctx: &GpuContext,
+        lights: &wgpu::Buffer,
+        slots: &wgpu::Buffer,
+        out: &wgpu::Buffer,
+    ) -> wgpu::BindGroup {
+        ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("penumbra dp bind group"),
+            layout: &ctx.dp.layout,
+            entries: &[
+                whole(0, &self.params),
+                whole(1, &self.heights),
+                whole(2, &self.mip),
+                whole(3, &self.levels),
+                whole(4, lights),
+                wgpu::BindGroupEntry {
+                    binding: 5,
+                    resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                        buffer: slots,
+                        offset: 0,
+                        size: wgpu::BufferSize::new(size_of::<DpStep>() as u64),
+                    }),
+                },
+                whole(6, out),
+            ],
+        })
+    }
+}
+
+fn whole(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
+    wgpu::BindGroupEntry {
+        binding,
+        resource: buffer.as_entire_binding(),
+    }
+}
+
+/// Writes `steps` into consecutive [`STEP_SLOT_BYTES`]-strided slots of `slots`.
+fn write_dp_steps(ctx: &GpuContext, slots: &wgpu::Buffer, steps: &[DpStep]) {
+    let mut bytes = Vec::with_capacity(steps.len() * STEP_SLOT_BYTES as usize);
+    for step in steps {
+        let mut slot = [0_u8; STEP_SLOT_BYTES as usize];
+        slot[..size_of::<DpStep>()].copy_from_slice(bytemuck::bytes_of(step));
+        bytes.extend_from_slice(&slot);
+    }
+    ctx.queue.write_buffer(slots, 0, &bytes);
+}
+
+fn slot_buffer(ctx: &GpuContext, slots: u32) -> wgpu::Buffer {
+    ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("penumbra dp step slots"),
+        size: u64::from(slots.max(1)) * STEP_SLOT_BYTES,
+        usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    })
+}
+
+fn check_light(light: [f32; 4], kernel: &'static str) -> Result<(), GpuError> {
+    let norm2 = light[0] * light[0] + light[1] * light[1] + light[2] * light[2];
+    if !(light.iter().all(|c| c.is_finite())
+        && (norm2 - 1.0).abs() < 1e-3
+        && (0.0..1.5).contains(&light[3]))
+    {
+        return Err(GpuError::InvalidInput {
+            kernel,
+            message: format!(
+                "light {light:?} is not a unit direction with an angular radius in [0, 1.5) rad"
+            ),
+        });
+    }
+    Ok(())
+}
+
+/// GPU `dp_visible`: per cell (row-major) the visible fraction of the disc `light` (from
+/// [`crate::shadow::gpu_twins::disc_light_to_f32`]; radius 0: 1 lit / 0 shadow), -1 for nodata,
+/// computed in row bands of at most `band_bytes` of output
+/// (use [`super::shadow_march::DEFAULT_BAND_BYTES`]).
+pub fn dp_visible_gpu(
+    ctx: &GpuContext,
+    grid: &GpuDpGrid,
+    light: [f32; 4],
+    band_bytes: u64,
+) -> Result<Vec<f32>, GpuError> {
+    check_light(light, "dp_visible")?;
+    let band_rows = grid.band_rows(ctx, band_bytes, 4);
+    let cols = u64::from(grid.cols);
+    let scope = ErrorScope::push(&ctx.device);
+    let lights = storage_init(ctx, "penumbra dp light", bytemuck::cast_slice(&[light]));
+    let slots = slot_buffer(ctx, 1);
+    let out = band_buffer(
+        ctx,
+        "penumbra dp band",
+        u64::from(band_rows) * cols,
+        wgpu::BufferUsages::empty(),
+    );
+    let bind_group = grid.bind_group(ctx, &lights, &slots, &out);
+    let mut map: Vec<f32> = Vec::with_capacity(grid.rows as usize * grid.cols as usize);
+    let mut row0 = 0;
+    while row0 < grid.rows {
+        let rows = band_rows.min(grid.rows - row0);
+        let step = DpStep {
+            light0: 0,
+            count: 1,
+            band_row0: row0,
+            band_rows: rows,
+        };
+        write_dp_steps(ctx, &slots, &[step]);
+        let mut encoder = ctx
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("dp_visible"),
+            });
+        {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("dp_visible"),
+                timestamp_writes: None,
+            });
+            pass.set_pipeline(&ctx.dp.visible);
+            pass.set_bind_group(0, &bind_group, &[0]);
+            pass.dispatch_workgroups(
+                grid.cols.div_ceil(WORKGROUP_SIZE_XY),
+                rows.div_ceil(WORKGROUP_SIZE_XY),
+                1,
+            );
+        }
+        ctx.queue.submit([encoder.finish()]);
+        let bytes = ctx.read_back(&out, u64::from(rows) * cols * 4, "a DP band")?;
+        map.extend_from_slice(bytemuck::cast_slice(&bytes));
+        row0 += rows;
+    }
+    scope.pop("running dp_visible")?;
+    Ok(map)
+}
+
+/// Options of [`dp_sweep_gpu`].
+#[derive(Debug, Clone, Copy)]
+pub struct DpSweepOptions {
+    /// Epochs one invocation loops over per dispatch.
+    pub epochs_per_dispatch: u32,
+    /// Dispatches encoded per queue submit.
+    pub dispatches_per_submit: u32,
+    /// Bytes of statistics (32 B per cell) per row band.
+    pub band_bytes: u64,
+}
+
+impl Default for DpSweepOptions {
+    fn default() -> Self {
+        DpSweepOptions {
+            epochs_per_dispatch: DEFAULT_EPOCHS_PER_DISPATCH,
+            dispatches_per_submit: DEFAULT_DISPATCHES_PER_SUBMIT,
+            band_bytes: super::shadow_march::DEFAULT_BAND_BYTES,
+        }
+    }
+}
+
+/// GPU soft epoch sweep: the [`DpCellStats`] of every cell (row-major) over the epochs of
+/// `lights` (two discs per epoch, Sun then Earth, from
+/// [`crate::shadow::gpu_twins::disc_light_to_f32`], in time order). The table is uploaded once;
+/// nothing is read back until a band's last epoch. Twin:
+/// [`crate::shadow::gpu_twins::dp_sweep`].
+pub fn dp_sweep_gpu(
+    ctx: &GpuContext,
+    grid: &GpuDpGrid,
+    lights: &[[f32; 4]],
+    options: DpSweepOptions,
+) -> Result<Vec<DpCellStats>, GpuError> {
+    if lights.is_empty()
+        || !lights.len().is_multiple_of(2)
+        || options.epochs_per_dispatch == 0
+        || options.dispatches_per_submit == 0
+    {
+        return Err(GpuError::InvalidInput {
+            kernel: "dp_sweep",
+            message: "the light table needs Sun and Earth discs for at least one epoch (and \
+                      non-zero epochs per dispatch / dispatches per submit)"
+                .into(),
+        });
+    }
+    for &l in lights {
+        check_light(l, "dp_sweep")?;
+    }
+    let epochs = u32::try_from(lights.len() / 2).map_err(|_| GpuError::InvalidInput {
+        kernel: "dp_sweep",
+        message: format!("{} epochs exceed 2^32", lights.len() / 2),
+    })?;
+    let stats_bytes = size_of::<DpCellStats>() as u64;
+    let band_rows = grid.band_rows(ctx, options.band_bytes, stats_bytes);
+    let cols = u64::from(grid.cols);
+    let per_submit = options.dispatches_per_submit;
+    let scope = ErrorScope::push(&ctx.device);
+    // Uploaded once for the whole sweep.
+    let table = storage_init(ctx, "penumbra dp light table", bytemuck::cast_slice(lights));
+    let slots = slot_buffer(ctx, per_submit);
+    let band_cells = u64::from(band_rows) * cols;
+    let stats = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("penumbra dp sweep stats"),
+        size: band_cells.max(1) * stats_bytes,
+        usage: wgpu::BufferUsages::STORAGE
+            | wgpu::BufferUsages::COPY_SRC
+            | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let bind_group = grid.bind_group(ctx, &table, &slots, &stats);
+    let mut all: Vec<DpCellStats> = Vec::with_capacity(grid.rows as usize * grid.cols as usize);
+    let mut row0 = 0;
+    while row0 < grid.rows {
+        let rows = band_rows.min(grid.rows - row0);
+        let cells = u64::from(rows) * cols;
+        let mut clear = ctx
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("penumbra dp sweep clear"),
+            });
+        clear.clear_buffer(&stats, 0, None);
+        ctx.queue.submit([clear.finish()]);
+        let mut first = 0_u32;
+        while first < epochs {
+            let mut steps = Vec::with_capacity(per_submit as usize);
+            while first < epochs && steps.len() < per_submit as usize {
+                let count = options.epochs_per_dispatch.min(epochs - first);
+                steps.push(DpStep {
+                    light0: first,
+                    count,
+                    band_row0: row0,
+                    band_rows: rows,
+                });
+                first += count;
+            }
+            write_dp_steps(ctx, &slots, &steps);
+            let mut encoder = ctx
+                .device
+                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                    label: Some("penumbra dp sweep batch"),
+                });
+            {
+                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("penumbra dp sweep batch"),
+                    timestamp_writes: None,
+                });
+                pass.set_pipeline(&ctx.dp.sweep);
+                for j in 0..steps.len() as u32 {
+                    pass.set_bind_group(0, &bind_group, &[j * STEP_SLOT_BYTES as u32]);
+                    pass.dispatch_workgroups(
+                        grid.cols.div_ceil(WORKGROUP_SIZE_XY),
+                        rows.div_ceil(WORKGROUP_SIZE_XY),
+                        1,
+                    );
+                }
+            }
+            ctx.queue.submit([encoder.finish()]);
+            // Reclaim finished submissions without waiting, so staging memory stays bounded.
+            ctx.device.poll(wgpu::PollType::Poll).ok();
+        }
+        let bytes = ctx.read_back(&stats, cells * stats_bytes, "DP sweep statistics")?;
+        all.extend_from_slice(bytemuck::cast_slice(&bytes));
+        row0 += rows;
+    }
+    scope.pop("running the DP epoch sweep")?;
+    Ok(all)
+}

@@ -1,0 +1,579 @@
+//! GPU DP soft shadows (`shaders/dp_visible.wgsl`, `shaders/dp_sweep.wgsl`): the f32 CPU twin
+//! against the f64 reference engines (`shadow::dp`, `shadow::brute`; always run), and the GPU
+//! against the twin and the references (lavapipe in CI; skipped with a printed reason when no
+//! adapter exists, a failure with `PENUMBRA_REQUIRE_GPU=1`). naga validation of the DP shaders is
+//! part of `gpu::naga_validates_every_shader` (every `shaders/*.wgsl`).
+
+use nalgebra::Vector3;
+use penumbra::shadow::gpu_twins::{self, DpCellStats, DpMip, MarchGrid, RowBand};
+use penumbra::shadow::{Engine, SUN_ANGULAR_RADIUS_RAD, dp};
+use penumbra::terrain::HeightField;
+
+/// `n`² cells of 20 m: five Gaussian hills (60..400 m), the Moon's curvature drop and a 3 × 3
+/// hole (the fixture of `gpu.rs`).
+fn hills(n: usize) -> HeightField {
+    let mut hf = HeightField::flat(n, n, 20.0);
+    let half_m = n as f64 * 10.0;
+    let hills = [
+        (0.2, 0.3, 400.0, 600.0),
+        (-0.5, -0.1, 250.0, 300.0),
+        (0.6, -0.6, 300.0, 400.0),
+        (-0.3, 0.7, 60.0, 150.0),
+        (0.0, -0.4, 150.0, 250.0),
+    ];
+    for row in 0..n {
+        for col in 0..n {
+            let (x, y) = hf.xy_from_row_col(row as f64, col as f64);
+            let mut z = -(x * x + y * y) / (2.0 * penumbra::MOON_RADIUS_M);
+            for &(cx, cy, h, s) in &hills {
+                let (dx, dy) = (x - cx * half_m, y - cy * half_m);
+                z += h * (-(dx * dx + dy * dy) / (2.0 * s * s)).exp();
+            }
+            hf.z_m[row * n + col] = z as f32;
+        }
+    }
+    for row in n / 2..n / 2 + 3 {
+        for col in n / 3..n / 3 + 3 {
+            hf.z_m[row * n + col] = f32::NAN;
+        }
+    }
+    hf
+}
+
+fn sun_dir(az_deg: f64, el_deg: f64) -> Vector3<f64> {
+    let (az, el) = (az_deg.to_radians(), el_deg.to_radians());
+    Vector3::new(az.sin() * el.cos(), az.cos() * el.cos(), el.sin())
+}
+
+/// Grazing, low and moderate Suns, azimuths off the grid axes (as `gpu.rs`).
+const SUNS_DEG: [(f64, f64); 3] = [(0.5, 37.0), (1.5, 151.0), (5.0, 262.0)];
+const OBSERVER_M: f64 = 2.0;
+
+/// Max and mean |a − b| over cells where both are data (`a` NaN / `b` < 0 is nodata) and the
+/// number of cells where exactly one is nodata.
+fn deltas(reference: &[f32], other: &[f32]) -> (f64, f64, usize) {
+    let (mut max, mut sum, mut n, mut mismatch) = (0.0_f64, 0.0_f64, 0usize, 0usize);
+    for (&a, &b) in reference.iter().zip(other) {
+        let a_nodata = a.is_nan() || a < 0.0;
+        let b_nodata = b.is_nan() || b < 0.0;
+        if a_nodata || b_nodata {
+            mismatch += usize::from(a_nodata != b_nodata);
+            continue;
+        }
+        let d = f64::from((a - b).abs());
+        max = max.max(d);
+        sum += d;
+        n += 1;
+    }
+    (max, sum / n.max(1) as f64, mismatch)
+}
+
+fn penumbra_cells(map: &[f32]) -> usize {
+    map.iter().filter(|&&f| f > 0.0 && f < 1.0).count()
+}
+
+/// The twin's mipmap equals the f64 reference's MaxMipmap semantics: every level-0 texel is the
+/// max of its four corners and every coarser texel the max of its 2 × 2 children (independent
+/// recomputation), down to one texel holding the grid's maximum.
+#[test]
+fn dp_twin_mipmap_bounds_the_surface() {
+    let hf = hills(37);
+    let grid = MarchGrid::from_height_field(&hf, OBSERVER_M).unwrap();
+    let mip = DpMip::build(&grid);
+    let top = mip.levels.last().unwrap();
+    assert_eq!((top[0], top[1]), (1, 1));
+    assert_eq!(mip.texels[top[2] as usize], grid.z_max_m);
+    let [r0, c0, _, _] = mip.levels[0];
+    assert_eq!((r0, c0), (36, 36));
+    for i in 0..36usize {
+        for j in 0..36usize {
+            let corners = [(i, j), (i + 1, j), (i, j + 1), (i + 1, j + 1)]
+                .map(|(r, c)| grid.heights_m[r * 37 + c])
+                .into_iter()
+                .fold(f32::MIN, f32::max);
+            assert_eq!(mip.texels[i * 36 + j], corners);
+            // Level 3 texel covering it.
+            let l3 = mip.levels[3];
+            let v = mip.texels[(l3[2] + (i as u32 / 8) * l3[1] + j as u32 / 8) as usize];
+            assert!(v >= corners);
+        }
+    }
+}
+
+/// Oracle: the f64 reference engines. The twin's visible fraction vs `dp::visible_fraction`
+/// (same cost model, f64, interval search) and its radius-0 mask vs `brute::hard_mask` (the
+/// exhaustive march) on the 128² hills.
+#[test]
+fn dp_twin_matches_reference_engines() {
+    let n = 128;
+    let hf = hills(n);
+    let grid = MarchGrid::from_height_field(&hf, OBSERVER_M).unwrap();
+    let mip = DpMip::build(&grid);
+    for (el_deg, az_deg) in SUNS_DEG {
+        let dir = sun_dir(az_deg, el_deg);
+        let reference = dp::visible_fraction(
+            &hf,
+            OBSERVER_M,
+            dir.into(),
+            SUN_ANGULAR_RADIUS_RAD,
+            &dp::DpConfig::default(),
+        )
+        .unwrap();
+        let light = gpu_twins::disc_light_to_f32(&dir, SUN_ANGULAR_RADIUS_RAD);
+        let twin = gpu_twins::dp_visible(&grid, &mip, &[light], 0, RowBand::whole(&grid));
+        let (max, mean, mismatch) = deltas(&reference, &twin);
+        let partial = penumbra_cells(&reference);
+        eprintln!(
+            "dp twin vs dp::visible_fraction {n}² el {el_deg}°: max |Δ| {max:.2e} mean |Δ| {mean:.2e}, penumbra cells {partial}"
+        );
+        assert_eq!(mismatch, 0);
+        assert!(partial > 50, "fixture needs penumbra cells");
+        assert!(max <= TWIN_VS_DP_MAX && mean <= TWIN_VS_DP_MEAN);
+
+        let brute = Engine::Brute
+            .hard_mask(&hf, OBSERVER_M, dir.into())
+            .unwrap();
+        let hard = gpu_twins::disc_light_to_f32(&dir, 0.0);
+        let twin_hard = gpu_twins::dp_visible(&grid, &mip, &[hard], 0, RowBand::whole(&grid));
+        let differ = brute
+            .iter()
+            .zip(&twin_hard)
+            .filter(|(b, t)| **b != 255 && f32::from(**b) != **t)
+            .count();
+        let dark = brute.iter().filter(|&&b| b == 0).count();
+        eprintln!(
+            "dp twin hard vs brute {n}² el {el_deg}°: {differ} cells differ, brute dark {dark}"
+        );
+        assert!(dark > n * n / 50);
+        assert!(differ as f64 <= TWIN_VS_BRUTE_HARD_FRACTION * (n * n) as f64);
+    }
+}
+
+/// Bounds measured on the hills fixtures (see docs/VALIDATION.md).
+const TWIN_VS_DP_MAX: f64 = 1e-2;
+const TWIN_VS_DP_MEAN: f64 = 5e-6;
+const TWIN_VS_BRUTE_HARD_FRACTION: f64 = 1e-3;
+
+#[cfg(feature = "gpu")]
+mod on_gpu {
+    use std::sync::OnceLock;
+
+    use penumbra::gpu::GpuContext;
+    use penumbra::gpu::dp::{DpSweepOptions, GpuDpGrid, dp_sweep_gpu, dp_visible_gpu};
+
+    use super::*;
+
+    fn gpu() -> Option<&'static GpuContext> {
+        static CTX: OnceLock<Option<GpuContext>> = OnceLock::new();
+        let ctx = CTX.get_or_init(|| match GpuContext::new() {
+            Ok(ctx) => Some(ctx),
+            Err(e) => {
+                let required = std::env::var("PENUMBRA_REQUIRE_GPU").is_ok_and(|v| v == "1");
+                assert!(!required, "PENUMBRA_REQUIRE_GPU=1 but no GPU context: {e}");
+                eprintln!("skipping GPU test: {e}");
+                None
+            }
+        });
+        ctx.as_ref()
+    }
+
+    /// GPU vs its f32 twin (same algorithm, same arithmetic) and vs `dp::visible_fraction` (f64)
+    /// on the 256² hills, soft (Sun radius) and hard (radius 0), bands of 50 rows.
+    #[test]
+    fn dp_visible_gpu_matches_twin_and_reference() {
+        let Some(ctx) = gpu() else { return };
+        let n = 256;
+        let hf = hills(n);
+        let grid = MarchGrid::from_height_field(&hf, OBSERVER_M).unwrap();
+        let mip = DpMip::build(&grid);
+        let on_gpu = GpuDpGrid::upload(ctx, &grid, &mip).unwrap();
+        for (el_deg, az_deg) in SUNS_DEG {
+            let dir = sun_dir(az_deg, el_deg);
+            let light = gpu_twins::disc_light_to_f32(&dir, SUN_ANGULAR_RADIUS_RAD);
+            let twin = gpu_twins::dp_visible(&grid, &mip, &[light], 0, RowBand::whole(&grid));
+            let gpu_map = dp_visible_gpu(ctx, &on_gpu, light, 50 * n as u64 * 4).unwrap();
+            let (max, mean, mismatch) = deltas(&twin, &gpu_map);
+            eprintln!(
+                "dp_visible gpu vs twin {n}² el {el_deg}°: max |Δ| {max:.2e} mean |Δ| {mean:.2e}"
+            );
+            assert_eq!(mismatch, 0);
+            assert!(max <= GPU_VS_TWIN_MAX && mean <= GPU_VS_TWIN_MEAN);
+            let reference = dp::visible_fraction(
+                &hf,
+                OBSERVER_M,
+                dir.into(),
+                SUN_ANGULAR_RADIUS_RAD,
+                &dp::DpConfig::default(),
+            )
+            .unwrap();
+            let (max, mean, mismatch) = deltas(&reference, &gpu_map);
+            eprintln!(
+                "dp_visible gpu vs dp::visible_fraction {n}² el {el_deg}°: max |Δ| {max:.2e} mean |Δ| {mean:.2e}, penumbra {}",
+                penumbra_cells(&reference)
+            );
+            assert_eq!(mismatch, 0);
+            assert!(max <= TWIN_VS_DP_MAX && mean <= TWIN_VS_DP_MEAN);
+
+            let hard = gpu_twins::disc_light_to_f32(&dir, 0.0);
+            let gpu_hard = dp_visible_gpu(ctx, &on_gpu, hard, 50 * n as u64 * 4).unwrap();
+            let brute = Engine::Brute
+                .hard_mask(&hf, OBSERVER_M, dir.into())
+                .unwrap();
+            let differ = brute
+                .iter()
+                .zip(&gpu_hard)
+                .filter(|(b, g)| **b != 255 && f32::from(**b) != **g)
+                .count();
+            eprintln!("dp_visible gpu hard vs brute {n}² el {el_deg}°: {differ} cells differ");
+            assert!(differ as f64 <= TWIN_VS_BRUTE_HARD_FRACTION * (n * n) as f64);
+        }
+    }
+
+    /// Bounds measured on lavapipe (docs/VALIDATION.md).
+    const GPU_VS_TWIN_MAX: f64 = 2e-4;
+    const GPU_VS_TWIN_MEAN: f64 = 2e-6;
+
+    /// Row bands of 1 and 13 rows give the same map as one band.
+    #[test]
+    fn dp_visible_gpu_bands_are_seamless() {
+        let Some(ctx) = gpu() else { return };
+        let n = 64;
+        let grid = MarchGrid::from_height_field(&hills(n), OBSERVER_M).unwrap();
+        let mip = DpMip::build(&grid);
+        let on_gpu = GpuDpGrid::upload(ctx, &grid, &mip).unwrap();
+        let light = gpu_twins::disc_light_to_f32(&sun_dir(151.0, 1.5), SUN_ANGULAR_RADIUS_RAD);
+        let whole = dp_visible_gpu(ctx, &on_gpu, light, u64::MAX / 2).unwrap();
+        for rows in [1_u64, 13] {
+            let banded = dp_visible_gpu(ctx, &on_gpu, light, rows * n as u64 * 4).unwrap();
+            assert_eq!(banded, whole, "bands of {rows} rows");
+        }
+    }
+
+    /// The soft sweep: GPU vs twin (bit-level statistics except the f32 sum) on 64² × 40 epochs,
+    /// 3 epochs per dispatch, 5 dispatches per submit, bands of 9 rows.
+    #[test]
+    fn dp_sweep_gpu_matches_twin() {
+        let Some(ctx) = gpu() else { return };
+        let n = 64;
+        let grid = MarchGrid::from_height_field(&hills(n), OBSERVER_M).unwrap();
+        let mip = DpMip::build(&grid);
+        let on_gpu = GpuDpGrid::upload(ctx, &grid, &mip).unwrap();
+        let lights = sweep_lights(40);
+        let twin = gpu_twins::dp_sweep(&grid, &mip, &lights, RowBand::whole(&grid));
+        let options = DpSweepOptions {
+            epochs_per_dispatch: 3,
+            dispatches_per_submit: 5,
+            band_bytes: 9 * n as u64 * 32,
+        };
+        let gpu_stats = dp_sweep_gpu(ctx, &on_gpu, &lights, options).unwrap();
+        let counts = |s: &DpCellStats| {
+            (
+                s.sun_visible_epochs,
+                s.longest_dark_run_epochs,
+                s.earth_visible_epochs,
+                s.sun_and_earth_epochs,
+            )
+        };
+        let equal = twin
+            .iter()
+            .zip(&gpu_stats)
+            .filter(|(a, b)| counts(a) == counts(b))
+            .count();
+        let max_sum = twin
+            .iter()
+            .zip(&gpu_stats)
+            .map(|(a, b)| f64::from((a.sun_fraction_sum - b.sun_fraction_sum).abs()))
+            .fold(0.0, f64::max);
+        let longest = twin
+            .iter()
+            .map(|s| s.longest_dark_run_epochs)
+            .max()
+            .unwrap();
+        eprintln!(
+            "dp_sweep gpu vs twin {n}² × 40: {equal}/{} cells with equal counts, max |Δ sun_fraction_sum| {max_sum:.2e}, longest dark {longest}",
+            twin.len()
+        );
+        assert!(longest > 1 && longest < 40, "fixture must have dark runs");
+        assert!(equal as f64 >= 0.999 * twin.len() as f64);
+        assert!(max_sum <= 40.0 * GPU_VS_TWIN_MAX);
+    }
+}
+
+/// Sun and Earth discs for `epochs` epochs: the Sun circles the sky at 0.5..5° elevation, the
+/// Earth stays low in the north-west (1..3°), radii 0.2666° and 0.95°.
+fn sweep_lights(epochs: usize) -> Vec<[f32; 4]> {
+    (0..epochs)
+        .flat_map(|k| {
+            let phase = k as f64 / epochs as f64;
+            let sun_el = 2.75 + 2.25 * (4.0 * std::f64::consts::TAU * phase).sin();
+            let earth_el = 2.0 + (std::f64::consts::TAU * phase).sin();
+            [
+                gpu_twins::disc_light_to_f32(
+                    &sun_dir(360.0 * phase, sun_el),
+                    SUN_ANGULAR_RADIUS_RAD,
+                ),
+                gpu_twins::disc_light_to_f32(&sun_dir(300.0, earth_el), 0.95_f64.to_radians()),
+            ]
+        })
+        .collect()
+}
+
+/// `penumbra map` over 2027-02-01..05 step 12h (9 epochs) on the synthetic DEM with
+/// `--engine dp --backend B`, in `cwd/B`.
+#[cfg(feature = "gpu")]
+fn map_range_dp(cwd: &std::path::Path, backend: &str) -> std::process::Output {
+    let k = crate::util::kernels_dir();
+    std::process::Command::new(env!("CARGO_BIN_EXE_penumbra"))
+        .args([
+            "map",
+            "--synthetic",
+            "--start",
+            "2027-02-01",
+            "--stop",
+            "2027-02-05",
+            "--step",
+            "12h",
+            "--engine",
+            "dp",
+            "--out-dir",
+            backend,
+            "--kernels",
+            k.to_str().unwrap(),
+            "--backend",
+            backend,
+        ])
+        .current_dir(cwd)
+        .env("XDG_RUNTIME_DIR", "/tmp")
+        .env_remove("PENUMBRA_KERNELS")
+        .output()
+        .unwrap()
+}
+
+/// The soft GPU sweep against the CPU `map::sweep` (engine DP, f64) with the same definitions:
+/// every statistic map of `--backend gpu` vs `--backend cpu` on the synthetic DEM, same nodata,
+/// max / mean |Δ| per map within the bounds measured on lavapipe (docs/VALIDATION.md).
+#[cfg(feature = "gpu")]
+#[test]
+fn map_sweep_gpu_soft_matches_cpu_sweep() {
+    if let Err(e) = penumbra::gpu::GpuContext::new() {
+        let required = std::env::var("PENUMBRA_REQUIRE_GPU").is_ok_and(|v| v == "1");
+        assert!(!required, "PENUMBRA_REQUIRE_GPU=1 but no GPU context: {e}");
+        eprintln!("skipping GPU test: {e}");
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    for backend in ["cpu", "gpu"] {
+        let out = map_range_dp(dir.path(), backend);
+        assert!(
+            out.status.success(),
+            "--backend {backend}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+    let read = |b: &str, name: &str| {
+        penumbra::terrain::read_geotiff(&dir.path().join(b).join(format!("{name}.tif")))
+            .unwrap()
+            .heights_m
+    };
+    let mut failures = 0;
+    // (map, a difference that counts (in the map's unit), mean |Δ| bound). One epoch is 11.1 %
+    // or 12 h. Measured on lavapipe: sun_illumination_pct mean |Δ| 3.3e-3 %, longest_dark_h
+    // 3.8e-3 h, psr_mask 5e-5, earth and sun-and-earth 0; the few large differences (≤ 0.1 % of
+    // pixels) are cells where the CPU DP engine misses an occluder that brute force and the GPU
+    // kernel both see (test dp_twin_vs_cpu_dp_on_synthetic_dem, docs/VALIDATION.md).
+    for (name, counts_m, mean_bound) in [
+        ("sun_illumination_pct", 1.0, 0.02),
+        ("longest_dark_h", 0.5, 0.02),
+        ("psr_mask", 0.5, 3e-4),
+        ("earth_visible_pct", 1.0, 0.02),
+        ("sun_and_earth_pct", 1.0, 0.02),
+    ] {
+        let (cpu, gpu) = (read("cpu", name), read("gpu", name));
+        assert_eq!(cpu.len(), gpu.len());
+        let nodata = |v: f32| v.is_nan() || (name == "psr_mask" && v == 255.0);
+        let (mut valid, mut differ, mut max, mut sum) = (0usize, 0usize, 0.0_f64, 0.0_f64);
+        let mut worst = (0usize, 0.0_f32, 0.0_f32);
+        for (k, (&c, &g)) in cpu.iter().zip(&gpu).enumerate() {
+            assert_eq!(nodata(c), nodata(g), "{name}: nodata masks differ");
+            if nodata(c) {
+                continue;
+            }
+            valid += 1;
+            let d = f64::from((c - g).abs());
+            differ += usize::from(d > counts_m);
+            if d > max {
+                worst = (k, c, g);
+            }
+            max = max.max(d);
+            sum += d;
+        }
+        let mean = sum / valid as f64;
+        eprintln!(
+            "map sweep gpu vs cpu (dp) {name}: {valid} valid, max |Δ| {max:.3e}, mean |Δ| {mean:.3e}, {differ} pixels differ > {counts_m}, worst (index, cpu, gpu) {worst:?}"
+        );
+        failures += usize::from(mean > mean_bound || differ as f64 > 1e-3 * valid as f64);
+        assert!(valid > 10_000);
+    }
+    assert_eq!(failures, 0, "maps out of bounds (see stderr)");
+}
+
+/// Next to large holes (a nodata margin, as at the edge of a resampled DEM) the twin's radius-0
+/// mask equals the brute-force reference (lattice-line crossings, `brute::hard_mask`); the
+/// count of cells where the CPU DP engine differs from brute force is printed for the docs.
+#[test]
+fn dp_twin_hard_matches_brute_next_to_holes() {
+    let n = 96;
+    let mut hf = hills(n);
+    for row in 0..n {
+        for col in 0..(5 + row % 7) {
+            hf.z_m[row * n + col] = f32::NAN;
+        }
+    }
+    let grid = MarchGrid::from_height_field(&hf, OBSERVER_M).unwrap();
+    let mip = DpMip::build(&grid);
+    for (el_deg, az_deg) in [(0.5, 265.0), (1.5, 290.0), (1.0, 240.0)] {
+        let dir = sun_dir(az_deg, el_deg);
+        let brute = Engine::Brute
+            .hard_mask(&hf, OBSERVER_M, dir.into())
+            .unwrap();
+        let cpu_dp = Engine::Dp.hard_mask(&hf, OBSERVER_M, dir.into()).unwrap();
+        let hard = gpu_twins::disc_light_to_f32(&dir, 0.0);
+        let twin = gpu_twins::dp_visible(&grid, &mip, &[hard], 0, RowBand::whole(&grid));
+        let twin_vs_brute = brute
+            .iter()
+            .zip(&twin)
+            .filter(|(b, t)| **b != 255 && f32::from(**b) != **t)
+            .count();
+        let dp_vs_brute = brute.iter().zip(&cpu_dp).filter(|(b, d)| b != d).count();
+        let dark = brute.iter().filter(|&&b| b == 0).count();
+        eprintln!(
+            "holes el {el_deg}° az {az_deg}°: twin vs brute {twin_vs_brute}, cpu dp vs brute {dp_vs_brute}, brute dark {dark}"
+        );
+        assert!(dark > 100);
+        assert!(twin_vs_brute as f64 <= TWIN_VS_BRUTE_HARD_FRACTION * (n * n) as f64);
+    }
+}
+
+/// The twin vs the CPU DP engine on the built-in synthetic DEM's model grid (404², 100 m) for a
+/// 1° Sun from three western azimuths: wherever they differ by > 0.01, brute force (64 disc
+/// samples, the oracle) must not be closer to the CPU DP than to the twin. Measured: 9, 0, 33
+/// differing cells of 163,216; in every one the twin matches brute force (e.g. cpu 1, twin 0,
+/// brute 0) — the CPU DP engine misses occluders there.
+#[test]
+#[ignore = "slow in debug builds (brute-force soft map of 163k cells, ~40 s)"]
+fn dp_twin_vs_cpu_dp_on_synthetic_dem() {
+    let (stack, _) =
+        penumbra::app::synthetic_stack(&penumbra::terrain::synth::SynthParams::default()).unwrap();
+    let grid = penumbra::map::MapGrid::new(&stack).unwrap();
+    let hf = &grid.hf;
+    let march = MarchGrid::from_height_field(hf, OBSERVER_M).unwrap();
+    let mip = DpMip::build(&march);
+    let mut closer_to_cpu = 0;
+    for az in [250.0, 270.0, 290.0] {
+        let dir = sun_dir(az, 1.0);
+        let reference = dp::visible_fraction(
+            hf,
+            OBSERVER_M,
+            dir.into(),
+            SUN_ANGULAR_RADIUS_RAD,
+            &dp::DpConfig::default(),
+        )
+        .unwrap();
+        let light = gpu_twins::disc_light_to_f32(&dir, SUN_ANGULAR_RADIUS_RAD);
+        let twin = gpu_twins::dp_visible(&march, &mip, &[light], 0, RowBand::whole(&march));
+        let brute = Engine::Brute
+            .visible_fraction(hf, OBSERVER_M, dir.into(), SUN_ANGULAR_RADIUS_RAD)
+            .unwrap();
+        let mut bad = 0;
+        for (k, (a, b)) in reference.iter().zip(&twin).enumerate() {
+            if !a.is_nan() && (a - b).abs() > 0.01 {
+                // Brute force samples the disc with 64 rays: ±1/64 plus the prism model.
+                closer_to_cpu += usize::from((b - brute[k]).abs() > (a - brute[k]).abs() + 0.02);
+                if bad < 5 {
+                    eprintln!(
+                        "az {az}: cell ({}, {}) cpu {a} twin {b} brute(64 samples) {}",
+                        k / hf.cols,
+                        k % hf.cols,
+                        brute[k]
+                    );
+                }
+                bad += 1;
+            }
+        }
+        eprintln!("az {az}: {bad} cells differ > 0.01 of {}", reference.len());
+    }
+    assert_eq!(
+        closer_to_cpu, 0,
+        "cells where the CPU DP is closer to brute force than the twin"
+    );
+}
+
+/// One-light maps: `penumbra map --synthetic --sun-az-deg 151 --sun-el-deg 1.5 --engine dp
+/// --out-fraction/--out-mask` with `--backend gpu` vs `--backend cpu`: same nodata, fraction
+/// mean |Δ| ≤ 1e-3 and ≤ 0.1 % of pixels off by > 0.01, masks differ on ≤ 0.1 % of pixels.
+#[cfg(feature = "gpu")]
+#[test]
+fn map_one_light_gpu_matches_cpu() {
+    if let Err(e) = penumbra::gpu::GpuContext::new() {
+        let required = std::env::var("PENUMBRA_REQUIRE_GPU").is_ok_and(|v| v == "1");
+        assert!(!required, "PENUMBRA_REQUIRE_GPU=1 but no GPU context: {e}");
+        eprintln!("skipping GPU test: {e}");
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    for backend in ["cpu", "gpu"] {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_penumbra"))
+            .args([
+                "map",
+                "--synthetic",
+                "--sun-az-deg",
+                "151",
+                "--sun-el-deg",
+                "1.5",
+                "--engine",
+                "dp",
+                "--out-fraction",
+                &format!("f_{backend}.tif"),
+                "--out-mask",
+                &format!("m_{backend}.tif"),
+                "--backend",
+                backend,
+            ])
+            .current_dir(dir.path())
+            .env("XDG_RUNTIME_DIR", "/tmp")
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{backend}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+    let read = |f: &str| {
+        penumbra::terrain::read_geotiff(&dir.path().join(f))
+            .unwrap()
+            .heights_m
+    };
+    let (fc, fg) = (read("f_cpu.tif"), read("f_gpu.tif"));
+    let (mut n, mut sum, mut off) = (0usize, 0.0_f64, 0usize);
+    for (&c, &g) in fc.iter().zip(&fg) {
+        assert_eq!(c.is_nan(), g.is_nan());
+        if c.is_nan() {
+            continue;
+        }
+        n += 1;
+        let d = f64::from((c - g).abs());
+        sum += d;
+        off += usize::from(d > 0.01);
+    }
+    let (mc, mg) = (read("m_cpu.tif"), read("m_gpu.tif"));
+    let mask_differ = mc.iter().zip(&mg).filter(|(a, b)| a != b).count();
+    eprintln!(
+        "one-light gpu vs cpu (dp): {n} px, fraction mean |Δ| {:.2e}, {off} px off > 0.01, masks differ {mask_differ}",
+        sum / n as f64
+    );
+    assert!(n > 10_000);
+    assert!(sum / n as f64 <= 1e-3);
+    assert!(off as f64 <= 1e-3 * n as f64);
+    assert!(mask_differ as f64 <= 1e-3 * mc.len() as f64);
+}
