@@ -282,6 +282,10 @@ pub struct SeriesArgs {
     /// Do not write the per-epoch series.csv files (statistics only).
     #[arg(long)]
     pub no_csv: bool,
+    /// Engine of the visible fractions: horizon (per-site horizons from every DEM layer) or
+    /// smap-dp (the map pipeline's model grid + DP search at each site; finest layer only).
+    #[arg(long, value_enum, default_value_t = crate::series::SeriesEngine::Horizon)]
+    pub engine: crate::series::SeriesEngine,
     /// Kernels.
     #[command(flatten)]
     pub kernels: KernelArgs,

@@ -8,6 +8,7 @@ mod illum;
 mod map;
 mod render;
 mod series;
+mod series_engines;
 mod shadow;
 mod terrain;
 mod util;
