@@ -32,7 +32,11 @@ fn sites(n: usize) -> Vec<SeriesSite> {
 }
 
 fn bench_engines(c: &mut Criterion) {
-    let kernels = Kernels::load(concat!(env!("CARGO_MANIFEST_DIR"), "/kernels")).unwrap();
+    let kernels = Kernels::load(std::path::Path::new(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/kernels"
+    )))
+    .unwrap();
     let stack = TerrainStack::new(vec![
         synth::south_polar_dem(&synth::SynthParams::default()).unwrap(),
     ]);
@@ -85,21 +89,21 @@ fn bench_engines(c: &mut Criterion) {
                     .par_iter()
                     .enumerate()
                     .map(|(i, s)| {
-                    let site =
-                        Site::new(s.lat_deg, s.lon_deg, dp.ground_height_m(i) + 2.0).unwrap();
-                    let h = dp.horizon(i, s, &site, &cfg).unwrap();
-                    let (f, _) = series::site_fractions_smap_dp(
-                        &table,
-                        &site,
-                        &dp,
-                        i,
-                        &h,
-                        &cfg,
-                        |_| false,
-                        |_, _| Ok(()),
-                    )
-                    .unwrap();
-                    f.iter().sum::<f64>()
+                        let site =
+                            Site::new(s.lat_deg, s.lon_deg, dp.ground_height_m(i) + 2.0).unwrap();
+                        let h = dp.horizon(i, s, &site, &cfg).unwrap();
+                        let (f, _) = series::site_fractions_smap_dp(
+                            &table,
+                            &site,
+                            &dp,
+                            i,
+                            &h,
+                            &cfg,
+                            |_| false,
+                            |_, _| Ok(()),
+                        )
+                        .unwrap();
+                        f.iter().sum::<f64>()
                     })
                     .sum::<f64>()
             })

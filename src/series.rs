@@ -230,21 +230,16 @@ pub fn site_fractions(
             illum::visible_fraction(&profile, &disc, config.disc_method, limb)
         }
     };
-    fractions_with(
-        table,
-        site,
-        &profile,
-        config,
-        need_azimuths,
-        row,
-        fraction,
-    )
+    fractions_with(table, site, &profile, config, need_azimuths, row, fraction)
 }
 
 /// As [`site_fractions`] with the smap-dp engine ([`crate::series_dp`]): the fractions of site
 /// `index` of `dp` come from the DP search on the map grid; `horizon` (from
 /// [`crate::series_dp::SmapDpSites::horizon`]) only fills the CSV's horizon columns.
-#[expect(clippy::too_many_arguments, reason = "site_fractions plus the engine and index")]
+#[expect(
+    clippy::too_many_arguments,
+    reason = "site_fractions plus the engine and index"
+)]
 pub fn site_fractions_smap_dp(
     table: &[MoonGeometry],
     site: &Site,
@@ -264,15 +259,7 @@ pub fn site_fractions_smap_dp(
             limb,
         )
     };
-    fractions_with(
-        table,
-        site,
-        &profile,
-        config,
-        need_azimuths,
-        row,
-        fraction,
-    )
+    fractions_with(table, site, &profile, config, need_azimuths, row, fraction)
 }
 
 /// The per-epoch loop shared by both engines: ephemeris per site, `fraction` per disc, CSV row.
@@ -494,7 +481,7 @@ fn run_one_site(
             if let Some(w) = w.as_deref_mut() {
                 write_row(w, epochs[k], r)?;
             }
-            if k % track_stride == 0 {
+            if k.is_multiple_of(track_stride) {
                 sun_track.push((r.sun.az_deg, r.sun.el_deg));
                 earth_track.push((r.earth.az_deg, r.earth.el_deg));
             }

@@ -6,13 +6,18 @@
 //! **Set-up, once per run.** The [`MapGrid`] (the finest DEM layer resampled into model space, with
 //! the coarser layers filling its margin) and its [`MaxMipmap`] are built once for all sites.
 //!
-//! **The site's point.** No cell snapping: the observer is placed at the site's exact model-space
-//! position, `lat/lon` at `ground + height_above_ground` along the radial direction, where the
-//! ground height is the bilinear DEM height of the finest layer with data there (the same point as
-//! the horizon engine's observer, [`crate::horizon`]). Rays start at that fractional `(row, col)`;
-//! the DP's exact costs are taken where the ray crosses the lines through cell centres (the
-//! bilinear surface of the grid, [`crate::shadow`] conventions). As in the horizon engine, terrain
-//! closer than half a cell is the observer's own ground and is ignored.
+//! **The site's point.** No cell snapping: the site's ground point (`lat/lon` at the bilinear DEM
+//! height of the finest layer with data, as in [`crate::horizon`]) is mapped into model space; the
+//! observer stands `height_above_ground` along the radial direction above the **model grid's own
+//! surface** there (the bilinear interpolation of the 4 neighbouring model cells), at a fractional
+//! `(row, col)`. Standing on the model surface rather than at the DEM height matters on peaks:
+//! the resampling into model space lowers a 240 m ridge top by metres, and an observer left at the
+//! DEM height would float above its own near field (at the Connecting Ridge that moved the horizon
+//! by up to 1.4° and the mean Sun fraction by 0.044; on the model surface, 0.013). The DP's exact
+//! costs are taken where the ray crosses the lines through cell centres (the bilinear surface,
+//! [`crate::shadow`] conventions). As in the horizon engine, terrain closer than half a cell is the
+//! observer's own ground: the first sample is the bilinear surface at exactly half a cell, then
+//! the crossings beyond.
 //!
 //! **Light directions.** Per site and epoch, exactly as the horizon engine: the topocentric
 //! (light-time and aberration corrected) vector from the site to the Sun or the Earth
@@ -34,7 +39,13 @@
 //! At a handful of points the build never pays: the capped DP search answers the lit and the
 //! deep-shadow cases in microseconds (see the `series_engines` bench), so the per-site engine
 //! runs DP alone, and the SMap's role (decide early away from the limb) is played by the cap and
-//! the local-horizontal test.
+//! the branch-and-bound pruning.
+//!
+//! *No local-horizontal floor.* The map engines treat a light below the cell's local horizontal
+//! plane as hidden by the Moon ([`crate::shadow`] conventions). A site on a slope or a rim sees
+//! below that plane (the horizon engine reports horizons of −13° on the synthetic ridge), so here,
+//! as in the horizon engine, the horizon is the highest terrain sample of the grid along the ray,
+//! whatever its sign; on a flat sphere that is the dip of the geometric horizon.
 //!
 //! **Horizon profile** (for `horizon.csv`, the plots and the CSV's horizon columns): per azimuth
 //! of the site's local frame, the DP search of the horizontal direction without a cap gives the
@@ -120,13 +131,14 @@ impl SmapDpSites {
         let mut observers = Vec::with_capacity(sites.len());
         let mut ground_height_m = Vec::with_capacity(sites.len());
         for s in sites {
-            let (ground_m, _) = stack.height_at_lat_lon_m(s.lat_deg, s.lon_deg).ok_or_else(|| {
-                SeriesDpError::NoGround {
-                    site: s.name.clone(),
-                    lat_deg: s.lat_deg,
-                    lon_deg: s.lon_deg,
-                }
-            })?;
+            let (ground_m, _) =
+                stack
+                    .height_at_lat_lon_m(s.lat_deg, s.lon_deg)
+                    .ok_or_else(|| SeriesDpError::NoGround {
+                        site: s.name.clone(),
+                        lat_deg: s.lat_deg,
+                        lon_deg: s.lon_deg,
+                    })?;
             // The ground point, then the model grid's own surface under it (bilinear), then the
             // observer `h` above it along the radial direction.
             let g = frame.model_from_lat_lon_height(s.lat_deg, s.lon_deg, ground_m);

@@ -43,7 +43,14 @@ fn both_engines(stack: &TerrainStack, sites: &[SeriesSite], config: SeriesConfig
     let d = run(SeriesEngine::SmapDp);
     h.into_iter()
         .zip(d)
-        .map(|(h, d)| (h.sun_fraction, h.earth_fraction, d.sun_fraction, d.earth_fraction))
+        .map(|(h, d)| {
+            (
+                h.sun_fraction,
+                h.earth_fraction,
+                d.sun_fraction,
+                d.earth_fraction,
+            )
+        })
         .collect()
 }
 
@@ -60,7 +67,11 @@ fn pct(v: &[f64], pred: impl Fn(f64) -> bool) -> f64 {
 fn differences(p: &Pair) -> [f64; 5] {
     let (sh, eh, sd, ed) = p;
     let lit = |x: f64| x > VISIBLE_MIN_FRACTION;
-    let big = sh.iter().zip(sd).filter(|(a, b)| (*a - *b).abs() > 0.1).count();
+    let big = sh
+        .iter()
+        .zip(sd)
+        .filter(|(a, b)| (*a - *b).abs() > 0.1)
+        .count();
     [
         (pct(sh, lit) - pct(sd, lit)).abs(),
         (mean(sh) - mean(sd)).abs(),
@@ -121,9 +132,15 @@ fn check(label: &str, sites: &[SeriesSite], pairs: &[Pair], b: &Bounds) {
             failures.push(format!("{}: {d:?} (over: {over:?})", s.name));
         }
     }
-    assert!(failures.is_empty(), "{label}: bounds exceeded: {failures:?}");
+    assert!(
+        failures.is_empty(),
+        "{label}: bounds exceeded: {failures:?}"
+    );
     // The comparison means something only if the Sun rises and sets at some sites.
-    assert!(partial_sites >= 2, "{label}: only {partial_sites} sites are partly lit");
+    assert!(
+        partial_sites >= 2,
+        "{label}: only {partial_sites} sites are partly lit"
+    );
 }
 
 /// On a flat DEM the horizon is the geometric dip in every direction; the smap-dp engine must
@@ -276,7 +293,10 @@ fn series_cli_smap_dp_writes_the_same_files_and_records_the_engine() {
         .unwrap();
         assert_eq!(run["series_engine"], engine);
     }
-    assert_eq!(files_in(&dir.path().join("h")), files_in(&dir.path().join("d")));
+    assert_eq!(
+        files_in(&dir.path().join("h")),
+        files_in(&dir.path().join("d"))
+    );
     assert_eq!(
         files_in(&dir.path().join("h/ridge")),
         files_in(&dir.path().join("d/ridge"))
@@ -293,4 +313,14 @@ fn series_cli_smap_dp_writes_the_same_files_and_records_the_engine() {
     bad[13] = "fourier";
     let o = penumbra(dir.path(), &bad);
     assert_eq!(o.status.code(), Some(2));
+}
+
+#[test]
+fn scenario_series_table_takes_an_engine_key() {
+    let c: SeriesConfig = toml::from_str("engine = \"smap-dp\"").unwrap();
+    assert_eq!(c.engine, SeriesEngine::SmapDp);
+    let c: SeriesConfig = toml::from_str("plots = false").unwrap();
+    assert_eq!(c.engine, SeriesEngine::Horizon);
+    let e = toml::from_str::<SeriesConfig>("engine = \"fourier\"").unwrap_err();
+    assert!(e.to_string().contains("fourier"), "{e}");
 }
