@@ -331,6 +331,7 @@ fn run_series(args: &crate::cli::SeriesArgs) -> anyhow::Result<()> {
         plots: !args.no_plots,
         write_csv: !args.no_csv,
         backend: args.backend,
+        engine: args.engine,
     };
     let epochs = epochs_from_args(&args.epochs)?;
     let step_s = epoch_step_s(&args.epochs)?;
@@ -350,6 +351,7 @@ fn run_series(args: &crate::cli::SeriesArgs) -> anyhow::Result<()> {
     prov.dem_layers = dem_layers;
     prov.set_epochs(&epochs);
     prov.outputs = outputs;
+    prov.series_engine = Some(config.engine.name().into());
     prov.wall_time_s = t0.elapsed().as_secs_f64();
     prov.write(&args.out_dir.join("run.json"))?;
     eprintln!(

@@ -290,6 +290,10 @@ pub struct SeriesArgs {
     /// method; `--horizon-method` is then ignored), `auto` (GPU when an adapter exists) or `cpu`.
     #[arg(long, value_enum, default_value_t = crate::gpu::Backend::Cpu)]
     pub backend: crate::gpu::Backend,
+    /// Engine of the visible fractions: horizon (per-site horizons from every DEM layer) or
+    /// smap-dp (the map pipeline's model grid + DP search at each site; finest layer only).
+    #[arg(long, value_enum, default_value_t = crate::series::SeriesEngine::Horizon)]
+    pub engine: crate::series::SeriesEngine,
     /// Kernels.
     #[command(flatten)]
     pub kernels: KernelArgs,

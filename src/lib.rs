@@ -31,6 +31,7 @@ pub mod output;
 pub mod render;
 pub mod scenario;
 pub mod series;
+pub mod series_dp;
 pub mod shadow;
 pub mod terrain;
 

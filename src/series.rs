@@ -69,6 +69,29 @@ impl LimbLaw {
     }
 }
 
+/// Which engine computes the per-site visible fractions (`--engine`, scenario `[series] engine`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "kebab-case")]
+pub enum SeriesEngine {
+    /// One horizon per site from every DEM layer ([`crate::horizon`]), then the strip integral of
+    /// each disc against it.
+    #[default]
+    Horizon,
+    /// The map pipeline: the model-space grid of the finest layer and the DP max-mipmap search at
+    /// each site's point, per epoch and light ([`crate::series_dp`]).
+    SmapDp,
+}
+
+impl SeriesEngine {
+    /// The name used on the command line and in scenarios.
+    pub fn name(self) -> &'static str {
+        match self {
+            SeriesEngine::Horizon => "horizon",
+            SeriesEngine::SmapDp => "smap-dp",
+        }
+    }
+}
+
 /// Settings of a series run.
 #[derive(Debug, Clone, Copy, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -88,6 +111,8 @@ pub struct SeriesConfig {
     pub plots: bool,
     /// Whether to write the per-epoch CSV (statistics are always written).
     pub write_csv: bool,
+    /// The engine of the visible fractions.
+    pub engine: SeriesEngine,
     /// Where the horizons are computed: `cpu` (default), `gpu` (the GPU horizon scan, sampled
     /// like the exact method; `horizon_method` is then ignored) or `auto` (see docs/gpu.md).
     #[serde(with = "backend_serde")]
@@ -146,6 +171,7 @@ impl Default for SeriesConfig {
             horizon_method: HorizonMethod::Fast,
             plots: true,
             write_csv: true,
+            engine: SeriesEngine::Horizon,
             backend: crate::gpu::Backend::Cpu,
         }
     }
@@ -247,10 +273,9 @@ pub fn site_fractions(
     horizon: &Horizon,
     config: &SeriesConfig,
     need_azimuths: impl Fn(usize) -> bool,
-    mut row: impl FnMut(usize, &SeriesRow) -> anyhow::Result<()>,
+    row: impl FnMut(usize, &SeriesRow) -> anyhow::Result<()>,
 ) -> anyhow::Result<(Vec<f64>, Vec<f64>)> {
     let profile = HorizonProfile::new(&horizon.elevation_deg)?;
-    let limb = config.limb_darkening.law();
     // The horizon is the polyline through its samples, so a disc entirely above the highest
     // sample is fully visible and one entirely below the lowest is hidden, whatever the method:
     // most epochs at a polar site end here without looking at the profile.
@@ -275,6 +300,49 @@ pub fn site_fractions(
             illum::visible_fraction(&profile, &disc, config.disc_method, limb)
         }
     };
+    fractions_with(table, site, &profile, config, need_azimuths, row, fraction)
+}
+
+/// As [`site_fractions`] with the smap-dp engine ([`crate::series_dp`]): the fractions of site
+/// `index` of `dp` come from the DP search on the map grid; `horizon` (from
+/// [`crate::series_dp::SmapDpSites::horizon`]) only fills the CSV's horizon columns.
+#[expect(
+    clippy::too_many_arguments,
+    reason = "site_fractions plus the engine and index"
+)]
+pub fn site_fractions_smap_dp(
+    table: &[MoonGeometry],
+    site: &Site,
+    dp: &crate::series_dp::SmapDpSites,
+    index: usize,
+    horizon: &Horizon,
+    config: &SeriesConfig,
+    need_azimuths: impl Fn(usize) -> bool,
+    row: impl FnMut(usize, &SeriesRow) -> anyhow::Result<()>,
+) -> anyhow::Result<(Vec<f64>, Vec<f64>)> {
+    let profile = HorizonProfile::new(&horizon.elevation_deg)?;
+    let fraction = |body: &mut ephem::Apparent, limb: &LimbDarkening| -> f64 {
+        dp.fraction(
+            index,
+            &body.pos_in_moon_me_km,
+            body.radius_deg.to_radians(),
+            limb,
+        )
+    };
+    fractions_with(table, site, &profile, config, need_azimuths, row, fraction)
+}
+
+/// The per-epoch loop shared by both engines: ephemeris per site, `fraction` per disc, CSV row.
+fn fractions_with(
+    table: &[MoonGeometry],
+    site: &Site,
+    profile: &HorizonProfile<'_>,
+    config: &SeriesConfig,
+    need_azimuths: impl Fn(usize) -> bool,
+    mut row: impl FnMut(usize, &SeriesRow) -> anyhow::Result<()>,
+    fraction: impl Fn(&mut ephem::Apparent, &LimbDarkening) -> f64,
+) -> anyhow::Result<(Vec<f64>, Vec<f64>)> {
+    let limb = config.limb_darkening.law();
     let mut sun_fraction = Vec::with_capacity(table.len());
     let mut earth_fraction = Vec::with_capacity(table.len());
     for (k, geo) in table.iter().enumerate() {
@@ -378,7 +446,27 @@ pub fn run_series(
     if sites.is_empty() {
         anyhow::bail!("no sites given");
     }
-    let horizons = site_horizons(stack, sites, config)?;
+    let (horizons, dp) = match config.engine {
+        SeriesEngine::Horizon => (site_horizons(stack, sites, config)?, None),
+        SeriesEngine::SmapDp => {
+            let dp = crate::series_dp::SmapDpSites::new(stack, sites)?;
+            let horizons = sites
+                .iter()
+                .enumerate()
+                .map(|(i, s)| {
+                    let site = Site::new(
+                        s.lat_deg,
+                        s.lon_deg,
+                        dp.ground_height_m(i) + s.height_above_ground_m,
+                    )
+                    .with_context(|| format!("site '{}'", s.name))?;
+                    dp.horizon(i, s, &site, config)
+                        .with_context(|| format!("horizon of site '{}'", s.name))
+                })
+                .collect::<anyhow::Result<Vec<_>>>()?;
+            (horizons, Some(dp))
+        }
+    };
     let table = ephem::moon_geometry_table(kernels, epochs)?;
     std::fs::create_dir_all(out_dir)
         .with_context(|| format!("creating output folder {}", out_dir.display()))?;
@@ -394,9 +482,11 @@ pub fn run_series(
     let outcomes: Vec<SiteOutcome> = sites
         .par_iter()
         .zip(horizons)
-        .map(|(spec, horizon)| {
+        .enumerate()
+        .map(|(i, (spec, horizon))| {
+            let engine = dp.as_ref().map(|d| (d, i));
             run_one_site(
-                &table, epochs, step_s, spec, horizon, config, out_dir, &progress,
+                &table, epochs, step_s, spec, horizon, engine, config, out_dir, &progress,
             )
         })
         .collect::<anyhow::Result<_>>()?;
@@ -425,6 +515,7 @@ fn run_one_site(
     step_s: f64,
     spec: &SeriesSite,
     horizon: Horizon,
+    dp: Option<(&crate::series_dp::SmapDpSites, usize)>,
     config: &SeriesConfig,
     out_dir: &Path,
     progress: &indicatif::ProgressBar,
@@ -456,11 +547,11 @@ fn run_one_site(
     let mut compute = |w: Option<&mut dyn Write>| -> anyhow::Result<()> {
         let mut w = w;
         let need_azimuths = |k: usize| config.write_csv || k.is_multiple_of(track_stride);
-        fractions = site_fractions(table, &site, &horizon, config, need_azimuths, |k, r| {
+        let on_row = |k: usize, r: &SeriesRow| -> anyhow::Result<()> {
             if let Some(w) = w.as_deref_mut() {
                 write_row(w, epochs[k], r)?;
             }
-            if k % track_stride == 0 {
+            if k.is_multiple_of(track_stride) {
                 sun_track.push((r.sun.az_deg, r.sun.el_deg));
                 earth_track.push((r.earth.az_deg, r.earth.el_deg));
             }
@@ -468,7 +559,20 @@ fn run_one_site(
                 progress.inc(4096);
             }
             Ok(())
-        })?;
+        };
+        fractions = match dp {
+            None => site_fractions(table, &site, &horizon, config, need_azimuths, on_row)?,
+            Some((dp, i)) => site_fractions_smap_dp(
+                table,
+                &site,
+                dp,
+                i,
+                &horizon,
+                config,
+                need_azimuths,
+                on_row,
+            )?,
+        };
         progress.inc((epochs.len() % 4096) as u64);
         Ok(())
     };

@@ -103,6 +103,9 @@ pub struct Provenance {
     pub epoch_count: usize,
     /// Compute backend.
     pub backend: String,
+    /// Engine of a per-site series (`horizon` or `smap-dp`), when the run made one.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub series_engine: Option<String>,
     /// Files written, relative to the output folder.
     pub outputs: Vec<String>,
     /// Wall time of the run, seconds.
@@ -124,6 +127,7 @@ impl Provenance {
             epoch_stop_utc: String::new(),
             epoch_count: 0,
             backend: "cpu".into(),
+            series_engine: None,
             outputs: Vec::new(),
             wall_time_s: 0.0,
         }

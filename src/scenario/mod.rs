@@ -437,6 +437,7 @@ pub fn run_file(args: &crate::cli::RunArgs) -> anyhow::Result<()> {
                 &out_dir,
             )?;
             prov.outputs.extend(files);
+            prov.series_engine = Some(config.engine.name().into());
         }
         _ => {
             let sites: Vec<Site> = scenario

@@ -162,6 +162,8 @@ struct RaySearch<'a> {
     cap: f64,
     /// Best exact cost so far.
     best: f64,
+    /// Crossings at or before this ray distance (cells) are ignored (the observer's own cell).
+    min_s: f64,
 }
 
 impl RaySearch<'_> {
@@ -183,7 +185,7 @@ impl RaySearch<'_> {
     /// Exact cost at ray distance `s` (cells), where the ray is on a centre line.
     #[inline]
     fn exact_at(&mut self, s: f64) {
-        if s <= 1e-9 {
+        if s <= self.min_s {
             return;
         }
         let row = self.obs.row + s * self.dir.drow;
@@ -298,6 +300,23 @@ pub(crate) fn dp_cost(
     cap: f64,
     cfg: &DpConfig,
 ) -> f64 {
+    dp_cost_beyond(hf, mip, obs, dir, z_max_m, cap, cfg, 1e-9)
+}
+
+/// [`dp_cost`] ignoring the crossings within `min_s_cells` of the observer (ray distance in
+/// cells) and sampling the bilinear surface at exactly `min_s_cells`: the per-site series engine
+/// ([`crate::series_dp`]) skips the observer's own half cell, as the horizon engine does.
+#[expect(clippy::too_many_arguments, reason = "dp_cost plus the near-field cut")]
+pub(crate) fn dp_cost_beyond(
+    hf: &HeightField,
+    mip: &MaxMipmap,
+    obs: &Observer,
+    dir: &LightDir,
+    z_max_m: f64,
+    cap: f64,
+    cfg: &DpConfig,
+    min_s_cells: f64,
+) -> f64 {
     if dir.hor == 0.0 {
         return f64::INFINITY;
     }
@@ -310,7 +329,18 @@ pub(crate) fn dp_cost(
         greedy: cfg.greedy,
         cap,
         best: f64::INFINITY,
+        min_s: min_s_cells.max(1e-9),
     };
+    // The first sample is the surface where the ray leaves the observer's own half cell (as the
+    // horizon engine's scan starts there), wherever that falls between centre lines.
+    if min_s_cells > 1e-9 && min_s_cells < s_exit {
+        let row = obs.row + min_s_cells * dir.drow;
+        let col = obs.col + min_s_cells * dir.dcol;
+        if let Some(z) = bilinear(hf, row, col) {
+            let t = min_s_cells * hf.px_m;
+            search.best = (obs.z_m + t * dir.tan_el - z) / t;
+        }
+    }
     let max_level = mip.n_levels() as u32;
     let mut s0 = 0.0;
     let mut j = 0usize;
@@ -345,7 +375,7 @@ pub(crate) fn dp_cost(
 
 /// Cost above which a disc of angular radius `r` is fully visible (`J* ≥ tan(e_c) − tan(e_c −
 /// r)`); `0` for `r = 0` (hard shadows only need the sign of `J*`).
-fn full_visibility_cap(dir: &LightDir, r: f64) -> f64 {
+pub(crate) fn full_visibility_cap(dir: &LightDir, r: f64) -> f64 {
     let e_low = dir.elevation_rad() - r;
     if e_low <= -std::f64::consts::FRAC_PI_2 + 1e-9 {
         return f64::INFINITY;

@@ -11,6 +11,7 @@ mod map;
 mod render;
 mod render_cpu;
 mod series;
+mod series_engines;
 mod shadow;
 mod terrain;
 mod util;

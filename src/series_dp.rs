@@ -1,0 +1,301 @@
+//! The map pipeline's engine for per-site series (`penumbra series --engine smap-dp`): each
+//! site's visible fractions come from the model-space height field of the map pipeline
+//! ([`crate::map::MapGrid`]) and the DP maximum-mipmap search ([`crate::shadow::dp`]) instead of a
+//! per-site horizon ([`crate::horizon`]).
+//!
+//! **Set-up, once per run.** The [`MapGrid`] (the finest DEM layer resampled into model space, with
+//! the coarser layers filling its margin) and its [`MaxMipmap`] are built once for all sites.
+//!
+//! **The site's point.** No cell snapping: the site's ground point (`lat/lon` at the bilinear DEM
+//! height of the finest layer with data, as in [`crate::horizon`]) is mapped into model space; the
+//! observer stands `height_above_ground` along the radial direction above the **model grid's own
+//! surface** there (the bilinear interpolation of the 4 neighbouring model cells), at a fractional
+//! `(row, col)`. Standing on the model surface rather than at the DEM height matters on peaks:
+//! the resampling into model space lowers a 240 m ridge top by metres, and an observer left at the
+//! DEM height would float above its own near field (at the Connecting Ridge that moved the horizon
+//! by up to 1.4° and the mean Sun fraction by 0.044; on the model surface, 0.013). The DP's exact
+//! costs are taken where the ray crosses the lines through cell centres (the bilinear surface,
+//! [`crate::shadow`] conventions). As in the horizon engine, terrain closer than half a cell is the
+//! observer's own ground: the first sample is the bilinear surface at exactly half a cell, then
+//! the crossings beyond.
+//!
+//! **Light directions.** Per site and epoch, exactly as the horizon engine: the topocentric
+//! (light-time and aberration corrected) vector from the site to the Sun or the Earth
+//! ([`crate::ephem::topo`]), rotated into model space. So there is no parallax error; taking the
+//! map-centre direction instead ([`crate::map::epoch_lights`]) would cost, at a site `d` from the
+//! centre, `d / 1 au` for the Sun (1.2e-6 rad at 184 km, nothing) and `d / 384,400 km` for the
+//! Earth (4.8e-4 rad = 0.027° at 184 km, 3% of its radius).
+//!
+//! **Visible fraction.** Per light: one DP search of the minimum shadow cost `J*` along the centre
+//! ray, capped at the cost above which the disc is fully visible (so a clear sky stops at the
+//! first mipmap bounds), and the prism assumption of papers 000/003 §3.4: the horizon is a
+//! straight horizontal edge at `e_h = atan(tan e_c − J*)` across the disc,
+//! and the fraction is the chord fraction [`chord_visible_fraction`] with the series' limb
+//! darkening (uniform for the Earth).
+//!
+//! *No SMap pre-test.* In a map, [`crate::shadow::dp::soft_combined`] first classifies whole
+//! cells with two SMaps (the disc's limbs) and runs DP only in the penumbra: an SMap is built per
+//! light over the whole grid (0.37 s for 1536², docs/PERFORMANCE.md) and then answers every cell.
+//! At a handful of points the build never pays: the capped DP search answers the lit and the
+//! deep-shadow cases in microseconds (see the `series_engines` bench), so the per-site engine
+//! runs DP alone, and the SMap's role (decide early away from the limb) is played by the cap and
+//! the branch-and-bound pruning.
+//!
+//! *No local-horizontal floor.* The map engines treat a light below the cell's local horizontal
+//! plane as hidden by the Moon ([`crate::shadow`] conventions). A site on a slope or a rim sees
+//! below that plane (the horizon engine reports horizons of −13° on the synthetic ridge), so here,
+//! as in the horizon engine, the horizon is the highest terrain sample of the grid along the ray,
+//! whatever its sign; on a flat sphere that is the dip of the geometric horizon.
+//!
+//! **Horizon profile** (for `horizon.csv`, the plots and the CSV's horizon columns): per azimuth
+//! of the site's local frame, the DP search of the horizontal direction without a cap gives the
+//! terrain elevation along that model-space azimuth, converted back to the site's frame. The
+//! distance column is `NaN` (the search does not keep the argmin).
+//!
+//! **What differs from the horizon engine** (measured in docs/VALIDATION.md): the grid is the
+//! model-space resampling of the DEM (not the DEM's own bilinear surface along great circles),
+//! only the finest layer's extent (plus a 2-cell margin) casts shadows (the horizon engine reads
+//! every layer, so far-field terrain can differ), and the disc is cut by a straight edge at the
+//! centre azimuth's horizon instead of the strip integral over the sampled profile.
+
+use nalgebra::{Matrix3, Vector3};
+
+use crate::ephem::Site;
+use crate::horizon::Horizon;
+use crate::illum::LimbDarkening;
+use crate::illum::disc::chord_visible_fraction;
+use crate::map::MapGrid;
+use crate::series::{SeriesConfig, SeriesSite};
+use crate::shadow::dp::{DpConfig, MaxMipmap, dp_cost_beyond, full_visibility_cap};
+use crate::shadow::{LightDir, Observer, max_height_m};
+use crate::terrain::TerrainStack;
+use crate::terrain::model_space::ModelFrame;
+
+/// Terrain nearer than this (cells of the model grid) is the observer's own ground (as
+/// [`crate::horizon`]'s `min_distance_m`, half a cell).
+pub const MIN_DISTANCE_CELLS: f64 = 0.5;
+
+/// Errors of the smap-dp series engine.
+#[derive(Debug, thiserror::Error)]
+pub enum SeriesDpError {
+    /// The site is outside every DEM layer or in a nodata hole.
+    #[error("site '{site}' ({lat_deg} deg, {lon_deg} deg) has no DEM height")]
+    NoGround {
+        /// Site name.
+        site: String,
+        /// Latitude, degrees.
+        lat_deg: f64,
+        /// Longitude, degrees.
+        lon_deg: f64,
+    },
+    /// The site lies outside the model grid of the map pipeline (or on a hole of it).
+    #[error(
+        "site '{site}' lies outside the map grid of the finest DEM layer (the smap-dp engine sees only that layer's extent; use --engine horizon)"
+    )]
+    OffGrid {
+        /// Site name.
+        site: String,
+    },
+    /// The azimuth step does not divide 360 into a whole number of steps.
+    #[error("azimuth step {0} deg must be > 0 and divide 360 into a whole number of steps")]
+    BadAzStep(f64),
+}
+
+/// The map grid, its maximum mipmap and the sites' observers, built once for a series run.
+pub struct SmapDpSites {
+    grid: MapGrid,
+    mip: MaxMipmap,
+    z_max_m: f64,
+    model_from_moon_me: Matrix3<f64>,
+    observers: Vec<Observer>,
+    ground_height_m: Vec<f64>,
+    cfg: DpConfig,
+}
+
+impl SmapDpSites {
+    /// Builds the model grid of `stack` (as `penumbra map` does), its maximum mipmap, and the
+    /// observer of each site (see the module docs).
+    pub fn new(stack: &TerrainStack, sites: &[SeriesSite]) -> anyhow::Result<Self> {
+        let grid = MapGrid::new(stack)?;
+        Self::from_grid(grid, stack, sites)
+    }
+
+    /// As [`SmapDpSites::new`] with an already built grid.
+    pub fn from_grid(
+        grid: MapGrid,
+        stack: &TerrainStack,
+        sites: &[SeriesSite],
+    ) -> anyhow::Result<Self> {
+        let hf = &grid.hf;
+        let frame = ModelFrame::of(hf);
+        let mut observers = Vec::with_capacity(sites.len());
+        let mut ground_height_m = Vec::with_capacity(sites.len());
+        for s in sites {
+            let (ground_m, _) =
+                stack
+                    .height_at_lat_lon_m(s.lat_deg, s.lon_deg)
+                    .ok_or_else(|| SeriesDpError::NoGround {
+                        site: s.name.clone(),
+                        lat_deg: s.lat_deg,
+                        lon_deg: s.lon_deg,
+                    })?;
+            // The ground point, then the model grid's own surface under it (bilinear), then the
+            // observer `h` above it along the radial direction.
+            let g = frame.model_from_lat_lon_height(s.lat_deg, s.lon_deg, ground_m);
+            let (row_g, col_g) = hf.row_col_from_xy(g.x, g.y);
+            let inside = row_g >= 0.0
+                && col_g >= 0.0
+                && row_g <= (hf.rows - 1) as f64
+                && col_g <= (hf.cols - 1) as f64;
+            let z_surface_m = inside
+                .then(|| crate::shadow::brute::bilinear(hf, row_g, col_g))
+                .flatten()
+                .ok_or_else(|| SeriesDpError::OffGrid {
+                    site: s.name.clone(),
+                })?;
+            let up = hf.up_at(g.x, g.y, z_surface_m);
+            let p = Vector3::new(g.x, g.y, z_surface_m) + s.height_above_ground_m * up;
+            let (row, col) = hf.row_col_from_xy(p.x, p.y);
+            observers.push(Observer {
+                row: row.clamp(0.0, (hf.rows - 1) as f64),
+                col: col.clamp(0.0, (hf.cols - 1) as f64),
+                z_m: p.z,
+                up,
+            });
+            ground_height_m.push(ground_m);
+        }
+        let mip = MaxMipmap::new(hf);
+        let z_max_m = max_height_m(hf);
+        let model_from_moon_me = frame.model_from_moon_me;
+        Ok(SmapDpSites {
+            grid,
+            mip,
+            z_max_m,
+            model_from_moon_me,
+            observers,
+            ground_height_m,
+            cfg: DpConfig::default(),
+        })
+    }
+
+    /// The model grid.
+    pub fn grid(&self) -> &MapGrid {
+        &self.grid
+    }
+
+    /// Number of sites.
+    pub fn len(&self) -> usize {
+        self.observers.len()
+    }
+
+    /// Whether there are no sites.
+    pub fn is_empty(&self) -> bool {
+        self.observers.is_empty()
+    }
+
+    /// Ground height (m above the sphere) under site `i`, from the DEM layers.
+    pub fn ground_height_m(&self, i: usize) -> f64 {
+        self.ground_height_m[i]
+    }
+
+    /// Model-space position (row, col, z_m) of site `i`'s observer.
+    pub fn observer_row_col_z(&self, i: usize) -> (f64, f64, f64) {
+        let o = &self.observers[i];
+        (o.row, o.col, o.z_m)
+    }
+
+    fn cost(&self, i: usize, dir: &LightDir, cap: f64) -> f64 {
+        dp_cost_beyond(
+            &self.grid.hf,
+            &self.mip,
+            &self.observers[i],
+            dir,
+            self.z_max_m,
+            cap,
+            &self.cfg,
+            MIN_DISTANCE_CELLS,
+        )
+    }
+
+    /// Visible (flux) fraction at site `i` of a disc of angular radius `radius_rad` whose centre
+    /// is along `light_in_moon_me` (any length, `MOON_ME` axes), weighted by `limb`.
+    pub fn fraction(
+        &self,
+        i: usize,
+        light_in_moon_me: &Vector3<f64>,
+        radius_rad: f64,
+        limb: &LimbDarkening,
+    ) -> f64 {
+        let v = self.model_from_moon_me * light_in_moon_me;
+        let n = v.norm();
+        if !(n > 0.0 && n.is_finite()) {
+            return 0.0;
+        }
+        let dir = LightDir::new(v / n);
+        let e_c = dir.elevation_rad();
+        let j = self.cost(i, &dir, full_visibility_cap(&dir, radius_rad));
+        // No terrain sample along the ray (a site at the grid's edge): nothing hides the disc.
+        let e_h = if j.is_finite() {
+            (dir.tan_el - j).atan()
+        } else {
+            f64::NEG_INFINITY
+        };
+        if radius_rad <= 0.0 {
+            return if e_c > e_h { 1.0 } else { 0.0 };
+        }
+        // Positive: the edge is above the centre (paper 001 eq. 6 apothem).
+        chord_visible_fraction((e_h - e_c) / radius_rad, limb)
+    }
+
+    /// The terrain horizon of site `i` seen by the DP search (see the module docs), at
+    /// `az_step_deg` steps of the site's local azimuth; `site` is the ephemeris site (its ENU
+    /// frame), `spec` the series site.
+    pub fn horizon(
+        &self,
+        i: usize,
+        spec: &SeriesSite,
+        site: &Site,
+        config: &SeriesConfig,
+    ) -> anyhow::Result<Horizon> {
+        let step = config.az_step_deg;
+        let n_f = 360.0 / step;
+        if !(step.is_finite() && step >= 0.001 && (n_f - n_f.round()).abs() < 1e-6 * n_f) {
+            return Err(SeriesDpError::BadAzStep(step).into());
+        }
+        let n = n_f.round() as usize;
+        let model_from_enu = self.model_from_moon_me * site.enu_from_moon_me.transpose();
+        let enu_from_model = model_from_enu.transpose();
+        let mut az_deg = Vec::with_capacity(n);
+        let mut elevation_deg = Vec::with_capacity(n);
+        for k in 0..n {
+            let az = k as f64 * step;
+            let (s, c) = az.to_radians().sin_cos();
+            let d = model_from_enu * Vector3::new(s, c, 0.0);
+            let dir = LightDir::new(d.normalize());
+            let j = self.cost(i, &dir, f64::INFINITY);
+            let el = if j.is_finite() && dir.hor > 0.0 {
+                let e_t = (dir.tan_el - j).atan();
+                let (ax, ay) = (dir.unit.x / dir.hor, dir.unit.y / dir.hor);
+                let v = Vector3::new(e_t.cos() * ax, e_t.cos() * ay, e_t.sin());
+                (enu_from_model * v).z.clamp(-1.0, 1.0).asin().to_degrees()
+            } else {
+                -90.0
+            };
+            az_deg.push(az);
+            elevation_deg.push(el);
+        }
+        Ok(Horizon {
+            lat_deg: spec.lat_deg,
+            lon_deg: spec.lon_deg,
+            ground_height_m: self.ground_height_m[i],
+            observer_height_m: spec.height_above_ground_m,
+            ground_layer: format!("smap-dp model grid of {}", self.grid.dem.name),
+            min_distance_m: MIN_DISTANCE_CELLS * self.grid.hf.px_m,
+            method: config.horizon_method,
+            az_step_deg: step,
+            az_deg,
+            elevation_deg,
+            distance_m: vec![f64::NAN; n],
+        })
+    }
+}
