@@ -714,7 +714,7 @@ fn run_render(args: &crate::cli::RenderArgs) -> anyhow::Result<()> {
             );
         }
     }
-    let samples = scene.render(&camera, args.width, args.height)?;
+    let samples = render_samples(&scene, &camera, args)?;
     let exposure = args
         .exposure
         .unwrap_or_else(|| crate::render::auto_exposure(&samples));
@@ -758,6 +758,34 @@ fn run_render(args: &crate::cli::RenderArgs) -> anyhow::Result<()> {
         t0.elapsed().as_secs_f64()
     );
     Ok(())
+}
+
+/// The frame's samples on the backend of `--backend` (see docs/render.md).
+fn render_samples(
+    scene: &crate::render::Scene,
+    camera: &crate::render::Camera,
+    args: &crate::cli::RenderArgs,
+) -> anyhow::Result<Vec<crate::render::Sample>> {
+    let resolved = crate::gpu::resolve_backend(args.backend)
+        .with_context(|| format!("resolving --backend {}", args.backend.as_str()))?;
+    Ok(match resolved {
+        crate::gpu::ResolvedBackend::Cpu => scene.render(camera, args.width, args.height)?,
+        #[cfg(feature = "gpu")]
+        crate::gpu::ResolvedBackend::Gpu(ctx) => {
+            use crate::gpu::render::{GpuRenderScene, RenderGpuOptions, render_gpu};
+            let gpu_scene = GpuRenderScene::upload(&ctx, scene)?;
+            render_gpu(
+                &ctx,
+                &gpu_scene,
+                camera,
+                args.width,
+                args.height,
+                RenderGpuOptions::default(),
+            )?
+        }
+        #[cfg(not(feature = "gpu"))]
+        crate::gpu::ResolvedBackend::Gpu(ctx) => match *ctx {},
+    })
 }
 
 /// `penumbra horizon-map build|info`.

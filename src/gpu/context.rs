@@ -5,6 +5,7 @@
 use std::sync::mpsc;
 
 use super::GpuError;
+use super::render::RenderPipeline;
 use super::shadow_march::MarchPipelines;
 use super::sweep_accumulate::AccumulatePipeline;
 
@@ -16,6 +17,7 @@ pub struct GpuContext {
     limits: wgpu::Limits,
     pub(crate) march: MarchPipelines,
     pub(crate) accumulate: AccumulatePipeline,
+    pub(crate) render: RenderPipeline,
 }
 
 impl std::fmt::Debug for GpuContext {
@@ -67,6 +69,7 @@ impl GpuContext {
         let scope = ErrorScope::push(&device);
         let march = MarchPipelines::new(&device);
         let accumulate = AccumulatePipeline::new(&device);
+        let render = RenderPipeline::new(&device);
         scope.pop("building the compute pipelines")?;
         Ok(GpuContext {
             device,
@@ -75,6 +78,7 @@ impl GpuContext {
             limits,
             march,
             accumulate,
+            render,
         })
     }
 

@@ -20,6 +20,8 @@ pub use error::GpuError;
 #[cfg(feature = "gpu")]
 mod context;
 #[cfg(feature = "gpu")]
+pub mod render;
+#[cfg(feature = "gpu")]
 pub mod shadow_march;
 #[cfg(feature = "gpu")]
 pub mod sweep_accumulate;

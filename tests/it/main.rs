@@ -7,6 +7,7 @@ mod horizon;
 mod illum;
 mod map;
 mod render;
+mod render_gpu;
 mod series;
 mod shadow;
 mod terrain;
