@@ -51,21 +51,16 @@ pub const PATCH_BISECTIONS: usize = 50;
 const BOUNDARY_NUDGE_CELLS: f64 = 1e-9;
 
 /// How view rays find the terrain.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub enum TraceMethod {
     /// Hierarchical casting through the maximum mipmap, exact hit on the bilinear patch.
+    #[default]
     MaxMipmap,
     /// Uniform steps of `step_cells` cells and bisection of the first crossing.
     Uniform {
         /// Horizontal step, cells.
         step_cells: f64,
     },
-}
-
-impl Default for TraceMethod {
-    fn default() -> Self {
-        TraceMethod::MaxMipmap
-    }
 }
 
 /// The maximum-mipmap pyramid flattened into one array (level 0 first), the layout the GPU path
@@ -301,8 +296,8 @@ impl<'a> RayCaster<'a> {
         if f(0.0) <= 0.0 {
             return Some(ta);
         }
-        for k in 0..2 {
-            let (lo, hi) = (cuts[k], cuts[k + 1]);
+        for piece in cuts.windows(2) {
+            let (lo, hi) = (piece[0], piece[1]);
             if hi > lo && f(hi) <= 0.0 {
                 let (mut lo, mut hi) = (lo, hi);
                 for _ in 0..PATCH_BISECTIONS {
