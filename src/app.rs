@@ -813,6 +813,9 @@ pub fn run_render(args: &crate::cli::RenderArgs) -> anyhow::Result<()> {
     };
     let kernels = load_kernels(&args.kernels)?;
     let lights_all = crate::map::epoch_lights(&grid, &kernels, &epochs, abcorr)?;
+    // Resolved once: `auto` warns once and the GPU device + pipelines are built once.
+    let backend = crate::gpu::resolve_backend(args.backend)
+        .with_context(|| format!("resolving --backend {}", args.backend.as_str()))?;
     let up = model_from_enu_at(ref_lat_lon.0, ref_lat_lon.1) * nalgebra::Vector3::z();
     let many = epochs.len() > 1;
     let progress = indicatif::ProgressBar::new(epochs.len() as u64);
@@ -835,7 +838,7 @@ pub fn run_render(args: &crate::cli::RenderArgs) -> anyhow::Result<()> {
             earth_radius_rad: l.earth_radius_rad,
         };
         let scene = Scene::new(hf, lights, crate::shadow::Engine::Combined)?.with_brdf(brdf);
-        let samples = scene.render(&camera, args.width, args.height)?;
+        let samples = render_samples(&scene, &camera, args, &backend)?;
         let exposure = args
             .exposure
             .unwrap_or_else(|| crate::render::auto_exposure(&samples));
@@ -904,6 +907,33 @@ pub fn run_render(args: &crate::cli::RenderArgs) -> anyhow::Result<()> {
         );
     }
     Ok(())
+}
+
+/// The frame's samples on the backend of `--backend` (see docs/render.md).
+fn render_samples(
+    scene: &crate::render::Scene,
+    camera: &crate::render::Camera,
+    args: &crate::cli::RenderArgs,
+    backend: &crate::gpu::ResolvedBackend,
+) -> anyhow::Result<Vec<crate::render::Sample>> {
+    Ok(match backend {
+        crate::gpu::ResolvedBackend::Cpu => scene.render(camera, args.width, args.height)?,
+        #[cfg(feature = "gpu")]
+        crate::gpu::ResolvedBackend::Gpu(ctx) => {
+            use crate::gpu::render::{GpuRenderScene, RenderGpuOptions, render_gpu};
+            let gpu_scene = GpuRenderScene::upload(ctx, scene)?;
+            render_gpu(
+                ctx,
+                &gpu_scene,
+                camera,
+                args.width,
+                args.height,
+                RenderGpuOptions::default(),
+            )?
+        }
+        #[cfg(not(feature = "gpu"))]
+        crate::gpu::ResolvedBackend::Gpu(ctx) => match **ctx {},
+    })
 }
 
 /// `penumbra horizon-map build|info`.

@@ -450,6 +450,11 @@ pub struct RenderArgs {
     /// Aberration correction: lt+s or none.
     #[arg(long, default_value = "lt+s")]
     pub abcorr: String,
+    /// Compute backend of the ray casting and shading: `gpu` (wgpu), `cpu` (rayon) or `auto`
+    /// (the GPU when an adapter exists, else the CPU with one warning line). The shadow
+    /// fractions are computed on the CPU either way.
+    #[arg(long, value_enum, default_value_t = crate::gpu::Backend::Auto)]
+    pub backend: crate::gpu::Backend,
     /// SPICE kernels.
     #[command(flatten)]
     pub kernels: KernelArgs,

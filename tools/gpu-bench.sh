@@ -21,24 +21,30 @@ if [[ "${1:-}" == "--prepare" ]]; then
     mkdir -p "$out"
     bench=$(cargo bench --bench gpu --no-run --message-format=json 2>/dev/null |
         sed -n 's/.*"executable":"\([^"]*\/gpu-[0-9a-f]*\)".*/\1/p' | tail -1)
+    render=$(cargo bench --bench render --no-run --message-format=json 2>/dev/null |
+        sed -n 's/.*"executable":"\([^"]*\/render-[0-9a-f]*\)".*/\1/p' | tail -1)
     tests=$(cargo test --test it --no-run --message-format=json 2>/dev/null |
         sed -n 's/.*"executable":"\([^"]*\/it-[0-9a-f]*\)".*/\1/p' | tail -1)
     hbench=$(cargo bench --bench gpu_horizon --no-run --message-format=json 2>/dev/null |
         sed -n 's/.*"executable":"\([^"]*\/gpu_horizon-[0-9a-f]*\)".*/\1/p' | tail -1)
     cargo build --release --bin penumbra
-    [[ -x "$bench" && -x "$tests" ]] || { echo "gpu-bench: build failed (bench '$bench', tests '$tests')" >&2; exit 2; }
+    [[ -x "$bench" && -x "$tests" && -x "$render" ]] || { echo "gpu-bench: build failed (bench '$bench', render '$render', tests '$tests')" >&2; exit 2; }
     cp "$bench" "$out/gpu-bench"
+    cp "$render" "$out/render-bench"
+    # The real 1536^2 LOLA grid for the 1080p render bench (9 MB; staged, never committed).
+    lola=../shared/data/lola-south-pole-moondao/ldem75s_crop_240m_pm184km.tif
+    if [[ -f "$lola" ]]; then cp "$lola" "$out/"; else echo "gpu-bench: $lola absent; render bench uses the synthetic DEM" >&2; fi
     cp "$tests" "$out/it-tests"
     cp target/release/penumbra "$out/penumbra"
     if [[ -x "$hbench" ]]; then cp "$hbench" "$out/gpu-horizon-bench"; strip "$out/gpu-horizon-bench"; fi
     # Debug info makes them ~300 MB; stripped they are ~25 MB (the device tool carries <= 64 MiB).
-    strip "$out/gpu-bench" "$out/it-tests" "$out/penumbra"
+    strip "$out/gpu-bench" "$out/render-bench" "$out/it-tests" "$out/penumbra"
     ls -l "$out"
     exit 0
 fi
 
 dir=${1:-target/gpu-bench}
-for f in penumbra gpu-bench it-tests; do
+for f in penumbra gpu-bench render-bench it-tests; do
     [[ -x "$dir/$f" ]] || { echo "gpu-bench: $dir/$f is missing; run tools/gpu-bench.sh --prepare where cargo exists" >&2; exit 2; }
 done
 export WGPU_BACKEND=${WGPU_BACKEND:-vulkan}
@@ -59,3 +65,10 @@ if [[ -x "$dir/gpu-horizon-bench" ]]; then
             grep -Ev "^\s*$|Warming up|Collecting|Analyzing|Benchmarking .*: (Warming|Collecting|Analyzing)"
     done
 fi
+PENUMBRA_REQUIRE_GPU=1 "$dir/it-tests" render_gpu:: --nocapture --test-threads=1 2>&1 |
+    grep -E "adapter|silhouette|flat plane|Sun disc|test result|FAILED|panicked" || true
+echo "== criterion: render_1080p (GPU frame time, target < 10 ms on an H100; CPU mipmap and uniform)"
+if [[ -f "$dir/ldem75s_crop_240m_pm184km.tif" ]]; then
+    export PENUMBRA_RENDER_BENCH_DEM=${PENUMBRA_RENDER_BENCH_DEM:-$dir/ldem75s_crop_240m_pm184km.tif}
+fi
+"$dir/render-bench" --bench render_1080p 2>&1 | grep -Ev "^\s*$|Warming up|Collecting|Analyzing|Benchmarking .*: (Warming|Collecting|Analyzing)"

@@ -6,6 +6,7 @@ use std::sync::mpsc;
 
 use super::GpuError;
 use super::dp::DpPipelines;
+use super::render::RenderPipeline;
 use super::shadow_march::MarchPipelines;
 use super::sweep_accumulate::AccumulatePipeline;
 
@@ -18,6 +19,7 @@ pub struct GpuContext {
     pub(crate) march: MarchPipelines,
     pub(crate) accumulate: AccumulatePipeline,
     pub(crate) dp: DpPipelines,
+    pub(crate) render: RenderPipeline,
 }
 
 impl std::fmt::Debug for GpuContext {
@@ -70,6 +72,7 @@ impl GpuContext {
         let march = MarchPipelines::new(&device);
         let accumulate = AccumulatePipeline::new(&device);
         let dp = DpPipelines::new(&device);
+        let render = RenderPipeline::new(&device);
         scope.pop("building the compute pipelines")?;
         Ok(GpuContext {
             device,
@@ -79,6 +82,7 @@ impl GpuContext {
             march,
             accumulate,
             dp,
+            render,
         })
     }
 

@@ -19,9 +19,10 @@ pub use error::GpuError;
 
 #[cfg(feature = "gpu")]
 mod context;
+pub mod dp;
 #[cfg(feature = "gpu")]
 pub mod horizon;
-pub mod dp;
+pub mod render;
 #[cfg(feature = "gpu")]
 pub mod shadow_march;
 #[cfg(feature = "gpu")]

@@ -2,12 +2,15 @@
 //! one epoch, lit by the Sun and by earthshine, tone mapped to an 8-bit sRGB PNG.
 //!
 //! Everything happens in model space (see [`crate::terrain::HeightField`]): each pixel's view ray
-//! is marched through the height field in uniform steps of half a cell, the first crossing is
-//! refined by bisection, and the hit point is shaded with a [`Brdf`] (Hapke 2012 with lunar
-//! parameters, or Lambert with albedo [`DEFAULT_ALBEDO`]; see [`brdf`]). The Sun's and the Earth's visible fractions come from a shadow engine run
-//! ONCE per frame for the whole grid ([`crate::shadow::Engine::visible_fraction`]) and are looked
-//! up bilinearly at the hit point. Earthshine models the Earth as a Lambert sphere of Bond albedo
-//! [`EARTH_BOND_ALBEDO`] ([`Lights::earth_irradiance_w_m2`]); see docs/render.md for the assumptions and what is missing.
+//! is cast through the height field's maximum mipmap to its exact first hit on the bilinear
+//! surface ([`cast`]; uniform stepping stays available as [`TraceMethod::Uniform`]), and the hit
+//! point is shaded with a [`Brdf`] (Hapke 2012 with lunar parameters, or Lambert with albedo
+//! [`DEFAULT_ALBEDO`]; see [`brdf`]). The Sun's and the Earth's visible fractions come from a
+//! shadow engine run ONCE per frame for the whole grid
+//! ([`crate::shadow::Engine::visible_fraction`]) and are looked up bilinearly at the hit point.
+//! Earthshine models the Earth as a Lambert sphere of Bond albedo [`EARTH_BOND_ALBEDO`]
+//! ([`Lights::earth_irradiance_w_m2`]). The GPU twin is `crate::gpu::render`; see
+//! docs/render.md for the assumptions and what is missing.
 
 use nalgebra::{Matrix3, Vector3};
 use rayon::prelude::*;
@@ -18,6 +21,8 @@ use crate::terrain::HeightField;
 
 pub mod brdf;
 pub use brdf::{Brdf, HapkeParams};
+pub mod cast;
+pub use cast::{RayCaster, TraceMethod};
 
 /// Lambert albedo of the regolith (a typical mean for the lunar highlands).
 pub const DEFAULT_ALBEDO: f64 = 0.12;
@@ -225,8 +230,8 @@ pub struct Scene<'a> {
     sun_fraction: Vec<f32>,
     earth_fraction: Vec<f32>,
     brdf: Brdf,
-    z_min_m: f64,
-    z_max_m: f64,
+    caster: RayCaster<'a>,
+    trace_method: TraceMethod,
 }
 
 impl<'a> Scene<'a> {
@@ -251,13 +256,6 @@ impl<'a> Scene<'a> {
         sun_fraction: Vec<f32>,
         earth_fraction: Vec<f32>,
     ) -> Self {
-        let (z_min_m, z_max_m) = hf
-            .z_m
-            .iter()
-            .filter(|z| !z.is_nan())
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &z| {
-                (lo.min(f64::from(z)), hi.max(f64::from(z)))
-            });
         Scene {
             hf,
             lights,
@@ -266,8 +264,8 @@ impl<'a> Scene<'a> {
             brdf: Brdf::Lambert {
                 albedo: DEFAULT_ALBEDO,
             },
-            z_min_m,
-            z_max_m,
+            caster: RayCaster::new(hf),
+            trace_method: TraceMethod::default(),
         }
     }
 
@@ -281,6 +279,30 @@ impl<'a> Scene<'a> {
     /// The BRDF of the scene.
     pub fn brdf(&self) -> &Brdf {
         &self.brdf
+    }
+
+    /// The same scene tracing view rays with `method` (default: [`TraceMethod::MaxMipmap`]).
+    pub fn with_trace_method(mut self, method: TraceMethod) -> Self {
+        self.trace_method = method;
+        self
+    }
+
+    /// The ray caster (height field, its maximum mipmap and height range).
+    pub fn caster(&self) -> &RayCaster<'a> {
+        &self.caster
+    }
+
+    /// The per-cell visible fractions of the Sun and of the Earth (row-major like `hf.z_m`).
+    pub fn fractions(&self) -> (&[f32], &[f32]) {
+        (&self.sun_fraction, &self.earth_fraction)
+    }
+
+    /// The Lambert albedo ([`DEFAULT_ALBEDO`] when the BRDF is Hapke).
+    pub fn albedo(&self) -> f64 {
+        match self.brdf {
+            Brdf::Lambert { albedo } => albedo,
+            Brdf::Hapke(_) => DEFAULT_ALBEDO,
+        }
     }
 
     /// The lights of the scene.
@@ -350,55 +372,10 @@ impl<'a> Scene<'a> {
         Some(l)
     }
 
-    /// The first terrain crossing of the ray `origin + t * dir` (t > 0): model point, or `None`.
+    /// The first terrain crossing of the ray `origin + t * dir` (t > 0): model point, or `None`
+    /// (by the scene's [`TraceMethod`], see [`cast`]).
     pub fn trace(&self, origin: &Vector3<f64>, dir: &Vector3<f64>) -> Option<Vector3<f64>> {
-        let hf = self.hf;
-        let x0 = hf.x_left_m;
-        let x1 = hf.x_left_m + hf.cols as f64 * hf.px_m;
-        let y1 = hf.y_top_m;
-        let y0 = hf.y_top_m - hf.rows as f64 * hf.px_m;
-        let (t_in, t_out) = slab(
-            origin,
-            dir,
-            [x0, y0, self.z_min_m - 1.0],
-            [x1, y1, self.z_max_m + 1.0],
-        )?;
-        let horiz = dir.x.hypot(dir.y).max(0.05);
-        let dt = 0.5 * hf.px_m / horiz;
-        let above = |t: f64| -> Option<bool> {
-            let p = origin + t * dir;
-            self.surface_z_m(p.x, p.y).map(|z| p.z > z)
-        };
-        let mut t_prev = t_in.max(0.0);
-        let mut prev = above(t_prev);
-        if prev == Some(false) {
-            return Some(origin + t_prev * dir);
-        }
-        let mut t = t_prev;
-        while t < t_out {
-            t = (t + dt).min(t_out);
-            let now = above(t);
-            if prev == Some(true) && now == Some(false) {
-                let (mut lo, mut hi) = (t_prev, t);
-                for _ in 0..30 {
-                    let mid = 0.5 * (lo + hi);
-                    if above(mid) == Some(false) {
-                        hi = mid;
-                    } else {
-                        lo = mid;
-                    }
-                }
-                return Some(origin + hi * dir);
-            }
-            if now.is_some() {
-                prev = now;
-                t_prev = t;
-            }
-            if t >= t_out {
-                break;
-            }
-        }
-        None
+        self.caster.cast(origin, dir, self.trace_method)
     }
 
     /// What the ray `origin + t * dir` sees: terrain radiance, the Sun's or the Earth's disc, or

@@ -140,6 +140,11 @@ impl MaxMipmap {
         self.levels.len()
     }
 
+    /// Level `m` (0 = the dual cells) as (rows, cols, texels row-major); `None` past the top.
+    pub fn level(&self, m: usize) -> Option<(usize, usize, &[f32])> {
+        self.levels.get(m).map(|(r, c, v)| (*r, *c, v.as_slice()))
+    }
+
     /// Texel value at level `m`, indices clamped into the level.
     #[inline]
     fn texel(&self, m: usize, i: i64, j: i64) -> f32 {

@@ -3,13 +3,14 @@
 mod ephem;
 mod fourier;
 mod gpu;
-mod gpu_horizon;
 mod gpu_dp;
+mod gpu_horizon;
 mod horizon;
 mod illum;
 mod map;
 mod render;
 mod render_cpu;
+mod render_gpu;
 mod series;
 mod series_engines;
 mod shadow;
