@@ -1017,8 +1017,7 @@ pub fn render_frames(
             earth: l.earth,
             earth_radius_rad: l.earth_radius_rad,
         };
-        let (out, sun_el_deg) =
-            render_one_frame(&job, placed, *epoch, lights, many.then_some(k))?;
+        let (out, sun_el_deg) = render_one_frame(&job, placed, *epoch, lights, many.then_some(k))?;
         progress.inc(1);
         if !many {
             eprintln!(

@@ -9,6 +9,9 @@ use hifitime::{Duration, Epoch};
 
 use super::{RenderError, Result};
 
+/// The most frames one path may have.
+pub const MAX_FRAMES: usize = 100_000;
+
 /// A camera pose in the parameters of `penumbra render` (angles in degrees).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum CameraPose {
@@ -65,8 +68,12 @@ pub enum FrameSampling {
 }
 
 /// Linear interpolation of the angle `a_deg` -> `b_deg` the short way round, at `t` in [0, 1]:
-/// `a + t * d` with `d` the difference wrapped into [-180, 180).
+/// `a + t * d` with `d` the difference wrapped into [-180, 180); exactly `b_deg` at `t` = 1
+/// (not `a + d`, which may differ from `b_deg` by 360).
 pub fn lerp_angle_deg(a_deg: f64, b_deg: f64, t: f64) -> f64 {
+    if t >= 1.0 {
+        return b_deg;
+    }
     let d = (b_deg - a_deg + 180.0).rem_euclid(360.0) - 180.0;
     a_deg + t * d
 }
@@ -161,12 +168,12 @@ pub fn check_keyframes(keyframes: &[Keyframe]) -> Result<()> {
 }
 
 /// The pose at `epoch` (clamped to the keyframes' span), interpolated linearly between the two
-/// keyframes around it. `keyframes` must pass [`check_keyframes`].
+/// keyframes around it (a keyframe's own epoch gives its pose exactly).
 pub fn pose_at(keyframes: &[Keyframe], epoch: Epoch) -> Result<CameraPose> {
     check_keyframes(keyframes)?;
     let k = keyframes
         .windows(2)
-        .position(|w| epoch <= w[1].epoch)
+        .position(|w| epoch < w[1].epoch)
         .unwrap_or(keyframes.len() - 2);
     let (a, b) = (&keyframes[k], &keyframes[k + 1]);
     let t = ((epoch - a.epoch).to_seconds() / (b.epoch - a.epoch).to_seconds()).clamp(0.0, 1.0);
@@ -186,6 +193,11 @@ pub fn path_frames(
         FrameSampling::Count(0) => {
             return Err(RenderError::BadPath("frames must be >= 1".into()));
         }
+        FrameSampling::Count(n) if n > MAX_FRAMES => {
+            return Err(RenderError::BadPath(format!(
+                "{n} frames: at most {MAX_FRAMES}"
+            )));
+        }
         FrameSampling::Count(1) => vec![first],
         FrameSampling::Count(n) => (0..n)
             .map(|i| first + Duration::from_seconds(span_s * i as f64 / (n - 1) as f64))
@@ -196,7 +208,7 @@ pub fn path_frames(
                 return Err(RenderError::BadPath("the frame step must be > 0".into()));
             }
             let n = (span_s / step_s + 1e-9).floor() as usize + 1;
-            if n > 100_000 {
+            if n > MAX_FRAMES {
                 return Err(RenderError::BadPath(format!(
                     "{n} frames: the step is too small for the path's span"
                 )));

@@ -312,7 +312,10 @@ mod on_gpu {
                  mean {mean_d:.3e}, cells with |df| > 0.1: {big_pct:.3} %"
             );
             assert!(mean_d < FRACTION_MEAN_BOUND, "{name}: mean |df| {mean_d}");
-            assert!(big_pct < FRACTION_BIG_PCT_BOUND, "{name}: {big_pct} % cells off by > 0.1");
+            assert!(
+                big_pct < FRACTION_BIG_PCT_BOUND,
+                "{name}: {big_pct} % cells off by > 0.1"
+            );
         }
         let gpu_scene = Scene::with_fractions(hf, lights, sun, earth).with_brdf(brdf);
         let (w, h) = (160, 120);
@@ -334,8 +337,16 @@ mod on_gpu {
             "{} px differ by > 5 % of L_p99",
             p.silhouette
         );
-        assert!(p.max_scaled < IMAGE_MAX_BOUND, "max |dL|/L_p99 {}", p.max_scaled);
-        assert!(p.mean_scaled < IMAGE_MEAN_BOUND, "mean |dL|/L_p99 {}", p.mean_scaled);
+        assert!(
+            p.max_scaled < IMAGE_MAX_BOUND,
+            "max |dL|/L_p99 {}",
+            p.max_scaled
+        );
+        assert!(
+            p.mean_scaled < IMAGE_MEAN_BOUND,
+            "mean |dL|/L_p99 {}",
+            p.mean_scaled
+        );
     }
 
     /// A flat plane (64 x 64 cells of 10 m) from 100 m up, Sun at 30 deg: GPU vs CPU and both vs
