@@ -204,7 +204,7 @@ pub fn path_frames(
             .collect(),
         FrameSampling::Step(step) => {
             let step_s = step.to_seconds();
-            if !(step_s > 0.0) {
+            if step_s.is_nan() || step_s <= 0.0 {
                 return Err(RenderError::BadPath("the frame step must be > 0".into()));
             }
             let n = (span_s / step_s + 1e-9).floor() as usize + 1;
