@@ -503,6 +503,8 @@ mod on_gpu {
                     k,
                     "--out",
                     out.to_str().unwrap(),
+                    "--out-radiance",
+                    dir.path().join(format!("{backend}.tif")).to_str().unwrap(),
                 ],
             );
             assert!(
@@ -513,5 +515,35 @@ mod on_gpu {
             let img = image::open(&out).unwrap();
             assert_eq!((img.width(), img.height()), (48, 32));
         }
+        // End to end, `--backend gpu` (GPU DP fractions + GPU caster, f32) vs `--backend cpu`
+        // (Combined engine + CPU caster, f64): radiance TIFFs, |dL| relative to the CPU image's
+        // p99 radiance (measured values in docs/VALIDATION.md).
+        let read = |name: &str| {
+            let bytes = std::fs::read(dir.path().join(name)).unwrap();
+            let mut dec = tiff::decoder::Decoder::new(std::io::Cursor::new(bytes)).unwrap();
+            let tiff::decoder::DecodingResult::F32(v) = dec.read_image().unwrap() else {
+                panic!("f32 TIFF expected")
+            };
+            v
+        };
+        let (g, c) = (read("gpu.tif"), read("cpu.tif"));
+        let mut sorted: Vec<f32> = c.clone();
+        sorted.sort_by(f32::total_cmp);
+        let p99 = f64::from(sorted[sorted.len() * 99 / 100]);
+        assert!(p99 > 0.0);
+        let d: Vec<f64> = g
+            .iter()
+            .zip(&c)
+            .map(|(a, b)| f64::from((a - b).abs()) / p99)
+            .collect();
+        let big = d.iter().filter(|&&x| x > 0.05).count();
+        let max = d.iter().copied().fold(0.0, f64::max);
+        let mean = d.iter().sum::<f64>() / d.len() as f64;
+        eprintln!(
+            "penumbra render 48x32 --backend gpu vs cpu: px with |dL| > 5 % L_p99: {big}, \
+             max |dL|/L_p99 {max:.2e}, mean {mean:.2e}"
+        );
+        assert!(big <= 8, "{big} px differ by > 5 % of L_p99");
+        assert!(mean < 1e-4, "mean |dL|/L_p99 {mean}");
     }
 }
