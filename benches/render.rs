@@ -2,7 +2,9 @@
 //!
 //! - `render_synthetic_320x240`: one 320 x 240 frame of the synthetic DEM (400 x 400 px at
 //!   100 m) from a site camera: the per-frame shadow fractions (Sun + Earth, Combined engine) and
-//!   ray casting + shading with the max-mipmap caster and with uniform half-cell stepping.
+//!   ray casting + shading with the max-mipmap caster and with uniform half-cell stepping; and
+//!   the GPU DP fractions that replace the Combined engine on the GPU backend
+//!   (`scene_fractions_gpu_dp`, skipped without an adapter).
 //! - `render_equal_error_320x240`: the same frame; the image error (`render::cast::image_error`)
 //!   of each caster against a reference (uniform steps of 1/32 cell + bisection) is printed, and
 //!   the mipmap caster is timed against the coarsest uniform step whose mean error is at most the
@@ -79,6 +81,19 @@ fn bench_render(c: &mut Criterion) {
     group.bench_function("scene_fractions_combined", |b| {
         b.iter(|| Scene::new(hf, s.lights, Engine::Combined).unwrap())
     });
+    // What `penumbra render` runs on the GPU backend instead: the GPU DP kernel (grid uploaded
+    // once, outside the loop; two kernel runs + readback per frame).
+    #[cfg(feature = "gpu")]
+    match penumbra::gpu::GpuContext::new() {
+        Ok(ctx) => {
+            let fr = penumbra::map::GpuSceneFractions::upload(&ctx, hf).unwrap();
+            group.bench_function(
+                format!("scene_fractions_gpu_dp ({})", ctx.adapter_name()),
+                |b| b.iter(|| fr.fractions(&ctx, &s.lights).unwrap()),
+            );
+        }
+        Err(e) => eprintln!("render_synthetic: skipping the GPU fractions: {e}"),
+    }
     let scene = Scene::new(hf, s.lights, Engine::Combined).unwrap();
     group.throughput(Throughput::Elements(320 * 240));
     group.bench_function("cast_and_shade", |b| {

@@ -684,104 +684,133 @@ pub fn load_terrain(
     }
 }
 
-/// `penumbra render`: one frame (`--utc`) or numbered frames (`--start/--stop/--step`) of the
-/// CPU reference renderer, from a site or an orbital camera.
+/// `penumbra render`: one frame (`--utc`) or numbered frames (`--start/--stop/--step`) from a
+/// site or an orbital camera.
 pub fn run_render(args: &crate::cli::RenderArgs) -> anyhow::Result<()> {
-    use crate::cli::{BrdfArg, CameraArg};
-    use crate::render::{Brdf, Camera, HapkeParams, Lights, Scene};
-    let t0 = std::time::Instant::now();
-    crate::render::check_size(args.width, args.height)?;
-    if !(args.fov_deg > 0.0 && args.fov_deg < 180.0) {
-        anyhow::bail!("--fov-deg {} must be in (0, 180)", args.fov_deg);
-    }
-    if args.camera == CameraArg::Site && !(args.height_m >= 0.0 && args.height_m.is_finite()) {
-        anyhow::bail!(
-            "--height-m {} puts the camera below the terrain surface: give a finite height >= 0",
-            args.height_m
-        );
-    }
-    if let Some(e) = args.exposure
-        && !(e > 0.0 && e.is_finite())
-    {
-        anyhow::bail!("--exposure {e} must be a finite number > 0");
-    }
-    let brdf = match (args.brdf, args.albedo) {
-        (BrdfArg::Hapke, None) => Brdf::Hapke(HapkeParams::MOON_643NM),
-        (BrdfArg::Hapke, Some(_)) => {
-            anyhow::bail!("--albedo applies to --brdf lambert only")
-        }
-        (BrdfArg::Lambert, a) => {
-            let albedo = a.unwrap_or(crate::render::DEFAULT_ALBEDO);
-            if !(0.0..=1.0).contains(&albedo) {
-                anyhow::bail!("--albedo {albedo} must be in [0, 1]");
-            }
-            Brdf::Lambert { albedo }
-        }
-    };
     let epochs = epochs_from_args(&args.epochs)?;
-    let abcorr = AbCorr::parse(&args.abcorr)?;
-    let (stack, _) = load_terrain(&args.terrain)?;
-    let grid = crate::map::MapGrid::new(&stack)?;
-    let hf = &grid.hf;
+    let pose = pose_from_args(args)?;
+    let frames: Vec<_> = epochs.into_iter().map(|e| (e, pose)).collect();
+    render_frames(args, &frames)
+}
+
+/// The camera pose of `penumbra render`'s camera options.
+pub fn pose_from_args(
+    args: &crate::cli::RenderArgs,
+) -> anyhow::Result<crate::render::path::CameraPose> {
+    use crate::cli::CameraArg;
+    use crate::render::path::CameraPose;
+    Ok(match args.camera {
+        CameraArg::Site => CameraPose::Site {
+            lat_deg: args.lat_deg,
+            lon_deg: args.lon_deg,
+            height_m: args.height_m,
+            look_az_deg: args.look_az_deg,
+            look_el_deg: args.look_el_deg,
+            fov_deg: args.fov_deg,
+        },
+        CameraArg::Orbit => {
+            let Some(altitude_km) = args.altitude_km else {
+                anyhow::bail!("--camera orbit needs --altitude-km");
+            };
+            CameraPose::Orbit {
+                lat_deg: args.lat_deg,
+                lon_deg: args.lon_deg,
+                altitude_km,
+                target_lat_deg: args.target_lat_deg.unwrap_or(args.lat_deg),
+                target_lon_deg: args.target_lon_deg.unwrap_or(args.lon_deg),
+                fov_deg: args.fov_deg,
+            }
+        }
+    })
+}
+
+/// A camera placed in model space from a pose: the camera, the (lat, lon) whose local up
+/// defines the reported Sun elevation, and a label for the PNG metadata.
+struct PlacedCamera {
+    camera: crate::render::Camera,
+    ref_lat_lon_deg: (f64, f64),
+    what: String,
+}
+
+/// Checks `pose` against the terrain and places the camera.
+fn place_camera(
+    pose: &crate::render::path::CameraPose,
+    stack: &crate::terrain::TerrainStack,
+    hf: &crate::terrain::HeightField,
+) -> anyhow::Result<PlacedCamera> {
+    use crate::render::Camera;
+    use crate::render::path::CameraPose;
     let frame = crate::terrain::model_space::ModelFrame::of(hf);
     let model_from_enu_at = |lat_deg: f64, lon_deg: f64| {
         hf.model_from_moon_me() * crate::frames::enu_from_moon_me(lat_deg, lon_deg).transpose()
     };
-    // The camera, the point whose local up defines the reported Sun elevation, and a label.
-    let (camera, ref_lat_lon, what) = match args.camera {
-        CameraArg::Site => {
-            let (ground_m, _) = stack.height_at_lat_lon_m_checked(args.lat_deg, args.lon_deg)?;
-            let pos = frame.model_from_lat_lon_height(
-                args.lat_deg,
-                args.lon_deg,
-                ground_m + args.height_m,
-            );
+    let fov_deg = match *pose {
+        CameraPose::Site { fov_deg, .. } | CameraPose::Orbit { fov_deg, .. } => fov_deg,
+    };
+    if !(fov_deg > 0.0 && fov_deg < 180.0) {
+        anyhow::bail!("--fov-deg {fov_deg} must be in (0, 180)");
+    }
+    Ok(match *pose {
+        CameraPose::Site {
+            lat_deg,
+            lon_deg,
+            height_m,
+            look_az_deg,
+            look_el_deg,
+            fov_deg,
+        } => {
+            if !(height_m >= 0.0 && height_m.is_finite()) {
+                anyhow::bail!(
+                    "--height-m {height_m} puts the camera below the terrain surface: give a finite height >= 0"
+                );
+            }
+            let (ground_m, _) = stack.height_at_lat_lon_m_checked(lat_deg, lon_deg)?;
+            let pos = frame.model_from_lat_lon_height(lat_deg, lon_deg, ground_m + height_m);
             if let Some(z) = crate::render::terrain_z_m(hf, pos.x, pos.y) {
                 // The model-space surface is a resampling of the DEM; allow its interpolation error.
                 if pos.z < z - 0.5 {
                     anyhow::bail!(
-                        "the camera ({:.1} m above the DEM) is below the model-space terrain surface",
-                        args.height_m
+                        "the camera ({height_m:.1} m above the DEM) is below the model-space terrain surface"
                     );
                 }
             }
             let camera = Camera::from_az_el_deg(
                 pos,
-                &model_from_enu_at(args.lat_deg, args.lon_deg),
-                args.look_az_deg,
-                args.look_el_deg,
-                args.fov_deg,
+                &model_from_enu_at(lat_deg, lon_deg),
+                look_az_deg,
+                look_el_deg,
+                fov_deg,
             )?;
-            let what = format!(
-                "site lat_deg={} lon_deg={} height_m={} look_az_deg={} look_el_deg={} fov_deg={}",
-                args.lat_deg,
-                args.lon_deg,
-                args.height_m,
-                args.look_az_deg,
-                args.look_el_deg,
-                args.fov_deg
-            );
-            (camera, (args.lat_deg, args.lon_deg), what)
+            PlacedCamera {
+                camera,
+                ref_lat_lon_deg: (lat_deg, lon_deg),
+                what: format!(
+                    "site lat_deg={lat_deg} lon_deg={lon_deg} height_m={height_m} \
+                     look_az_deg={look_az_deg} look_el_deg={look_el_deg} fov_deg={fov_deg}"
+                ),
+            }
         }
-        CameraArg::Orbit => {
-            let Some(alt_km) = args.altitude_km else {
-                anyhow::bail!("--camera orbit needs --altitude-km");
-            };
+        CameraPose::Orbit {
+            lat_deg,
+            lon_deg,
+            altitude_km: alt_km,
+            target_lat_deg: tlat,
+            target_lon_deg: tlon,
+            fov_deg,
+        } => {
             if !alt_km.is_finite() {
                 anyhow::bail!("--altitude-km {alt_km} must be finite");
             }
-            let tlat = args.target_lat_deg.unwrap_or(args.lat_deg);
-            let tlon = args.target_lon_deg.unwrap_or(args.lon_deg);
             let (target_ground_m, _) = stack
                 .height_at_lat_lon_m_checked(tlat, tlon)
                 .context("the orbit camera's target point")?;
-            let pos = frame.model_from_lat_lon_height(args.lat_deg, args.lon_deg, alt_km * 1e3);
+            let pos = frame.model_from_lat_lon_height(lat_deg, lon_deg, alt_km * 1e3);
             let below = match crate::render::terrain_z_m(hf, pos.x, pos.y) {
                 Some(z) => pos.z < z,
                 None => {
                     // Outside the grid: compare with the DEM there, if any, else with the
                     // highest point of the DEM layers.
-                    match stack.height_at_lat_lon_m_checked(args.lat_deg, args.lon_deg) {
+                    match stack.height_at_lat_lon_m_checked(lat_deg, lon_deg) {
                         Ok((g, _)) => alt_km * 1e3 < g,
                         Err(_) => {
                             let top_m = stack
@@ -801,24 +830,175 @@ pub fn run_render(args: &crate::cli::RenderArgs) -> anyhow::Result<()> {
                 );
             }
             let target = frame.model_from_lat_lon_height(tlat, tlon, target_ground_m);
-            let north = model_from_enu_at(args.lat_deg, args.lon_deg) * nalgebra::Vector3::y();
-            let camera = Camera::look_at(pos, target, north, args.fov_deg)?;
-            let what = format!(
-                "orbit lat_deg={} lon_deg={} altitude_km={alt_km} target_lat_deg={tlat} \
-                 target_lon_deg={tlon} fov_deg={}",
-                args.lat_deg, args.lon_deg, args.fov_deg
-            );
-            (camera, (tlat, tlon), what)
+            let north = model_from_enu_at(lat_deg, lon_deg) * nalgebra::Vector3::y();
+            let camera = Camera::look_at(pos, target, north, fov_deg)?;
+            PlacedCamera {
+                camera,
+                ref_lat_lon_deg: (tlat, tlon),
+                what: format!(
+                    "orbit lat_deg={lat_deg} lon_deg={lon_deg} altitude_km={alt_km} \
+                     target_lat_deg={tlat} target_lon_deg={tlon} fov_deg={fov_deg}"
+                ),
+            }
+        }
+    })
+}
+
+/// Where the per-cell Sun and Earth visible fractions of a frame come from: the CPU shadow
+/// engine, or (when the render backend resolved to the GPU) the GPU DP kernel, so that a GPU
+/// frame does not wait on the CPU engine.
+enum FractionSource {
+    /// `Engine::Combined` on the CPU (what `Scene::new` does).
+    Cpu,
+    /// The GPU DP kernel on the uploaded grid.
+    #[cfg(feature = "gpu")]
+    Gpu(crate::map::GpuSceneFractions),
+}
+
+/// Everything a frame needs besides its camera and epoch.
+struct FrameJob<'a> {
+    args: &'a crate::cli::RenderArgs,
+    hf: &'a crate::terrain::HeightField,
+    brdf: crate::render::Brdf,
+    backend: &'a crate::gpu::ResolvedBackend,
+    fractions: FractionSource,
+}
+
+/// Renders one frame (`index` numbers the output files of a sequence) and writes its PNG (and
+/// radiance TIFF); returns the PNG path and the Sun elevation at the reference point, degrees.
+fn render_one_frame(
+    job: &FrameJob,
+    placed: &PlacedCamera,
+    epoch: Epoch,
+    lights: crate::render::Lights,
+    index: Option<usize>,
+) -> anyhow::Result<(PathBuf, f64)> {
+    use crate::render::Scene;
+    let args = job.args;
+    let scene = match &job.fractions {
+        FractionSource::Cpu => Scene::new(job.hf, lights, crate::shadow::Engine::Combined)?,
+        #[cfg(feature = "gpu")]
+        FractionSource::Gpu(gpu) => {
+            let crate::gpu::ResolvedBackend::Gpu(ctx) = job.backend else {
+                anyhow::bail!("internal: GPU fractions without a GPU backend")
+            };
+            let (sun, earth) = gpu.fractions(ctx, &lights)?;
+            Scene::with_fractions(job.hf, lights, sun, earth)
+        }
+    }
+    .with_brdf(job.brdf);
+    let camera = &placed.camera;
+    let samples = render_samples(&scene, camera, args, job.backend)?;
+    let exposure = args
+        .exposure
+        .unwrap_or_else(|| crate::render::auto_exposure(&samples));
+    let mut rgb = crate::render::tone_map(&samples, exposure);
+    crate::render::add_sun_glare(&mut rgb, &scene, camera, args.width, args.height);
+    // Sun elevation at the site (or the orbit camera's target), above the plane normal to the
+    // local up.
+    let (lat, lon) = placed.ref_lat_lon_deg;
+    let up = job.hf.model_from_moon_me()
+        * crate::frames::enu_from_moon_me(lat, lon).transpose()
+        * nalgebra::Vector3::z();
+    let sun_el_deg = nalgebra::Vector3::from(lights.sun)
+        .dot(&up)
+        .clamp(-1.0, 1.0)
+        .asin()
+        .to_degrees();
+    let text = [
+        (
+            "Software",
+            format!("penumbra {}", env!("CARGO_PKG_VERSION")),
+        ),
+        ("penumbra:epoch_utc", format_utc(epoch)),
+        ("penumbra:sun_elevation_deg", format!("{sun_el_deg:.4}")),
+        ("penumbra:camera", placed.what.clone()),
+        ("penumbra:brdf", format!("{:?}", job.brdf)),
+        ("penumbra:exposure", format!("{exposure:.6e}")),
+    ];
+    let png = crate::render::encode_png(&rgb, args.width, args.height, &text)?;
+    let numbered = |p: &Path| match index {
+        Some(k) => crate::render::numbered_path(p, k),
+        None => p.to_path_buf(),
+    };
+    let out = numbered(&args.out);
+    if let Some(tif) = &args.out_radiance {
+        let bytes = crate::render::encode_f32_tiff(
+            &crate::render::radiance_image(&samples),
+            args.width,
+            args.height,
+        )?;
+        crate::output::write_bytes_atomic(&numbered(tif), &bytes)?;
+    }
+    crate::output::write_bytes_atomic(&out, &png)?;
+    Ok((out, sun_el_deg))
+}
+
+/// Renders `frames` (epoch, camera pose) with the image, BRDF, exposure, backend, terrain,
+/// kernel and output options of `args` (its camera and epoch options are not used): one
+/// frame to `--out`, or numbered frames `<stem>_0000.png`, ... Every camera is checked before
+/// any file is written.
+pub fn render_frames(
+    args: &crate::cli::RenderArgs,
+    frames: &[(Epoch, crate::render::path::CameraPose)],
+) -> anyhow::Result<()> {
+    use crate::cli::BrdfArg;
+    use crate::render::{Brdf, HapkeParams, Lights};
+    let t0 = std::time::Instant::now();
+    crate::render::check_size(args.width, args.height)?;
+    if frames.is_empty() {
+        anyhow::bail!("no frames to render");
+    }
+    if let Some(e) = args.exposure
+        && !(e > 0.0 && e.is_finite())
+    {
+        anyhow::bail!("--exposure {e} must be a finite number > 0");
+    }
+    let brdf = match (args.brdf, args.albedo) {
+        (BrdfArg::Hapke, None) => Brdf::Hapke(HapkeParams::MOON_643NM),
+        (BrdfArg::Hapke, Some(_)) => {
+            anyhow::bail!("--albedo applies to --brdf lambert only")
+        }
+        (BrdfArg::Lambert, a) => {
+            let albedo = a.unwrap_or(crate::render::DEFAULT_ALBEDO);
+            if !(0.0..=1.0).contains(&albedo) {
+                anyhow::bail!("--albedo {albedo} must be in [0, 1]");
+            }
+            Brdf::Lambert { albedo }
         }
     };
+    let abcorr = AbCorr::parse(&args.abcorr)?;
+    let (stack, _) = load_terrain(&args.terrain)?;
+    let grid = crate::map::MapGrid::new(&stack)?;
+    let hf = &grid.hf;
+    let placed = frames
+        .iter()
+        .map(|(_, pose)| place_camera(pose, &stack, hf))
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    let epochs: Vec<Epoch> = frames.iter().map(|(e, _)| *e).collect();
     let kernels = load_kernels(&args.kernels)?;
     let lights_all = crate::map::epoch_lights(&grid, &kernels, &epochs, abcorr)?;
     // Resolved once: `auto` warns once and the GPU device + pipelines are built once.
     let backend = crate::gpu::resolve_backend(args.backend)
         .with_context(|| format!("resolving --backend {}", args.backend.as_str()))?;
-    let up = model_from_enu_at(ref_lat_lon.0, ref_lat_lon.1) * nalgebra::Vector3::z();
-    let many = epochs.len() > 1;
-    let progress = indicatif::ProgressBar::new(epochs.len() as u64);
+    let fractions = match &backend {
+        crate::gpu::ResolvedBackend::Cpu => FractionSource::Cpu,
+        #[cfg(feature = "gpu")]
+        crate::gpu::ResolvedBackend::Gpu(ctx) => {
+            FractionSource::Gpu(crate::map::GpuSceneFractions::upload(ctx, hf)?)
+        }
+        #[cfg(not(feature = "gpu"))]
+        crate::gpu::ResolvedBackend::Gpu(ctx) => match **ctx {},
+    };
+    let job = FrameJob {
+        args,
+        hf,
+        brdf,
+        backend: &backend,
+        fractions,
+    };
+    let many = frames.len() > 1;
+    let progress = indicatif::ProgressBar::new(frames.len() as u64);
     if many {
         progress.set_style(
             indicatif::ProgressStyle::with_template(
@@ -830,58 +1010,14 @@ pub fn run_render(args: &crate::cli::RenderArgs) -> anyhow::Result<()> {
     } else {
         progress.set_draw_target(indicatif::ProgressDrawTarget::hidden());
     }
-    for (k, (epoch, l)) in epochs.iter().zip(&lights_all).enumerate() {
+    for (k, ((epoch, l), placed)) in epochs.iter().zip(&lights_all).zip(&placed).enumerate() {
         let lights = Lights {
             sun: l.sun,
             sun_radius_rad: l.sun_radius_rad,
             earth: l.earth,
             earth_radius_rad: l.earth_radius_rad,
         };
-        let scene = Scene::new(hf, lights, crate::shadow::Engine::Combined)?.with_brdf(brdf);
-        let samples = render_samples(&scene, &camera, args, &backend)?;
-        let exposure = args
-            .exposure
-            .unwrap_or_else(|| crate::render::auto_exposure(&samples));
-        let mut rgb = crate::render::tone_map(&samples, exposure);
-        crate::render::add_sun_glare(&mut rgb, &scene, &camera, args.width, args.height);
-        // Sun elevation at the site (or the orbit camera's target), above the plane normal to
-        // the local up.
-        let sun_el_deg = nalgebra::Vector3::from(l.sun)
-            .dot(&up)
-            .clamp(-1.0, 1.0)
-            .asin()
-            .to_degrees();
-        let text = [
-            (
-                "Software",
-                format!("penumbra {}", env!("CARGO_PKG_VERSION")),
-            ),
-            ("penumbra:epoch_utc", format_utc(*epoch)),
-            ("penumbra:sun_elevation_deg", format!("{sun_el_deg:.4}")),
-            ("penumbra:camera", what.clone()),
-            ("penumbra:brdf", format!("{brdf:?}")),
-            ("penumbra:exposure", format!("{exposure:.6e}")),
-        ];
-        let png = crate::render::encode_png(&rgb, args.width, args.height, &text)?;
-        let out = if many {
-            crate::render::numbered_path(&args.out, k)
-        } else {
-            args.out.clone()
-        };
-        if let Some(tif) = &args.out_radiance {
-            let tif = if many {
-                crate::render::numbered_path(tif, k)
-            } else {
-                tif.clone()
-            };
-            let bytes = crate::render::encode_f32_tiff(
-                &crate::render::radiance_image(&samples),
-                args.width,
-                args.height,
-            )?;
-            crate::output::write_bytes_atomic(&tif, &bytes)?;
-        }
-        crate::output::write_bytes_atomic(&out, &png)?;
+        let (out, sun_el_deg) = render_one_frame(&job, placed, *epoch, lights, many.then_some(k))?;
         progress.inc(1);
         if !many {
             eprintln!(
@@ -898,11 +1034,11 @@ pub fn run_render(args: &crate::cli::RenderArgs) -> anyhow::Result<()> {
     if many {
         eprintln!(
             "penumbra: rendered {} frames of {} x {} px to {} ... {} in {:.2} s",
-            epochs.len(),
+            frames.len(),
             args.width,
             args.height,
             crate::render::numbered_path(&args.out, 0).display(),
-            crate::render::numbered_path(&args.out, epochs.len() - 1).display(),
+            crate::render::numbered_path(&args.out, frames.len() - 1).display(),
             t0.elapsed().as_secs_f64()
         );
     }

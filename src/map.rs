@@ -474,6 +474,18 @@ pub fn sweep_gpu_soft(
     })
 }
 
+/// A soft-shadow kernel output as a fraction: `NaN` for a hole
+/// ([`crate::shadow::gpu_twins::NODATA_FRACTION`], -1), else clamped to [0, 1] (f32 rounding
+/// leaves a few lit-edge cells at -1e-7, which a `< 0` hole test would turn into holes).
+#[cfg(feature = "gpu")]
+fn fraction_from_gpu(f: f32) -> f32 {
+    if f < crate::shadow::gpu_twins::NODATA_FRACTION + 0.5 {
+        f32::NAN
+    } else {
+        f.clamp(0.0, 1.0)
+    }
+}
+
 /// One-light maps on the GPU (issue 7 item 2): the DP visible fraction of a disc of angular
 /// radius `angular_radius_rad` per model cell (`NaN` for holes), or with `angular_radius_rad` =
 /// 0 the hard mask of the disc centre. Every `--engine` except `fourier` maps to this kernel on
@@ -494,10 +506,51 @@ pub fn visible_fraction_gpu(
     let on_gpu = GpuDpGrid::upload(ctx, &march, &mip)?;
     let light = disc_light_to_f32(&Vector3::from(light_in_model), angular_radius_rad);
     let out = dp_visible_gpu(ctx, &on_gpu, light, DEFAULT_BAND_BYTES)?;
-    Ok(out
-        .into_iter()
-        .map(|f| if f < 0.0 { f32::NAN } else { f })
-        .collect())
+    Ok(out.into_iter().map(fraction_from_gpu).collect())
+}
+
+/// The renderer's per-cell Sun and Earth visible fractions on the GPU DP kernel (the GPU twin
+/// of what [`crate::render::Scene::new`] computes with the CPU engine, observer on the ground):
+/// the height field and its DP mip are uploaded once, then each frame costs two kernel runs.
+#[cfg(feature = "gpu")]
+pub struct GpuSceneFractions {
+    grid: crate::gpu::dp::GpuDpGrid,
+}
+
+#[cfg(feature = "gpu")]
+impl GpuSceneFractions {
+    /// Uploads `hf` (observer height 0, as in [`crate::render::Scene::new`]).
+    pub fn upload(ctx: &crate::gpu::GpuContext, hf: &HeightField) -> anyhow::Result<Self> {
+        use crate::shadow::gpu_twins::{DpMip, MarchGrid};
+        let march = MarchGrid::from_height_field(hf, 0.0)?;
+        let mip = DpMip::build(&march);
+        Ok(Self {
+            grid: crate::gpu::dp::GpuDpGrid::upload(ctx, &march, &mip)?,
+        })
+    }
+
+    /// The (Sun, Earth) visible fractions per model cell for `lights` (`NaN` for holes),
+    /// row-major like `hf.z_m`, ready for [`crate::render::Scene::with_fractions`].
+    pub fn fractions(
+        &self,
+        ctx: &crate::gpu::GpuContext,
+        lights: &crate::render::Lights,
+    ) -> anyhow::Result<(Vec<f32>, Vec<f32>)> {
+        use crate::gpu::dp::dp_visible_gpu;
+        use crate::gpu::shadow_march::DEFAULT_BAND_BYTES;
+        use crate::shadow::gpu_twins::disc_light_to_f32;
+        let one = |dir: [f64; 3], radius_rad: f64| -> anyhow::Result<Vec<f32>> {
+            let light = disc_light_to_f32(&Vector3::from(dir), radius_rad);
+            Ok(dp_visible_gpu(ctx, &self.grid, light, DEFAULT_BAND_BYTES)?
+                .into_iter()
+                .map(fraction_from_gpu)
+                .collect())
+        };
+        Ok((
+            one(lights.sun, lights.sun_radius_rad)?,
+            one(lights.earth, lights.earth_radius_rad)?,
+        ))
+    }
 }
 
 /// [`visible_fraction_gpu`] at radius 0 as a mask: 1 lit, 0 shadow, 255 nodata.

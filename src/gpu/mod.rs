@@ -19,9 +19,11 @@ pub use error::GpuError;
 
 #[cfg(feature = "gpu")]
 mod context;
+#[cfg(feature = "gpu")]
 pub mod dp;
 #[cfg(feature = "gpu")]
 pub mod horizon;
+#[cfg(feature = "gpu")]
 pub mod render;
 #[cfg(feature = "gpu")]
 pub mod shadow_march;

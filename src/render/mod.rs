@@ -22,6 +22,7 @@ use crate::terrain::HeightField;
 pub mod brdf;
 pub use brdf::{Brdf, HapkeParams};
 pub mod cast;
+pub mod path;
 pub use cast::{RayCaster, TraceMethod};
 
 /// Lambert albedo of the regolith (a typical mean for the lunar highlands).
@@ -42,6 +43,9 @@ pub enum RenderError {
     /// The camera parameters are not usable (field of view, position, direction).
     #[error("bad camera: {0}")]
     BadCamera(String),
+    /// A camera path is not usable (too few keyframes, times not increasing, mixed kinds).
+    #[error("bad camera path: {0}")]
+    BadPath(String),
     /// The image has a zero or absurd size.
     #[error("bad image size {width} x {height} px: both must be in 1..=16384")]
     BadImageSize {

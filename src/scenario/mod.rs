@@ -77,13 +77,169 @@ pub struct Scenario {
     pub render: Option<RenderSpec>,
 }
 
-/// The `[render]` table of a scenario: `[[render.views]]`.
+/// The `[render]` table of a scenario: `[[render.views]]` and `[[render.paths]]`.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct RenderSpec {
     /// The views, each one `penumbra render` run (one frame, or numbered frames over a range).
     #[serde(default)]
     pub views: Vec<ViewSpec>,
+    /// Camera paths: keyframes interpolated into numbered frames (docs/render.md).
+    #[serde(default)]
+    pub paths: Vec<PathSpec>,
+}
+
+/// One `[[render.paths]]` entry: a camera moving through keyframes, rendered as numbered
+/// frames `<stem>_0000.png`, ... (image options as in `[[render.views]]`).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PathSpec {
+    /// Output PNG file name under `<output_dir>/render/` (numbered `<stem>_0000.png`, ...).
+    pub out: String,
+    /// `site` (default) or `orbit`, for every keyframe.
+    pub camera: Option<String>,
+    /// The keyframes (at least 2, times strictly increasing).
+    pub keyframes: Vec<KeyframeSpec>,
+    /// Number of frames, evenly spaced from the first keyframe to the last (or `step`).
+    pub frames: Option<usize>,
+    /// Time between frames (e.g. `10m`), from the first keyframe (or `frames`).
+    pub step: Option<String>,
+    /// Image width, pixels.
+    pub width: Option<u32>,
+    /// Image height, pixels.
+    pub height: Option<u32>,
+    /// `hapke` (default) or `lambert`.
+    pub brdf: Option<String>,
+    /// Lambert albedo (with `brdf = "lambert"`).
+    pub albedo: Option<f64>,
+    /// Fixed exposure, 1/(W m^-2 sr^-1).
+    pub exposure: Option<f64>,
+    /// Also write float radiance TIFFs under `render/` with this name (numbered).
+    pub out_radiance: Option<String>,
+}
+
+/// One keyframe of a `[[render.paths]]` entry: an epoch and a camera pose (the `penumbra
+/// render` camera options and defaults; site keys for a site camera, orbit keys for an orbit
+/// camera).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct KeyframeSpec {
+    /// The keyframe's epoch, UTC.
+    pub utc: String,
+    /// Camera latitude, degrees.
+    pub lat_deg: f64,
+    /// Camera east longitude, degrees.
+    pub lon_deg: f64,
+    /// Site camera: height above the ground, metres (default 2).
+    pub height_m: Option<f64>,
+    /// Site camera: view azimuth, degrees from north clockwise (default 0).
+    pub look_az_deg: Option<f64>,
+    /// Site camera: view elevation, degrees (default 0).
+    pub look_el_deg: Option<f64>,
+    /// Orbit camera: altitude above the 1737.4 km sphere, kilometres (required).
+    pub altitude_km: Option<f64>,
+    /// Orbit camera: target latitude, degrees (default: the camera's).
+    pub target_lat_deg: Option<f64>,
+    /// Orbit camera: target east longitude, degrees (default: the camera's).
+    pub target_lon_deg: Option<f64>,
+    /// Horizontal field of view, degrees (default 60).
+    pub fov_deg: Option<f64>,
+}
+
+impl PathSpec {
+    /// The path's frames: (epoch, camera pose), interpolated between the keyframes.
+    pub fn frames(
+        &self,
+    ) -> anyhow::Result<Vec<(hifitime::Epoch, crate::render::path::CameraPose)>> {
+        use crate::render::path::{CameraPose, FrameSampling, Keyframe, path_frames};
+        let orbit = match self.camera.as_deref() {
+            None | Some("site") => false,
+            Some("orbit") => true,
+            Some(other) => anyhow::bail!("camera '{other}': use site or orbit"),
+        };
+        let keyframes = self
+            .keyframes
+            .iter()
+            .enumerate()
+            .map(|(k, kf)| {
+                let epoch = crate::ephem::time::parse_utc(&kf.utc)
+                    .map_err(|e| anyhow::anyhow!("keyframe {k}: {e}"))?;
+                let pose = if orbit {
+                    if kf.height_m.is_some() || kf.look_az_deg.is_some() || kf.look_el_deg.is_some()
+                    {
+                        anyhow::bail!(
+                            "keyframe {k}: height_m/look_az_deg/look_el_deg are site-camera keys"
+                        );
+                    }
+                    let Some(altitude_km) = kf.altitude_km else {
+                        anyhow::bail!("keyframe {k}: an orbit camera needs altitude_km");
+                    };
+                    CameraPose::Orbit {
+                        lat_deg: kf.lat_deg,
+                        lon_deg: kf.lon_deg,
+                        altitude_km,
+                        target_lat_deg: kf.target_lat_deg.unwrap_or(kf.lat_deg),
+                        target_lon_deg: kf.target_lon_deg.unwrap_or(kf.lon_deg),
+                        fov_deg: kf.fov_deg.unwrap_or(60.0),
+                    }
+                } else {
+                    if kf.altitude_km.is_some()
+                        || kf.target_lat_deg.is_some()
+                        || kf.target_lon_deg.is_some()
+                    {
+                        anyhow::bail!(
+                            "keyframe {k}: altitude_km/target_lat_deg/target_lon_deg are orbit-camera keys (set camera = \"orbit\")"
+                        );
+                    }
+                    CameraPose::Site {
+                        lat_deg: kf.lat_deg,
+                        lon_deg: kf.lon_deg,
+                        height_m: kf.height_m.unwrap_or(2.0),
+                        look_az_deg: kf.look_az_deg.unwrap_or(0.0),
+                        look_el_deg: kf.look_el_deg.unwrap_or(0.0),
+                        fov_deg: kf.fov_deg.unwrap_or(60.0),
+                    }
+                };
+                Ok(Keyframe { epoch, pose })
+            })
+            .collect::<anyhow::Result<Vec<_>>>()?;
+        let sampling = match (self.frames, &self.step) {
+            (Some(n), None) => FrameSampling::Count(n),
+            (None, Some(s)) => FrameSampling::Step(crate::ephem::time::parse_step(s)?),
+            _ => anyhow::bail!("give either frames = N or step = \"...\""),
+        };
+        Ok(path_frames(&keyframes, sampling)?)
+    }
+
+    /// The `[[render.views]]` entry with this path's image options and its first keyframe
+    /// (its command line carries the options the frames share).
+    fn as_view(&self) -> ViewSpec {
+        let k0 = self.keyframes.first();
+        let g = |f: fn(&KeyframeSpec) -> Option<f64>| k0.and_then(f);
+        ViewSpec {
+            out: self.out.clone(),
+            camera: self.camera.clone(),
+            lat_deg: k0.map_or(0.0, |k| k.lat_deg),
+            lon_deg: k0.map_or(0.0, |k| k.lon_deg),
+            height_m: g(|k| k.height_m),
+            look_az_deg: g(|k| k.look_az_deg),
+            look_el_deg: g(|k| k.look_el_deg),
+            altitude_km: g(|k| k.altitude_km),
+            target_lat_deg: g(|k| k.target_lat_deg),
+            target_lon_deg: g(|k| k.target_lon_deg),
+            fov_deg: g(|k| k.fov_deg),
+            utc: k0.map(|k| k.utc.clone()),
+            start: None,
+            stop: None,
+            step: None,
+            width: self.width,
+            height: self.height,
+            brdf: self.brdf.clone(),
+            albedo: self.albedo,
+            exposure: self.exposure,
+            out_radiance: self.out_radiance.clone(),
+        }
+    }
 }
 
 /// One `[[render.views]]` entry: the options of `penumbra render` (same names, same defaults;
@@ -362,6 +518,16 @@ impl Scenario {
         if self.series.is_some() && self.terrain.is_none() {
             return Err(invalid("[series] needs [terrain]".into()));
         }
+        // Camera paths are checked before anything runs, so a bad one writes no file.
+        for p in self.render.iter().flat_map(|r| &r.paths) {
+            p.frames().map_err(|e| {
+                invalid(format!(
+                    "[[render.paths]] '{}': {}",
+                    p.out,
+                    format!("{e:#}").replace('\n', " ")
+                ))
+            })?;
+        }
         Ok(())
     }
 
@@ -500,7 +666,18 @@ pub fn run_file(args: &crate::cli::RunArgs) -> anyhow::Result<()> {
         let render_dir = out_dir.join("render");
         std::fs::create_dir_all(&render_dir)
             .with_context(|| format!("creating {}", render_dir.display()))?;
-        for view in &spec.views {
+        let paths: Vec<(ViewSpec, Option<&PathSpec>)> = spec
+            .views
+            .iter()
+            .map(|v| (v.clone(), None))
+            .chain(spec.paths.iter().map(|p| (p.as_view(), Some(p))))
+            .collect();
+        for (view, path_spec) in &paths {
+            let what = if path_spec.is_some() {
+                "[[render.paths]]"
+            } else {
+                "[[render.views]]"
+            };
             let mut argv = vec!["penumbra".to_string(), "render".to_string()];
             for t in &terrain {
                 argv.push("--dem".into());
@@ -515,7 +692,7 @@ pub fn run_file(args: &crate::cli::RunArgs) -> anyhow::Result<()> {
             ]);
             let cli = <crate::cli::Cli as clap::Parser>::try_parse_from(&argv).map_err(|e| {
                 anyhow::anyhow!(
-                    "scenario {}: [[render.views]] '{}': {}",
+                    "scenario {}: {what} '{}': {}",
                     path.display(),
                     view.out,
                     e.to_string().lines().next().unwrap_or("bad view")
@@ -524,8 +701,11 @@ pub fn run_file(args: &crate::cli::RunArgs) -> anyhow::Result<()> {
             let crate::cli::Command::Render(args) = cli.command else {
                 anyhow::bail!("internal: the view did not parse as `penumbra render`")
             };
-            crate::app::run_render(&args)
-                .with_context(|| format!("[[render.views]] '{}'", view.out))?;
+            match path_spec {
+                None => crate::app::run_render(&args),
+                Some(p) => crate::app::render_frames(&args, &p.frames()?),
+            }
+            .with_context(|| format!("{what} '{}'", view.out))?;
             prov.outputs.push(format!("render/{}", view.out));
         }
     }

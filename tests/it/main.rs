@@ -11,6 +11,7 @@ mod map;
 mod render;
 mod render_cpu;
 mod render_gpu;
+mod render_path;
 mod series;
 mod series_engines;
 mod shadow;

@@ -154,6 +154,19 @@ mod on_gpu {
 
     use super::*;
 
+    /// Bounds of `gpu_fractions_image_matches_cpu_fractions_image` (measured values in
+    /// docs/VALIDATION.md).
+    /// Mean |GPU - CPU| visible fraction per cell (measured: Sun 3.4e-4, Earth 8.2e-6).
+    const FRACTION_MEAN_BOUND: f64 = 2e-3;
+    /// Share of cells whose fraction differs by > 0.1, % (measured: Sun 0.058, Earth 0.001).
+    const FRACTION_BIG_PCT_BOUND: f64 = 0.5;
+    /// Share of pixels differing by > 5 % of L_p99 (measured: 0).
+    const IMAGE_BIG_FRACTION_BOUND: f64 = 0.005;
+    /// Max |dL| / L_p99 over the other pixels (measured 4.7e-5).
+    const IMAGE_MAX_BOUND: f64 = 1e-3;
+    /// Mean |dL| / L_p99 (measured 1.3e-8).
+    const IMAGE_MEAN_BOUND: f64 = 1e-5;
+
     fn gpu() -> Option<&'static GpuContext> {
         static CTX: OnceLock<Option<GpuContext>> = OnceLock::new();
         CTX.get_or_init(|| match GpuContext::new() {
@@ -258,6 +271,82 @@ mod on_gpu {
             assert!(p.max_scaled < 0.02, "max |dL|/L_p99 {}", p.max_scaled);
             assert!(p.mean_scaled < 1e-3, "mean |dL|/L_p99 {}", p.mean_scaled);
         }
+    }
+
+    /// `penumbra render` on the GPU takes its per-cell Sun and Earth fractions from the GPU DP
+    /// kernel (`map::GpuSceneFractions`) instead of the CPU engine (`Scene::new`, Combined).
+    /// Synthetic DEM scene, both scenes rendered by the same CPU renderer so that only the
+    /// fractions differ: fraction and image differences are printed and bounded.
+    #[test]
+    fn gpu_fractions_image_matches_cpu_fractions_image() {
+        let Some(ctx) = gpu() else { return };
+        let (grid, lights, camera) = synthetic_scene();
+        let hf = &grid.hf;
+        let brdf = penumbra::render::Brdf::Hapke(penumbra::render::HapkeParams::MOON_643NM);
+        let cpu_scene = Scene::new(hf, lights, Engine::Combined)
+            .unwrap()
+            .with_brdf(brdf);
+        let fr = penumbra::map::GpuSceneFractions::upload(ctx, hf).unwrap();
+        let (sun, earth) = fr.fractions(ctx, &lights).unwrap();
+        let (cpu_sun, cpu_earth) = cpu_scene.fractions();
+        for (name, g, c) in [("sun", &sun, cpu_sun), ("earth", &earth, cpu_earth)] {
+            assert_eq!(g.len(), c.len());
+            let (mut max_d, mut sum_d, mut n, mut big) = (0.0_f32, 0.0_f64, 0_usize, 0_usize);
+            for (a, b) in g.iter().zip(c) {
+                assert_eq!(a.is_nan(), b.is_nan(), "{name}: hole mismatch");
+                if a.is_nan() {
+                    continue;
+                }
+                let d = (a - b).abs();
+                max_d = max_d.max(d);
+                sum_d += f64::from(d);
+                n += 1;
+                if d > 0.1 {
+                    big += 1;
+                }
+            }
+            let mean_d = sum_d / n as f64;
+            let big_pct = 100.0 * big as f64 / n as f64;
+            eprintln!(
+                "{name} fraction GPU DP vs CPU Combined over {n} cells: max |df| {max_d:.3e}, \
+                 mean {mean_d:.3e}, cells with |df| > 0.1: {big_pct:.3} %"
+            );
+            assert!(mean_d < FRACTION_MEAN_BOUND, "{name}: mean |df| {mean_d}");
+            assert!(
+                big_pct < FRACTION_BIG_PCT_BOUND,
+                "{name}: {big_pct} % cells off by > 0.1"
+            );
+        }
+        let gpu_scene = Scene::with_fractions(hf, lights, sun, earth).with_brdf(brdf);
+        let (w, h) = (160, 120);
+        let cpu_img = cpu_scene.render(&camera, w, h).unwrap();
+        let gpu_img = gpu_scene.render(&camera, w, h).unwrap();
+        let p = parity(&gpu_img, &cpu_img);
+        eprintln!(
+            "GPU-fraction vs CPU-fraction image {w}x{h}: {} terrain px, differing > 5 % of \
+             L_p99: {} ({:.3} %), max |dL|/L_p99 of the rest {:.2e}, mean {:.2e}",
+            terrain_pixels(&cpu_img),
+            p.silhouette,
+            100.0 * p.silhouette as f64 / p.pixels as f64,
+            p.max_scaled,
+            p.mean_scaled
+        );
+        assert!(terrain_pixels(&cpu_img) > p.pixels / 4);
+        assert!(
+            (p.silhouette as f64) < IMAGE_BIG_FRACTION_BOUND * p.pixels as f64,
+            "{} px differ by > 5 % of L_p99",
+            p.silhouette
+        );
+        assert!(
+            p.max_scaled < IMAGE_MAX_BOUND,
+            "max |dL|/L_p99 {}",
+            p.max_scaled
+        );
+        assert!(
+            p.mean_scaled < IMAGE_MEAN_BOUND,
+            "mean |dL|/L_p99 {}",
+            p.mean_scaled
+        );
     }
 
     /// A flat plane (64 x 64 cells of 10 m) from 100 m up, Sun at 30 deg: GPU vs CPU and both vs
@@ -414,6 +503,8 @@ mod on_gpu {
                     k,
                     "--out",
                     out.to_str().unwrap(),
+                    "--out-radiance",
+                    dir.path().join(format!("{backend}.tif")).to_str().unwrap(),
                 ],
             );
             assert!(
@@ -424,5 +515,35 @@ mod on_gpu {
             let img = image::open(&out).unwrap();
             assert_eq!((img.width(), img.height()), (48, 32));
         }
+        // End to end, `--backend gpu` (GPU DP fractions + GPU caster, f32) vs `--backend cpu`
+        // (Combined engine + CPU caster, f64): radiance TIFFs, |dL| relative to the CPU image's
+        // p99 radiance (measured values in docs/VALIDATION.md).
+        let read = |name: &str| {
+            let bytes = std::fs::read(dir.path().join(name)).unwrap();
+            let mut dec = tiff::decoder::Decoder::new(std::io::Cursor::new(bytes)).unwrap();
+            let tiff::decoder::DecodingResult::F32(v) = dec.read_image().unwrap() else {
+                panic!("f32 TIFF expected")
+            };
+            v
+        };
+        let (g, c) = (read("gpu.tif"), read("cpu.tif"));
+        let mut sorted: Vec<f32> = c.clone();
+        sorted.sort_by(f32::total_cmp);
+        let p99 = f64::from(sorted[sorted.len() * 99 / 100]);
+        assert!(p99 > 0.0);
+        let d: Vec<f64> = g
+            .iter()
+            .zip(&c)
+            .map(|(a, b)| f64::from((a - b).abs()) / p99)
+            .collect();
+        let big = d.iter().filter(|&&x| x > 0.05).count();
+        let max = d.iter().copied().fold(0.0, f64::max);
+        let mean = d.iter().sum::<f64>() / d.len() as f64;
+        eprintln!(
+            "penumbra render 48x32 --backend gpu vs cpu: px with |dL| > 5 % L_p99: {big}, \
+             max |dL|/L_p99 {max:.2e}, mean {mean:.2e}"
+        );
+        assert!(big <= 8, "{big} px differ by > 5 % of L_p99");
+        assert!(mean < 1e-4, "mean |dL|/L_p99 {mean}");
     }
 }

@@ -231,4 +231,9 @@ fn the_demo_scenario_runs_as_the_readme_says() {
         serde_json::from_str(&std::fs::read_to_string(res.join("run.json")).unwrap()).unwrap();
     assert_eq!(run["epoch_count"], 8760);
     assert!(run["dem_layers"][0].as_str().unwrap().contains("synthetic"));
+    // The demo's camera path ([[render.paths]], 3 frames).
+    let render = files_in(&res.join("render"));
+    for f in ["descent_0000.png", "descent_0001.png", "descent_0002.png"] {
+        assert!(render.contains(&f.to_string()), "{f} missing: {render:?}");
+    }
 }
