@@ -214,7 +214,7 @@ pub struct HorizonArgs {
     #[arg(long, value_name = "FILE")]
     pub out: Option<PathBuf>,
     /// Compute backend: `gpu` runs the GPU horizon scan (sampled like `--method exact`;
-    /// `--method` is then ignored), `auto` the GPU when an adapter exists else the CPU.
+    /// `--method` is then ignored), `auto` the GPU when a hardware adapter exists else the CPU.
     #[arg(long, value_enum, default_value_t = crate::gpu::Backend::Cpu)]
     pub backend: crate::gpu::Backend,
 }
@@ -287,7 +287,7 @@ pub struct SeriesArgs {
     #[arg(long)]
     pub no_csv: bool,
     /// Compute backend of the horizons: `gpu` (GPU horizon scan, sampled like the exact
-    /// method; `--horizon-method` is then ignored), `auto` (GPU when an adapter exists) or `cpu`.
+    /// method; `--horizon-method` is then ignored), `auto` (GPU when a hardware adapter exists) or `cpu`.
     #[arg(long, value_enum, default_value_t = crate::gpu::Backend::Cpu)]
     pub backend: crate::gpu::Backend,
     /// Engine of the visible fractions: horizon (per-site horizons from every DEM layer) or
@@ -451,8 +451,8 @@ pub struct RenderArgs {
     #[arg(long, default_value = "lt+s")]
     pub abcorr: String,
     /// Compute backend of the ray casting and shading: `gpu` (wgpu), `cpu` (rayon) or `auto`
-    /// (the GPU when an adapter exists, else the CPU with one warning line). The shadow
-    /// fractions are computed on the CPU either way.
+    /// (the GPU when a hardware adapter exists, else the CPU with one warning line). On the GPU
+    /// the shadow fractions come from the GPU DP kernel, on the CPU from the CPU engine.
     #[arg(long, value_enum, default_value_t = crate::gpu::Backend::Auto)]
     pub backend: crate::gpu::Backend,
     /// SPICE kernels.
@@ -502,7 +502,7 @@ pub struct MapArgs {
     pub out_dir: Option<PathBuf>,
     /// Compute backend: `gpu` (DP max-mipmap soft shadows of the discs for sweeps and one-light
     /// maps, whatever `--engine` says; `fourier` one-light maps stay on the CPU), `cpu` (the
-    /// engine of `--engine`) or `auto` (the GPU when an adapter exists, else the CPU with one
+    /// engine of `--engine`) or `auto` (the GPU when a hardware adapter exists, else the CPU with one
     /// warning line).
     #[arg(long, value_enum, default_value_t = crate::gpu::Backend::Auto)]
     pub backend: crate::gpu::Backend,

@@ -9,7 +9,8 @@ pub enum Backend {
     Cpu,
     /// The wgpu backend; an error when no adapter exists.
     Gpu,
-    /// The GPU when an adapter exists, else the CPU with one warning line on stderr.
+    /// The GPU when a hardware adapter exists, else the CPU with one warning line on stderr
+    /// (a software adapter such as lavapipe counts as none).
     #[default]
     Auto,
 }
@@ -48,24 +49,46 @@ impl ResolvedBackend {
 }
 
 /// Resolves `requested`: `cpu` → CPU; `gpu` → a [`GpuContext`] or the error (no adapter, no
-/// device, or a build without the `gpu` feature); `auto` → the GPU when a context can be built,
-/// else the CPU after printing exactly one warning line on stderr.
+/// device, or a build without the `gpu` feature); `auto` → the GPU when a context can be built
+/// on a hardware adapter, else the CPU after printing exactly one warning line on stderr (no
+/// adapter, or only a software one such as lavapipe).
 pub fn resolve_backend(requested: Backend) -> Result<ResolvedBackend, GpuError> {
     match requested {
         Backend::Cpu => Ok(ResolvedBackend::Cpu),
         Backend::Gpu => new_context().map(|ctx| ResolvedBackend::Gpu(Box::new(ctx))),
+        // One process (e.g. `penumbra run` with a map and several renders) probes and warns
+        // once: after `auto` fell back to the CPU, later `auto` requests take the CPU silently.
+        Backend::Auto if AUTO_FELL_BACK.load(std::sync::atomic::Ordering::Relaxed) => {
+            Ok(ResolvedBackend::Cpu)
+        }
         Backend::Auto => match new_context() {
+            #[cfg(feature = "gpu")]
+            Ok(ctx) if ctx.is_software() => {
+                // A software adapter (lavapipe) runs the same kernels on the same CPU cores, more
+                // slowly than the rayon engines: `auto` means "the fast path", so it is skipped.
+                eprintln!(
+                    "penumbra: warning: --backend auto: only a software adapter ({}) was found; \
+                     using the CPU backend (--backend gpu forces it)",
+                    ctx.adapter_name()
+                );
+                AUTO_FELL_BACK.store(true, std::sync::atomic::Ordering::Relaxed);
+                Ok(ResolvedBackend::Cpu)
+            }
             Ok(ctx) => Ok(ResolvedBackend::Gpu(Box::new(ctx))),
             Err(err) => {
                 eprintln!(
                     "penumbra: warning: --backend auto: {}; using the CPU backend",
                     one_line(&err)
                 );
+                AUTO_FELL_BACK.store(true, std::sync::atomic::Ordering::Relaxed);
                 Ok(ResolvedBackend::Cpu)
             }
         },
     }
 }
+
+/// Set once `auto` has fallen back to the CPU in this process.
+static AUTO_FELL_BACK: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
 
 fn one_line(err: &GpuError) -> String {
     let mut s = err.to_string();

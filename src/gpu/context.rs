@@ -32,7 +32,14 @@ impl std::fmt::Debug for GpuContext {
 
 /// The wgpu instance for the backends allowed by `WGPU_BACKEND` (all compiled ones by default).
 fn instance() -> wgpu::Instance {
-    wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env())
+    let mut desc = wgpu::InstanceDescriptor::new_without_display_handle_from_env();
+    // Compute needs no GL: unless WGPU_BACKEND asks for one, only the primary backends (Vulkan,
+    // Metal, DX12) are probed. Probing GL/EGL on a headless Linux box prints Mesa's
+    // "XDG_RUNTIME_DIR is invalid" lines and finds nothing useful.
+    if std::env::var_os("WGPU_BACKEND").is_none() {
+        desc.backends = wgpu::Backends::PRIMARY;
+    }
+    wgpu::Instance::new(desc)
 }
 
 impl GpuContext {
@@ -89,6 +96,12 @@ impl GpuContext {
     /// The adapter's name (e.g. `llvmpipe (LLVM 15.0.7, 256 bits)` for lavapipe).
     pub fn adapter_name(&self) -> &str {
         &self.info.name
+    }
+
+    /// Whether the adapter is a software rasteriser on the CPU (lavapipe/llvmpipe, WARP,
+    /// SwiftShader): correct, but slower than the CPU engines (see docs/gpu.md).
+    pub fn is_software(&self) -> bool {
+        self.info.device_type == wgpu::DeviceType::Cpu
     }
 
     /// The adapter's backend and device type, e.g. `Vulkan Cpu`.
