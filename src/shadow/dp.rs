@@ -205,16 +205,46 @@ impl RaySearch<'_> {
         // twice (shared by two cells) is harmless.
         const TOL: f64 = 1e-9;
         let (lo, hi) = (s_in - TOL, s_out + TOL);
-        let (max_r, max_c) = ((self.hf.rows - 1) as f64, (self.hf.cols - 1) as f64);
-        let (dr, dc) = (self.dir.drow, self.dir.dcol);
-        for (k, along_row_line) in [(j, false), (j + 1, false), (i, true), (i + 1, true)] {
-            let (p0, d, q0, dq, max_k, max_q) = if along_row_line {
-                (self.obs.row, dr, self.obs.col, dc, max_r, max_c)
-            } else {
-                (self.obs.col, dc, self.obs.row, dr, max_c, max_r)
-            };
+        let (o, d) = (self.obs, self.dir);
+        if d.dcol != 0.0 {
+            self.sample_lines(false, j, o.col, d.dcol, o.row, d.drow, lo, hi);
+        }
+        if d.drow != 0.0 {
+            self.sample_lines(true, i, o.row, d.drow, o.col, d.dcol, lo, hi);
+        }
+    }
+
+    /// The crossings of [`Self::sample_cell`] with lines `k0` and `k0 + 1` of one family: column
+    /// lines (`along_row_line` false; position `p0 + s·d` along columns, `q0 + s·dq` along rows)
+    /// or row lines (roles swapped).
+    #[expect(
+        clippy::too_many_arguments,
+        reason = "one axis of sample_cell, inlined"
+    )]
+    #[inline]
+    fn sample_lines(
+        &mut self,
+        along_row_line: bool,
+        k0: i64,
+        p0: f64,
+        d: f64,
+        q0: f64,
+        dq: f64,
+        lo: f64,
+        hi: f64,
+    ) {
+        const TOL: f64 = 1e-9;
+        let (max_k, max_q) = if along_row_line {
+            ((self.hf.rows - 1) as f64, (self.hf.cols - 1) as f64)
+        } else {
+            ((self.hf.cols - 1) as f64, (self.hf.rows - 1) as f64)
+        };
+        // Cheap pre-test on positions; the exact distance below is the brute-force march's.
+        let (pa, pb) = (p0 + lo * d, p0 + hi * d);
+        let (p_min, p_max) = (pa.min(pb) - TOL, pa.max(pb) + TOL);
+        for k in [k0, k0 + 1] {
             let kf = k as f64;
-            if d == 0.0 || kf < 0.0 || kf > max_k {
+            if kf < p_min || kf > p_max || kf < 0.0 || kf > max_k {
                 continue;
             }
             let s = (kf - p0) / d;
