@@ -32,7 +32,8 @@
 //! over the part of the ray inside it, `tan(e_c) − (maxh − z0)/t` at the nearer (or farther,
 //! when `maxh < z0`) end; the search descends into the texel with the smallest bound and repeats
 //! one level finer on the ray's chord through it; at level 0 the exact cost is evaluated where the
-//! ray enters and leaves the dual cell (these are exactly the brute-force crossings).
+//! ray crosses the four centre lines bounding the dual cell, at the brute-force march's crossing
+//! distances and line heights (so a hole across the line cannot drop the sample).
 //!
 //! *Deviation (documented, measured in docs/shadow.md).* The paper keeps a single path (greedy).
 //! Near the observer `t → 0`, so on every slope that faces the light the nearest texel has the
