@@ -35,7 +35,12 @@ pub const DEFAULT_DISC_SAMPLES: usize = 64;
 /// Height of the surface on the line `col = k` at fractional row `r` (or on a row line with the
 /// roles swapped): linear between the two neighbouring centres; `None` for a hole.
 #[inline]
-fn line_height(hf: &HeightField, along_row_line: bool, k: isize, frac_pos: f64) -> Option<f64> {
+pub(crate) fn line_height(
+    hf: &HeightField,
+    along_row_line: bool,
+    k: isize,
+    frac_pos: f64,
+) -> Option<f64> {
     let i = frac_pos.floor();
     let f = frac_pos - i;
     let i = i as isize;

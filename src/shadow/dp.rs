@@ -32,7 +32,8 @@
 //! over the part of the ray inside it, `tan(e_c) − (maxh − z0)/t` at the nearer (or farther,
 //! when `maxh < z0`) end; the search descends into the texel with the smallest bound and repeats
 //! one level finer on the ray's chord through it; at level 0 the exact cost is evaluated where the
-//! ray enters and leaves the dual cell (these are exactly the brute-force crossings).
+//! ray crosses the four centre lines bounding the dual cell, at the brute-force march's crossing
+//! distances and line heights (so a hole across the line cannot drop the sample).
 //!
 //! *Deviation (documented, measured in docs/shadow.md).* The paper keeps a single path (greedy).
 //! Near the observer `t → 0`, so on every slope that faces the light the nearest texel has the
@@ -47,7 +48,7 @@
 //! the list continues after `{5, 5, 5}` with `N' = 6, 7, …, 10, 10, …` until the ray leaves the
 //! grid or no sample further out can lower the cost (or change the visible fraction).
 
-use super::brute::bilinear;
+use super::brute::{bilinear, line_height};
 use super::smap::SMap;
 use super::{
     LightDir, MASK_LIT, MASK_NODATA, MASK_SHADOW, Observer, Result, ShadowError,
@@ -187,23 +188,79 @@ impl RaySearch<'_> {
         self.dir.tan_el - dz / t
     }
 
-    /// Exact cost at ray distance `s` (cells), where the ray is on a centre line.
+    /// Exact costs at the ray's crossings with the four centre lines that bound dual cell
+    /// (`i`, `j`) (rows `i`, `i + 1`, columns `j`, `j + 1`) inside `[s_in, s_out]` (cells): the
+    /// brute-force samples of that cell.
+    ///
+    /// Each crossing distance is computed as the brute-force march computes it (`(k − p0)/d`)
+    /// and the surface there is the line's own interpolation between its two centres
+    /// ([`line_height`]). Sampling instead the bilinear surface at `obs + s·d` for the DDA's
+    /// `s_in`/`s_out` (what this did before) lost occluders: that position lands ~1e-15 beside
+    /// the line, so the bilinear patch on the far side also needs the two centres across the
+    /// line (weights ~1e-15) and a hole there (the nodata margin of a resampled DEM) dropped a
+    /// valid sample; and an interval cut within 1e-6 of a line was taken for a crossing
+    /// (docs/shadow.md, "Dropped line samples next to holes").
     #[inline]
-    fn exact_at(&mut self, s: f64) {
-        if s <= self.min_s {
-            return;
+    fn sample_cell(&mut self, i: i64, j: i64, s_in: f64, s_out: f64) {
+        // Texel ends can be nudged by the DDA's `eps` (1e-9 at level 0); a crossing found
+        // twice (shared by two cells) is harmless.
+        const TOL: f64 = 1e-9;
+        let (lo, hi) = (s_in - TOL, s_out + TOL);
+        let (o, d) = (self.obs, self.dir);
+        if d.dcol != 0.0 {
+            self.sample_lines(false, j, o.col, d.dcol, o.row, d.drow, lo, hi);
         }
-        let row = self.obs.row + s * self.dir.drow;
-        let col = self.obs.col + s * self.dir.dcol;
-        // Only where the ray is on a centre line (a brute-force crossing); interval cuts inside
-        // a dual cell are not samples of the reference surface model.
-        let on_line = |x: f64| (x - x.round()).abs() < 1e-6;
-        if !on_line(row) && !on_line(col) {
-            return;
+        if d.drow != 0.0 {
+            self.sample_lines(true, i, o.row, d.drow, o.col, d.dcol, lo, hi);
         }
-        if let Some(z) = bilinear(self.hf, row, col) {
-            let t = s * self.hf.px_m;
-            self.best = self.best.min((self.obs.z_m + t * self.dir.tan_el - z) / t);
+    }
+
+    /// The crossings of [`Self::sample_cell`] with lines `k0` and `k0 + 1` of one family: column
+    /// lines (`along_row_line` false; position `p0 + s·d` along columns, `q0 + s·dq` along rows)
+    /// or row lines (roles swapped).
+    #[expect(
+        clippy::too_many_arguments,
+        reason = "one axis of sample_cell, inlined"
+    )]
+    #[inline]
+    fn sample_lines(
+        &mut self,
+        along_row_line: bool,
+        k0: i64,
+        p0: f64,
+        d: f64,
+        q0: f64,
+        dq: f64,
+        lo: f64,
+        hi: f64,
+    ) {
+        const TOL: f64 = 1e-9;
+        let (max_k, max_q) = if along_row_line {
+            ((self.hf.rows - 1) as f64, (self.hf.cols - 1) as f64)
+        } else {
+            ((self.hf.cols - 1) as f64, (self.hf.rows - 1) as f64)
+        };
+        // Cheap pre-test on positions; the exact distance below is the brute-force march's.
+        let (pa, pb) = (p0 + lo * d, p0 + hi * d);
+        let (p_min, p_max) = (pa.min(pb) - TOL, pa.max(pb) + TOL);
+        for k in [k0, k0 + 1] {
+            let kf = k as f64;
+            if kf < p_min || kf > p_max || kf < 0.0 || kf > max_k {
+                continue;
+            }
+            let s = (kf - p0) / d;
+            if s <= self.min_s || s < lo || s > hi {
+                continue;
+            }
+            // Same edge rule as the brute-force march.
+            let q = q0 + s * dq;
+            if !(-TOL..=max_q + TOL).contains(&q) {
+                continue;
+            }
+            if let Some(z) = line_height(self.hf, along_row_line, k as isize, q.clamp(0.0, max_q)) {
+                let t = s * self.hf.px_m;
+                self.best = self.best.min((self.obs.z_m + t * self.dir.tan_el - z) / t);
+            }
         }
     }
 
@@ -256,15 +313,17 @@ impl RaySearch<'_> {
             }
             s = s_out;
         }
+        // A chord through a parent texel (or one interval, two top-level texels long) touches at
+        // most 5 texels of this level plus `eps`-long corner pieces; 16 never truncates.
+        debug_assert!(s >= sb - eps, "DDA candidate list truncated at level {m}");
         let cand = &mut cand[..n];
         cand.sort_by(|x, y| x.0.total_cmp(&y.0));
-        for &(lb, _, _, s_in, s_out) in cand.iter() {
+        for &(lb, i, j, s_in, s_out) in cand.iter() {
             if lb >= self.best.min(self.cap) {
                 break;
             }
             if m == 0 {
-                self.exact_at(s_in);
-                self.exact_at(s_out);
+                self.sample_cell(i, j, s_in, s_out);
             } else {
                 self.descend(m - 1, s_in, s_out);
             }
@@ -599,5 +658,73 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// Regression: next to a nodata margin (as at the edge of a resampled DEM) the DP sampled
+    /// the bilinear surface at `obs + s·d`, which lands ~1e-15 beside the centre line; the patch
+    /// on the far side needed a hole's weight-1e-15 corner and the sample was dropped, so DP
+    /// missed occluders on the margin's first valid line (on the synthetic DEM: 1,925 costs and
+    /// 433 fractions wrong of 7.68 M cell-suns; docs/shadow.md). Before the fix this grid gave
+    /// 41 costs and 6 fractions wrong of 42,408 cell-suns; now DP equals the brute-force march's
+    /// cost to 1e-9 (and the prism fraction to 1e-6) in every cell.
+    #[test]
+    fn dp_cost_equals_exhaustive_cost_next_to_a_nodata_margin() {
+        use crate::shadow::brute::exact_cost;
+        let n = 48;
+        let mut hf = HeightField::flat(n, n, 100.0);
+        for r in 0..n {
+            for c in 0..n {
+                let (x, y) = (r as f64 * 0.41, c as f64 * 0.29);
+                // Ridges whose crests reach the margin: occluders on its first valid lines.
+                hf.z_m[r * n + c] =
+                    (250.0 * (x.sin() * y.cos()) + 150.0 * (0.7 * x - 1.1 * y).sin()) as f32;
+                // A ragged margin 2..=4 cells wide on every side.
+                let w = 2 + (r + c) % 3;
+                if r < w || c < w || r >= n - w || c >= n - w {
+                    hf.z_m[r * n + c] = f32::NAN;
+                }
+            }
+        }
+        let mip = MaxMipmap::new(&hf);
+        let z_max = max_height_m(&hf);
+        let r_sun = crate::shadow::SUN_ANGULAR_RADIUS_RAD;
+        let (mut cells, mut blocked_near_margin) = (0, 0);
+        let (mut wrong_costs, mut wrong_fractions) = (0, 0);
+        for k in 0..24 {
+            let (az_deg, el_deg) = (15.0 * k as f64 + 2.5, [0.5f64, 1.5, 4.0][k % 3]);
+            let (az, el) = (az_deg.to_radians(), el_deg.to_radians());
+            let l = [az.sin() * el.cos(), az.cos() * el.cos(), el.sin()];
+            let dir = LightDir::new(unit_light(l).unwrap());
+            let cap = full_visibility_cap(&dir, r_sun);
+            for r in 0..n {
+                for c in 0..n {
+                    let Some(obs) = crate::shadow::observer_at(&hf, r, c, 2.0) else {
+                        continue;
+                    };
+                    cells += 1;
+                    let e = exact_cost(&hf, &obs, &dir, z_max);
+                    let d = dp_cost(&hf, &mip, &obs, &dir, z_max, cap, &DpConfig::default());
+                    let lt = local_horizon_tan(&obs, &dir);
+                    let fe = fraction_from_cost(e, &dir, lt, r_sun);
+                    let fd = fraction_from_cost(d, &dir, lt, r_sun);
+                    let bad_cost = (e.min(cap) - d.min(cap)).abs() >= 1e-9;
+                    let bad_fraction = (fe - fd).abs() >= 1e-6;
+                    if (bad_cost || bad_fraction) && wrong_costs < 3 {
+                        eprintln!("az {az_deg} el {el_deg} r {r} c {c}: exact {e} dp {d}");
+                    }
+                    wrong_costs += usize::from(bad_cost);
+                    wrong_fractions += usize::from(bad_fraction);
+                    blocked_near_margin +=
+                        usize::from(e < 0.0 && (r.min(c) < 8 || r.max(c) >= n - 8));
+                }
+            }
+        }
+        eprintln!(
+            "{cells} cell-suns, {blocked_near_margin} blocked within 8 cells of the margin: \
+             {wrong_costs} costs (|Δ| ≥ 1e-9) and {wrong_fractions} fractions (|Δ| ≥ 1e-6) wrong"
+        );
+        // The rays do cross the margin's first lines with occluders on them.
+        assert!(cells > 24 * 1500 && blocked_near_margin > 500);
+        assert_eq!((wrong_costs, wrong_fractions), (0, 0));
     }
 }
