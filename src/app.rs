@@ -418,16 +418,6 @@ fn run_map(args: &crate::cli::MapArgs) -> anyhow::Result<()> {
     {
         anyhow::bail!("nothing to write: give --out-fraction, --out-mask or --out-earth-fraction");
     }
-    // Resolve before any heavy work so that a missing adapter is one error line (or one warning
-    // line with `auto`). One-light maps of the Fourier engine have no GPU path (CPU).
-    let backend = if range || !matches!(engine_kind, crate::map::MapEngineKind::Fourier) {
-        Some(
-            crate::gpu::resolve_backend(args.backend)
-                .with_context(|| format!("resolving --backend {}", args.backend.as_str()))?,
-        )
-    } else {
-        None
-    };
     let explicit_dir = match &args.sun_dir_body {
         Some(t) => Some(parse_vector3(t)?),
         None => None,
@@ -439,6 +429,17 @@ fn run_map(args: &crate::cli::MapArgs) -> anyhow::Result<()> {
         epochs_from_args(&args.epochs)?
     } else {
         Vec::new()
+    };
+    // Resolve after the argument checks (bad input is one error line, with no backend warning)
+    // and before any heavy work, so that a missing adapter is one error line (or one warning
+    // line with `auto`). One-light maps of the Fourier engine have no GPU path (CPU).
+    let backend = if range || !matches!(engine_kind, crate::map::MapEngineKind::Fourier) {
+        Some(
+            crate::gpu::resolve_backend(args.backend)
+                .with_context(|| format!("resolving --backend {}", args.backend.as_str()))?,
+        )
+    } else {
+        None
     };
     let kernels = if epochs.is_empty() {
         None
