@@ -5,7 +5,7 @@
 //! part of `gpu::naga_validates_every_shader` (every `shaders/*.wgsl`).
 
 use nalgebra::Vector3;
-use penumbra::shadow::gpu_twins::{self, DpCellStats, DpMip, MarchGrid, RowBand};
+use penumbra::shadow::gpu_twins::{self, DpMip, MarchGrid, RowBand};
 use penumbra::shadow::{Engine, SUN_ANGULAR_RADIUS_RAD, dp};
 use penumbra::terrain::HeightField;
 
@@ -160,6 +160,7 @@ mod on_gpu {
 
     use penumbra::gpu::GpuContext;
     use penumbra::gpu::dp::{DpSweepOptions, GpuDpGrid, dp_sweep_gpu, dp_visible_gpu};
+    use penumbra::shadow::gpu_twins::DpCellStats;
 
     use super::*;
 
@@ -301,6 +302,7 @@ mod on_gpu {
 
 /// Sun and Earth discs for `epochs` epochs: the Sun circles the sky at 0.5..5° elevation, the
 /// Earth stays low in the north-west (1..3°), radii 0.2666° and 0.95°.
+#[cfg(feature = "gpu")]
 fn sweep_lights(epochs: usize) -> Vec<[f32; 4]> {
     (0..epochs)
         .flat_map(|k| {

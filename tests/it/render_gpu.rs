@@ -7,12 +7,11 @@
 
 use std::path::Path;
 
-use nalgebra::{Matrix3, Vector3};
 use penumbra::render::cast::image_error;
-use penumbra::render::{Camera, DEFAULT_ALBEDO, Lights, Sample, Scene, TraceMethod};
+use penumbra::render::{Camera, Lights, Sample, Scene, TraceMethod};
 use penumbra::shadow::Engine;
-use penumbra::terrain::HeightField;
 
+#[cfg(feature = "gpu")]
 fn dir_az_el_deg(az_deg: f64, el_deg: f64) -> [f64; 3] {
     let v = penumbra::frames::enu_from_az_el_deg(az_deg, el_deg);
     [v.x, v.y, v.z]
@@ -147,10 +146,13 @@ fn naga_validates_render_shader_and_brdf_signature() {
 mod on_gpu {
     use std::sync::OnceLock;
 
+    use nalgebra::{Matrix3, Vector3};
     use penumbra::gpu::GpuContext;
     use penumbra::gpu::render::{
         GpuRenderScene, RenderGpuOptions, render_gpu, render_radiance_gpu,
     };
+    use penumbra::render::DEFAULT_ALBEDO;
+    use penumbra::terrain::HeightField;
 
     use super::*;
 
