@@ -446,6 +446,12 @@ pub fn run_series(
     if sites.is_empty() {
         anyhow::bail!("no sites given");
     }
+    if config.engine == SeriesEngine::SmapDp && config.backend == crate::gpu::Backend::Gpu {
+        anyhow::bail!(
+            "--engine smap-dp runs on the CPU only (no GPU path yet): use --backend cpu, or \
+             --engine horizon for GPU horizons"
+        );
+    }
     let (horizons, dp) = match config.engine {
         SeriesEngine::Horizon => (site_horizons(stack, sites, config)?, None),
         SeriesEngine::SmapDp => {

@@ -308,6 +308,14 @@ fn series_cli_smap_dp_writes_the_same_files_and_records_the_engine() {
     let mut bad = args("smap-dp", "x");
     bad[3] = "far,-80,0";
     assert_clean_error(&penumbra(dir.path(), &bad), "far");
+    // smap-dp has no GPU path: asking for the GPU is one clear error line, nothing written.
+    let mut bad = args("smap-dp", "g");
+    bad.extend(["--backend", "gpu"]);
+    assert_clean_error(&penumbra(dir.path(), &bad), "CPU only");
+    assert!(
+        !dir.path().join("g").exists(),
+        "nothing written for the GPU request"
+    );
     // An unknown engine is rejected by the parser.
     let mut bad = args("smap-dp", "y");
     bad[13] = "fourier";
