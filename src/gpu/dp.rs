@@ -40,21 +40,6 @@ const DP_SWEEP_WGSL: &str = include_str!(concat!(
 pub(crate) mod gpu_data {
     use super::{Pod, Zeroable};
 
-    /// Keep in sync with `DpGridParams` in shaders/shared/dp.wgsl.
-    #[repr(C)]
-    #[derive(Debug, Clone, Copy, Pod, Zeroable)]
-    pub(crate) struct DpGridParams {
-        pub rows: u32,
-        pub cols: u32,
-        pub px_m: f32,
-        pub observer_height_m: f32,
-        pub x0_m: f32,
-        pub y0_m: f32,
-        pub z_max_m: f32,
-        pub z_ref_plus_radius_m: f32,
-    }
-    const _: () = assert!(size_of::<DpGridParams>() == 32);
-
     /// Keep in sync with `DpStep` in shaders/shared/dp.wgsl.
     #[repr(C)]
     #[derive(Debug, Clone, Copy, Pod, Zeroable)]
@@ -66,7 +51,8 @@ pub(crate) mod gpu_data {
     }
     const _: () = assert!(size_of::<DpStep>() == 16);
 }
-use gpu_data::{DpGridParams, DpStep};
+use super::shadow_march::gpu_data::GridParams;
+use gpu_data::DpStep;
 
 /// Bind group layout and pipelines of the DP kernels (built once, in [`GpuContext::new`]).
 pub(crate) struct DpPipelines {
@@ -140,7 +126,7 @@ impl GpuDpGrid {
                 kernel: "dp_visible",
                 message: format!(
                     "the height field or its mipmap ({biggest} B) exceeds the adapter's storage \
-                     binding limit ({max_binding} B); use tiles (gpu::dp::dp_visible_tiled)"
+                     binding limit ({max_binding} B); grids beyond one binding are not tiled yet (docs/gpu.md)"
                 ),
             });
         }
@@ -150,16 +136,7 @@ impl GpuDpGrid {
                 message: format!("{} columns exceed one dispatch row", grid.cols),
             });
         }
-        let params = DpGridParams {
-            rows: grid.rows,
-            cols: grid.cols,
-            px_m: grid.px_m,
-            observer_height_m: grid.observer_height_m,
-            x0_m: grid.x0_m,
-            y0_m: grid.y0_m,
-            z_max_m: grid.z_max_m,
-            z_ref_plus_radius_m: grid.z_ref_plus_radius_m,
-        };
+        let params = GridParams::of(grid);
         let scope = ErrorScope::push(&ctx.device);
         let params = ctx
             .device

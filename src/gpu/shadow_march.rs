@@ -51,7 +51,8 @@ const SHADOW_MARCH_SOFT_WGSL: &str = concat!(
 pub(crate) mod gpu_data {
     use super::{Pod, Zeroable};
 
-    /// Keep in sync with `GridParams` in shaders/shared/march.wgsl.
+    /// Keep in sync with `GridParams` in shaders/shared/march.wgsl and `DpGridParams` in
+    /// shaders/shared/dp.wgsl.
     #[repr(C)]
     #[derive(Debug, Clone, Copy, Pod, Zeroable)]
     pub(crate) struct GridParams {
@@ -65,6 +66,23 @@ pub(crate) mod gpu_data {
         pub z_ref_plus_radius_m: f32,
     }
     const _: () = assert!(size_of::<GridParams>() == 32);
+
+    impl GridParams {
+        /// The uniform of `grid` (shared by the march and the DP kernels, whose WGSL structs
+        /// `GridParams` and `DpGridParams` have this same layout).
+        pub(crate) fn of(grid: &crate::shadow::gpu_twins::MarchGrid) -> Self {
+            GridParams {
+                rows: grid.rows,
+                cols: grid.cols,
+                px_m: grid.px_m,
+                observer_height_m: grid.observer_height_m,
+                x0_m: grid.x0_m,
+                y0_m: grid.y0_m,
+                z_max_m: grid.z_max_m,
+                z_ref_plus_radius_m: grid.z_ref_plus_radius_m,
+            }
+        }
+    }
 
     /// Keep in sync with `StepParams` in shaders/shared/march.wgsl.
     #[repr(C)]
@@ -204,16 +222,7 @@ impl GpuMarchGrid {
                 message: format!("{} columns exceed one dispatch row", grid.cols),
             });
         }
-        let params = GridParams {
-            rows: grid.rows,
-            cols: grid.cols,
-            px_m: grid.px_m,
-            observer_height_m: grid.observer_height_m,
-            x0_m: grid.x0_m,
-            y0_m: grid.y0_m,
-            z_max_m: grid.z_max_m,
-            z_ref_plus_radius_m: grid.z_ref_plus_radius_m,
-        };
+        let params = GridParams::of(grid);
         let scope = ErrorScope::push(&ctx.device);
         let params = ctx
             .device
@@ -222,13 +231,11 @@ impl GpuMarchGrid {
                 contents: bytemuck::bytes_of(&params),
                 usage: wgpu::BufferUsages::UNIFORM,
             });
-        let heights = ctx
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("penumbra heights"),
-                contents: bytemuck::cast_slice(&grid.heights_m),
-                usage: wgpu::BufferUsages::STORAGE,
-            });
+        let heights = storage_init(
+            ctx,
+            "penumbra heights",
+            bytemuck::cast_slice(&grid.heights_m),
+        );
         scope.pop("uploading the height field")?;
         Ok(GpuMarchGrid {
             params,
