@@ -125,37 +125,7 @@ mod on_gpu {
     use penumbra::shadow::gpu_twins::NODATA;
 
     use super::*;
-
-    /// `n`² cells of 20 m: five Gaussian hills (60..400 m, σ 150..600 m), the Moon's curvature drop
-    /// z -= (x² + y²) / 2R, and a 3 × 3 hole near the centre.
-    fn hills(n: usize) -> HeightField {
-        let mut hf = HeightField::flat(n, n, 20.0);
-        let half_m = n as f64 * 10.0;
-        let hills = [
-            (0.2, 0.3, 400.0, 600.0),
-            (-0.5, -0.1, 250.0, 300.0),
-            (0.6, -0.6, 300.0, 400.0),
-            (-0.3, 0.7, 60.0, 150.0),
-            (0.0, -0.4, 150.0, 250.0),
-        ];
-        for row in 0..n {
-            for col in 0..n {
-                let (x, y) = hf.xy_from_row_col(row as f64, col as f64);
-                let mut z = -(x * x + y * y) / (2.0 * penumbra::MOON_RADIUS_M);
-                for &(cx, cy, h, s) in &hills {
-                    let (dx, dy) = (x - cx * half_m, y - cy * half_m);
-                    z += h * (-(dx * dx + dy * dy) / (2.0 * s * s)).exp();
-                }
-                hf.z_m[row * n + col] = z as f32;
-            }
-        }
-        for row in n / 2..n / 2 + 3 {
-            for col in n / 3..n / 3 + 3 {
-                hf.z_m[row * n + col] = f32::NAN;
-            }
-        }
-        hf
-    }
+    use crate::util::hills;
 
     /// Elevations of the parity fixtures (the brief: grazing, low, moderate) with azimuths that
     /// are not aligned with the grid axes.

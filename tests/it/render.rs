@@ -5,7 +5,7 @@ use penumbra::render::{Camera, DEFAULT_ALBEDO, Lights, Sample, Scene};
 use penumbra::shadow::Engine;
 use penumbra::terrain::HeightField;
 
-use crate::util::{assert_clean_error, files_in, kernels_dir, penumbra};
+use crate::util::{assert_clean_error, files_in, kernels_dir, penumbra, png_text};
 
 fn dir_az_el_deg(az_deg: f64, el_deg: f64) -> [f64; 3] {
     let v = penumbra::frames::enu_from_az_el_deg(az_deg, el_deg);
@@ -139,19 +139,6 @@ fn render_args<'a>(out: &'a str, k: &'a str) -> Vec<&'a str> {
         "--kernels",
         k,
     ]
-}
-
-/// The value of a PNG tEXt chunk, read back with the `png` decoder.
-fn png_text(bytes: &[u8], keyword: &str) -> Option<String> {
-    let reader = png::Decoder::new(std::io::Cursor::new(bytes))
-        .read_info()
-        .ok()?;
-    reader
-        .info()
-        .uncompressed_latin1_text
-        .iter()
-        .find(|t| t.keyword == keyword)
-        .map(|t| t.text.clone())
 }
 
 /// The command: 2027-02-05 is dark at this site (Sun -0.236 deg, Earth -2.5 deg per

@@ -8,7 +8,7 @@ use std::f64::consts::PI;
 
 use penumbra::render::brdf::{Brdf, HapkeParams, double_hg, hapke_h, hapke_r_per_sr};
 
-use crate::util::{assert_clean_error, files_in, kernels_dir, penumbra};
+use crate::util::{assert_clean_error, files_in, kernels_dir, penumbra, render_scenario};
 
 /// Chandrasekhar's H-function for isotropic scattering with albedo `w`, at the midpoints of
 /// `n` intervals of [0, 1], from the integral equation
@@ -577,26 +577,6 @@ fn earthshine_matches_an_integrated_lambert_sphere() {
     }
 }
 
-fn render_scenario(views: &str) -> String {
-    format!(
-        r#"name = "r"
-output_dir = "res"
-kernels = "{}"
-[time]
-start = "2027-01-20"
-stop = "2027-01-20T02:00"
-step = "1h"
-[terrain]
-synthetic = {{ size_px = 300, px_m = 100.0, seed = 1 }}
-[[sites]]
-name = "a"
-lat_deg = -89.6
-lon_deg = 0.0
-{views}"#,
-        kernels_dir().display()
-    )
-}
-
 /// `[[render.views]]` in a scenario renders through `penumbra render`: a site view (one frame)
 /// and an orbital sequence (numbered frames) land in `<output_dir>/render/` with the epochs in
 /// their metadata; an unknown view key is an error naming the key, with no render output.
@@ -628,7 +608,11 @@ step = "6h"
 width = 16
 height = 12
 "#;
-    std::fs::write(dir.path().join("s.toml"), render_scenario(views)).unwrap();
+    std::fs::write(
+        dir.path().join("s.toml"),
+        render_scenario("r", "2027-01-20T02:00", views),
+    )
+    .unwrap();
     let out = penumbra(dir.path(), &["run", "s.toml"]);
     assert!(
         out.status.success(),
@@ -656,7 +640,11 @@ height = 12
 
     let dir = tempfile::tempdir().unwrap();
     let bad = "[[render.views]]\nout = \"x.png\"\nlat_deg = -89.6\nlon_deg = 0.0\nfrobnicate = 1\nutc = \"2027-01-20\"\n";
-    std::fs::write(dir.path().join("s.toml"), render_scenario(bad)).unwrap();
+    std::fs::write(
+        dir.path().join("s.toml"),
+        render_scenario("r", "2027-01-20T02:00", bad),
+    )
+    .unwrap();
     let out = penumbra(dir.path(), &["run", "s.toml"]);
     assert_clean_error(&out, "frobnicate");
     assert!(!dir.path().join("res/render").exists());

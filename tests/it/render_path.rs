@@ -4,7 +4,7 @@
 use hifitime::{Duration, Epoch};
 use penumbra::render::path::{CameraPose, FrameSampling, Keyframe, lerp_angle_deg, path_frames};
 
-use crate::util::{assert_clean_error, files_in, kernels_dir, penumbra};
+use crate::util::{assert_clean_error, files_in, penumbra, png_text, render_scenario};
 
 fn utc(text: &str) -> Epoch {
     penumbra::ephem::time::parse_utc(text).unwrap()
@@ -155,39 +155,6 @@ fn orbit_midpoint_and_mixed_kinds() {
     assert!(a.lerp(&s, 0.5).is_err());
 }
 
-fn path_scenario(paths: &str) -> String {
-    format!(
-        r#"name = "p"
-output_dir = "res"
-kernels = "{}"
-[time]
-start = "2027-01-20"
-stop = "2027-01-20T01:00"
-step = "1h"
-[terrain]
-synthetic = {{ size_px = 300, px_m = 100.0, seed = 1 }}
-[[sites]]
-name = "a"
-lat_deg = -89.6
-lon_deg = 0.0
-{paths}"#,
-        kernels_dir().display()
-    )
-}
-
-fn png_text(path: &std::path::Path, keyword: &str) -> Option<String> {
-    let bytes = std::fs::read(path).unwrap();
-    let reader = png::Decoder::new(std::io::Cursor::new(&bytes[..]))
-        .read_info()
-        .unwrap();
-    reader
-        .info()
-        .uncompressed_latin1_text
-        .iter()
-        .find(|t| t.keyword == keyword)
-        .map(|t| t.text.clone())
-}
-
 /// A 3-frame site path (keyframes 00:00 and 02:00, height 10 -> 30 m, az 340 -> 20) writes
 /// 3 numbered PNGs whose epochs are 00:00, 01:00, 02:00 and whose camera metadata carries the
 /// interpolated pose (height 20 m, az 360 at the middle frame).
@@ -205,7 +172,11 @@ keyframes = [
   { utc = "2027-01-20T02:00:00", lat_deg = -89.6, lon_deg = 0.0, height_m = 30.0, look_az_deg = 20.0, look_el_deg = -2.0 },
 ]
 "#;
-    std::fs::write(dir.path().join("s.toml"), path_scenario(paths)).unwrap();
+    std::fs::write(
+        dir.path().join("s.toml"),
+        render_scenario("p", "2027-01-20T01:00", paths),
+    )
+    .unwrap();
     let out = penumbra(dir.path(), &["run", "s.toml"]);
     assert!(
         out.status.success(),
@@ -226,11 +197,18 @@ keyframes = [
     .enumerate()
     {
         let f = rdir.join(format!("walk_{k:04}.png"));
-        assert_eq!(png_text(&f, "penumbra:epoch_utc").as_deref(), Some(*want));
+        assert_eq!(
+            png_text(&std::fs::read(&f).unwrap(), "penumbra:epoch_utc").as_deref(),
+            Some(*want)
+        );
         let img = image::open(&f).unwrap();
         assert_eq!((img.width(), img.height()), (16, 12));
     }
-    let cam = png_text(&rdir.join("walk_0001.png"), "penumbra:camera").unwrap();
+    let cam = png_text(
+        &std::fs::read(rdir.join("walk_0001.png")).unwrap(),
+        "penumbra:camera",
+    )
+    .unwrap();
     assert!(cam.contains("height_m=20 "), "{cam}");
     assert!(cam.contains("look_az_deg=360 "), "{cam}");
 }
@@ -289,7 +267,11 @@ fn bad_keyframes_are_clean_errors_without_files() {
     ];
     for (paths, needle) in cases {
         let dir = tempfile::tempdir().unwrap();
-        std::fs::write(dir.path().join("s.toml"), path_scenario(&paths)).unwrap();
+        std::fs::write(
+            dir.path().join("s.toml"),
+            render_scenario("p", "2027-01-20T01:00", &paths),
+        )
+        .unwrap();
         let out = penumbra(dir.path(), &["run", "s.toml"]);
         assert_clean_error(&out, needle);
         assert!(!dir.path().join("res").exists(), "{needle}: files written");

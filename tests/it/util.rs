@@ -71,3 +71,71 @@ pub fn files_in(dir: &Path) -> Vec<String> {
     v.sort();
     v
 }
+
+/// `n`² cells of 20 m: five Gaussian hills (60..400 m, σ 150..600 m), the Moon's curvature drop
+/// z -= (x² + y²) / 2R, and a 3 × 3 hole near the centre: the GPU parity fixture of
+/// `gpu.rs` and `gpu_dp.rs`.
+pub fn hills(n: usize) -> penumbra::terrain::HeightField {
+    let mut hf = penumbra::terrain::HeightField::flat(n, n, 20.0);
+    let half_m = n as f64 * 10.0;
+    let hills = [
+        (0.2, 0.3, 400.0, 600.0),
+        (-0.5, -0.1, 250.0, 300.0),
+        (0.6, -0.6, 300.0, 400.0),
+        (-0.3, 0.7, 60.0, 150.0),
+        (0.0, -0.4, 150.0, 250.0),
+    ];
+    for row in 0..n {
+        for col in 0..n {
+            let (x, y) = hf.xy_from_row_col(row as f64, col as f64);
+            let mut z = -(x * x + y * y) / (2.0 * penumbra::MOON_RADIUS_M);
+            for &(cx, cy, h, s) in &hills {
+                let (dx, dy) = (x - cx * half_m, y - cy * half_m);
+                z += h * (-(dx * dx + dy * dy) / (2.0 * s * s)).exp();
+            }
+            hf.z_m[row * n + col] = z as f32;
+        }
+    }
+    for row in n / 2..n / 2 + 3 {
+        for col in n / 3..n / 3 + 3 {
+            hf.z_m[row * n + col] = f32::NAN;
+        }
+    }
+    hf
+}
+
+/// The value of a PNG tEXt chunk, read back with the `png` decoder.
+pub fn png_text(bytes: &[u8], keyword: &str) -> Option<String> {
+    let reader = png::Decoder::new(std::io::Cursor::new(bytes))
+        .read_info()
+        .ok()?;
+    reader
+        .info()
+        .uncompressed_latin1_text
+        .iter()
+        .find(|t| t.keyword == keyword)
+        .map(|t| t.text.clone())
+}
+
+/// A small render scenario: the seeded 300² synthetic DEM at 100 m, one site, hourly epochs from
+/// 2027-01-20T00:00 to `stop_utc`, the shipped kernels, then `tables` (`[[render.views]]` or
+/// `[[render.paths]]`).
+pub fn render_scenario(name: &str, stop_utc: &str, tables: &str) -> String {
+    format!(
+        r#"name = "{name}"
+output_dir = "res"
+kernels = "{}"
+[time]
+start = "2027-01-20"
+stop = "{stop_utc}"
+step = "1h"
+[terrain]
+synthetic = {{ size_px = 300, px_m = 100.0, seed = 1 }}
+[[sites]]
+name = "a"
+lat_deg = -89.6
+lon_deg = 0.0
+{tables}"#,
+        kernels_dir().display()
+    )
+}
