@@ -432,15 +432,11 @@ fn run_map(args: &crate::cli::MapArgs) -> anyhow::Result<()> {
     };
     // Resolve after the argument checks (bad input is one error line, with no backend warning)
     // and before any heavy work, so that a missing adapter is one error line (or one warning
-    // line with `auto`). One-light maps of the Fourier engine have no GPU path (CPU).
-    let backend = if range || !matches!(engine_kind, crate::map::MapEngineKind::Fourier) {
-        Some(
-            crate::gpu::resolve_backend(args.backend)
-                .with_context(|| format!("resolving --backend {}", args.backend.as_str()))?,
-        )
-    } else {
-        None
-    };
+    // line with `auto`).
+    let backend = Some(
+        crate::gpu::resolve_backend(args.backend)
+            .with_context(|| format!("resolving --backend {}", args.backend.as_str()))?,
+    );
     let kernels = if epochs.is_empty() {
         None
     } else {
@@ -556,7 +552,8 @@ fn run_map(args: &crate::cli::MapArgs) -> anyhow::Result<()> {
         ),
         (None, None, None) => anyhow::bail!("no light given"),
     };
-    // The GPU runs the DP max-mipmap kernel for every engine but Fourier (docs/gpu.md).
+    // The GPU runs the DP max-mipmap kernel for every engine but Fourier, whose horizon map is
+    // built and evaluated by the Fourier kernels (docs/gpu.md).
     #[cfg(feature = "gpu")]
     let gpu_ctx = match &backend {
         Some(crate::gpu::ResolvedBackend::Gpu(ctx)) => Some(ctx),
@@ -564,12 +561,33 @@ fn run_map(args: &crate::cli::MapArgs) -> anyhow::Result<()> {
     };
     #[cfg(not(feature = "gpu"))]
     let gpu_ctx: Option<&crate::gpu::GpuContext> = None;
-    let engine = crate::map::MapEngine::new(engine_kind, &grid, args.observer_height_m)?;
     let h_m = args.observer_height_m;
+    let engine = match gpu_ctx {
+        #[cfg(feature = "gpu")]
+        Some(ctx) if engine_kind == crate::map::MapEngineKind::Fourier => {
+            crate::map::MapEngine::fourier_gpu(ctx, &grid, h_m)?
+        }
+        _ => crate::map::MapEngine::new(engine_kind, &grid, h_m)?,
+    };
+    #[cfg(feature = "gpu")]
+    let gpu_fourier = match (gpu_ctx, &engine) {
+        (Some(ctx), crate::map::MapEngine::Fourier(map)) => Some(
+            crate::gpu::fourier::GpuHorizonMap::upload(
+                ctx,
+                map,
+                crate::gpu::fourier::DEFAULT_BAND_BYTES,
+            )
+            .context("uploading the horizon map")?,
+        ),
+        _ => None,
+    };
     let fraction = |light: [f64; 3], radius: f64| -> anyhow::Result<Vec<f32>> {
         match gpu_ctx {
             #[cfg(feature = "gpu")]
-            Some(ctx) => crate::map::visible_fraction_gpu(ctx, &grid.hf, h_m, light, radius),
+            Some(ctx) => match &gpu_fourier {
+                Some(on_gpu) => crate::map::fourier_fraction_gpu(ctx, on_gpu, light, radius),
+                None => crate::map::visible_fraction_gpu(ctx, &grid.hf, h_m, light, radius),
+            },
             _ => engine.visible_fraction(&grid.hf, h_m, light, radius),
         }
     };
@@ -584,7 +602,12 @@ fn run_map(args: &crate::cli::MapArgs) -> anyhow::Result<()> {
     if let Some(path) = &args.out_mask {
         let m = match gpu_ctx {
             #[cfg(feature = "gpu")]
-            Some(ctx) => crate::map::hard_mask_gpu(ctx, &grid.hf, h_m, sun)?,
+            Some(ctx) => match &gpu_fourier {
+                Some(on_gpu) => on_gpu
+                    .hard_mask(ctx, sun)
+                    .context("evaluating the horizon map on the GPU")?,
+                None => crate::map::hard_mask_gpu(ctx, &grid.hf, h_m, sun)?,
+            },
             _ => engine.hard_mask(&grid.hf, h_m, sun)?,
         };
         grid.write_u8(
@@ -1081,16 +1104,40 @@ fn run_horizon_map(command: crate::cli::HorizonMapCommand) -> anyhow::Result<()>
             let (stack, _) = load_terrain(&args.terrain)?;
             let grid = crate::map::MapGrid::new(&stack)?;
             let hf = &grid.hf;
-            let max_d = args.max_distance_cells.unwrap_or(hf.rows + hf.cols);
+            let params = crate::shadow::fourier::HorizonMapParams {
+                observer_height_m: args.observer_height_m,
+                n_azimuths: args.azimuths,
+                max_distance_cells: args.max_distance_cells.unwrap_or(hf.rows + hf.cols),
+                n_coeffs: crate::shadow::fourier::DEFAULT_COEFFS,
+            };
+            params.check()?;
+            // Resolved after the input checks: bad input is one error line, with no warning.
+            let backend = crate::gpu::resolve_backend(args.backend)
+                .with_context(|| format!("resolving --backend {}", args.backend.as_str()))?;
             let t0 = std::time::Instant::now();
-            let map = HorizonMap::build(hf, args.observer_height_m, args.azimuths, max_d)?;
+            let map = match &backend {
+                crate::gpu::ResolvedBackend::Cpu => HorizonMap::build_with(
+                    hf,
+                    params.observer_height_m,
+                    params.n_azimuths,
+                    params.max_distance_cells,
+                    params.n_coeffs,
+                )?,
+                #[cfg(feature = "gpu")]
+                crate::gpu::ResolvedBackend::Gpu(ctx) => {
+                    crate::gpu::fourier::build_horizon_map_gpu(ctx, hf, &params)?
+                }
+                #[cfg(not(feature = "gpu"))]
+                crate::gpu::ResolvedBackend::Gpu(ctx) => match **ctx {},
+            };
             map.write_tiff(&args.out)?;
             eprintln!(
-                "penumbra: horizon map {} x {} ({} azimuths, {} coefficients) in {:.1} s -> {}",
+                "penumbra: horizon map {} x {} ({} azimuths, {} coefficients) on {} in {:.1} s -> {}",
                 hf.rows,
                 hf.cols,
                 args.azimuths,
                 map.meta.n_coeffs,
+                backend.describe(),
                 t0.elapsed().as_secs_f64(),
                 args.out.display()
             );

@@ -501,9 +501,9 @@ pub struct MapArgs {
     #[arg(long, value_name = "DIR", requires = "start")]
     pub out_dir: Option<PathBuf>,
     /// Compute backend: `gpu` (DP max-mipmap soft shadows of the discs for sweeps and one-light
-    /// maps, whatever `--engine` says; `fourier` one-light maps stay on the CPU), `cpu` (the
-    /// engine of `--engine`) or `auto` (the GPU when a hardware adapter exists, else the CPU with one
-    /// warning line).
+    /// maps whatever `--engine` says, except `fourier` one-light maps: horizon map built and
+    /// evaluated on the GPU), `cpu` (the engine of `--engine`) or `auto` (the GPU when a hardware
+    /// adapter exists, else the CPU with one warning line).
     #[arg(long, value_enum, default_value_t = crate::gpu::Backend::Auto)]
     pub backend: crate::gpu::Backend,
     /// Aberration correction: lt+s or none.
@@ -554,4 +554,9 @@ pub struct HorizonMapBuildArgs {
     /// Output TIFF.
     #[arg(long, value_name = "FILE")]
     pub out: PathBuf,
+    /// Compute backend of the build: `gpu` (shaders/fourier_build.wgsl, f32; the map agrees with
+    /// the CPU build within the bounds of docs/gpu.md), `cpu` (the rayon engine, f64) or `auto`
+    /// (the GPU when a hardware adapter exists, else the CPU with one warning line).
+    #[arg(long, value_enum, default_value_t = crate::gpu::Backend::Auto)]
+    pub backend: crate::gpu::Backend,
 }

@@ -553,6 +553,47 @@ impl GpuSceneFractions {
     }
 }
 
+impl MapEngine {
+    /// The Fourier engine with its horizon map built on the GPU
+    /// ([`crate::gpu::fourier::build_horizon_map_gpu`]) with the parameters of
+    /// [`MapEngine::new`] (64 azimuths, 16 coefficients, rays of `max(rows, cols)` cells).
+    #[cfg(feature = "gpu")]
+    pub fn fourier_gpu(
+        ctx: &crate::gpu::GpuContext,
+        grid: &MapGrid,
+        observer_height_m: f64,
+    ) -> anyhow::Result<Self> {
+        let params = crate::shadow::fourier::HorizonMapParams {
+            observer_height_m,
+            n_azimuths: crate::shadow::fourier::DEFAULT_AZIMUTHS,
+            max_distance_cells: grid.hf.rows.max(grid.hf.cols),
+            n_coeffs: crate::shadow::fourier::DEFAULT_COEFFS,
+        };
+        Ok(MapEngine::Fourier(Box::new(
+            crate::gpu::fourier::build_horizon_map_gpu(ctx, &grid.hf, &params)
+                .context("building the horizon map on the GPU")?,
+        )))
+    }
+}
+
+/// One-light Fourier maps on the GPU: the visible fraction of a disc (radius 0: the hard test
+/// as 1 / 0) per model cell from a horizon map resident on the GPU, `NaN` for holes (the GPU
+/// twin of [`crate::shadow::fourier::visible_fraction`]).
+#[cfg(feature = "gpu")]
+pub fn fourier_fraction_gpu(
+    ctx: &crate::gpu::GpuContext,
+    on_gpu: &crate::gpu::fourier::GpuHorizonMap,
+    light_in_model: [f64; 3],
+    angular_radius_rad: f64,
+) -> anyhow::Result<Vec<f32>> {
+    Ok(on_gpu
+        .visible_fraction(ctx, light_in_model, angular_radius_rad)
+        .context("evaluating the horizon map on the GPU")?
+        .into_iter()
+        .map(fraction_from_gpu)
+        .collect())
+}
+
 /// [`visible_fraction_gpu`] at radius 0 as a mask: 1 lit, 0 shadow, 255 nodata.
 #[cfg(feature = "gpu")]
 pub fn hard_mask_gpu(

@@ -6,6 +6,7 @@ use std::sync::mpsc;
 
 use super::GpuError;
 use super::dp::DpPipelines;
+use super::fourier::FourierPipelines;
 use super::render::RenderPipeline;
 use super::shadow_march::MarchPipelines;
 use super::sweep_accumulate::AccumulatePipeline;
@@ -19,6 +20,7 @@ pub struct GpuContext {
     pub(crate) march: MarchPipelines,
     pub(crate) accumulate: AccumulatePipeline,
     pub(crate) dp: DpPipelines,
+    pub(crate) fourier: FourierPipelines,
     pub(crate) render: RenderPipeline,
 }
 
@@ -79,6 +81,7 @@ impl GpuContext {
         let march = MarchPipelines::new(&device);
         let accumulate = AccumulatePipeline::new(&device);
         let dp = DpPipelines::new(&device);
+        let fourier = FourierPipelines::new(&device);
         let render = RenderPipeline::new(&device);
         scope.pop("building the compute pipelines")?;
         Ok(GpuContext {
@@ -89,6 +92,7 @@ impl GpuContext {
             march,
             accumulate,
             dp,
+            fourier,
             render,
         })
     }

@@ -22,6 +22,8 @@ mod context;
 #[cfg(feature = "gpu")]
 pub mod dp;
 #[cfg(feature = "gpu")]
+pub mod fourier;
+#[cfg(feature = "gpu")]
 pub mod horizon;
 #[cfg(feature = "gpu")]
 pub mod render;

@@ -125,6 +125,48 @@ pub struct HorizonMap {
     pub coeffs: Vec<f16>,
 }
 
+/// The parameters of a horizon-map build (the CPU engine's [`HorizonMap::build_with`] arguments,
+/// shared with the GPU build `crate::gpu::fourier::build_horizon_map_gpu`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HorizonMapParams {
+    /// Observer height above the ground (radial), metres.
+    pub observer_height_m: f64,
+    /// Number of sampled azimuths before the DFT.
+    pub n_azimuths: usize,
+    /// Longest ray, cells.
+    pub max_distance_cells: usize,
+    /// Number of complex coefficients kept.
+    pub n_coeffs: usize,
+}
+
+impl HorizonMapParams {
+    /// Checks the parameters as [`HorizonMap::build_with`] does.
+    pub fn check(&self) -> Result<(), ShadowError> {
+        check_observer_height(self.observer_height_m)?;
+        check_params(self.n_azimuths, self.n_coeffs, self.max_distance_cells)
+    }
+}
+
+impl HorizonMapMeta {
+    /// The metadata of a map of `hf` built with `params`.
+    pub fn for_height_field(hf: &HeightField, params: &HorizonMapParams) -> Self {
+        HorizonMapMeta {
+            format: FORMAT_NAME.to_string(),
+            rows: hf.rows,
+            cols: hf.cols,
+            px_m: hf.px_m,
+            x_left_m: hf.x_left_m,
+            y_top_m: hf.y_top_m,
+            centre_lat_deg: hf.centre_lat_deg,
+            centre_lon_deg: hf.centre_lon_deg,
+            observer_height_m: params.observer_height_m,
+            n_azimuths: params.n_azimuths,
+            max_distance_cells: params.max_distance_cells,
+            n_coeffs: params.n_coeffs,
+        }
+    }
+}
+
 /// Checks the build parameters.
 fn check_params(
     n_azimuths: usize,
@@ -324,21 +366,14 @@ impl HorizonMap {
                     }
                 });
         }
+        let params = HorizonMapParams {
+            observer_height_m,
+            n_azimuths,
+            max_distance_cells,
+            n_coeffs,
+        };
         Ok(HorizonMap {
-            meta: HorizonMapMeta {
-                format: FORMAT_NAME.to_string(),
-                rows: hf.rows,
-                cols: hf.cols,
-                px_m: hf.px_m,
-                x_left_m: hf.x_left_m,
-                y_top_m: hf.y_top_m,
-                centre_lat_deg: hf.centre_lat_deg,
-                centre_lon_deg: hf.centre_lon_deg,
-                observer_height_m,
-                n_azimuths,
-                max_distance_cells,
-                n_coeffs,
-            },
+            meta: HorizonMapMeta::for_height_field(hf, &params),
             coeffs,
         })
     }
@@ -511,8 +546,18 @@ impl HorizonMap {
 
 /// Azimuth (from north, clockwise) and elevation (above the model x/y plane) of a unit vector,
 /// radians.
-fn az_el(l: &Vector3<f64>) -> (f64, f64) {
+pub(crate) fn az_el(l: &Vector3<f64>) -> (f64, f64) {
     (l.x.atan2(l.y), l.z.atan2(l.x.hypot(l.y)))
+}
+
+/// Half-width in azimuth (radians) of a disc of angular radius `r` whose centre is at elevation
+/// `el`: `r / cos el`, capped at π (paper 001's disc edge azimuths `θ_s ± r / cos α_s`).
+pub(crate) fn half_span_rad(el: f64, r: f64) -> f64 {
+    if el.cos() * std::f64::consts::PI <= r {
+        std::f64::consts::PI
+    } else {
+        r / el.cos()
+    }
 }
 
 /// Hard mask from the horizon map: `1` where the light's elevation is above `α_h` at its
@@ -547,11 +592,7 @@ pub fn visible_fraction(
     let l = unit_light(light_in_model)?;
     let (az, el) = az_el(&l);
     let r = angular_radius_rad;
-    let half_span = if el.cos() * std::f64::consts::PI <= r {
-        std::f64::consts::PI
-    } else {
-        r / el.cos()
-    };
+    let half_span = half_span_rad(el, r);
     let cols = map.meta.cols.max(1);
     let mut out = vec![f32::NAN; map.meta.rows * map.meta.cols];
     out.par_chunks_mut(cols)

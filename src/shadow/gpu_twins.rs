@@ -31,9 +31,9 @@ pub const NODATA_FRACTION: f32 = -1.0;
 /// Height stored for a hole (NaN never goes to the GPU: WGSL has no NaN guarantees).
 pub const HOLE_Z_M: f32 = -1.0e30;
 /// Heights below this are holes.
-const HOLE_TEST_M: f32 = -1.0e29;
+pub(crate) const HOLE_TEST_M: f32 = -1.0e29;
 /// "Never" for the DDA ray parameter, cells.
-const FAR_CELLS: f32 = 1.0e30;
+pub(crate) const FAR_CELLS: f32 = 1.0e30;
 /// A light whose horizontal component is below this goes straight up or down.
 const MIN_HORIZ: f32 = 1.0e-7;
 
@@ -161,7 +161,7 @@ impl MarchGrid {
     }
 
     #[inline]
-    fn height_at(&self, row: i32, col: i32) -> f32 {
+    pub(crate) fn height_at(&self, row: i32, col: i32) -> f32 {
         self.heights_m[row as usize * self.cols as usize + col as usize]
     }
 }
@@ -291,7 +291,7 @@ pub fn march_hard(grid: &MarchGrid, row: u32, col: u32, light: [f32; 3]) -> u32 
     LIT
 }
 
-fn normalize3(v: [f32; 3]) -> [f32; 3] {
+pub(crate) fn normalize3(v: [f32; 3]) -> [f32; 3] {
     let inv_len = 1.0 / (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
     [v[0] * inv_len, v[1] * inv_len, v[2] * inv_len]
 }

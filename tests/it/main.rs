@@ -4,6 +4,7 @@ mod ephem;
 mod fourier;
 mod gpu;
 mod gpu_dp;
+mod gpu_fourier;
 mod gpu_horizon;
 mod horizon;
 mod illum;

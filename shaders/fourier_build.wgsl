@@ -1,0 +1,202 @@
+// requires: shared/march.wgsl
+// Fourier horizon-map build (paper 001 §3.2, the CPU engine src/shadow/fourier.rs): one
+// invocation per cell of one row band. For each azimuth theta_n = 2 pi n / N of this dispatch
+// (n = az0 .. az0 + az_count) it marches the horizontal ray over every crossing with the lattice
+// lines of cell centres (the DDA of shared/march.wgsl, the surface convention of the brute-force
+// engine), keeps the largest tan of the terrain's elevation seen from the observer (starting from
+// the local horizontal plane), takes atan, and folds the sample straight into the truncated DFT:
+// acc_k += alpha_n (cos k theta_n, -sin k theta_n). No per-azimuth samples are stored; the
+// partial sums live in `coeffs` between dispatches (azimuth chunks keep each dispatch short).
+// The last dispatch multiplies by the eq. 3 weights (1/N for k = 0, 2/N else).
+//
+// Dispatch: workgroups (ceil(cols / 8), ceil(band_rows / 8)); gid.x = col, gid.y = band row.
+// Bindings: 0 grid and 1 heights from shared/march.wgsl (2 and 3 are not used here); 4 (sin, cos)
+// of 2 pi m / N for m = 0 .. N - 1, computed in f64 on the CPU (the azimuth directions and the DFT
+// twiddles, index k n mod N: no large-argument sin/cos on the GPU); 5 build params; 6 coeffs
+// (band-relative cell * 2K + 2k + {0: Re, 1: Im}, f32; HOLE_COEFF for every value of a hole).
+// CPU twin: `fourier_build` in src/shadow/fourier_twin.rs (line by line).
+//
+// Precision (f32): heights relative to z_ref and cell-unit positions as in shared/march.wgsl;
+// tan el = (z - z0) / t_m with t_m >= ~1 cell; atan per the WGSL accuracy rules (a few ulp on a
+// hardware GPU); the DFT sums N terms of |alpha| <= pi/2 in f32 (error ~ N * 6e-8 * |alpha|,
+// below 1e-5 rad at N = 720, against the f16 storage ulp of 1e-4 .. 5e-4 rad).
+
+const FB_WORKGROUP_X: u32 = 8u;
+const FB_WORKGROUP_Y: u32 = 8u;
+// Most partial sums one invocation holds: 2 * 32 complex coefficients (K <= 32).
+const FB_MAX_VALUES: u32 = 64u;
+// A crossing this close outside the lattice (cells) is clamped onto its edge line, as the CPU
+// engine's march (tolerance 1e-9 there, in f64): a ray that runs along an edge row or column
+// (observer clamped onto the edge, axis-aligned azimuth) must sample it. 1e-3 cells is above the
+// f32 ulp of positions up to 8,192 cells.
+const FB_EDGE_TOL_CELLS: f32 = 1.0e-3;
+// Written for every value of a hole cell (no NaN on the GPU).
+const HOLE_COEFF: f32 = -1.0e30;
+
+// Keep in sync with `FourierBuildParams` in src/shadow/fourier_twin.rs.
+struct FourierBuildParams {
+    band_row0: u32,
+    band_rows: u32,
+    // N, the number of azimuths of the whole build.
+    n_az: u32,
+    // The azimuths of this dispatch: az0 .. az0 + az_count.
+    az0: u32,
+    az_count: u32,
+    // K, complex coefficients kept (2 K <= FB_MAX_VALUES).
+    n_coeffs: u32,
+    // Crossings farther than this (cells of horizontal travel) are not sampled.
+    max_distance_cells: f32,
+    // 1: this dispatch holds the last azimuths; apply the weights.
+    last: u32,
+}
+
+@group(0) @binding(4) var<storage, read> fb_sincos: array<vec2<f32>>;
+@group(0) @binding(5) var<uniform> fb: FourierBuildParams;
+@group(0) @binding(6) var<storage, read_write> fb_coeffs: array<f32>;
+
+// Largest tan(elevation) of the terrain along the horizontal ray from (u0, v0, z0) with grid
+// direction (du, dv) (unit), at least `start_tan`. Crossings as march_hard (but within
+// FB_EDGE_TOL_CELLS of the edge lines); stops at the grid edge, beyond max_distance_cells, or once no sample can beat the best: (z_max - z0) / t <= best.
+fn horizon_tan(u0: f32, v0: f32, z0: f32, du: f32, dv: f32, start_tan: f32) -> f32 {
+    let rows = i32(grid.rows);
+    let cols = i32(grid.cols);
+    var best = start_tan;
+    var line_u = 0;
+    var step_u = 0;
+    var t_max_u = FAR_CELLS;
+    var t_delta_u = FAR_CELLS;
+    if du > 0.0 {
+        line_u = i32(floor(u0)) + 1;
+        step_u = 1;
+        t_delta_u = 1.0 / du;
+        t_max_u = (f32(line_u) - u0) * t_delta_u;
+    } else if du < 0.0 {
+        line_u = i32(ceil(u0)) - 1;
+        step_u = -1;
+        t_delta_u = -1.0 / du;
+        t_max_u = (u0 - f32(line_u)) * t_delta_u;
+    }
+    var line_v = 0;
+    var step_v = 0;
+    var t_max_v = FAR_CELLS;
+    var t_delta_v = FAR_CELLS;
+    if dv > 0.0 {
+        line_v = i32(floor(v0)) + 1;
+        step_v = 1;
+        t_delta_v = 1.0 / dv;
+        t_max_v = (f32(line_v) - v0) * t_delta_v;
+    } else if dv < 0.0 {
+        line_v = i32(ceil(v0)) - 1;
+        step_v = -1;
+        t_delta_v = -1.0 / dv;
+        t_max_v = (v0 - f32(line_v)) * t_delta_v;
+    }
+    let max_steps = rows + cols + 4;
+    for (var i = 0; i < max_steps; i++) {
+        var t = 0.0;
+        var z_surf = 0.0;
+        if t_max_u < t_max_v {
+            t = t_max_u;
+            if line_u < 0 || line_u > cols - 1 {
+                return best;
+            }
+            let v = v0 + t * dv;
+            if v < -FB_EDGE_TOL_CELLS || v > f32(rows - 1) + FB_EDGE_TOL_CELLS {
+                return best;
+            }
+            let vc = clamp(v, 0.0, f32(rows - 1));
+            let r0 = min(i32(floor(vc)), rows - 2);
+            let w = vc - f32(r0);
+            z_surf = height_at(r0, line_u) * (1.0 - w) + height_at(r0 + 1, line_u) * w;
+            t_max_u = t_max_u + t_delta_u;
+            line_u = line_u + step_u;
+        } else {
+            t = t_max_v;
+            if line_v < 0 || line_v > rows - 1 {
+                return best;
+            }
+            let u = u0 + t * du;
+            if u < -FB_EDGE_TOL_CELLS || u > f32(cols - 1) + FB_EDGE_TOL_CELLS {
+                return best;
+            }
+            let uc = clamp(u, 0.0, f32(cols - 1));
+            let c0 = min(i32(floor(uc)), cols - 2);
+            let w = uc - f32(c0);
+            z_surf = height_at(line_v, c0) * (1.0 - w) + height_at(line_v, c0 + 1) * w;
+            t_max_v = t_max_v + t_delta_v;
+            line_v = line_v + step_v;
+        }
+        if t > fb.max_distance_cells {
+            return best;
+        }
+        let t_m = t * grid.px_m;
+        // Holes are -1e30 m: their samples never win.
+        best = max(best, (z_surf - z0) / t_m);
+        if (grid.z_max_m - z0) / t_m <= best {
+            return best;
+        }
+    }
+    return best;
+}
+
+@compute @workgroup_size(FB_WORKGROUP_X, FB_WORKGROUP_Y, 1)
+fn fourier_build(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let col = gid.x;
+    let band_row = gid.y;
+    if col >= grid.cols || band_row >= fb.band_rows {
+        return;
+    }
+    let row = fb.band_row0 + band_row;
+    let per = 2u * fb.n_coeffs;
+    let base = (band_row * grid.cols + col) * per;
+    let z_cell = heights[row * grid.cols + col];
+    if z_cell < HOLE_TEST_M {
+        for (var i = 0u; i < per; i++) {
+            fb_coeffs[base + i] = HOLE_COEFF;
+        }
+        return;
+    }
+    // Observer: observer_height_m above the surface along the radial direction, kept inside
+    // the lattice (as the CPU engine's observer_at).
+    let x_m = grid.x0_m + f32(col) * grid.px_m;
+    let y_m = grid.y0_m - f32(row) * grid.px_m;
+    let up = normalize(vec3<f32>(x_m, y_m, z_cell + grid.z_ref_plus_radius_m));
+    let u0 = clamp(f32(col) + grid.observer_height_m * up.x / grid.px_m, 0.0, f32(grid.cols - 1u));
+    let v0 = clamp(f32(row) - grid.observer_height_m * up.y / grid.px_m, 0.0, f32(grid.rows - 1u));
+    let z0 = z_cell + grid.observer_height_m * up.z;
+    var acc: array<f32, FB_MAX_VALUES>;
+    if fb.az0 > 0u {
+        for (var i = 0u; i < per; i++) {
+            acc[i] = fb_coeffs[base + i];
+        }
+    }
+    for (var a = 0u; a < fb.az_count; a++) {
+        let n = fb.az0 + a;
+        // (sin, cos) of the azimuth: east, north components; rows grow southwards.
+        let sc = fb_sincos[n];
+        let tan_local = -(up.x * sc.x + up.y * sc.y) / up.z;
+        let alpha = atan(horizon_tan(u0, v0, z0, sc.x, -sc.y, tan_local));
+        var m = 0u;
+        for (var k = 0u; k < fb.n_coeffs; k++) {
+            let tw = fb_sincos[m];
+            acc[2u * k] = acc[2u * k] + alpha * tw.y;
+            acc[2u * k + 1u] = acc[2u * k + 1u] - alpha * tw.x;
+            m = m + n;
+            if m >= fb.n_az {
+                m = m - fb.n_az;
+            }
+        }
+    }
+    if fb.last == 1u {
+        let w0 = 1.0 / f32(fb.n_az);
+        let w = 2.0 / f32(fb.n_az);
+        acc[0] = acc[0] * w0;
+        acc[1] = acc[1] * w0;
+        for (var i = 2u; i < per; i++) {
+            acc[i] = acc[i] * w;
+        }
+    }
+    for (var i = 0u; i < per; i++) {
+        fb_coeffs[base + i] = acc[i];
+    }
+}
