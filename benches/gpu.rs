@@ -1,6 +1,8 @@
 //! GPU vs CPU twin, side by side in one criterion group per kernel (anise `crit_*` layout):
 //! the hard-shadow march (one Sun direction, 1.5° elevation) and the epoch sweep (32 epochs)
 //! on synthetic hills of 128² and 256² cells. Throughput is cells (march) or cell-epochs (sweep).
+//! Also `dp_soft` (one soft map) and `fourier_build` / `fourier_eval` (Fourier horizon maps,
+//! CPU engine vs GPU; throughput rays = cells × azimuths, and cells).
 //!
 //! Run: `WGPU_BACKEND=vulkan cargo bench --bench gpu` (GPU part skipped with a printed reason
 //! when no adapter exists). On a GPU machine without cargo: `tools/gpu-bench.sh`.
@@ -168,11 +170,74 @@ fn bench_dp_soft(c: &mut Criterion, ctx: Option<&GpuContext>) {
     group.finish();
 }
 
+/// Fourier horizon-map build (paper 001): the f64 CPU engine (`HorizonMap::build_with`, rayon)
+/// and the GPU build (`build_horizon_map_gpu`: height upload, kernel, readback, f16 conversion),
+/// `PENUMBRA_BENCH_FOURIER_AZ` azimuths (default 64), whole-grid rays, 16 coefficients.
+/// Throughput is rays (cells × azimuths). Then the one-light evaluation (`fourier_eval`, soft Sun
+/// at 1.5°) of the CPU-built map: CPU engine vs GPU (coefficients uploaded once).
+fn bench_fourier(c: &mut Criterion, ctx: Option<&GpuContext>) {
+    use penumbra::gpu::fourier::{GpuHorizonMap, build_horizon_map_gpu};
+    use penumbra::shadow::SUN_ANGULAR_RADIUS_RAD;
+    use penumbra::shadow::fourier::{self, HorizonMap, HorizonMapParams};
+    let n_az: usize = std::env::var("PENUMBRA_BENCH_FOURIER_AZ")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(64);
+    let mut group = c.benchmark_group("fourier_build");
+    group
+        .sample_size(10)
+        .measurement_time(Duration::from_secs(6));
+    let mut maps = Vec::new();
+    for n in [128, 256] {
+        let hf = hills_hf(n);
+        let params = HorizonMapParams {
+            observer_height_m: 2.0,
+            n_azimuths: n_az,
+            max_distance_cells: 2 * n,
+            n_coeffs: fourier::DEFAULT_COEFFS,
+        };
+        group.throughput(Throughput::Elements((n * n * n_az) as u64));
+        group.bench_with_input(BenchmarkId::new("cpu", n), &hf, |b, hf| {
+            b.iter(|| HorizonMap::build_with(hf, 2.0, n_az, 2 * n, 16).expect("cpu build"))
+        });
+        if let Some(ctx) = ctx {
+            group.bench_with_input(BenchmarkId::new("gpu", n), &hf, |b, hf| {
+                b.iter(|| build_horizon_map_gpu(ctx, hf, &params).expect("gpu build"))
+            });
+        }
+        maps.push((n, HorizonMap::build_with(&hf, 2.0, n_az, 2 * n, 16).expect("cpu build")));
+    }
+    group.finish();
+    let mut group = c.benchmark_group("fourier_eval");
+    group
+        .sample_size(10)
+        .measurement_time(Duration::from_secs(3));
+    let light: [f64; 3] = sun_dir(151.0, 1.5).into();
+    for (n, map) in &maps {
+        group.throughput(Throughput::Elements((n * n) as u64));
+        group.bench_with_input(BenchmarkId::new("cpu", n), map, |b, map| {
+            b.iter(|| fourier::visible_fraction(map, light, SUN_ANGULAR_RADIUS_RAD).expect("cpu"))
+        });
+        if let Some(ctx) = ctx {
+            let on_gpu = GpuHorizonMap::upload(ctx, map, DEFAULT_BAND_BYTES).expect("upload");
+            group.bench_with_input(BenchmarkId::new("gpu", n), &on_gpu, |b, on_gpu| {
+                b.iter(|| {
+                    on_gpu
+                        .visible_fraction(ctx, light, SUN_ANGULAR_RADIUS_RAD)
+                        .expect("gpu eval")
+                })
+            });
+        }
+    }
+    group.finish();
+}
+
 fn bench_gpu(c: &mut Criterion) {
     let ctx = context();
     bench_march(c, ctx.as_ref());
     bench_sweep(c, ctx.as_ref());
     bench_dp_soft(c, ctx.as_ref());
+    bench_fourier(c, ctx.as_ref());
 }
 
 criterion_group!(benches, bench_gpu);
