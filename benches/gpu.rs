@@ -205,7 +205,10 @@ fn bench_fourier(c: &mut Criterion, ctx: Option<&GpuContext>) {
                 b.iter(|| build_horizon_map_gpu(ctx, hf, &params).expect("gpu build"))
             });
         }
-        maps.push((n, HorizonMap::build_with(&hf, 2.0, n_az, 2 * n, 16).expect("cpu build")));
+        maps.push((
+            n,
+            HorizonMap::build_with(&hf, 2.0, n_az, 2 * n, 16).expect("cpu build"),
+        ));
     }
     group.finish();
     let mut group = c.benchmark_group("fourier_eval");

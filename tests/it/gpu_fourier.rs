@@ -120,10 +120,26 @@ fn report(label: &str, d: &MapDelta) {
 
 /// Asserts the |Δ| bounds: coefficients (radians) and reconstructed horizon (degrees).
 fn assert_bounds(d: &MapDelta, coeff_max: f64, coeff_mean: f64, hor_max: f64, hor_mean: f64) {
-    assert!(d.coeff_max_rad < coeff_max, "coeff max {:.2e}", d.coeff_max_rad);
-    assert!(d.coeff_mean_rad < coeff_mean, "coeff mean {:.2e}", d.coeff_mean_rad);
-    assert!(d.horizon_max_deg < hor_max, "horizon max {:.2e}", d.horizon_max_deg);
-    assert!(d.horizon_mean_deg < hor_mean, "horizon mean {:.2e}", d.horizon_mean_deg);
+    assert!(
+        d.coeff_max_rad < coeff_max,
+        "coeff max {:.2e}",
+        d.coeff_max_rad
+    );
+    assert!(
+        d.coeff_mean_rad < coeff_mean,
+        "coeff mean {:.2e}",
+        d.coeff_mean_rad
+    );
+    assert!(
+        d.horizon_max_deg < hor_max,
+        "horizon max {:.2e}",
+        d.horizon_max_deg
+    );
+    assert!(
+        d.horizon_mean_deg < hor_mean,
+        "horizon mean {:.2e}",
+        d.horizon_mean_deg
+    );
 }
 
 /// Oracle: the f64 CPU engine. The f32 twin's map (same DDA, f32 heights relative to z_ref,
