@@ -468,3 +468,58 @@ fn cli_map_fourier_gpu_matches_cpu() {
         "{differ} mask pixels differ (bound 0.1%)"
     );
 }
+
+/// Runs `penumbra` in `cwd` with `WGPU_BACKEND` set to `wgpu_backend`.
+fn penumbra_with_wgpu(
+    cwd: &std::path::Path,
+    wgpu_backend: &str,
+    args: &[&str],
+) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_penumbra"))
+        .args(args)
+        .current_dir(cwd)
+        .env("XDG_RUNTIME_DIR", "/tmp")
+        .env("WGPU_BACKEND", wgpu_backend)
+        .output()
+        .unwrap()
+}
+
+/// `horizon-map build --backend gpu` without any adapter (WGPU_BACKEND=metal on Linux) is one
+/// clean error line, exit 2, no file; `--backend auto` falls back to the CPU with exactly one
+/// warning line and writes the map.
+#[test]
+fn cli_horizon_map_build_backend_without_adapter() {
+    let dir = tempfile::tempdir().unwrap();
+    let args = |backend: &'static str, out: &'static str| {
+        [
+            "horizon-map",
+            "build",
+            "--synthetic",
+            "--azimuths",
+            "32",
+            "--max-distance-cells",
+            "4",
+            "--backend",
+            backend,
+            "--out",
+            out,
+        ]
+    };
+    let gpu = penumbra_with_wgpu(dir.path(), "metal", &args("gpu", "g.tif"));
+    let needle = if cfg!(feature = "gpu") {
+        "no GPU adapter found"
+    } else {
+        "without the `gpu` cargo feature"
+    };
+    crate::util::assert_clean_error(&gpu, needle);
+    assert!(!dir.path().join("g.tif").exists(), "nothing written");
+    let auto = penumbra_with_wgpu(dir.path(), "metal", &args("auto", "a.tif"));
+    let stderr = String::from_utf8_lossy(&auto.stderr);
+    assert!(auto.status.success(), "{stderr}");
+    let warnings: Vec<&str> = stderr.lines().filter(|l| l.contains("warning")).collect();
+    assert_eq!(warnings.len(), 1, "exactly one warning line: {stderr}");
+    assert!(warnings[0].starts_with("penumbra: warning: --backend auto:"));
+    assert!(stderr.contains("on cpu"), "{stderr}");
+    let map = HorizonMap::read_tiff(&dir.path().join("a.tif")).unwrap();
+    assert_eq!(map.meta.n_azimuths, 32);
+}
