@@ -645,6 +645,15 @@ mod gpu {
                 })
                 .collect()
         };
+        // Per-epoch fractions, all sites, Sun and Earth.
+        let flat = |o: &[series::SiteOutcome]| -> Vec<f64> {
+            o.iter()
+                .flat_map(|o| o.sun_fraction.iter().chain(&o.earth_fraction).copied())
+                .collect()
+        };
+        let (max, mean) = max_mean(&flat(&cpu), &flat(&gpu));
+        eprintln!("smap-dp gpu vs cpu: per-epoch fraction max |Δ| {max:.2e}, mean {mean:.2e}");
+        assert!(max < 2e-3 && mean < 1e-5, "max {max}, mean {mean}");
         check(
             "smap-dp gpu vs cpu",
             &sites,
