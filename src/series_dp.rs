@@ -106,6 +106,10 @@ pub enum SeriesDpError {
     BadAzStep(f64),
 }
 
+/// One disc of the GPU table: the f32 light of the kernel and its f64 centre elevation and
+/// radius (rad).
+type GpuDisc = ([f32; 4], (f64, f64));
+
 /// The map grid, its maximum mipmap and the sites' observers, built once for a series run.
 pub struct SmapDpSites {
     grid: MapGrid,
@@ -268,51 +272,39 @@ impl SmapDpSites {
     /// each the topocentric direction of [`crate::ephem::topo`] rotated into model space and
     /// rounded to f32 with its angular radius ([`gpu_twins::disc_light_to_f32`]); site-major.
     /// The second vector holds the f64 centre elevation and radius (rad) of every disc, for
-    /// [`fraction_from_horizon_tan`]. Rayon over sites.
+    /// [`fraction_from_horizon_tan`]. Rayon over (site, epoch).
     pub fn disc_table(
         &self,
         table: &[MoonGeometry],
         sites: &[Site],
         abcorr: AbCorr,
     ) -> (Vec<[f32; 4]>, Vec<(f64, f64)>) {
-        let per_site: Vec<(Vec<[f32; 4]>, Vec<(f64, f64)>)> = sites
-            .par_iter()
-            .map(|site| {
-                let mut lights = Vec::with_capacity(2 * table.len());
-                let mut discs = Vec::with_capacity(2 * table.len());
-                for geo in table {
-                    let obs = topo::Observer::new(geo, site);
-                    for (target, radius_km) in [
-                        (&geo.sun_wrt_moon, crate::SUN_RADIUS_KM),
-                        (&geo.earth_wrt_moon, crate::EARTH_RADIUS_KM),
-                    ] {
-                        let pos = topo::target_from_observer(geo, target, &obs, abcorr);
-                        let body = topo::apparent_without_azimuth(pos, site, radius_km);
-                        let r = body.radius_deg.to_radians();
-                        match self.light_dir(&body.pos_in_moon_me_km) {
-                            Some(dir) => {
-                                lights.push(gpu_twins::disc_light_to_f32(&dir.unit, r));
-                                discs.push((dir.elevation_rad(), r));
-                            }
-                            // A degenerate vector (never for real ephemerides): straight up,
-                            // reported as hidden like the CPU engine's `fraction`.
-                            None => {
-                                lights.push([0.0, 0.0, 1.0, r as f32]);
-                                discs.push((f64::NAN, r));
-                            }
-                        }
+        let per_epoch: Vec<[GpuDisc; 2]> = (0..sites.len() * table.len())
+            .into_par_iter()
+            .map(|n| {
+                let (site, geo) = (&sites[n / table.len()], &table[n % table.len()]);
+                let obs = topo::Observer::new(geo, site);
+                [
+                    (&geo.sun_wrt_moon, crate::SUN_RADIUS_KM),
+                    (&geo.earth_wrt_moon, crate::EARTH_RADIUS_KM),
+                ]
+                .map(|(target, radius_km)| {
+                    let pos = topo::target_from_observer(geo, target, &obs, abcorr);
+                    let body = topo::apparent_without_azimuth(pos, site, radius_km);
+                    let r = body.radius_deg.to_radians();
+                    match self.light_dir(&body.pos_in_moon_me_km) {
+                        Some(dir) => (
+                            gpu_twins::disc_light_to_f32(&dir.unit, r),
+                            (dir.elevation_rad(), r),
+                        ),
+                        // A degenerate vector (never for real ephemerides): reported as
+                        // hidden, like the CPU engine's `fraction`.
+                        None => ([0.0, 0.0, 1.0, r as f32], (f64::NAN, r)),
                     }
-                }
-                (lights, discs)
+                })
             })
             .collect();
-        let mut lights = Vec::with_capacity(2 * table.len() * sites.len());
-        let mut discs = Vec::with_capacity(2 * table.len() * sites.len());
-        for (l, d) in per_site {
-            lights.extend(l);
-            discs.extend(d);
-        }
-        (lights, discs)
+        per_epoch.into_iter().flatten().unzip()
     }
 
     /// The terrain horizon of site `i` seen by the DP search (see the module docs), at
@@ -330,7 +322,7 @@ impl SmapDpSites {
                 .iter()
                 .map(|dir| {
                     let j = self.cost(i, dir, f64::INFINITY);
-                    (j.is_finite() && dir.hor > 0.0).then(|| dir.tan_el - j)
+                    (j.is_finite() && dir.hor > 0.0).then_some(dir.tan_el - j)
                 })
                 .collect())
         })
@@ -452,6 +444,7 @@ pub struct SmapDpGpu<'a> {
     ctx: &'a GpuContext,
     #[cfg(feature = "gpu")]
     grid: crate::gpu::dp::GpuDpGrid,
+    #[cfg(feature = "gpu")]
     observers: Vec<[f32; 4]>,
 }
 
@@ -460,9 +453,9 @@ impl<'a> SmapDpGpu<'a> {
     /// grid's mid height, [`MarchGrid`]).
     pub fn new(ctx: &'a GpuContext, dp: &SmapDpSites) -> anyhow::Result<Self> {
         let march = MarchGrid::from_height_field(&dp.grid.hf, 0.0)?;
-        let observers = dp.site_observers_f32(&march);
         #[cfg(feature = "gpu")]
         {
+            let observers = dp.site_observers_f32(&march);
             let mip = gpu_twins::DpMip::build(&march);
             let grid = crate::gpu::dp::GpuDpGrid::upload(ctx, &march, &mip)?;
             Ok(SmapDpGpu {
@@ -473,7 +466,7 @@ impl<'a> SmapDpGpu<'a> {
         }
         #[cfg(not(feature = "gpu"))]
         {
-            let _ = observers;
+            let _ = march;
             match *ctx {}
         }
     }

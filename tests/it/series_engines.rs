@@ -599,6 +599,94 @@ mod gpu {
         assert!(max_f < 1e-3 && mean_f < 1e-6, "max {max_f}, mean {mean_f}");
     }
 
+    /// One month hourly of `sites` with `engine` on `backend`.
+    fn run_with(
+        stack: &TerrainStack,
+        sites: &[SeriesSite],
+        config: SeriesConfig,
+        engine: SeriesEngine,
+        backend: penumbra::gpu::Backend,
+    ) -> Vec<series::SiteOutcome> {
+        let kernels = Kernels::load(&kernels_dir()).unwrap();
+        let epochs = month_hourly();
+        let dir = tempfile::tempdir().unwrap();
+        let cfg = SeriesConfig {
+            engine,
+            backend,
+            ..config
+        };
+        series::run_series(&kernels, stack, sites, &epochs, 3600.0, &cfg, dir.path())
+            .unwrap()
+            .0
+    }
+
+    /// Per-epoch Sun and Earth fractions of every site, concatenated.
+    fn flat(o: &[series::SiteOutcome]) -> Vec<f64> {
+        o.iter()
+            .flat_map(|o| o.sun_fraction.iter().chain(&o.earth_fraction).copied())
+            .collect()
+    }
+
+    /// smap-dp GPU vs CPU on the real LOLA 240 m crop (1536², the four sites of
+    /// [`engines_agree_on_the_lola_crop`]); skipped when the shared grid is absent.
+    #[test]
+    fn series_smap_dp_gpu_matches_cpu_on_the_lola_crop() {
+        if context().is_none() {
+            return;
+        }
+        let Some(path) = shared_lola("ldem75s_crop_240m_pm184km.tif") else {
+            return;
+        };
+        let stack = TerrainStack::load(&[path]).unwrap();
+        let sites = [
+            site("shackleton_rim", -89.9, 200.0),
+            site("connecting_ridge", -89.45, 222.7),
+            site("de_gerlache_rim", -88.7, 292.0),
+            site("malapert", -86.0, 0.0),
+        ];
+        let config = SeriesConfig {
+            plots: false,
+            write_csv: false,
+            ..SeriesConfig::default()
+        };
+        let cpu = run_with(
+            &stack,
+            &sites,
+            config,
+            SeriesEngine::SmapDp,
+            penumbra::gpu::Backend::Cpu,
+        );
+        let gpu = run_with(
+            &stack,
+            &sites,
+            config,
+            SeriesEngine::SmapDp,
+            penumbra::gpu::Backend::Gpu,
+        );
+        let (max, mean) = max_mean(&flat(&cpu), &flat(&gpu));
+        eprintln!(
+            "lola-240m smap-dp gpu vs cpu: per-epoch fraction max |Δ| {max:.2e}, mean {mean:.2e}"
+        );
+        for (c, g) in cpu.iter().zip(&gpu) {
+            let d = differences(&(
+                c.sun_fraction.clone(),
+                c.earth_fraction.clone(),
+                g.sun_fraction.clone(),
+                g.earth_fraction.clone(),
+            ));
+            eprintln!(
+                "lola-240m smap-dp gpu vs cpu {:>16}: |Δ| lit {:.2} pp, sun {:.1e}, earth {:.1e}, earth vis {:.2} pp",
+                c.site.name, d[0], d[1], d[2], d[3]
+            );
+            assert!(
+                d[0] <= 0.2 && d[1] <= 1e-3 && d[2] <= 1e-3 && d[3] <= 0.2,
+                "{}: {d:?}",
+                c.site.name
+            );
+        }
+        assert!(max < 0.05 && mean < 1e-4, "max {max}, mean {mean}");
+    }
+
     /// The whole series: smap-dp on the GPU against smap-dp on the CPU (same sites, same month,
     /// Eddington limb darkening) and against the horizon engine (the CPU smap-dp bounds).
     #[test]
@@ -608,8 +696,6 @@ mod gpu {
         }
         let stack = synthetic_stack();
         let sites = synthetic_sites();
-        let kernels = Kernels::load(&kernels_dir()).unwrap();
-        let epochs = month_hourly();
         let config = SeriesConfig {
             plots: false,
             write_csv: false,
@@ -618,17 +704,7 @@ mod gpu {
             engine: SeriesEngine::SmapDp,
             ..SeriesConfig::default()
         };
-        let run = |engine, backend| {
-            let dir = tempfile::tempdir().unwrap();
-            let cfg = SeriesConfig {
-                engine,
-                backend,
-                ..config
-            };
-            series::run_series(&kernels, &stack, &sites, &epochs, 3600.0, &cfg, dir.path())
-                .unwrap()
-                .0
-        };
+        let run = |engine, backend| run_with(&stack, &sites, config, engine, backend);
         let cpu = run(SeriesEngine::SmapDp, penumbra::gpu::Backend::Cpu);
         let gpu = run(SeriesEngine::SmapDp, penumbra::gpu::Backend::Gpu);
         let horizon = run(SeriesEngine::Horizon, penumbra::gpu::Backend::Cpu);
@@ -643,12 +719,6 @@ mod gpu {
                         b.earth_fraction.clone(),
                     )
                 })
-                .collect()
-        };
-        // Per-epoch fractions, all sites, Sun and Earth.
-        let flat = |o: &[series::SiteOutcome]| -> Vec<f64> {
-            o.iter()
-                .flat_map(|o| o.sun_fraction.iter().chain(&o.earth_fraction).copied())
                 .collect()
         };
         let (max, mean) = max_mean(&flat(&cpu), &flat(&gpu));
