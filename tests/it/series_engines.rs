@@ -679,12 +679,13 @@ mod gpu {
                 c.site.name, d[0], d[1], d[2], d[3]
             );
             assert!(
-                d[0] <= 0.2 && d[1] <= 1e-3 && d[2] <= 1e-3 && d[3] <= 0.2,
+                d[0] <= 0.2 && d[1] <= 2e-4 && d[2] <= 2e-4 && d[3] <= 0.2,
                 "{}: {d:?}",
                 c.site.name
             );
         }
-        assert!(max < 0.05 && mean < 1e-4, "max {max}, mean {mean}");
+        // Measured: max 1.95e-3, mean 7.9e-6 (docs/VALIDATION.md).
+        assert!(max < 1e-2 && mean < 5e-5, "max {max}, mean {mean}");
     }
 
     /// The whole series: smap-dp on the GPU against smap-dp on the CPU (same sites, same month,
