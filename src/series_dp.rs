@@ -446,6 +446,7 @@ pub struct SmapDpGpu<'a> {
     grid: crate::gpu::dp::GpuDpGrid,
     #[cfg(feature = "gpu")]
     observers: Vec<[f32; 4]>,
+    discs_per_call: usize,
 }
 
 impl<'a> SmapDpGpu<'a> {
@@ -462,6 +463,7 @@ impl<'a> SmapDpGpu<'a> {
                 ctx,
                 grid,
                 observers,
+                discs_per_call: GPU_DISCS_PER_CALL,
             })
         }
         #[cfg(not(feature = "gpu"))]
@@ -469,6 +471,13 @@ impl<'a> SmapDpGpu<'a> {
             let _ = march;
             match *ctx {}
         }
+    }
+
+    /// Sets the batch size of [`Self::fractions`] (discs per GPU call, default
+    /// [`GPU_DISCS_PER_CALL`]; at least one epoch of every site per call whatever the value).
+    pub fn with_discs_per_call(mut self, discs: usize) -> Self {
+        self.discs_per_call = discs;
+        self
     }
 
     /// One kernel call: `lights` holds the same number of discs per site, site-major.
@@ -527,7 +536,8 @@ impl<'a> SmapDpGpu<'a> {
     }
 
     /// Every site's Sun and Earth visible fractions over `table` (`sites` as in
-    /// [`SmapDpSites::disc_table`]), in batches of at most [`GPU_DISCS_PER_CALL`] discs.
+    /// [`SmapDpSites::disc_table`]), in batches of at most [`GPU_DISCS_PER_CALL`] discs (see
+    /// [`Self::with_discs_per_call`]).
     pub fn fractions(
         &self,
         dp: &SmapDpSites,
@@ -545,7 +555,7 @@ impl<'a> SmapDpGpu<'a> {
                 )
             })
             .collect();
-        let batch = (GPU_DISCS_PER_CALL / (2 * sites.len().max(1))).max(1);
+        let batch = (self.discs_per_call / (2 * sites.len().max(1))).max(1);
         for chunk in table.chunks(batch) {
             let (lights, discs) = dp.disc_table(chunk, sites, config.abcorr);
             let tans = self.run(&lights)?;

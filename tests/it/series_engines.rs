@@ -549,6 +549,7 @@ mod gpu {
 
     use penumbra::gpu::GpuContext;
     use penumbra::gpu::dp::{GpuDpGrid, dp_sites_gpu};
+    use penumbra::series_dp::SmapDpGpu;
 
     use super::*;
 
@@ -597,6 +598,56 @@ mod gpu {
         );
         assert_eq!(mismatched, 0);
         assert!(max_f < 1e-3 && mean_f < 1e-6, "max {max_f}, mean {mean_f}");
+        // Bad input is an error, not a panic or a wrong answer: a table that is not a whole
+        // number of discs per site, a site off the lattice, a light that is not a unit vector.
+        assert!(dp_sites_gpu(ctx, &grid, &k.observers, &k.lights[..k.lights.len() - 1]).is_err());
+        let mut off = k.observers.clone();
+        off[0][0] = k.march.cols as f32;
+        assert!(dp_sites_gpu(ctx, &grid, &off, &k.lights).is_err());
+        let mut bad = k.lights.clone();
+        bad[3] = [2.0, 0.0, 0.0, 0.0];
+        assert!(dp_sites_gpu(ctx, &grid, &k.observers, &bad).is_err());
+    }
+
+    /// Epoch batches of the GPU path: 7 epochs per call (107 calls for 745 epochs, the last one
+    /// short) give bit-identical fractions to one call for the whole month.
+    #[test]
+    fn smap_dp_gpu_epoch_batches_are_seamless() {
+        let Some(ctx) = context() else { return };
+        let stack = synthetic_stack();
+        let specs = synthetic_sites();
+        let dp = SmapDpSites::new(&stack, &specs).unwrap();
+        let sites: Vec<ephem::Site> = specs
+            .iter()
+            .enumerate()
+            .map(|(i, s)| {
+                ephem::Site::new(s.lat_deg, s.lon_deg, dp.ground_height_m(i) + 2.0).unwrap()
+            })
+            .collect();
+        let kernels = Kernels::load(&kernels_dir()).unwrap();
+        let table = ephem::moon_geometry_table(&kernels, &month_hourly()).unwrap();
+        let config = SeriesConfig::default();
+        let whole = SmapDpGpu::new(ctx, &dp)
+            .unwrap()
+            .fractions(&dp, &table, &sites, &config)
+            .unwrap();
+        let batched = SmapDpGpu::new(ctx, &dp)
+            .unwrap()
+            .with_discs_per_call(2 * 7 * sites.len())
+            .fractions(&dp, &table, &sites, &config)
+            .unwrap();
+        assert_eq!(whole.len(), sites.len());
+        assert!(
+            whole
+                .iter()
+                .all(|(s, e)| s.len() == table.len() && e.len() == table.len())
+        );
+        assert_eq!(whole, batched);
+        let lit: usize = whole
+            .iter()
+            .map(|(s, _)| s.iter().filter(|&&f| f > 0.0).count())
+            .sum();
+        assert!(lit > 100, "{lit} lit epochs");
     }
 
     /// One month hourly of `sites` with `engine` on `backend`.
