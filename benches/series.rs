@@ -3,6 +3,14 @@
 //! files, sites in parallel as in `run_series`. `horizon`: per-site horizons (fast scan, 0.25°) + the strip integral per epoch;
 //! `smap_dp`: the model grid + max mipmap (once), the DP horizon profile per site (for the CSV
 //! columns and plots) and one DP search per site, epoch and disc.
+//! `smap_dp_gpu` (feature `gpu`, skipped with a printed line when no adapter exists): the same
+//! on the GPU (`series --engine smap-dp --backend gpu`): model grid, f32 grid + mipmap upload,
+//! the horizon profiles and every (site, epoch, disc) search of `shaders/dp_sites.wgsl`, plus
+//! the CPU's per-epoch ephemeris pass that feeds the CSV rows ([`series::site_fractions_given`]);
+//! the device and pipelines are built once, outside the timing (as once per process).
+//!
+//! `PENUMBRA_BENCH_KERNELS` overrides the kernel folder (default: the crate's `kernels/`), for
+//! `tools/gpu-bench.sh` on a machine where the crate is elsewhere.
 
 #![allow(
     missing_docs,
@@ -32,11 +40,24 @@ fn sites(n: usize) -> Vec<SeriesSite> {
 }
 
 fn bench_engines(c: &mut Criterion) {
-    let kernels = Kernels::load(std::path::Path::new(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/kernels"
-    )))
-    .unwrap();
+    let kernels_dir = std::env::var_os("PENUMBRA_BENCH_KERNELS")
+        .map(std::path::PathBuf::from)
+        .unwrap_or_else(|| concat!(env!("CARGO_MANIFEST_DIR"), "/kernels").into());
+    let kernels = Kernels::load(&kernels_dir).unwrap();
+    #[cfg(feature = "gpu")]
+    let gpu = match penumbra::gpu::GpuContext::new() {
+        Ok(ctx) => {
+            eprintln!(
+                "series_engines/smap_dp_gpu on adapter {}",
+                ctx.adapter_name()
+            );
+            Some(ctx)
+        }
+        Err(e) => {
+            eprintln!("series_engines/smap_dp_gpu skipped: {e}");
+            None
+        }
+    };
     let stack = TerrainStack::new(vec![
         synth::south_polar_dem(&synth::SynthParams::default()).unwrap(),
     ]);
@@ -108,6 +129,43 @@ fn bench_engines(c: &mut Criterion) {
                     .sum::<f64>()
             })
         });
+        #[cfg(feature = "gpu")]
+        if let Some(ctx) = &gpu {
+            group.bench_with_input(BenchmarkId::new("smap_dp_gpu", n), &sites, |b, sites| {
+                b.iter(|| {
+                    let dp = SmapDpSites::new(&stack, sites).unwrap();
+                    let on_gpu = penumbra::series_dp::SmapDpGpu::new(ctx, &dp).unwrap();
+                    let ephem_sites: Vec<Site> = sites
+                        .iter()
+                        .enumerate()
+                        .map(|(i, s)| {
+                            Site::new(s.lat_deg, s.lon_deg, dp.ground_height_m(i) + 2.0).unwrap()
+                        })
+                        .collect();
+                    let horizons = on_gpu.horizons(&dp, sites, &ephem_sites, &cfg).unwrap();
+                    let fractions = on_gpu.fractions(&dp, &table, &ephem_sites, &cfg).unwrap();
+                    ephem_sites
+                        .par_iter()
+                        .zip(&horizons)
+                        .zip(&fractions)
+                        .map(|((site, h), (sun, earth))| {
+                            let (f, _) = series::site_fractions_given(
+                                &table,
+                                site,
+                                h,
+                                sun,
+                                earth,
+                                &cfg,
+                                |_| false,
+                                |_, _| Ok(()),
+                            )
+                            .unwrap();
+                            f.iter().sum::<f64>()
+                        })
+                        .sum::<f64>()
+                })
+            });
+        }
     }
     group.finish();
 }

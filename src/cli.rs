@@ -286,12 +286,15 @@ pub struct SeriesArgs {
     /// Do not write the per-epoch series.csv files (statistics only).
     #[arg(long)]
     pub no_csv: bool,
-    /// Compute backend of the horizons: `gpu` (GPU horizon scan, sampled like the exact
-    /// method; `--horizon-method` is then ignored), `auto` (GPU when a hardware adapter exists) or `cpu`.
+    /// Compute backend: with `--engine horizon`, of the horizons (`gpu`: GPU horizon scan,
+    /// sampled like the exact method; `--horizon-method` is then ignored); with
+    /// `--engine smap-dp`, of the per-site DP searches (profiles and every epoch's Sun and Earth).
+    /// `auto`: GPU when a hardware adapter exists; `cpu`.
     #[arg(long, value_enum, default_value_t = crate::gpu::Backend::Cpu)]
     pub backend: crate::gpu::Backend,
     /// Engine of the visible fractions: horizon (per-site horizons from every DEM layer) or
-    /// smap-dp (the map pipeline's model grid + DP search at each site; finest layer only).
+    /// smap-dp (the map pipeline's model grid + DP search at each site; finest layer only;
+    /// CPU or GPU, `--backend`).
     #[arg(long, value_enum, default_value_t = crate::series::SeriesEngine::Horizon)]
     pub engine: crate::series::SeriesEngine,
     /// Kernels.

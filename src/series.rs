@@ -285,7 +285,7 @@ pub fn site_fractions(
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &e| {
             (lo.min(e), hi.max(e))
         });
-    let fraction = |body: &mut ephem::Apparent, limb: &LimbDarkening| -> f64 {
+    let fraction = |_: usize, _: Body, body: &mut ephem::Apparent, limb: &LimbDarkening| -> f64 {
         if body.el_deg - body.radius_deg >= h_max_deg {
             1.0
         } else if body.el_deg + body.radius_deg <= h_min_deg {
@@ -321,7 +321,7 @@ pub fn site_fractions_smap_dp(
     row: impl FnMut(usize, &SeriesRow) -> anyhow::Result<()>,
 ) -> anyhow::Result<(Vec<f64>, Vec<f64>)> {
     let profile = HorizonProfile::new(&horizon.elevation_deg)?;
-    let fraction = |body: &mut ephem::Apparent, limb: &LimbDarkening| -> f64 {
+    let fraction = |_: usize, _: Body, body: &mut ephem::Apparent, limb: &LimbDarkening| -> f64 {
         dp.fraction(
             index,
             &body.pos_in_moon_me_km,
@@ -332,7 +332,49 @@ pub fn site_fractions_smap_dp(
     fractions_with(table, site, &profile, config, need_azimuths, row, fraction)
 }
 
-/// The per-epoch loop shared by both engines: ephemeris per site, `fraction` per disc, CSV row.
+/// As [`site_fractions`] with fractions already computed (the GPU path of the smap-dp engine,
+/// [`crate::series_dp::SmapDpGpu::fractions`]): `sun` and `earth` hold one fraction per epoch of
+/// `table`; the ephemeris is still evaluated per epoch for the CSV columns and sky tracks.
+#[expect(
+    clippy::too_many_arguments,
+    reason = "site_fractions plus the two fraction series"
+)]
+pub fn site_fractions_given(
+    table: &[MoonGeometry],
+    site: &Site,
+    horizon: &Horizon,
+    sun: &[f64],
+    earth: &[f64],
+    config: &SeriesConfig,
+    need_azimuths: impl Fn(usize) -> bool,
+    row: impl FnMut(usize, &SeriesRow) -> anyhow::Result<()>,
+) -> anyhow::Result<(Vec<f64>, Vec<f64>)> {
+    anyhow::ensure!(
+        sun.len() == table.len() && earth.len() == table.len(),
+        "{} / {} precomputed fractions for {} epochs",
+        sun.len(),
+        earth.len(),
+        table.len()
+    );
+    let profile = HorizonProfile::new(&horizon.elevation_deg)?;
+    let fraction = |k: usize, b: Body, _: &mut ephem::Apparent, _: &LimbDarkening| -> f64 {
+        match b {
+            Body::Sun => sun[k],
+            Body::Earth => earth[k],
+        }
+    };
+    fractions_with(table, site, &profile, config, need_azimuths, row, fraction)
+}
+
+/// Which disc [`fractions_with`] asks for.
+#[derive(Debug, Clone, Copy)]
+enum Body {
+    Sun,
+    Earth,
+}
+
+/// The per-epoch loop shared by both engines: ephemeris per site, `fraction` per disc (epoch
+/// index, body, apparent body, limb darkening), CSV row.
 fn fractions_with(
     table: &[MoonGeometry],
     site: &Site,
@@ -340,7 +382,7 @@ fn fractions_with(
     config: &SeriesConfig,
     need_azimuths: impl Fn(usize) -> bool,
     mut row: impl FnMut(usize, &SeriesRow) -> anyhow::Result<()>,
-    fraction: impl Fn(&mut ephem::Apparent, &LimbDarkening) -> f64,
+    fraction: impl Fn(usize, Body, &mut ephem::Apparent, &LimbDarkening) -> f64,
 ) -> anyhow::Result<(Vec<f64>, Vec<f64>)> {
     let limb = config.limb_darkening.law();
     let mut sun_fraction = Vec::with_capacity(table.len());
@@ -362,8 +404,8 @@ fn fractions_with(
                 ephem::topo::apparent_without_azimuth(earth_pos, site, crate::EARTH_RADIUS_KM),
             )
         };
-        let sun_f = fraction(&mut sun, &limb);
-        let earth_f = fraction(&mut earth, &LimbDarkening::UNIFORM);
+        let sun_f = fraction(k, Body::Sun, &mut sun, &limb);
+        let earth_f = fraction(k, Body::Earth, &mut earth, &LimbDarkening::UNIFORM);
         // The horizon at the bodies' azimuths is only needed for the CSV columns.
         let (sun_horizon_el_deg, earth_horizon_el_deg) = if config.write_csv {
             (
@@ -446,34 +488,64 @@ pub fn run_series(
     if sites.is_empty() {
         anyhow::bail!("no sites given");
     }
-    if config.engine == SeriesEngine::SmapDp && config.backend == crate::gpu::Backend::Gpu {
-        anyhow::bail!(
-            "--engine smap-dp runs on the CPU only (no GPU path yet): use --backend cpu, or \
-             --engine horizon for GPU horizons"
-        );
-    }
-    let (horizons, dp) = match config.engine {
-        SeriesEngine::Horizon => (site_horizons(stack, sites, config)?, None),
+    // smap-dp on the GPU: `gpu` needs an adapter (else one error line), `auto` takes a hardware
+    // one or falls back to the CPU with one warning line (crate::gpu::resolve_backend).
+    let gpu_ctx = match (config.engine, config.backend) {
+        (SeriesEngine::SmapDp, backend) if backend != crate::gpu::Backend::Cpu => {
+            match crate::gpu::resolve_backend(backend)
+                .with_context(|| format!("resolving backend {}", backend.as_str()))?
+            {
+                crate::gpu::ResolvedBackend::Gpu(ctx) => Some(ctx),
+                crate::gpu::ResolvedBackend::Cpu => None,
+            }
+        }
+        _ => None,
+    };
+    let mut gpu_fractions: Option<Vec<(Vec<f64>, Vec<f64>)>> = None;
+    let (horizons, dp, table) = match config.engine {
+        SeriesEngine::Horizon => (
+            site_horizons(stack, sites, config)?,
+            None,
+            ephem::moon_geometry_table(kernels, epochs)?,
+        ),
         SeriesEngine::SmapDp => {
             let dp = crate::series_dp::SmapDpSites::new(stack, sites)?;
-            let horizons = sites
+            let ephem_sites = sites
                 .iter()
                 .enumerate()
                 .map(|(i, s)| {
-                    let site = Site::new(
+                    Site::new(
                         s.lat_deg,
                         s.lon_deg,
                         dp.ground_height_m(i) + s.height_above_ground_m,
                     )
-                    .with_context(|| format!("site '{}'", s.name))?;
-                    dp.horizon(i, s, &site, config)
-                        .with_context(|| format!("horizon of site '{}'", s.name))
+                    .with_context(|| format!("site '{}'", s.name))
                 })
                 .collect::<anyhow::Result<Vec<_>>>()?;
-            (horizons, Some(dp))
+            match gpu_ctx.as_deref() {
+                Some(ctx) => {
+                    let gpu = crate::series_dp::SmapDpGpu::new(ctx, &dp)?;
+                    let horizons = gpu.horizons(&dp, sites, &ephem_sites, config)?;
+                    let table = ephem::moon_geometry_table(kernels, epochs)?;
+                    gpu_fractions = Some(gpu.fractions(&dp, &table, &ephem_sites, config)?);
+                    (horizons, None, table)
+                }
+                None => {
+                    let horizons = sites
+                        .iter()
+                        .zip(&ephem_sites)
+                        .enumerate()
+                        .map(|(i, (s, site))| {
+                            dp.horizon(i, s, site, config)
+                                .with_context(|| format!("horizon of site '{}'", s.name))
+                        })
+                        .collect::<anyhow::Result<Vec<_>>>()?;
+                    let table = ephem::moon_geometry_table(kernels, epochs)?;
+                    (horizons, Some(dp), table)
+                }
+            }
         }
     };
-    let table = ephem::moon_geometry_table(kernels, epochs)?;
     std::fs::create_dir_all(out_dir)
         .with_context(|| format!("creating output folder {}", out_dir.display()))?;
 
@@ -490,7 +562,11 @@ pub fn run_series(
         .zip(horizons)
         .enumerate()
         .map(|(i, (spec, horizon))| {
-            let engine = dp.as_ref().map(|d| (d, i));
+            let engine = match (&dp, &gpu_fractions) {
+                (Some(d), _) => SiteEngine::SmapDp(d, i),
+                (None, Some(f)) => SiteEngine::Given(&f[i].0, &f[i].1),
+                (None, None) => SiteEngine::Horizon,
+            };
             run_one_site(
                 &table, epochs, step_s, spec, horizon, engine, config, out_dir, &progress,
             )
@@ -514,6 +590,17 @@ pub fn run_series(
     Ok((outcomes, files))
 }
 
+/// Where [`run_one_site`] takes its fractions from.
+#[derive(Clone, Copy)]
+enum SiteEngine<'a> {
+    /// The site's horizon (strip integrals).
+    Horizon,
+    /// The smap-dp engine on the CPU, site index.
+    SmapDp(&'a crate::series_dp::SmapDpSites, usize),
+    /// Already computed (the smap-dp engine on the GPU): Sun and Earth fractions per epoch.
+    Given(&'a [f64], &'a [f64]),
+}
+
 #[expect(clippy::too_many_arguments, reason = "one site's slice of run_series")]
 fn run_one_site(
     table: &[MoonGeometry],
@@ -521,7 +608,7 @@ fn run_one_site(
     step_s: f64,
     spec: &SeriesSite,
     horizon: Horizon,
-    dp: Option<(&crate::series_dp::SmapDpSites, usize)>,
+    engine: SiteEngine<'_>,
     config: &SeriesConfig,
     out_dir: &Path,
     progress: &indicatif::ProgressBar,
@@ -566,9 +653,21 @@ fn run_one_site(
             }
             Ok(())
         };
-        fractions = match dp {
-            None => site_fractions(table, &site, &horizon, config, need_azimuths, on_row)?,
-            Some((dp, i)) => site_fractions_smap_dp(
+        fractions = match engine {
+            SiteEngine::Horizon => {
+                site_fractions(table, &site, &horizon, config, need_azimuths, on_row)?
+            }
+            SiteEngine::Given(sun, earth) => site_fractions_given(
+                table,
+                &site,
+                &horizon,
+                sun,
+                earth,
+                config,
+                need_azimuths,
+                on_row,
+            )?,
+            SiteEngine::SmapDp(dp, i) => site_fractions_smap_dp(
                 table,
                 &site,
                 dp,

@@ -58,15 +58,20 @@
 //! every layer, so far-field terrain can differ), and the disc is cut by a straight edge at the
 //! centre azimuth's horizon instead of the strip integral over the sampled profile.
 
+use anyhow::Context as _;
 use nalgebra::{Matrix3, Vector3};
+use rayon::prelude::*;
 
-use crate::ephem::Site;
+use crate::ephem::topo::{self, MoonGeometry};
+use crate::ephem::{AbCorr, Site};
+use crate::gpu::GpuContext;
 use crate::horizon::Horizon;
 use crate::illum::LimbDarkening;
 use crate::illum::disc::chord_visible_fraction;
 use crate::map::MapGrid;
 use crate::series::{SeriesConfig, SeriesSite};
 use crate::shadow::dp::{DpConfig, MaxMipmap, dp_cost_beyond, full_visibility_cap};
+use crate::shadow::gpu_twins::{self, MarchGrid};
 use crate::shadow::{LightDir, Observer, max_height_m};
 use crate::terrain::TerrainStack;
 use crate::terrain::model_space::ModelFrame;
@@ -100,6 +105,10 @@ pub enum SeriesDpError {
     #[error("azimuth step {0} deg must be > 0 and divide 360 into a whole number of steps")]
     BadAzStep(f64),
 }
+
+/// One disc of the GPU table: the f32 light of the kernel and its f64 centre elevation and
+/// radius (rad).
+type GpuDisc = ([f32; 4], (f64, f64));
 
 /// The map grid, its maximum mipmap and the sites' observers, built once for a series run.
 pub struct SmapDpSites {
@@ -226,13 +235,9 @@ impl SmapDpSites {
         radius_rad: f64,
         limb: &LimbDarkening,
     ) -> f64 {
-        let v = self.model_from_moon_me * light_in_moon_me;
-        let n = v.norm();
-        if !(n > 0.0 && n.is_finite()) {
+        let Some(dir) = self.light_dir(light_in_moon_me) else {
             return 0.0;
-        }
-        let dir = LightDir::new(v / n);
-        let e_c = dir.elevation_rad();
+        };
         let j = self.cost(i, &dir, full_visibility_cap(&dir, radius_rad));
         // No terrain sample along the ray (a site at the grid's edge): nothing hides the disc.
         let e_h = if j.is_finite() {
@@ -240,11 +245,66 @@ impl SmapDpSites {
         } else {
             f64::NEG_INFINITY
         };
-        if radius_rad <= 0.0 {
-            return if e_c > e_h { 1.0 } else { 0.0 };
-        }
-        // Positive: the edge is above the centre (paper 001 eq. 6 apothem).
-        chord_visible_fraction((e_h - e_c) / radius_rad, limb)
+        fraction_above_horizon(e_h, dir.elevation_rad(), radius_rad, limb)
+    }
+
+    /// The model-space direction of a light along `light_in_moon_me` (any length), `None` for a
+    /// zero or non-finite vector.
+    fn light_dir(&self, light_in_moon_me: &Vector3<f64>) -> Option<LightDir> {
+        let v = self.model_from_moon_me * light_in_moon_me;
+        let n = v.norm();
+        (n > 0.0 && n.is_finite()).then(|| LightDir::new(v / n))
+    }
+
+    /// The sites' observers as the GPU kernel `shaders/dp_sites.wgsl` reads them
+    /// ([`gpu_twins::site_observer_to_f32`] on `march`, the [`MarchGrid`] of [`Self::grid`]).
+    pub fn site_observers_f32(&self, march: &MarchGrid) -> Vec<[f32; 4]> {
+        self.observers
+            .iter()
+            .map(|o| {
+                gpu_twins::site_observer_to_f32(march, o.row, o.col, o.z_m, MIN_DISTANCE_CELLS)
+            })
+            .collect()
+    }
+
+    /// The disc table of the GPU kernel for `sites` (the ephemeris sites, one per series site,
+    /// in order) over the epochs `table` (in order): per site, per epoch, the Sun then the Earth,
+    /// each the topocentric direction of [`crate::ephem::topo`] rotated into model space and
+    /// rounded to f32 with its angular radius ([`gpu_twins::disc_light_to_f32`]); site-major.
+    /// The second vector holds the f64 centre elevation and radius (rad) of every disc, for
+    /// [`fraction_from_horizon_tan`]. Rayon over (site, epoch).
+    pub fn disc_table(
+        &self,
+        table: &[MoonGeometry],
+        sites: &[Site],
+        abcorr: AbCorr,
+    ) -> (Vec<[f32; 4]>, Vec<(f64, f64)>) {
+        let per_epoch: Vec<[GpuDisc; 2]> = (0..sites.len() * table.len())
+            .into_par_iter()
+            .map(|n| {
+                let (site, geo) = (&sites[n / table.len()], &table[n % table.len()]);
+                let obs = topo::Observer::new(geo, site);
+                [
+                    (&geo.sun_wrt_moon, crate::SUN_RADIUS_KM),
+                    (&geo.earth_wrt_moon, crate::EARTH_RADIUS_KM),
+                ]
+                .map(|(target, radius_km)| {
+                    let pos = topo::target_from_observer(geo, target, &obs, abcorr);
+                    let body = topo::apparent_without_azimuth(pos, site, radius_km);
+                    let r = body.radius_deg.to_radians();
+                    match self.light_dir(&body.pos_in_moon_me_km) {
+                        Some(dir) => (
+                            gpu_twins::disc_light_to_f32(&dir.unit, r),
+                            (dir.elevation_rad(), r),
+                        ),
+                        // A degenerate vector (never for real ephemerides): reported as
+                        // hidden, like the CPU engine's `fraction`.
+                        None => ([0.0, 0.0, 1.0, r as f32], (f64::NAN, r)),
+                    }
+                })
+            })
+            .collect();
+        per_epoch.into_iter().flatten().unzip()
     }
 
     /// The terrain horizon of site `i` seen by the DP search (see the module docs), at
@@ -257,6 +317,20 @@ impl SmapDpSites {
         site: &Site,
         config: &SeriesConfig,
     ) -> anyhow::Result<Horizon> {
+        self.horizon_with(i, spec, site, config, |dirs| {
+            Ok(dirs
+                .iter()
+                .map(|dir| {
+                    let j = self.cost(i, dir, f64::INFINITY);
+                    (j.is_finite() && dir.hor > 0.0).then_some(dir.tan_el - j)
+                })
+                .collect())
+        })
+    }
+
+    /// The model-space directions of the horizon profile of `site` (one per `az_step_deg` of
+    /// the site's local azimuth, horizontal in the site's ENU frame).
+    fn profile_dirs(&self, site: &Site, config: &SeriesConfig) -> anyhow::Result<Vec<LightDir>> {
         let step = config.az_step_deg;
         let n_f = 360.0 / step;
         if !(step.is_finite() && step >= 0.001 && (n_f - n_f.round()).abs() < 1e-6 * n_f) {
@@ -264,24 +338,44 @@ impl SmapDpSites {
         }
         let n = n_f.round() as usize;
         let model_from_enu = self.model_from_moon_me * site.enu_from_moon_me.transpose();
-        let enu_from_model = model_from_enu.transpose();
+        Ok((0..n)
+            .map(|k| {
+                let az = k as f64 * step;
+                let (s, c) = az.to_radians().sin_cos();
+                let d = model_from_enu * Vector3::new(s, c, 0.0);
+                LightDir::new(d.normalize())
+            })
+            .collect())
+    }
+
+    /// [`Self::horizon`] with `tan_horizon` giving, per profile direction, the tangent of the
+    /// terrain horizon's elevation in model space (`None`: no terrain along it).
+    fn horizon_with(
+        &self,
+        i: usize,
+        spec: &SeriesSite,
+        site: &Site,
+        config: &SeriesConfig,
+        tan_horizon: impl FnOnce(&[LightDir]) -> anyhow::Result<Vec<Option<f64>>>,
+    ) -> anyhow::Result<Horizon> {
+        let step = config.az_step_deg;
+        let dirs = self.profile_dirs(site, config)?;
+        let n = dirs.len();
+        let tans = tan_horizon(&dirs)?;
+        let enu_from_model = site.enu_from_moon_me * self.model_from_moon_me.transpose();
         let mut az_deg = Vec::with_capacity(n);
         let mut elevation_deg = Vec::with_capacity(n);
-        for k in 0..n {
-            let az = k as f64 * step;
-            let (s, c) = az.to_radians().sin_cos();
-            let d = model_from_enu * Vector3::new(s, c, 0.0);
-            let dir = LightDir::new(d.normalize());
-            let j = self.cost(i, &dir, f64::INFINITY);
-            let el = if j.is_finite() && dir.hor > 0.0 {
-                let e_t = (dir.tan_el - j).atan();
-                let (ax, ay) = (dir.unit.x / dir.hor, dir.unit.y / dir.hor);
-                let v = Vector3::new(e_t.cos() * ax, e_t.cos() * ay, e_t.sin());
-                (enu_from_model * v).z.clamp(-1.0, 1.0).asin().to_degrees()
-            } else {
-                -90.0
+        for (k, (dir, tan_h)) in dirs.iter().zip(tans).enumerate() {
+            let el = match tan_h {
+                Some(tan_h) if dir.hor > 0.0 => {
+                    let e_t = tan_h.atan();
+                    let (ax, ay) = (dir.unit.x / dir.hor, dir.unit.y / dir.hor);
+                    let v = Vector3::new(e_t.cos() * ax, e_t.cos() * ay, e_t.sin());
+                    (enu_from_model * v).z.clamp(-1.0, 1.0).asin().to_degrees()
+                }
+                _ => -90.0,
             };
-            az_deg.push(az);
+            az_deg.push(k as f64 * step);
             elevation_deg.push(el);
         }
         Ok(Horizon {
@@ -297,5 +391,192 @@ impl SmapDpSites {
             elevation_deg,
             distance_m: vec![f64::NAN; n],
         })
+    }
+}
+
+/// Visible (flux) fraction, weighted by `limb`, of a disc of centre elevation `e_c_rad` and
+/// angular radius `radius_rad` cut by a straight horizontal horizon at `e_h_rad` (the prism
+/// assumption, module docs); radius 0: 1 above the horizon, else 0. A `NaN` centre is hidden.
+pub fn fraction_above_horizon(
+    e_h_rad: f64,
+    e_c_rad: f64,
+    radius_rad: f64,
+    limb: &LimbDarkening,
+) -> f64 {
+    if e_c_rad.is_nan() {
+        return 0.0;
+    }
+    if radius_rad <= 0.0 {
+        return if e_c_rad > e_h_rad { 1.0 } else { 0.0 };
+    }
+    // Positive: the edge is above the centre (paper 001 eq. 6 apothem).
+    chord_visible_fraction((e_h_rad - e_c_rad) / radius_rad, limb)
+}
+
+/// [`fraction_above_horizon`] for a horizon tangent from the GPU kernel `dp_sites` (or its twin
+/// [`gpu_twins::dp_sites`]): [`gpu_twins::NO_HORIZON_TAN`] is "no terrain".
+pub fn fraction_from_horizon_tan(
+    tan_h: f32,
+    e_c_rad: f64,
+    radius_rad: f64,
+    limb: &LimbDarkening,
+) -> f64 {
+    let e_h = if tan_h > 0.5 * gpu_twins::NO_HORIZON_TAN {
+        f64::from(tan_h).atan()
+    } else {
+        f64::NEG_INFINITY
+    };
+    fraction_above_horizon(e_h, e_c_rad, radius_rad, limb)
+}
+
+/// Discs (Sun + Earth per epoch, per site) per GPU call of [`SmapDpGpu::fractions`]: 2²¹ discs
+/// are a 32 MiB table and 8 MiB of output, so a long series runs in bounded memory on any GPU
+/// (and under the 128 MiB default storage binding); 192 epochs × 100 sites are one call.
+pub const GPU_DISCS_PER_CALL: usize = 1 << 21;
+
+/// The GPU path of the smap-dp engine (`series --engine smap-dp --backend gpu|auto`): the model
+/// grid and its maximum mipmap uploaded once, then the per-site DP search of
+/// `shaders/dp_sites.wgsl` for the horizon profiles and for the Sun and Earth of every epoch
+/// (one upload and one read-back per batch of [`GPU_DISCS_PER_CALL`] discs). The disc weighting
+/// stays on the CPU in f64 ([`fraction_from_horizon_tan`]), so the CSV and statistics are
+/// written by the same code as the CPU engine.
+pub struct SmapDpGpu<'a> {
+    ctx: &'a GpuContext,
+    #[cfg(feature = "gpu")]
+    grid: crate::gpu::dp::GpuDpGrid,
+    #[cfg(feature = "gpu")]
+    observers: Vec<[f32; 4]>,
+    discs_per_call: usize,
+}
+
+impl<'a> SmapDpGpu<'a> {
+    /// Uploads the model grid of `dp` and its maximum mipmap (f32, heights relative to the
+    /// grid's mid height, [`MarchGrid`]).
+    pub fn new(ctx: &'a GpuContext, dp: &SmapDpSites) -> anyhow::Result<Self> {
+        let march = MarchGrid::from_height_field(&dp.grid.hf, 0.0)?;
+        #[cfg(feature = "gpu")]
+        {
+            let observers = dp.site_observers_f32(&march);
+            let mip = gpu_twins::DpMip::build(&march);
+            let grid = crate::gpu::dp::GpuDpGrid::upload(ctx, &march, &mip)?;
+            Ok(SmapDpGpu {
+                ctx,
+                grid,
+                observers,
+                discs_per_call: GPU_DISCS_PER_CALL,
+            })
+        }
+        #[cfg(not(feature = "gpu"))]
+        {
+            let _ = march;
+            match *ctx {}
+        }
+    }
+
+    /// Sets the batch size of [`Self::fractions`] (discs per GPU call, default
+    /// [`GPU_DISCS_PER_CALL`]; at least one epoch of every site per call whatever the value).
+    pub fn with_discs_per_call(mut self, discs: usize) -> Self {
+        self.discs_per_call = discs;
+        self
+    }
+
+    /// One kernel call: `lights` holds the same number of discs per site, site-major.
+    fn run(&self, lights: &[[f32; 4]]) -> anyhow::Result<Vec<f32>> {
+        #[cfg(feature = "gpu")]
+        {
+            Ok(crate::gpu::dp::dp_sites_gpu(
+                self.ctx,
+                &self.grid,
+                &self.observers,
+                lights,
+            )?)
+        }
+        #[cfg(not(feature = "gpu"))]
+        {
+            let _ = lights;
+            match *self.ctx {}
+        }
+    }
+
+    /// Every site's horizon profile (as [`SmapDpSites::horizon`], one GPU call for all sites,
+    /// uncapped searches); `sites` are the ephemeris sites of `specs`.
+    pub fn horizons(
+        &self,
+        dp: &SmapDpSites,
+        specs: &[SeriesSite],
+        sites: &[Site],
+        config: &SeriesConfig,
+    ) -> anyhow::Result<Vec<Horizon>> {
+        let mut lights = Vec::new();
+        let mut n = 0;
+        for site in sites {
+            let dirs = dp.profile_dirs(site, config)?;
+            n = dirs.len();
+            // Negative radius: no cap (the exact horizon).
+            lights.extend(
+                dirs.iter()
+                    .map(|d| gpu_twins::disc_light_to_f32(&d.unit, -1.0)),
+            );
+        }
+        let tans = self.run(&lights)?;
+        specs
+            .iter()
+            .zip(sites)
+            .enumerate()
+            .map(|(i, (spec, site))| {
+                dp.horizon_with(i, spec, site, config, |_| {
+                    Ok(tans[i * n..(i + 1) * n]
+                        .iter()
+                        .map(|&t| (t > 0.5 * gpu_twins::NO_HORIZON_TAN).then_some(f64::from(t)))
+                        .collect())
+                })
+                .with_context(|| format!("horizon of site '{}'", spec.name))
+            })
+            .collect()
+    }
+
+    /// Every site's Sun and Earth visible fractions over `table` (`sites` as in
+    /// [`SmapDpSites::disc_table`]), in batches of at most [`GPU_DISCS_PER_CALL`] discs (see
+    /// [`Self::with_discs_per_call`]).
+    pub fn fractions(
+        &self,
+        dp: &SmapDpSites,
+        table: &[MoonGeometry],
+        sites: &[Site],
+        config: &SeriesConfig,
+    ) -> anyhow::Result<Vec<(Vec<f64>, Vec<f64>)>> {
+        let limb = config.limb_darkening.law();
+        let mut out: Vec<(Vec<f64>, Vec<f64>)> = sites
+            .iter()
+            .map(|_| {
+                (
+                    Vec::with_capacity(table.len()),
+                    Vec::with_capacity(table.len()),
+                )
+            })
+            .collect();
+        let batch = (self.discs_per_call / (2 * sites.len().max(1))).max(1);
+        for chunk in table.chunks(batch) {
+            let (lights, discs) = dp.disc_table(chunk, sites, config.abcorr);
+            let tans = self.run(&lights)?;
+            out.par_iter_mut()
+                .enumerate()
+                .for_each(|(i, (sun, earth))| {
+                    let base = i * 2 * chunk.len();
+                    for e in 0..chunk.len() {
+                        let k = base + 2 * e;
+                        let (e_c, r) = discs[k];
+                        sun.push(fraction_from_horizon_tan(tans[k], e_c, r, &limb));
+                        let (e_c, r) = discs[k + 1];
+                        earth.push(fraction_from_horizon_tan(
+                            tans[k + 1],
+                            e_c,
+                            r,
+                            &LimbDarkening::UNIFORM,
+                        ));
+                    }
+                });
+        }
+        Ok(out)
     }
 }

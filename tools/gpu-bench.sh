@@ -9,7 +9,9 @@
 #                                  `penumbra gpu-info`, runs the GPU-vs-CPU parity tests with
 #                                  PENUMBRA_REQUIRE_GPU=1, then the criterion groups
 #                                  shadow_march and sweep_accumulate (GPU and CPU twin side by
-#                                  side), with WGPU_BACKEND=vulkan (the GL backend fails on NVIDIA).
+#                                  side), the per-site horizons, series_engines (smap-dp on the
+#                                  CPU and the GPU) and the renderer, with WGPU_BACKEND=vulkan
+#                                  (the GL backend fails on NVIDIA).
 #
 # By hand, --prepare is: `cargo bench --bench gpu --no-run` (it prints the binary path,
 # target/release/deps/gpu-<hash>), `cargo build --release`, `cargo test --test it --no-run`
@@ -27,6 +29,8 @@ if [[ "${1:-}" == "--prepare" ]]; then
         sed -n 's/.*"executable":"\([^"]*\/it-[0-9a-f]*\)".*/\1/p' | tail -1)
     hbench=$(cargo bench --bench gpu_horizon --no-run --message-format=json 2>/dev/null |
         sed -n 's/.*"executable":"\([^"]*\/gpu_horizon-[0-9a-f]*\)".*/\1/p' | tail -1)
+    sbench=$(cargo bench --bench series --no-run --message-format=json 2>/dev/null |
+        sed -n 's/.*"executable":"\([^"]*\/series-[0-9a-f]*\)".*/\1/p' | tail -1)
     cargo build --release --bin penumbra
     [[ -x "$bench" && -x "$tests" && -x "$render" ]] || { echo "gpu-bench: build failed (bench '$bench', render '$render', tests '$tests')" >&2; exit 2; }
     cp "$bench" "$out/gpu-bench"
@@ -37,6 +41,11 @@ if [[ "${1:-}" == "--prepare" ]]; then
     cp "$tests" "$out/it-tests"
     cp target/release/penumbra "$out/penumbra"
     if [[ -x "$hbench" ]]; then cp "$hbench" "$out/gpu-horizon-bench"; strip "$out/gpu-horizon-bench"; fi
+    # The series engines (smap-dp CPU vs GPU) need the SPICE kernels (4 MB).
+    if [[ -x "$sbench" ]]; then
+        cp "$sbench" "$out/series-bench"; strip "$out/series-bench"
+        rm -rf "$out/kernels"; cp -r kernels "$out/kernels"
+    fi
     # Debug info makes them ~300 MB; stripped they are ~25 MB (the device tool carries <= 64 MiB).
     strip "$out/gpu-bench" "$out/render-bench" "$out/it-tests" "$out/penumbra"
     ls -l "$out"
@@ -84,6 +93,13 @@ if [[ -x "$dir/gpu-horizon-bench" ]]; then
         PENUMBRA_BENCH_AZ_STEP_DEG=$step "$dir/gpu-horizon-bench" --bench 2>&1 |
             grep -Ev "^\s*$|Warming up|Collecting|Analyzing|Benchmarking .*: (Warming|Collecting|Analyzing)"
     done
+fi
+if [[ -x "$dir/series-bench" ]]; then
+    # series --engine smap-dp: CPU (rayon) vs GPU (dp_sites.wgsl), 1/10/100 sites x 192 epochs,
+    # next to the horizon engine.
+    echo "== criterion: series_engines (horizon, smap_dp, smap_dp_gpu)"
+    PENUMBRA_BENCH_KERNELS=${PENUMBRA_BENCH_KERNELS:-$dir/kernels} "$dir/series-bench" --bench series_engines 2>&1 |
+        grep -Ev "^\s*$|Warming up|Collecting|Analyzing|Benchmarking .*: (Warming|Collecting|Analyzing)"
 fi
 PENUMBRA_REQUIRE_GPU=1 "$dir/it-tests" render_gpu:: --nocapture --test-threads=1 2>&1 |
     grep -E "adapter|silhouette|flat plane|Sun disc|test result|FAILED|panicked" || true

@@ -139,6 +139,14 @@ fn dp_texel_exit(i: i32, size: f32, p0: f32, d: f32) -> f32 {
 // J* (tan units) of the ray from `obs` towards `light` (unit), pruned at `cap`: costs at or above
 // `cap` may be reported as any value >= cap; DP_FAR when nothing is along the ray.
 fn dp_cost(obs: DpObserver, light: vec3<f32>, cap: f32) -> f32 {
+    return dp_cost_beyond(obs, light, cap, 0.0);
+}
+
+// dp_cost ignoring the crossings at ray distances <= min_s (cells) and, when min_s > 0, sampling
+// the bilinear surface at exactly min_s first (as src/shadow/dp.rs dp_cost_beyond: the per-site
+// series engine skips the observer's own half cell). With min_s = 0 this is dp_cost: every
+// evaluated crossing lies at s > 0.
+fn dp_cost_beyond(obs: DpObserver, light: vec3<f32>, cap: f32, min_s: f32) -> f32 {
     let hor = sqrt(light.x * light.x + light.y * light.y);
     if hor < DP_MIN_HORIZ {
         return DP_FAR;
@@ -157,6 +165,10 @@ fn dp_cost(obs: DpObserver, light: vec3<f32>, cap: f32) -> f32 {
     let top = n_levels - 1;
     let max_iter = 8 * i32(dp_grid.rows + dp_grid.cols) + 32 * n_levels;
     var best = DP_FAR;
+    if min_s > 0.0 && min_s < s_exit {
+        let z = dp_surface(0u, obs.v0 + min_s * dv, obs.u0 + min_s * du);
+        best = (obs.z0 - z) / (min_s * px) + tan_el;
+    }
     var m = top;
     var s = 0.0;
     for (var it = 0; it < max_iter; it++) {
@@ -193,11 +205,11 @@ fn dp_cost(obs: DpObserver, light: vec3<f32>, cap: f32) -> f32 {
             s_axis = out_axis;
             m = min(m + 1, top);
         } else if m == 0 {
-            if s_axis != 0u {
+            if s_axis != 0u && s > min_s {
                 let z = dp_surface(s_axis, obs.v0 + s * dv, obs.u0 + s * du);
                 best = min(best, (obs.z0 - z) / (s * px) + tan_el);
             }
-            if out_axis != 0u {
+            if out_axis != 0u && s_out > min_s {
                 let z = dp_surface(out_axis, obs.v0 + s_out * dv, obs.u0 + s_out * du);
                 best = min(best, (obs.z0 - z) / (s_out * px) + tan_el);
             }

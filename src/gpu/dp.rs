@@ -1,8 +1,9 @@
 //! GPU DP soft shadows over maximum mipmaps: `shaders/dp_visible.wgsl` (one map: the visible
-//! fraction of one disc per cell, radius 0 = hard mask) and `shaders/dp_sweep.wgsl` (the soft
-//! epoch sweep: Sun and Earth fractions folded into per-cell statistics, GPU-resident). Both
-//! share `shaders/shared/dp.wgsl`; CPU twins: `dp_visible`, `dp_sweep` in
-//! [`crate::shadow::gpu_twins`].
+//! fraction of one disc per cell, radius 0 = hard mask), `shaders/dp_sweep.wgsl` (the soft
+//! epoch sweep: Sun and Earth fractions folded into per-cell statistics, GPU-resident) and
+//! `shaders/dp_sites.wgsl` (per-site horizons along a table of discs: the GPU path of
+//! `series --engine smap-dp`, [`dp_sites_gpu`]). All share `shaders/shared/dp.wgsl`; CPU twins:
+//! `dp_visible`, `dp_sweep`, `dp_sites` in [`crate::shadow::gpu_twins`].
 //!
 //! The heights and every mipmap level are uploaded once ([`GpuDpGrid::upload`]: 4 B/cell + about
 //! 4/3 × 4 B/cell), the light table once per map or sweep. Outputs are computed in row bands
@@ -35,6 +36,12 @@ const DP_SWEEP_WGSL: &str = include_str!(concat!(
     env!("CARGO_MANIFEST_DIR"),
     "/shaders/dp_sweep.wgsl"
 ));
+const DP_SITES_WGSL: &str = include_str!(concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/shaders/dp_sites.wgsl"
+));
+/// Workgroup size of `shaders/dp_sites.wgsl` (along the entries). Keep in sync.
+const SITES_WORKGROUP_SIZE_X: u32 = 64;
 
 /// Mirrors of the WGSL structs.
 pub(crate) mod gpu_data {
@@ -59,6 +66,9 @@ pub(crate) struct DpPipelines {
     layout: wgpu::BindGroupLayout,
     visible: wgpu::ComputePipeline,
     sweep: wgpu::ComputePipeline,
+    /// Bindings 0..5 as `layout`, 6 the output, 7 the site observers.
+    sites_layout: wgpu::BindGroupLayout,
+    sites: wgpu::ComputePipeline,
 }
 
 fn entry(binding: u32, ty: wgpu::BufferBindingType, dynamic: bool) -> wgpu::BindGroupLayoutEntry {
@@ -93,10 +103,27 @@ impl DpPipelines {
         let sweep_src = format!("{SHARED_DP_WGSL}{DP_SWEEP_WGSL}");
         let visible = compute_pipeline(device, &layout, "dp_visible", &visible_src, "dp_visible");
         let sweep = compute_pipeline(device, &layout, "dp_sweep", &sweep_src, "dp_sweep");
+        let sites_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("penumbra dp sites layout"),
+            entries: &[
+                entry(0, Uniform, false),
+                entry(1, Storage { read_only: true }, false),
+                entry(2, Storage { read_only: true }, false),
+                entry(3, Storage { read_only: true }, false),
+                entry(4, Storage { read_only: true }, false),
+                entry(5, Uniform, true),
+                entry(6, Storage { read_only: false }, false),
+                entry(7, Storage { read_only: true }, false),
+            ],
+        });
+        let sites_src = format!("{SHARED_DP_WGSL}{DP_SITES_WGSL}");
+        let sites = compute_pipeline(device, &sites_layout, "dp_sites", &sites_src, "dp_sites");
         DpPipelines {
             layout,
             visible,
             sweep,
+            sites_layout,
+            sites,
         }
     }
 }
@@ -435,4 +462,154 @@ pub fn dp_sweep_gpu(
     }
     scope.pop("running the DP epoch sweep")?;
     Ok(all)
+}
+
+/// GPU `dp_sites`: for every site `i` (`observers[i]` from
+/// [`crate::shadow::gpu_twins::site_observer_to_f32`]) and each of its `lights.len() /
+/// observers.len()` discs (`lights[i * per_site + k]`, from
+/// [`crate::shadow::gpu_twins::disc_light_to_f32`]; a negative radius asks for the uncapped
+/// horizon), the tangent of the terrain horizon's elevation along the disc's azimuth, indexed like
+/// `lights` ([`crate::shadow::gpu_twins::NO_HORIZON_TAN`] when no terrain lies along the ray).
+/// One upload of the table, one dispatch per (site chunk, entry chunk) of at most the dispatch
+/// limit, one read-back. Callers bound the table (the series engine batches its epochs). Twin:
+/// [`crate::shadow::gpu_twins::dp_sites`].
+pub fn dp_sites_gpu(
+    ctx: &GpuContext,
+    grid: &GpuDpGrid,
+    observers: &[[f32; 4]],
+    lights: &[[f32; 4]],
+) -> Result<Vec<f32>, GpuError> {
+    let invalid = |message: String| GpuError::InvalidInput {
+        kernel: "dp_sites",
+        message,
+    };
+    if observers.is_empty() || lights.is_empty() || !lights.len().is_multiple_of(observers.len()) {
+        return Err(invalid(format!(
+            "{} discs for {} sites: the table needs the same number of discs (at least one) per site",
+            lights.len(),
+            observers.len()
+        )));
+    }
+    let (rows, cols) = (f64::from(grid.rows - 1), f64::from(grid.cols - 1));
+    for o in observers {
+        let (col, row, z, min_s) = (f64::from(o[0]), f64::from(o[1]), o[2], o[3]);
+        if !((0.0..=cols).contains(&col)
+            && (0.0..=rows).contains(&row)
+            && z.is_finite()
+            && min_s.is_finite()
+            && min_s >= 0.0)
+        {
+            return Err(invalid(format!(
+                "site observer {o:?} is not inside the lattice (col, row) with a finite height and \
+                 min distance"
+            )));
+        }
+    }
+    for &l in lights {
+        let norm2 = l[0] * l[0] + l[1] * l[1] + l[2] * l[2];
+        if !(l.iter().all(|c| c.is_finite()) && (norm2 - 1.0).abs() < 1e-3 && l[3] < 1.5) {
+            return Err(invalid(format!(
+                "light {l:?} is not a unit direction with an angular radius < 1.5 rad (or negative)"
+            )));
+        }
+    }
+    let per_site = u32::try_from(lights.len() / observers.len())
+        .map_err(|_| invalid(format!("{} discs per site exceed 2^32", lights.len())))?;
+    let n_sites = u32::try_from(observers.len())
+        .map_err(|_| invalid(format!("{} sites exceed 2^32", observers.len())))?;
+    let limits = ctx.limits();
+    let max_binding = limits
+        .max_storage_buffer_binding_size
+        .min(limits.max_buffer_size);
+    let table_bytes = std::mem::size_of_val(lights) as u64;
+    if table_bytes > max_binding {
+        return Err(invalid(format!(
+            "the disc table ({table_bytes} B) exceeds the adapter's storage binding limit \
+             ({max_binding} B); pass fewer epochs per call"
+        )));
+    }
+    let max_groups = limits.max_compute_workgroups_per_dimension;
+    let entries_per_dispatch = max_groups.saturating_mul(SITES_WORKGROUP_SIZE_X);
+    let mut steps = Vec::new();
+    let mut site0 = 0;
+    while site0 < n_sites {
+        let sites = max_groups.min(n_sites - site0);
+        let mut k0 = 0;
+        while k0 < per_site {
+            let count = entries_per_dispatch.min(per_site - k0);
+            steps.push((
+                DpStep {
+                    light0: k0,
+                    count: per_site,
+                    band_row0: site0,
+                    band_rows: sites,
+                },
+                count.div_ceil(SITES_WORKGROUP_SIZE_X),
+            ));
+            k0 += count;
+        }
+        site0 += sites;
+    }
+    let out_bytes = lights.len() as u64 * 4;
+    let scope = ErrorScope::push(&ctx.device);
+    let table = storage_init(
+        ctx,
+        "penumbra dp sites lights",
+        bytemuck::cast_slice(lights),
+    );
+    let obs = storage_init(
+        ctx,
+        "penumbra dp sites observers",
+        bytemuck::cast_slice(observers),
+    );
+    let out = band_buffer(
+        ctx,
+        "penumbra dp sites out",
+        lights.len() as u64,
+        wgpu::BufferUsages::empty(),
+    );
+    let slots = slot_buffer(ctx, steps.len() as u32);
+    let step_values: Vec<DpStep> = steps.iter().map(|s| s.0).collect();
+    write_dp_steps(ctx, &slots, &step_values);
+    let bind_group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("penumbra dp sites bind group"),
+        layout: &ctx.dp.sites_layout,
+        entries: &[
+            whole(0, &grid.params),
+            whole(1, &grid.heights),
+            whole(2, &grid.mip),
+            whole(3, &grid.levels),
+            whole(4, &table),
+            wgpu::BindGroupEntry {
+                binding: 5,
+                resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                    buffer: &slots,
+                    offset: 0,
+                    size: wgpu::BufferSize::new(size_of::<DpStep>() as u64),
+                }),
+            },
+            whole(6, &out),
+            whole(7, &obs),
+        ],
+    });
+    let mut encoder = ctx
+        .device
+        .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+            label: Some("dp_sites"),
+        });
+    {
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("dp_sites"),
+            timestamp_writes: None,
+        });
+        pass.set_pipeline(&ctx.dp.sites);
+        for (j, (step, groups_x)) in steps.iter().enumerate() {
+            pass.set_bind_group(0, &bind_group, &[j as u32 * STEP_SLOT_BYTES as u32]);
+            pass.dispatch_workgroups(*groups_x, step.band_rows, 1);
+        }
+    }
+    ctx.queue.submit([encoder.finish()]);
+    let bytes = ctx.read_back(&out, out_bytes, "per-site DP horizons")?;
+    scope.pop("running dp_sites")?;
+    Ok(bytemuck::pod_collect_to_vec(&bytes))
 }

@@ -558,6 +558,20 @@ fn dp_texel_exit(i: i32, size: f32, p0: f32, d: f32) -> f32 {
 /// the maximum mipmap; costs at or above `cap` may be reported as any value `>= cap`;
 /// `1e30` when nothing is along the ray.
 pub fn dp_cost(grid: &MarchGrid, mip: &DpMip, obs: &DpObserver, light: [f32; 3], cap: f32) -> f32 {
+    dp_cost_beyond(grid, mip, obs, light, cap, 0.0)
+}
+
+/// Twin of `dp_cost_beyond` in `shaders/shared/dp.wgsl`: [`dp_cost`] ignoring the crossings at
+/// ray distances `<= min_s` (cells) and, when `min_s > 0`, sampling the bilinear surface at
+/// exactly `min_s` first (as [`crate::shadow::dp`]'s `dp_cost_beyond` for the per-site series).
+pub fn dp_cost_beyond(
+    grid: &MarchGrid,
+    mip: &DpMip,
+    obs: &DpObserver,
+    light: [f32; 3],
+    cap: f32,
+    min_s: f32,
+) -> f32 {
     let hor = (light[0] * light[0] + light[1] * light[1]).sqrt();
     if hor < MIN_HORIZ {
         return FAR_CELLS;
@@ -575,6 +589,10 @@ pub fn dp_cost(grid: &MarchGrid, mip: &DpMip, obs: &DpObserver, light: [f32; 3],
     let top = n_levels - 1;
     let max_iter = 8 * (grid.rows + grid.cols) as i32 + 32 * n_levels;
     let mut best = FAR_CELLS;
+    if min_s > 0.0 && min_s < s_exit {
+        let z = dp_surface(grid, 0, obs.v0 + min_s * dv, obs.u0 + min_s * du);
+        best = (obs.z0 - z) / (min_s * px) + tan_el;
+    }
     let mut m = top;
     let mut s = 0.0_f32;
     for _ in 0..max_iter {
@@ -614,11 +632,11 @@ pub fn dp_cost(grid: &MarchGrid, mip: &DpMip, obs: &DpObserver, light: [f32; 3],
             s_axis = out_axis;
             m = (m + 1).min(top);
         } else if m == 0 {
-            if s_axis != 0 {
+            if s_axis != 0 && s > min_s {
                 let z = dp_surface(grid, s_axis, obs.v0 + s * dv, obs.u0 + s * du);
                 best = best.min((obs.z0 - z) / (s * px) + tan_el);
             }
-            if out_axis != 0 {
+            if out_axis != 0 && s_out > min_s {
                 let z = dp_surface(grid, out_axis, obs.v0 + s_out * dv, obs.u0 + s_out * du);
                 best = best.min((obs.z0 - z) / (s_out * px) + tan_el);
             }
@@ -776,4 +794,92 @@ pub fn dp_sweep(
             }
         });
     stats
+}
+
+// ---------------------------------------------------------------------------------------------
+// Per-site DP horizons (`shaders/dp_sites.wgsl`, the GPU path of `series --engine smap-dp`).
+// ---------------------------------------------------------------------------------------------
+
+/// `dp_site_horizon_tan` / [`dp_sites`] output when no terrain sample lies along the ray.
+pub const NO_HORIZON_TAN: f32 = -FAR_CELLS;
+
+/// A site observer for [`dp_sites`] as the GPU reads it: `[col, row, z_m − z_ref_m, min_s]`
+/// (fractional cell units; `min_s` cells of own ground skipped, as
+/// [`crate::series_dp::MIN_DISTANCE_CELLS`]).
+pub fn site_observer_to_f32(
+    grid: &MarchGrid,
+    row: f64,
+    col: f64,
+    z_m: f64,
+    min_s_cells: f64,
+) -> [f32; 4] {
+    [
+        col as f32,
+        row as f32,
+        (z_m - grid.z_ref_m) as f32,
+        min_s_cells as f32,
+    ]
+}
+
+/// Twin of `dp_site_horizon_tan` in `shaders/dp_sites.wgsl`: the tangent of the terrain
+/// horizon's elevation along the azimuth of `light` (`xyz` unit direction, `w` angular radius;
+/// `w < 0`: no cap) seen from `obs`, `tan(e_c) − J*` with `J*` pruned at the disc's
+/// full-visibility cap, or [`NO_HORIZON_TAN`].
+pub fn dp_site_horizon_tan(
+    grid: &MarchGrid,
+    mip: &DpMip,
+    obs: &DpObserver,
+    light: [f32; 4],
+    min_s: f32,
+) -> f32 {
+    let l = [light[0], light[1], light[2]];
+    let r = light[3];
+    let hor = (l[0] * l[0] + l[1] * l[1]).sqrt();
+    if hor < MIN_HORIZ {
+        return -FAR_CELLS;
+    }
+    let tan_el = l[2] / hor;
+    let mut cap = FAR_CELLS;
+    if r >= 0.0 {
+        let e_low = l[2].atan2(hor) - r;
+        if e_low > -0.5 * DP_PI + 1.0e-6 {
+            cap = tan_el - e_low.tan();
+        }
+    }
+    let j = dp_cost_beyond(grid, mip, obs, l, cap, min_s);
+    if j >= 0.5 * FAR_CELLS {
+        return -FAR_CELLS;
+    }
+    tan_el - j
+}
+
+/// Twin of `shaders/dp_sites.wgsl`: for every site `i` (from [`site_observer_to_f32`]) and entry
+/// `k` of its `lights.len() / observers.len()` discs (`lights[i * per_site + k]`), the horizon
+/// tangent of [`dp_site_horizon_tan`], indexed like `lights`. Rayon over sites.
+pub fn dp_sites(
+    grid: &MarchGrid,
+    mip: &DpMip,
+    observers: &[[f32; 4]],
+    lights: &[[f32; 4]],
+) -> Vec<f32> {
+    if observers.is_empty() {
+        return Vec::new();
+    }
+    let per_site = lights.len() / observers.len();
+    let mut out = vec![NO_HORIZON_TAN; observers.len() * per_site];
+    out.par_chunks_mut(per_site.max(1))
+        .zip(observers.par_iter())
+        .enumerate()
+        .for_each(|(i, (out_site, o))| {
+            let obs = DpObserver {
+                u0: o[0],
+                v0: o[1],
+                z0: o[2],
+                up: [0.0, 0.0, 1.0],
+            };
+            for (k, t) in out_site.iter_mut().enumerate() {
+                *t = dp_site_horizon_tan(grid, mip, &obs, lights[i * per_site + k], o[3]);
+            }
+        });
+    out
 }
