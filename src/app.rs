@@ -425,6 +425,11 @@ fn run_map(args: &crate::cli::MapArgs) -> anyhow::Result<()> {
     if !range && explicit_dir.is_none() && args.sun_az_deg.is_none() && args.epochs.utc.is_none() {
         anyhow::bail!("give the light: --utc T, --sun-dir-body X,Y,Z or --sun-az-deg/--sun-el-deg");
     }
+    if range && args.gpu_tile_cells.is_some() {
+        anyhow::bail!(
+            "--gpu-tile-cells applies to one-light maps; the GPU epoch sweep is not tiled (docs/gpu.md)"
+        );
+    }
     let epochs = if range || args.epochs.utc.is_some() {
         epochs_from_args(&args.epochs)?
     } else {
@@ -564,12 +569,18 @@ fn run_map(args: &crate::cli::MapArgs) -> anyhow::Result<()> {
     };
     #[cfg(not(feature = "gpu"))]
     let gpu_ctx: Option<&crate::gpu::GpuContext> = None;
+    #[cfg(feature = "gpu")]
+    let tiling = crate::gpu::tiles::DpTiling {
+        tile_cells: args.gpu_tile_cells,
+    };
     let engine = crate::map::MapEngine::new(engine_kind, &grid, args.observer_height_m)?;
     let h_m = args.observer_height_m;
     let fraction = |light: [f64; 3], radius: f64| -> anyhow::Result<Vec<f32>> {
         match gpu_ctx {
             #[cfg(feature = "gpu")]
-            Some(ctx) => crate::map::visible_fraction_gpu(ctx, &grid.hf, h_m, light, radius),
+            Some(ctx) => {
+                crate::map::visible_fraction_gpu(ctx, &grid.hf, h_m, light, radius, tiling)
+            }
             _ => engine.visible_fraction(&grid.hf, h_m, light, radius),
         }
     };
@@ -584,7 +595,7 @@ fn run_map(args: &crate::cli::MapArgs) -> anyhow::Result<()> {
     if let Some(path) = &args.out_mask {
         let m = match gpu_ctx {
             #[cfg(feature = "gpu")]
-            Some(ctx) => crate::map::hard_mask_gpu(ctx, &grid.hf, h_m, sun)?,
+            Some(ctx) => crate::map::hard_mask_gpu(ctx, &grid.hf, h_m, sun, tiling)?,
             _ => engine.hard_mask(&grid.hf, h_m, sun)?,
         };
         grid.write_u8(

@@ -35,6 +35,14 @@ const DP_SWEEP_WGSL: &str = include_str!(concat!(
     env!("CARGO_MANIFEST_DIR"),
     "/shaders/dp_sweep.wgsl"
 ));
+const DP_TILE_COST_WGSL: &str = include_str!(concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/shaders/dp_tile_cost.wgsl"
+));
+const DP_TILE_FRACTION_WGSL: &str = include_str!(concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/shaders/dp_tile_fraction.wgsl"
+));
 
 /// Mirrors of the WGSL structs.
 pub(crate) mod gpu_data {
@@ -42,14 +50,50 @@ pub(crate) mod gpu_data {
 
     /// Keep in sync with `DpStep` in shaders/shared/dp.wgsl.
     #[repr(C)]
-    #[derive(Debug, Clone, Copy, Pod, Zeroable)]
+    #[derive(Debug, Clone, Copy, Default, Pod, Zeroable)]
     pub(crate) struct DpStep {
         pub light0: u32,
         pub count: u32,
         pub band_row0: u32,
         pub band_rows: u32,
+        pub band_col0: u32,
+        pub band_cols: u32,
+        pub src_row0: u32,
+        pub src_col0: u32,
+        pub hgt_row0: u32,
+        pub hgt_col0: u32,
+        pub hgt_rows: u32,
+        pub hgt_cols: u32,
+        pub first_source: u32,
+        pub obs_row0: u32,
+        pub obs_col0: u32,
+        pub obs_cols: u32,
     }
-    const _: () = assert!(size_of::<DpStep>() == 16);
+    const _: () = assert!(size_of::<DpStep>() == 64);
+
+    impl DpStep {
+        /// A step over the whole grid as one source region (dp_visible, dp_sweep).
+        pub(crate) fn whole(
+            rows: u32,
+            cols: u32,
+            light0: u32,
+            count: u32,
+            band: (u32, u32),
+        ) -> Self {
+            DpStep {
+                light0,
+                count,
+                band_row0: band.0,
+                band_rows: band.1,
+                band_col0: 0,
+                band_cols: cols,
+                hgt_rows: rows,
+                hgt_cols: cols,
+                obs_cols: cols,
+                ..Default::default()
+            }
+        }
+    }
 }
 use super::shadow_march::gpu_data::GridParams;
 use gpu_data::DpStep;
@@ -59,6 +103,12 @@ pub(crate) struct DpPipelines {
     layout: wgpu::BindGroupLayout,
     visible: wgpu::ComputePipeline,
     sweep: wgpu::ComputePipeline,
+    /// Layout of the tiled kernels: the DP bindings 0..6 plus 7 (the output tile's heights).
+    pub(crate) tile_layout: wgpu::BindGroupLayout,
+    /// `shaders/dp_tile_cost.wgsl`.
+    pub(crate) tile_cost: wgpu::ComputePipeline,
+    /// `shaders/dp_tile_fraction.wgsl`.
+    pub(crate) tile_fraction: wgpu::ComputePipeline,
 }
 
 fn entry(binding: u32, ty: wgpu::BufferBindingType, dynamic: bool) -> wgpu::BindGroupLayoutEntry {
@@ -89,14 +139,46 @@ impl DpPipelines {
                 entry(6, Storage { read_only: false }, false),
             ],
         });
+        let tile_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("penumbra dp tile layout"),
+            entries: &[
+                entry(0, Uniform, false),
+                entry(1, Storage { read_only: true }, false),
+                entry(2, Storage { read_only: true }, false),
+                entry(3, Storage { read_only: true }, false),
+                entry(4, Storage { read_only: true }, false),
+                entry(5, Uniform, true),
+                entry(6, Storage { read_only: false }, false),
+                entry(7, Storage { read_only: true }, false),
+            ],
+        });
         let visible_src = format!("{SHARED_DP_WGSL}{DP_VISIBLE_WGSL}");
         let sweep_src = format!("{SHARED_DP_WGSL}{DP_SWEEP_WGSL}");
+        let tile_cost_src = format!("{SHARED_DP_WGSL}{DP_TILE_COST_WGSL}");
+        let tile_fraction_src = format!("{SHARED_DP_WGSL}{DP_TILE_FRACTION_WGSL}");
         let visible = compute_pipeline(device, &layout, "dp_visible", &visible_src, "dp_visible");
         let sweep = compute_pipeline(device, &layout, "dp_sweep", &sweep_src, "dp_sweep");
+        let tile_cost = compute_pipeline(
+            device,
+            &tile_layout,
+            "dp_tile_cost",
+            &tile_cost_src,
+            "dp_tile_cost",
+        );
+        let tile_fraction = compute_pipeline(
+            device,
+            &tile_layout,
+            "dp_tile_fraction",
+            &tile_fraction_src,
+            "dp_tile_fraction",
+        );
         DpPipelines {
             layout,
             visible,
             sweep,
+            tile_layout,
+            tile_cost,
+            tile_fraction,
         }
     }
 }
@@ -206,7 +288,7 @@ impl GpuDpGrid {
     }
 }
 
-fn whole(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
+pub(crate) fn whole(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
     wgpu::BindGroupEntry {
         binding,
         resource: buffer.as_entire_binding(),
@@ -214,7 +296,7 @@ fn whole(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
 }
 
 /// Writes `steps` into consecutive [`STEP_SLOT_BYTES`]-strided slots of `slots`.
-fn write_dp_steps(ctx: &GpuContext, slots: &wgpu::Buffer, steps: &[DpStep]) {
+pub(crate) fn write_dp_steps(ctx: &GpuContext, slots: &wgpu::Buffer, steps: &[DpStep]) {
     let mut bytes = Vec::with_capacity(steps.len() * STEP_SLOT_BYTES as usize);
     for step in steps {
         let mut slot = [0_u8; STEP_SLOT_BYTES as usize];
@@ -224,7 +306,7 @@ fn write_dp_steps(ctx: &GpuContext, slots: &wgpu::Buffer, steps: &[DpStep]) {
     ctx.queue.write_buffer(slots, 0, &bytes);
 }
 
-fn slot_buffer(ctx: &GpuContext, slots: u32) -> wgpu::Buffer {
+pub(crate) fn slot_buffer(ctx: &GpuContext, slots: u32) -> wgpu::Buffer {
     ctx.device.create_buffer(&wgpu::BufferDescriptor {
         label: Some("penumbra dp step slots"),
         size: u64::from(slots.max(1)) * STEP_SLOT_BYTES,
@@ -233,7 +315,7 @@ fn slot_buffer(ctx: &GpuContext, slots: u32) -> wgpu::Buffer {
     })
 }
 
-fn check_light(light: [f32; 4], kernel: &'static str) -> Result<(), GpuError> {
+pub(crate) fn check_light(light: [f32; 4], kernel: &'static str) -> Result<(), GpuError> {
     let norm2 = light[0] * light[0] + light[1] * light[1] + light[2] * light[2];
     if !(light.iter().all(|c| c.is_finite())
         && (norm2 - 1.0).abs() < 1e-3
@@ -276,12 +358,7 @@ pub fn dp_visible_gpu(
     let mut row0 = 0;
     while row0 < grid.rows {
         let rows = band_rows.min(grid.rows - row0);
-        let step = DpStep {
-            light0: 0,
-            count: 1,
-            band_row0: row0,
-            band_rows: rows,
-        };
+        let step = DpStep::whole(grid.rows, grid.cols, 0, 1, (row0, rows));
         write_dp_steps(ctx, &slots, &[step]);
         let mut encoder = ctx
             .device
@@ -396,12 +473,13 @@ pub fn dp_sweep_gpu(
             let mut steps = Vec::with_capacity(per_submit as usize);
             while first < epochs && steps.len() < per_submit as usize {
                 let count = options.epochs_per_dispatch.min(epochs - first);
-                steps.push(DpStep {
-                    light0: first,
+                steps.push(DpStep::whole(
+                    grid.rows,
+                    grid.cols,
+                    first,
                     count,
-                    band_row0: row0,
-                    band_rows: rows,
-                });
+                    (row0, rows),
+                ));
                 first += count;
             }
             write_dp_steps(ctx, &slots, &steps);

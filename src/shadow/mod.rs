@@ -37,6 +37,7 @@ pub mod accuracy;
 pub mod brute;
 pub mod dp;
 pub mod fourier;
+pub mod gpu_tiles;
 pub mod gpu_twins;
 pub mod smap;
 

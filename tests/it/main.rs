@@ -5,6 +5,7 @@ mod fourier;
 mod gpu;
 mod gpu_dp;
 mod gpu_horizon;
+mod gpu_tiles;
 mod horizon;
 mod illum;
 mod map;

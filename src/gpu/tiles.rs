@@ -1,0 +1,403 @@
+//! 2-D tiled DP shadow maps on the GPU (issue 7 item 4; docs/gpu.md, "Large grids"): for grids
+//! whose heights or maximum mipmap exceed one storage binding (or a memory budget), the one-light
+//! DP map is computed per output tile, walking the rays through one source tile at a time
+//! (`shaders/dp_tile_cost.wgsl`, min-accumulating the shadow cost in a per-tile cost buffer),
+//! then turned into fractions (`shaders/dp_tile_fraction.wgsl`). The tile plan, the choice of
+//! source tiles and the CPU twin live in [`crate::shadow::gpu_tiles`] (why the result is exact is
+//! explained there).
+//!
+//! GPU memory: the output tile's cost buffer and readback staging, `2 × 4 (T + 1)²` B, plus the
+//! resident source blocks (heights `4 (T + 3)²` B + mipmap ≈ `4 · 4/3 · T²` B each) of an LRU
+//! cache of at most [`DpTileOptions::cache_bytes`] (at least two blocks), whatever the grid size.
+
+use std::collections::HashMap;
+use std::rc::Rc;
+
+use super::GpuError;
+use super::context::{ErrorScope, GpuContext};
+use super::dp::gpu_data::DpStep;
+use super::dp::{check_light, slot_buffer, whole, write_dp_steps};
+use super::shadow_march::gpu_data::GridParams;
+use super::shadow_march::{STEP_SLOT_BYTES, band_buffer, storage_init};
+use crate::shadow::gpu_tiles::{TileBlock, TilePlan, TileRect, sources_for, tile_bounds};
+use crate::shadow::gpu_twins::{DpMip, MarchGrid};
+use wgpu::util::DeviceExt as _;
+
+/// Workgroup size of the tiled kernels. Keep in sync with shaders/dp_tile_*.wgsl.
+const WORKGROUP_SIZE_XY: u32 = 8;
+/// Tile side chosen automatically, cells: 2048² = 4.2 M invocations per dispatch (≈ 15 × the
+/// 270 k resident threads of an H100, so a tile still fills the GPU), 39 MB per source block
+/// (16.8 MB heights + 22.4 MB mipmap), far below every adapter's binding limit (lavapipe:
+/// 128 MiB).
+pub const DEFAULT_TILE_CELLS: u32 = 2048;
+/// Resident source blocks kept by default, bytes (25 blocks of 2048²).
+pub const DEFAULT_CACHE_BYTES: u64 = 1 << 30;
+/// Above this many bytes of heights + mipmap the untiled kernel is not used even where the
+/// binding limit would allow it (keeps the map's GPU memory bounded on big adapters too).
+pub const DEFAULT_RESIDENT_BUDGET_BYTES: u64 = 4 << 30;
+
+/// How a one-light DP map is split (the `--gpu-tile-cells` option of `penumbra map`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct DpTiling {
+    /// Tiles of this side, cells, whatever the grid size (for tests and measurements); `None`:
+    /// the untiled kernel when the heights and the mipmap each fit one storage binding and
+    /// together [`DEFAULT_RESIDENT_BUDGET_BYTES`], else tiles of [`DEFAULT_TILE_CELLS`] (halved
+    /// until a block fits one binding).
+    pub tile_cells: Option<u32>,
+}
+
+/// Bytes of the maximum mipmap texels of a `rows × cols` grid (without building it).
+fn mip_bytes(rows: u64, cols: u64) -> u64 {
+    let (mut r, mut c) = (rows.saturating_sub(1).max(1), cols.saturating_sub(1).max(1));
+    let mut texels = r * c;
+    while r > 1 || c > 1 {
+        (r, c) = (r.div_ceil(2), c.div_ceil(2));
+        texels += r * c;
+    }
+    4 * texels
+}
+
+/// The largest buffer a block of side `t` needs, bytes.
+fn block_binding_bytes(t: u32) -> u64 {
+    let side = u64::from(t) + 4;
+    (4 * side * side).max(mip_bytes(side, side))
+}
+
+impl DpTiling {
+    /// The tile side to use for `grid` on `ctx`, `None` for the untiled kernel. A forced side
+    /// whose block would exceed the storage binding limit or the dispatch limit is an error.
+    pub fn resolve(&self, ctx: &GpuContext, grid: &MarchGrid) -> Result<Option<u32>, GpuError> {
+        let limits = ctx.limits();
+        let max_binding = limits
+            .max_storage_buffer_binding_size
+            .min(limits.max_buffer_size);
+        let max_side = u64::from(limits.max_compute_workgroups_per_dimension)
+            * u64::from(WORKGROUP_SIZE_XY)
+            - 1;
+        let fits = |t: u32| block_binding_bytes(t) <= max_binding && u64::from(t) <= max_side;
+        match self.tile_cells {
+            Some(t) => {
+                if !fits(t) {
+                    return Err(GpuError::InvalidInput {
+                        kernel: "dp_tile_cost",
+                        message: format!(
+                            "tiles of {t} cells need a {} B block, over the adapter's storage \
+                             binding limit ({max_binding} B) or dispatch limit",
+                            block_binding_bytes(t)
+                        ),
+                    });
+                }
+                Ok(Some(t))
+            }
+            None => {
+                let (rows, cols) = (u64::from(grid.rows), u64::from(grid.cols));
+                let heights = 4 * rows * cols;
+                let mip = mip_bytes(rows, cols);
+                let too_wide = u64::from(grid.cols.div_ceil(WORKGROUP_SIZE_XY))
+                    > u64::from(limits.max_compute_workgroups_per_dimension);
+                if heights.max(mip) <= max_binding
+                    && heights + mip <= DEFAULT_RESIDENT_BUDGET_BYTES
+                    && !too_wide
+                {
+                    return Ok(None);
+                }
+                let mut t = DEFAULT_TILE_CELLS;
+                while !fits(t) && t > 64 {
+                    t /= 2;
+                }
+                if !fits(t) {
+                    return Err(GpuError::InvalidInput {
+                        kernel: "dp_tile_cost",
+                        message: format!(
+                            "the adapter's storage binding limit ({max_binding} B) is too \
+                             small even for tiles of {t} cells"
+                        ),
+                    });
+                }
+                Ok(Some(t))
+            }
+        }
+    }
+}
+
+/// Options of [`dp_visible_tiled_gpu`].
+#[derive(Debug, Clone, Copy)]
+pub struct DpTileOptions {
+    /// Tile side, cells (output tiles and source tiles alike).
+    pub tile_cells: u32,
+    /// Bytes of source blocks kept resident between output tiles (LRU; at least two blocks).
+    pub cache_bytes: u64,
+}
+
+impl DpTileOptions {
+    /// Tiles of `tile_cells` with the default cache.
+    pub fn new(tile_cells: u32) -> Self {
+        DpTileOptions {
+            tile_cells,
+            cache_bytes: DEFAULT_CACHE_BYTES,
+        }
+    }
+}
+
+/// What a tiled run did (for the docs' cost figures and the tests).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct TileRunStats {
+    /// Output tiles.
+    pub output_tiles: usize,
+    /// Cost dispatches (one per output tile and source tile walked).
+    pub source_dispatches: usize,
+    /// Most source tiles one output tile needed.
+    pub max_sources: usize,
+    /// Source blocks uploaded (cache misses).
+    pub uploads: usize,
+    /// Largest resident block bytes at once (cache, excluding blocks still in flight).
+    pub peak_cache_bytes: u64,
+}
+
+/// The map of [`dp_visible_tiled_gpu`] and what the run did.
+#[derive(Debug, Clone)]
+pub struct TiledMap {
+    /// Per cell (row-major) the visible fraction (radius 0: 1 lit / 0 shadow), -1 for nodata.
+    pub values: Vec<f32>,
+    /// Tiles, dispatches, uploads.
+    pub stats: TileRunStats,
+}
+
+/// One tile's heights block and mipmap on the GPU.
+struct GpuTileBlock {
+    rect: TileRect,
+    heights: wgpu::Buffer,
+    mip: wgpu::Buffer,
+    levels: wgpu::Buffer,
+    bytes: u64,
+}
+
+impl GpuTileBlock {
+    fn upload(ctx: &GpuContext, grid: &MarchGrid, rect: TileRect) -> Self {
+        let block = TileBlock::build(grid, rect);
+        let DpMip { levels, texels } = &block.mip;
+        GpuTileBlock {
+            rect,
+            heights: storage_init(
+                ctx,
+                "penumbra dp tile heights",
+                bytemuck::cast_slice(&block.heights_m),
+            ),
+            mip: storage_init(ctx, "penumbra dp tile mipmap", bytemuck::cast_slice(texels)),
+            levels: storage_init(
+                ctx,
+                "penumbra dp tile mipmap levels",
+                bytemuck::cast_slice(levels),
+            ),
+            bytes: block.bytes(),
+        }
+    }
+}
+
+/// LRU cache of uploaded source blocks.
+struct BlockCache {
+    blocks: HashMap<usize, (Rc<GpuTileBlock>, u64)>,
+    bytes: u64,
+    cap_bytes: u64,
+    clock: u64,
+}
+
+impl BlockCache {
+    fn get(
+        &mut self,
+        ctx: &GpuContext,
+        grid: &MarchGrid,
+        plan: &TilePlan,
+        tile: usize,
+        stats: &mut TileRunStats,
+    ) -> Rc<GpuTileBlock> {
+        self.clock += 1;
+        if let Some((block, used)) = self.blocks.get_mut(&tile) {
+            *used = self.clock;
+            return Rc::clone(block);
+        }
+        let block = Rc::new(GpuTileBlock::upload(ctx, grid, plan.rect(tile)));
+        stats.uploads += 1;
+        self.bytes += block.bytes;
+        self.blocks.insert(tile, (Rc::clone(&block), self.clock));
+        while self.bytes > self.cap_bytes && self.blocks.len() > 2 {
+            let oldest = self
+                .blocks
+                .iter()
+                .filter(|(t, _)| **t != tile)
+                .min_by_key(|(_, (_, used))| *used)
+                .map(|(t, _)| *t);
+            let Some(oldest) = oldest else { break };
+            if let Some((evicted, _)) = self.blocks.remove(&oldest) {
+                self.bytes -= evicted.bytes;
+            }
+        }
+        stats.peak_cache_bytes = stats.peak_cache_bytes.max(self.bytes);
+        block
+    }
+}
+
+/// GPU tiled `dp_visible`: per cell (row-major) the visible fraction of the disc `light` (from
+/// [`crate::shadow::gpu_twins::disc_light_to_f32`]; radius 0: 1 lit / 0 shadow), -1 for nodata,
+/// computed output tile by output tile over the source tiles of
+/// [`crate::shadow::gpu_tiles::sources_for`] (own tile first, then nearest first along the
+/// light). Only the heights as a host array are needed, never the whole grid on the GPU. Twin:
+/// [`crate::shadow::gpu_tiles::dp_visible_tiled`].
+pub fn dp_visible_tiled_gpu(
+    ctx: &GpuContext,
+    grid: &MarchGrid,
+    light: [f32; 4],
+    options: DpTileOptions,
+) -> Result<TiledMap, GpuError> {
+    check_light(light, "dp_tile_cost")?;
+    let plan = TilePlan::new(grid.rows, grid.cols, options.tile_cells).map_err(|e| {
+        GpuError::InvalidInput {
+            kernel: "dp_tile_cost",
+            message: e.to_string(),
+        }
+    })?;
+    DpTiling {
+        tile_cells: Some(options.tile_cells),
+    }
+    .resolve(ctx, grid)?;
+    let bounds = tile_bounds(grid, &plan);
+    let (_, max_tile_cells) = plan.max_block_and_tile_cells();
+    let cols = grid.cols as usize;
+    let mut stats = TileRunStats {
+        output_tiles: plan.len(),
+        ..Default::default()
+    };
+    let scope = ErrorScope::push(&ctx.device);
+    let params = ctx
+        .device
+        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("penumbra dp tile grid params"),
+            contents: bytemuck::bytes_of(&GridParams::of(grid)),
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
+    let lights = storage_init(
+        ctx,
+        "penumbra dp tile light",
+        bytemuck::cast_slice(&[light]),
+    );
+    let slots = slot_buffer(ctx, plan.len() as u32 + 1);
+    let cost = band_buffer(
+        ctx,
+        "penumbra dp tile cost",
+        max_tile_cells as u64,
+        wgpu::BufferUsages::empty(),
+    );
+    let mut cache = BlockCache {
+        blocks: HashMap::new(),
+        bytes: 0,
+        cap_bytes: options.cache_bytes,
+        clock: 0,
+    };
+    let bind_group = |src: &GpuTileBlock, obs: &GpuTileBlock| {
+        ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("penumbra dp tile bind group"),
+            layout: &ctx.dp.tile_layout,
+            entries: &[
+                whole(0, &params),
+                whole(1, &src.heights),
+                whole(2, &src.mip),
+                whole(3, &src.levels),
+                whole(4, &lights),
+                wgpu::BindGroupEntry {
+                    binding: 5,
+                    resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                        buffer: &slots,
+                        offset: 0,
+                        size: wgpu::BufferSize::new(size_of::<DpStep>() as u64),
+                    }),
+                },
+                whole(6, &cost),
+                whole(7, &obs.heights),
+            ],
+        })
+    };
+    let mut map = vec![0.0_f32; grid.cells()];
+    for out in 0..plan.len() {
+        let o = plan.rect(out);
+        let sources = sources_for(grid, &plan, &bounds, out, light);
+        stats.source_dispatches += sources.len();
+        stats.max_sources = stats.max_sources.max(sources.len());
+        let own = cache.get(ctx, grid, &plan, out, &mut stats);
+        let (band_rows, band_cols) = (o.row1 - o.row0, o.col1 - o.col0);
+        let step_for = |s: TileRect, first: bool| DpStep {
+            light0: 0,
+            count: 1,
+            band_row0: o.row0,
+            band_rows,
+            band_col0: o.col0,
+            band_cols,
+            src_row0: s.row0,
+            src_col0: s.col0,
+            hgt_row0: s.hgt_row0,
+            hgt_col0: s.hgt_col0,
+            hgt_rows: s.hgt_row1 - s.hgt_row0,
+            hgt_cols: s.hgt_col1 - s.hgt_col0,
+            first_source: u32::from(first),
+            obs_row0: own.rect.hgt_row0,
+            obs_col0: own.rect.hgt_col0,
+            obs_cols: own.rect.hgt_col1 - own.rect.hgt_col0,
+        };
+        let mut steps: Vec<DpStep> = sources
+            .iter()
+            .enumerate()
+            .map(|(k, &s)| step_for(plan.rect(s), k == 0))
+            .collect();
+        steps.push(step_for(o, false));
+        write_dp_steps(ctx, &slots, &steps);
+        let workgroups = (
+            band_cols.div_ceil(WORKGROUP_SIZE_XY),
+            band_rows.div_ceil(WORKGROUP_SIZE_XY),
+        );
+        let dispatch = |pipeline: &wgpu::ComputePipeline, group: &wgpu::BindGroup, slot: usize| {
+            let mut encoder = ctx
+                .device
+                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                    label: Some("dp_tile"),
+                });
+            {
+                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("dp_tile"),
+                    timestamp_writes: None,
+                });
+                pass.set_pipeline(pipeline);
+                pass.set_bind_group(0, group, &[slot as u32 * STEP_SLOT_BYTES as u32]);
+                pass.dispatch_workgroups(workgroups.0, workgroups.1, 1);
+            }
+            ctx.queue.submit([encoder.finish()]);
+        };
+        for (k, &s) in sources.iter().enumerate() {
+            let src = if s == out {
+                Rc::clone(&own)
+            } else {
+                cache.get(ctx, grid, &plan, s, &mut stats)
+            };
+            dispatch(&ctx.dp.tile_cost, &bind_group(&src, &own), k);
+            // Evicted blocks are freed once their dispatches finish; wait for them when the
+            // cache is full so that in-flight blocks stay bounded too.
+            let wait = if cache.bytes >= cache.cap_bytes {
+                wgpu::PollType::wait_indefinitely()
+            } else {
+                wgpu::PollType::Poll
+            };
+            ctx.device.poll(wait).ok();
+        }
+        dispatch(
+            &ctx.dp.tile_fraction,
+            &bind_group(&own, &own),
+            sources.len(),
+        );
+        let bytes = ctx.read_back(&cost, (o.cells() * 4) as u64, "a DP tile")?;
+        let values: Vec<f32> = bytemuck::pod_collect_to_vec(&bytes);
+        for (r, line) in values.chunks_exact(band_cols as usize).enumerate() {
+            let start = (o.row0 as usize + r) * cols + o.col0 as usize;
+            map[start..start + line.len()].copy_from_slice(line);
+        }
+    }
+    scope.pop("running the tiled DP map")?;
+    Ok(TiledMap { values: map, stats })
+}
