@@ -425,11 +425,6 @@ fn run_map(args: &crate::cli::MapArgs) -> anyhow::Result<()> {
     if !range && explicit_dir.is_none() && args.sun_az_deg.is_none() && args.epochs.utc.is_none() {
         anyhow::bail!("give the light: --utc T, --sun-dir-body X,Y,Z or --sun-az-deg/--sun-el-deg");
     }
-    if range && args.gpu_tile_cells.is_some() {
-        anyhow::bail!(
-            "--gpu-tile-cells applies to one-light maps; the GPU epoch sweep is not tiled (docs/gpu.md)"
-        );
-    }
     let epochs = if range || args.epochs.utc.is_some() {
         epochs_from_args(&args.epochs)?
     } else {
@@ -502,6 +497,9 @@ fn run_map(args: &crate::cli::MapArgs) -> anyhow::Result<()> {
                     args.observer_height_m,
                     &lights,
                     step_h,
+                    crate::gpu::tiles::DpTiling {
+                        tile_cells: args.gpu_tile_cells,
+                    },
                 )?;
                 progress.inc(lights.len() as u64);
                 (

@@ -436,7 +436,8 @@ pub fn sweep_gpu(
 /// [`crate::shadow::dp::visible_fraction`]) and folds them with the same definitions as [`sweep`]
 /// (mean visible fraction, "visible" = fraction > [`VISIBLE_MIN_FRACTION`], longest Sun-dark
 /// run, Earth and Sun-and-Earth counts). The light table goes up once (two f32 discs per epoch);
-/// nothing is read back per epoch. Whatever `--engine` says, the GPU runs DP.
+/// nothing is read back per epoch. Whatever `--engine` says, the GPU runs DP. `tiling` chooses
+/// between the whole-grid sweep and the 2-D tiled sweep (docs/gpu.md, "Large grids").
 #[cfg(feature = "gpu")]
 pub fn sweep_gpu_soft(
     ctx: &crate::gpu::GpuContext,
@@ -444,12 +445,12 @@ pub fn sweep_gpu_soft(
     observer_height_m: f64,
     lights: &[EpochLights],
     step_h: f64,
+    tiling: crate::gpu::tiles::DpTiling,
 ) -> anyhow::Result<SweepStats> {
     use crate::gpu::dp::{DpSweepOptions, GpuDpGrid, dp_sweep_gpu};
+    use crate::gpu::tiles::{DpTileSweepOptions, dp_sweep_tiled_gpu};
     use crate::shadow::gpu_twins::{DpMip, MarchGrid, disc_light_to_f32};
     let march = MarchGrid::from_height_field(&grid.hf, observer_height_m)?;
-    let mip = DpMip::build(&march);
-    let on_gpu = GpuDpGrid::upload(ctx, &march, &mip)?;
     let table: Vec<[f32; 4]> = lights
         .iter()
         .flat_map(|l| {
@@ -459,7 +460,16 @@ pub fn sweep_gpu_soft(
             ]
         })
         .collect();
-    let stats = dp_sweep_gpu(ctx, &on_gpu, &table, DpSweepOptions::default())?;
+    let stats = match tiling.resolve(ctx, &march)? {
+        Some(tile_cells) => {
+            dp_sweep_tiled_gpu(ctx, &march, &table, DpTileSweepOptions::new(tile_cells))?.0
+        }
+        None => {
+            let mip = DpMip::build(&march);
+            let on_gpu = GpuDpGrid::upload(ctx, &march, &mip)?;
+            dp_sweep_gpu(ctx, &on_gpu, &table, DpSweepOptions::default())?
+        }
+    };
     Ok(SweepStats {
         epochs: lights.len(),
         step_h,

@@ -43,6 +43,14 @@ const DP_TILE_FRACTION_WGSL: &str = include_str!(concat!(
     env!("CARGO_MANIFEST_DIR"),
     "/shaders/dp_tile_fraction.wgsl"
 ));
+const DP_TILE_SWEEP_COST_WGSL: &str = include_str!(concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/shaders/dp_tile_sweep_cost.wgsl"
+));
+const DP_TILE_SWEEP_ACCUMULATE_WGSL: &str = include_str!(concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/shaders/dp_tile_sweep_accumulate.wgsl"
+));
 
 /// Mirrors of the WGSL structs.
 pub(crate) mod gpu_data {
@@ -109,6 +117,12 @@ pub(crate) struct DpPipelines {
     pub(crate) tile_cost: wgpu::ComputePipeline,
     /// `shaders/dp_tile_fraction.wgsl`.
     pub(crate) tile_fraction: wgpu::ComputePipeline,
+    /// Layout of the tiled sweep: `tile_layout` plus 8 (the output tile's statistics).
+    pub(crate) tile_sweep_layout: wgpu::BindGroupLayout,
+    /// `shaders/dp_tile_sweep_cost.wgsl`.
+    pub(crate) tile_sweep_cost: wgpu::ComputePipeline,
+    /// `shaders/dp_tile_sweep_accumulate.wgsl`.
+    pub(crate) tile_sweep_accumulate: wgpu::ComputePipeline,
 }
 
 fn entry(binding: u32, ty: wgpu::BufferBindingType, dynamic: bool) -> wgpu::BindGroupLayoutEntry {
@@ -152,6 +166,34 @@ impl DpPipelines {
                 entry(7, Storage { read_only: true }, false),
             ],
         });
+        let tile_sweep_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("penumbra dp tile sweep layout"),
+            entries: &[
+                entry(0, Uniform, false),
+                entry(1, Storage { read_only: true }, false),
+                entry(2, Storage { read_only: true }, false),
+                entry(3, Storage { read_only: true }, false),
+                entry(4, Storage { read_only: true }, false),
+                entry(5, Uniform, true),
+                entry(6, Storage { read_only: false }, false),
+                entry(7, Storage { read_only: true }, false),
+                entry(8, Storage { read_only: false }, false),
+            ],
+        });
+        let tile_sweep_cost = compute_pipeline(
+            device,
+            &tile_sweep_layout,
+            "dp_tile_sweep_cost",
+            &format!("{SHARED_DP_WGSL}{DP_TILE_SWEEP_COST_WGSL}"),
+            "dp_tile_sweep_cost",
+        );
+        let tile_sweep_accumulate = compute_pipeline(
+            device,
+            &tile_sweep_layout,
+            "dp_tile_sweep_accumulate",
+            &format!("{SHARED_DP_WGSL}{DP_TILE_SWEEP_ACCUMULATE_WGSL}"),
+            "dp_tile_sweep_accumulate",
+        );
         let visible_src = format!("{SHARED_DP_WGSL}{DP_VISIBLE_WGSL}");
         let sweep_src = format!("{SHARED_DP_WGSL}{DP_SWEEP_WGSL}");
         let tile_cost_src = format!("{SHARED_DP_WGSL}{DP_TILE_COST_WGSL}");
@@ -179,6 +221,9 @@ impl DpPipelines {
             tile_layout,
             tile_cost,
             tile_fraction,
+            tile_sweep_layout,
+            tile_sweep_cost,
+            tile_sweep_accumulate,
         }
     }
 }

@@ -19,8 +19,10 @@ use super::dp::gpu_data::DpStep;
 use super::dp::{check_light, slot_buffer, whole, write_dp_steps};
 use super::shadow_march::gpu_data::GridParams;
 use super::shadow_march::{STEP_SLOT_BYTES, band_buffer, storage_init};
-use crate::shadow::gpu_tiles::{TileBlock, TilePlan, TileRect, sources_for, tile_bounds};
-use crate::shadow::gpu_twins::{DpMip, MarchGrid};
+use crate::shadow::gpu_tiles::{
+    TileBlock, TilePlan, TileRect, sources_for, sources_for_batch, tile_bounds,
+};
+use crate::shadow::gpu_twins::{DpCellStats, DpMip, MarchGrid};
 use wgpu::util::DeviceExt as _;
 
 /// Workgroup size of the tiled kernels. Keep in sync with shaders/dp_tile_*.wgsl.
@@ -237,6 +239,88 @@ impl BlockCache {
     }
 }
 
+/// The dispatch parameters of output tile `o` (whose block `own` holds the observers) walking
+/// source tile `s`.
+fn tile_step(
+    o: TileRect,
+    own: TileRect,
+    s: TileRect,
+    first: bool,
+    light0: u32,
+    count: u32,
+) -> DpStep {
+    DpStep {
+        light0,
+        count,
+        band_row0: o.row0,
+        band_rows: o.row1 - o.row0,
+        band_col0: o.col0,
+        band_cols: o.col1 - o.col0,
+        src_row0: s.row0,
+        src_col0: s.col0,
+        hgt_row0: s.hgt_row0,
+        hgt_col0: s.hgt_col0,
+        hgt_rows: s.hgt_row1 - s.hgt_row0,
+        hgt_cols: s.hgt_col1 - s.hgt_col0,
+        first_source: u32::from(first),
+        obs_row0: own.hgt_row0,
+        obs_col0: own.hgt_col0,
+        obs_cols: own.hgt_col1 - own.hgt_col0,
+    }
+}
+
+/// Encodes and submits one dispatch of `pipeline` over output tile `o` with step slot `slot`.
+fn dispatch_tile(
+    ctx: &GpuContext,
+    pipeline: &wgpu::ComputePipeline,
+    group: &wgpu::BindGroup,
+    slot: usize,
+    o: TileRect,
+) {
+    let mut encoder = ctx
+        .device
+        .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+            label: Some("dp_tile"),
+        });
+    {
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("dp_tile"),
+            timestamp_writes: None,
+        });
+        pass.set_pipeline(pipeline);
+        pass.set_bind_group(0, group, &[slot as u32 * STEP_SLOT_BYTES as u32]);
+        pass.dispatch_workgroups(
+            (o.col1 - o.col0).div_ceil(WORKGROUP_SIZE_XY),
+            (o.row1 - o.row0).div_ceil(WORKGROUP_SIZE_XY),
+            1,
+        );
+    }
+    ctx.queue.submit([encoder.finish()]);
+}
+
+/// After a source dispatch: reclaim finished work; when the cache is full wait for the GPU, so
+/// that evicted blocks still referenced by queued dispatches are freed and in-flight memory stays
+/// bounded too.
+fn settle(ctx: &GpuContext, cache: &BlockCache) {
+    let wait = if cache.bytes >= cache.cap_bytes {
+        wgpu::PollType::wait_indefinitely()
+    } else {
+        wgpu::PollType::Poll
+    };
+    ctx.device.poll(wait).ok();
+}
+
+fn binding_entry(binding: u32, buffer: &wgpu::Buffer, size: u64) -> wgpu::BindGroupEntry<'_> {
+    wgpu::BindGroupEntry {
+        binding,
+        resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+            buffer,
+            offset: 0,
+            size: wgpu::BufferSize::new(size),
+        }),
+    }
+}
+
 /// GPU tiled `dp_visible`: per cell (row-major) the visible fraction of the disc `light` (from
 /// [`crate::shadow::gpu_twins::disc_light_to_f32`]; radius 0: 1 lit / 0 shadow), -1 for nodata,
 /// computed output tile by output tile over the source tiles of
@@ -303,14 +387,7 @@ pub fn dp_visible_tiled_gpu(
                 whole(2, &src.mip),
                 whole(3, &src.levels),
                 whole(4, &lights),
-                wgpu::BindGroupEntry {
-                    binding: 5,
-                    resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
-                        buffer: &slots,
-                        offset: 0,
-                        size: wgpu::BufferSize::new(size_of::<DpStep>() as u64),
-                    }),
-                },
+                binding_entry(5, &slots, size_of::<DpStep>() as u64),
                 whole(6, &cost),
                 whole(7, &obs.heights),
             ],
@@ -323,73 +400,29 @@ pub fn dp_visible_tiled_gpu(
         stats.source_dispatches += sources.len();
         stats.max_sources = stats.max_sources.max(sources.len());
         let own = cache.get(ctx, grid, &plan, out, &mut stats);
-        let (band_rows, band_cols) = (o.row1 - o.row0, o.col1 - o.col0);
-        let step_for = |s: TileRect, first: bool| DpStep {
-            light0: 0,
-            count: 1,
-            band_row0: o.row0,
-            band_rows,
-            band_col0: o.col0,
-            band_cols,
-            src_row0: s.row0,
-            src_col0: s.col0,
-            hgt_row0: s.hgt_row0,
-            hgt_col0: s.hgt_col0,
-            hgt_rows: s.hgt_row1 - s.hgt_row0,
-            hgt_cols: s.hgt_col1 - s.hgt_col0,
-            first_source: u32::from(first),
-            obs_row0: own.rect.hgt_row0,
-            obs_col0: own.rect.hgt_col0,
-            obs_cols: own.rect.hgt_col1 - own.rect.hgt_col0,
-        };
+        let band_cols = o.col1 - o.col0;
         let mut steps: Vec<DpStep> = sources
             .iter()
             .enumerate()
-            .map(|(k, &s)| step_for(plan.rect(s), k == 0))
+            .map(|(k, &s)| tile_step(o, own.rect, plan.rect(s), k == 0, 0, 1))
             .collect();
-        steps.push(step_for(o, false));
+        steps.push(tile_step(o, own.rect, o, false, 0, 1));
         write_dp_steps(ctx, &slots, &steps);
-        let workgroups = (
-            band_cols.div_ceil(WORKGROUP_SIZE_XY),
-            band_rows.div_ceil(WORKGROUP_SIZE_XY),
-        );
-        let dispatch = |pipeline: &wgpu::ComputePipeline, group: &wgpu::BindGroup, slot: usize| {
-            let mut encoder = ctx
-                .device
-                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                    label: Some("dp_tile"),
-                });
-            {
-                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                    label: Some("dp_tile"),
-                    timestamp_writes: None,
-                });
-                pass.set_pipeline(pipeline);
-                pass.set_bind_group(0, group, &[slot as u32 * STEP_SLOT_BYTES as u32]);
-                pass.dispatch_workgroups(workgroups.0, workgroups.1, 1);
-            }
-            ctx.queue.submit([encoder.finish()]);
-        };
         for (k, &s) in sources.iter().enumerate() {
             let src = if s == out {
                 Rc::clone(&own)
             } else {
                 cache.get(ctx, grid, &plan, s, &mut stats)
             };
-            dispatch(&ctx.dp.tile_cost, &bind_group(&src, &own), k);
-            // Evicted blocks are freed once their dispatches finish; wait for them when the
-            // cache is full so that in-flight blocks stay bounded too.
-            let wait = if cache.bytes >= cache.cap_bytes {
-                wgpu::PollType::wait_indefinitely()
-            } else {
-                wgpu::PollType::Poll
-            };
-            ctx.device.poll(wait).ok();
+            dispatch_tile(ctx, &ctx.dp.tile_cost, &bind_group(&src, &own), k, o);
+            settle(ctx, &cache);
         }
-        dispatch(
+        dispatch_tile(
+            ctx,
             &ctx.dp.tile_fraction,
             &bind_group(&own, &own),
             sources.len(),
+            o,
         );
         let bytes = ctx.read_back(&cost, (o.cells() * 4) as u64, "a DP tile")?;
         let values: Vec<f32> = bytemuck::pod_collect_to_vec(&bytes);
@@ -400,4 +433,188 @@ pub fn dp_visible_tiled_gpu(
     }
     scope.pop("running the tiled DP map")?;
     Ok(TiledMap { values: map, stats })
+}
+
+/// Options of [`dp_sweep_tiled_gpu`].
+#[derive(Debug, Clone, Copy)]
+pub struct DpTileSweepOptions {
+    /// Tile side, cells.
+    pub tile_cells: u32,
+    /// Bytes of source blocks kept resident (LRU; at least two blocks).
+    pub cache_bytes: u64,
+    /// Epochs per batch: the cost buffer holds `2 × epochs_per_batch` costs per output cell.
+    pub epochs_per_batch: u32,
+}
+
+impl DpTileSweepOptions {
+    /// Tiles of `tile_cells`, the default cache, 8 epochs per batch (cost buffer 64 B per
+    /// output cell: 268 MB for a 2048² tile).
+    pub fn new(tile_cells: u32) -> Self {
+        DpTileSweepOptions {
+            tile_cells,
+            cache_bytes: DEFAULT_CACHE_BYTES,
+            epochs_per_batch: 8,
+        }
+    }
+}
+
+/// GPU tiled soft epoch sweep: the [`DpCellStats`] of every cell (row-major) over the epochs of
+/// `lights` (Sun at `2e`, Earth at `2e + 1`, from
+/// [`crate::shadow::gpu_twins::disc_light_to_f32`], in time order), computed output tile by output
+/// tile: per batch of epochs the costs are min-accumulated over the batch's source tiles
+/// ([`crate::shadow::gpu_tiles::sources_for_batch`]) in a `[2 × batch × tile cells]` buffer, then
+/// folded into the tile's statistics in time order; the statistics are read back once per output
+/// tile. GPU memory: `32 (T+1)²` B of statistics (+ as much staging) + `8 B × epochs_per_batch ×
+/// (T+1)²` of costs + the light table (32 B/epoch) + the block cache. Twin:
+/// [`crate::shadow::gpu_tiles::dp_sweep_tiled`].
+pub fn dp_sweep_tiled_gpu(
+    ctx: &GpuContext,
+    grid: &MarchGrid,
+    lights: &[[f32; 4]],
+    options: DpTileSweepOptions,
+) -> Result<(Vec<DpCellStats>, TileRunStats), GpuError> {
+    if lights.is_empty() || !lights.len().is_multiple_of(2) || options.epochs_per_batch == 0 {
+        return Err(GpuError::InvalidInput {
+            kernel: "dp_tile_sweep_cost",
+            message: "the light table needs Sun and Earth discs for at least one epoch (and a \
+                      non-zero batch)"
+                .into(),
+        });
+    }
+    for &l in lights {
+        check_light(l, "dp_tile_sweep_cost")?;
+    }
+    let epochs = u32::try_from(lights.len() / 2).map_err(|_| GpuError::InvalidInput {
+        kernel: "dp_tile_sweep_cost",
+        message: format!("{} epochs exceed 2^32", lights.len() / 2),
+    })?;
+    let plan = TilePlan::new(grid.rows, grid.cols, options.tile_cells).map_err(|e| {
+        GpuError::InvalidInput {
+            kernel: "dp_tile_sweep_cost",
+            message: e.to_string(),
+        }
+    })?;
+    DpTiling {
+        tile_cells: Some(options.tile_cells),
+    }
+    .resolve(ctx, grid)?;
+    let bounds = tile_bounds(grid, &plan);
+    let (_, max_tile_cells) = plan.max_block_and_tile_cells();
+    let batch = options.epochs_per_batch;
+    let stats_bytes = size_of::<DpCellStats>() as u64;
+    let cols = grid.cols as usize;
+    let mut run = TileRunStats {
+        output_tiles: plan.len(),
+        ..Default::default()
+    };
+    let scope = ErrorScope::push(&ctx.device);
+    let params = ctx
+        .device
+        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("penumbra dp tile sweep grid params"),
+            contents: bytemuck::bytes_of(&GridParams::of(grid)),
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
+    let table = storage_init(
+        ctx,
+        "penumbra dp tile sweep lights",
+        bytemuck::cast_slice(lights),
+    );
+    let slots = slot_buffer(ctx, plan.len() as u32 + 1);
+    let cost = band_buffer(
+        ctx,
+        "penumbra dp tile sweep cost",
+        max_tile_cells as u64 * 2 * u64::from(batch),
+        wgpu::BufferUsages::empty(),
+    );
+    let tile_stats = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("penumbra dp tile sweep stats"),
+        size: max_tile_cells as u64 * stats_bytes,
+        usage: wgpu::BufferUsages::STORAGE
+            | wgpu::BufferUsages::COPY_SRC
+            | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let mut cache = BlockCache {
+        blocks: HashMap::new(),
+        bytes: 0,
+        cap_bytes: options.cache_bytes,
+        clock: 0,
+    };
+    let bind_group = |src: &GpuTileBlock, obs: &GpuTileBlock| {
+        ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("penumbra dp tile sweep bind group"),
+            layout: &ctx.dp.tile_sweep_layout,
+            entries: &[
+                whole(0, &params),
+                whole(1, &src.heights),
+                whole(2, &src.mip),
+                whole(3, &src.levels),
+                whole(4, &table),
+                binding_entry(5, &slots, size_of::<DpStep>() as u64),
+                whole(6, &cost),
+                whole(7, &obs.heights),
+                whole(8, &tile_stats),
+            ],
+        })
+    };
+    let mut all = vec![DpCellStats::default(); grid.cells()];
+    for out in 0..plan.len() {
+        let o = plan.rect(out);
+        let own = cache.get(ctx, grid, &plan, out, &mut run);
+        let mut clear = ctx
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("penumbra dp tile sweep clear"),
+            });
+        clear.clear_buffer(&tile_stats, 0, None);
+        ctx.queue.submit([clear.finish()]);
+        let mut first = 0_u32;
+        while first < epochs {
+            let count = batch.min(epochs - first);
+            let batch_lights = &lights[2 * first as usize..2 * (first + count) as usize];
+            let sources = sources_for_batch(grid, &plan, &bounds, out, batch_lights);
+            run.source_dispatches += sources.len();
+            run.max_sources = run.max_sources.max(sources.len());
+            let mut steps: Vec<DpStep> = sources
+                .iter()
+                .enumerate()
+                .map(|(k, &s)| tile_step(o, own.rect, plan.rect(s), k == 0, first, count))
+                .collect();
+            steps.push(tile_step(o, own.rect, o, false, first, count));
+            write_dp_steps(ctx, &slots, &steps);
+            for (k, &s) in sources.iter().enumerate() {
+                let src = if s == out {
+                    Rc::clone(&own)
+                } else {
+                    cache.get(ctx, grid, &plan, s, &mut run)
+                };
+                dispatch_tile(ctx, &ctx.dp.tile_sweep_cost, &bind_group(&src, &own), k, o);
+                settle(ctx, &cache);
+            }
+            dispatch_tile(
+                ctx,
+                &ctx.dp.tile_sweep_accumulate,
+                &bind_group(&own, &own),
+                sources.len(),
+                o,
+            );
+            // The next batch rewrites the step slots: queue writes land before later submits
+            // and after earlier ones, so no wait is needed.
+            first += count;
+        }
+        let bytes = ctx.read_back(
+            &tile_stats,
+            o.cells() as u64 * stats_bytes,
+            "DP tile statistics",
+        )?;
+        let values: Vec<DpCellStats> = bytemuck::pod_collect_to_vec(&bytes);
+        let band_cols = (o.col1 - o.col0) as usize;
+        for (r, line) in values.chunks_exact(band_cols).enumerate() {
+            let start = (o.row0 as usize + r) * cols + o.col0 as usize;
+            all[start..start + line.len()].copy_from_slice(line);
+        }
+    }
+    scope.pop("running the tiled DP sweep")?;
+    Ok((all, run))
 }

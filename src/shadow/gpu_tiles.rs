@@ -24,8 +24,8 @@
 use rayon::prelude::*;
 
 use super::gpu_twins::{
-    DpMip, DpSource, MarchGrid, NODATA_FRACTION, dp_cap, dp_cost_in, dp_fraction_of_cost,
-    dp_observer_at,
+    DpCellStats, DpMip, DpSource, MarchGrid, NODATA_FRACTION, dp_cap, dp_cost_in,
+    dp_fraction_of_cost, dp_observer_at, dp_sweep_accumulate,
 };
 
 /// Smallest tile side, cells.
@@ -445,6 +445,95 @@ pub fn dp_visible_tiled(
             dp_fraction_of_cost(&obs, light, j)
         })
         .collect())
+}
+
+/// The source tiles of output tile `out` for a batch of lights: the union of
+/// [`sources_for`] over `lights` (one list per batch of the tiled sweep), `out` first, then in
+/// order of first appearance. Walking a tile that a light cannot use costs one texel test.
+pub fn sources_for_batch(
+    grid: &MarchGrid,
+    plan: &TilePlan,
+    bounds: &[TileBounds],
+    out: usize,
+    lights: &[[f32; 4]],
+) -> Vec<usize> {
+    let mut seen = vec![false; plan.len()];
+    let mut union = Vec::new();
+    for &light in lights {
+        for s in sources_for(grid, plan, bounds, out, light) {
+            if !seen[s] {
+                seen[s] = true;
+                union.push(s);
+            }
+        }
+    }
+    if union.is_empty() {
+        union.push(out);
+    }
+    union
+}
+
+/// Twin of the tiled GPU soft sweep (`dp_tile_sweep_cost` over the source tiles of each batch of
+/// `epochs_per_batch` epochs, then `dp_tile_sweep_accumulate`): the [`DpCellStats`] of every
+/// cell (row-major) over the epochs of `lights` (Sun at `2e`, Earth at `2e + 1`), holes zero.
+/// Same result as the untiled [`super::gpu_twins::dp_sweep`] (the costs are equal, see the
+/// module docs).
+pub fn dp_sweep_tiled(
+    grid: &MarchGrid,
+    tile_cells: u32,
+    lights: &[[f32; 4]],
+    epochs_per_batch: usize,
+) -> Result<Vec<DpCellStats>, TileError> {
+    let plan = TilePlan::new(grid.rows, grid.cols, tile_cells)?;
+    let bounds = tile_bounds(grid, &plan);
+    let blocks: Vec<TileBlock> = (0..plan.len())
+        .into_par_iter()
+        .map(|t| TileBlock::build(grid, plan.rect(t)))
+        .collect();
+    let batch_lights = 2 * epochs_per_batch.max(1);
+    let sources: Vec<Vec<Vec<usize>>> = (0..plan.len())
+        .map(|t| {
+            lights
+                .chunks(batch_lights)
+                .map(|batch| sources_for_batch(grid, &plan, &bounds, t, batch))
+                .collect()
+        })
+        .collect();
+    let cols = grid.cols as usize;
+    let mut stats = vec![DpCellStats::default(); grid.cells()];
+    stats
+        .par_chunks_mut(cols)
+        .enumerate()
+        .for_each(|(row, line)| {
+            let row = row as u32;
+            for (col, st) in line.iter_mut().enumerate() {
+                let col = col as u32;
+                let out = plan.tile_of(row, col);
+                let z_cell = blocks[out].cell_height_m(row, col);
+                if z_cell < HOLE_TEST_M {
+                    continue;
+                }
+                let obs = dp_observer_at(grid, row, col, z_cell);
+                for (batch, batch_sources) in lights.chunks(batch_lights).zip(&sources[out]) {
+                    let costs: Vec<f32> = batch
+                        .iter()
+                        .map(|&light| {
+                            let l = [light[0], light[1], light[2]];
+                            let cap = dp_cap(light);
+                            batch_sources.iter().fold(FAR_COST, |best, &s| {
+                                dp_cost_in(grid, &blocks[s].source(), &obs, l, cap, best)
+                            })
+                        })
+                        .collect();
+                    for (pair, cost) in batch.chunks_exact(2).zip(costs.chunks_exact(2)) {
+                        let fs = dp_fraction_of_cost(&obs, pair[0], cost[0]);
+                        let fe = dp_fraction_of_cost(&obs, pair[1], cost[1]);
+                        dp_sweep_accumulate(fs, fe, st);
+                    }
+                }
+            }
+        });
+    Ok(stats)
 }
 
 #[cfg(test)]

@@ -191,13 +191,65 @@ fn tiled_twin_matches_cpu_engines() {
     }
 }
 
+/// Sun and Earth discs for `epochs` epochs: the Sun circles the sky at 0.5..5° elevation, the
+/// Earth stays low in the north-west (1..3°), radii 0.2666° and 0.95° (as gpu_dp.rs).
+fn sweep_lights(epochs: usize) -> Vec<[f32; 4]> {
+    (0..epochs)
+        .flat_map(|k| {
+            let phase = k as f64 / epochs as f64;
+            let sun_el = 2.75 + 2.25 * (4.0 * std::f64::consts::TAU * phase).sin();
+            let earth_el = 2.0 + (std::f64::consts::TAU * phase).sin();
+            [
+                gpu_twins::disc_light_to_f32(
+                    &sun_dir(360.0 * phase, sun_el),
+                    SUN_ANGULAR_RADIUS_RAD,
+                ),
+                gpu_twins::disc_light_to_f32(&sun_dir(300.0, earth_el), 0.95_f64.to_radians()),
+            ]
+        })
+        .collect()
+}
+
+/// The tiled sweep twin (tiles of 50, batches of 7 epochs) equals the untiled sweep twin in
+/// every statistic of every cell, the f32 fraction sums included (128² hills, 30 epochs).
+#[test]
+fn tiled_sweep_twin_equals_untiled_sweep_twin() {
+    let n = 128;
+    let grid = MarchGrid::from_height_field(&hills(n), OBSERVER_M).unwrap();
+    let mip = DpMip::build(&grid);
+    let lights = sweep_lights(30);
+    let whole = gpu_twins::dp_sweep(&grid, &mip, &lights, RowBand::whole(&grid));
+    let tiled = gpu_tiles::dp_sweep_tiled(&grid, 50, &lights, 7).unwrap();
+    let equal = whole.iter().zip(&tiled).filter(|(a, b)| a == b).count();
+    let longest = whole
+        .iter()
+        .map(|s| s.longest_dark_run_epochs)
+        .max()
+        .unwrap();
+    let partial = whole
+        .iter()
+        .filter(|s| s.sun_visible_epochs > 0 && s.sun_visible_epochs < 30)
+        .count();
+    eprintln!(
+        "tiled sweep twin T=50: {equal}/{} cells equal; longest dark {longest}, {partial} cells lit on some epochs only",
+        whole.len()
+    );
+    assert_eq!(equal, whole.len());
+    assert!(
+        longest > 1 && longest < 30 && partial > 1000,
+        "fixture must have dark runs"
+    );
+}
+
 #[cfg(feature = "gpu")]
 mod on_gpu {
     use std::sync::OnceLock;
 
     use penumbra::gpu::GpuContext;
-    use penumbra::gpu::dp::{GpuDpGrid, dp_visible_gpu};
-    use penumbra::gpu::tiles::{DpTileOptions, DpTiling, dp_visible_tiled_gpu};
+    use penumbra::gpu::dp::{DpSweepOptions, GpuDpGrid, dp_sweep_gpu, dp_visible_gpu};
+    use penumbra::gpu::tiles::{
+        DpTileOptions, DpTileSweepOptions, DpTiling, dp_sweep_tiled_gpu, dp_visible_tiled_gpu,
+    };
 
     use super::*;
 
@@ -311,6 +363,47 @@ mod on_gpu {
             .unwrap(),
             Some(40)
         );
+    }
+
+    /// The tiled GPU sweep (tiles of 50, batches of 4 epochs) equals the untiled GPU sweep and
+    /// the tiled twin in every statistic of every cell (128² hills, 30 epochs).
+    #[test]
+    fn tiled_sweep_gpu_equals_untiled_sweep_gpu() {
+        let Some(ctx) = gpu() else { return };
+        let n = 128;
+        let grid = MarchGrid::from_height_field(&hills(n), OBSERVER_M).unwrap();
+        let mip = DpMip::build(&grid);
+        let on_gpu = GpuDpGrid::upload(ctx, &grid, &mip).unwrap();
+        let lights = sweep_lights(30);
+        let whole = dp_sweep_gpu(ctx, &on_gpu, &lights, DpSweepOptions::default()).unwrap();
+        let options = DpTileSweepOptions {
+            tile_cells: 50,
+            cache_bytes: 0,
+            epochs_per_batch: 4,
+        };
+        let (tiled, run) = dp_sweep_tiled_gpu(ctx, &grid, &lights, options).unwrap();
+        let twin = gpu_tiles::dp_sweep_tiled(&grid, 50, &lights, 4).unwrap();
+        let equal = whole.iter().zip(&tiled).filter(|(a, b)| a == b).count();
+        let counts = |s: &penumbra::shadow::gpu_twins::DpCellStats| {
+            (
+                s.sun_visible_epochs,
+                s.longest_dark_run_epochs,
+                s.earth_visible_epochs,
+                s.sun_and_earth_epochs,
+            )
+        };
+        let equal_twin = twin
+            .iter()
+            .zip(&tiled)
+            .filter(|(a, b)| counts(a) == counts(b))
+            .count();
+        eprintln!(
+            "tiled sweep gpu T=50: {equal}/{} cells equal to the untiled GPU sweep, {equal_twin} counts equal to the tiled twin; {run:?}",
+            whole.len()
+        );
+        assert_eq!(equal, whole.len());
+        assert!(equal_twin as f64 >= 0.999 * whole.len() as f64);
+        assert!(run.max_sources > 1);
     }
 
     /// `penumbra map --gpu-tile-cells 64` writes the same fraction and mask GeoTIFFs as the
