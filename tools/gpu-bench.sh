@@ -55,8 +55,15 @@ echo "== penumbra gpu-info"
 echo "== GPU-vs-CPU parity (PENUMBRA_REQUIRE_GPU=1)"
 PENUMBRA_REQUIRE_GPU=1 "$dir/it-tests" gpu --nocapture --test-threads=1 2>&1 |
     grep -E "adapter|differ|gpu vs|GPU vs|max \|Δ\||equal stats|test result|FAILED|panicked" || true
-echo "== criterion: shadow_march, sweep_accumulate, dp_soft"
+echo "== criterion: shadow_march, sweep_accumulate, dp_soft, dp_tiled (512^2)"
 "$dir/gpu-bench" --bench 2>&1 | grep -Ev "^\s*$|Warming up|Collecting|Analyzing|Benchmarking .*: (Warming|Collecting|Analyzing)"
+# 2-D tiled DP map on a 20,000^2 synthetic grid (400 M cells, 20 m: 400 km), generated in the
+# bench: whole-grid kernel (if the adapter's storage binding holds 1.6 GB heights + 2.1 GB
+# mipmap) vs tiles of 2048 (docs/gpu.md, "Large grids"); the run's tile statistics are printed.
+echo "== criterion: dp_tiled 20000^2 (one-light DP soft map, untiled vs tiles of 2048)"
+PENUMBRA_BENCH_TILED_N=${PENUMBRA_BENCH_TILED_N:-20000} PENUMBRA_BENCH_TILE_CELLS=2048 \
+    "$dir/gpu-bench" --bench dp_tiled 2>&1 |
+    grep -Ev "^\s*$|Warming up|Collecting|Analyzing|Benchmarking .*: (Warming|Collecting|Analyzing)"
 if [[ -x "$dir/gpu-horizon-bench" ]]; then
     # Per-site horizons, 100 sites: 360 azimuths, then the CLI default 1440 (0.25 deg).
     echo "== criterion: site_horizons (100 sites x 360 az, then x 1440 az)"
