@@ -177,7 +177,11 @@ fn bench_dp_tiled(c: &mut Criterion, ctx: Option<&GpuContext>) {
     use penumbra::gpu::tiles::{DpTileOptions, dp_visible_tiled_gpu};
     use penumbra::shadow::SUN_ANGULAR_RADIUS_RAD;
     let Some(ctx) = ctx else { return };
-    let env = |name: &str| std::env::var(name).ok().and_then(|v| v.parse::<usize>().ok());
+    let env = |name: &str| {
+        std::env::var(name)
+            .ok()
+            .and_then(|v| v.parse::<usize>().ok())
+    };
     let n = env("PENUMBRA_BENCH_TILED_N").unwrap_or(512);
     let tile = env("PENUMBRA_BENCH_TILE_CELLS").unwrap_or((n / 4).clamp(2, 2048)) as u32;
     let mut group = c.benchmark_group("dp_tiled");

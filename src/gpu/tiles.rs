@@ -19,106 +19,47 @@ use super::dp::gpu_data::DpStep;
 use super::dp::{check_light, slot_buffer, whole, write_dp_steps};
 use super::shadow_march::gpu_data::GridParams;
 use super::shadow_march::{STEP_SLOT_BYTES, band_buffer, storage_init};
+pub use crate::shadow::gpu_tiles::{DEFAULT_RESIDENT_BUDGET_BYTES, DEFAULT_TILE_CELLS};
 use crate::shadow::gpu_tiles::{
-    TileBlock, TilePlan, TileRect, sources_for, sources_for_batch, tile_bounds,
+    TileBlock, TileLimits, TilePlan, TileRect, choose_tile_cells, sources_for, sources_for_batch,
+    tile_bounds,
 };
 use crate::shadow::gpu_twins::{DpCellStats, DpMip, MarchGrid};
 use wgpu::util::DeviceExt as _;
 
 /// Workgroup size of the tiled kernels. Keep in sync with shaders/dp_tile_*.wgsl.
 const WORKGROUP_SIZE_XY: u32 = 8;
-/// Tile side chosen automatically, cells: 2048² = 4.2 M invocations per dispatch (≈ 15 × the
-/// 270 k resident threads of an H100, so a tile still fills the GPU), 39 MB per source block
-/// (16.8 MB heights + 22.4 MB mipmap), far below every adapter's binding limit (lavapipe:
-/// 128 MiB).
-pub const DEFAULT_TILE_CELLS: u32 = 2048;
 /// Resident source blocks kept by default, bytes (25 blocks of 2048²).
 pub const DEFAULT_CACHE_BYTES: u64 = 1 << 30;
-/// Above this many bytes of heights + mipmap the untiled kernel is not used even where the
-/// binding limit would allow it (keeps the map's GPU memory bounded on big adapters too).
-pub const DEFAULT_RESIDENT_BUDGET_BYTES: u64 = 4 << 30;
 
-/// How a one-light DP map is split (the `--gpu-tile-cells` option of `penumbra map`).
+/// How a DP map or sweep is split (the `--gpu-tile-cells` option of `penumbra map`).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct DpTiling {
     /// Tiles of this side, cells, whatever the grid size (for tests and measurements); `None`:
-    /// the untiled kernel when the heights and the mipmap each fit one storage binding and
-    /// together [`DEFAULT_RESIDENT_BUDGET_BYTES`], else tiles of [`DEFAULT_TILE_CELLS`] (halved
-    /// until a block fits one binding).
+    /// the untiled kernels when the heights and the mipmap each fit one storage binding and
+    /// together 4 GiB, else tiles of 2048 (halved until a block fits one binding); see
+    /// [`crate::shadow::gpu_tiles::choose_tile_cells`].
     pub tile_cells: Option<u32>,
 }
 
-/// Bytes of the maximum mipmap texels of a `rows × cols` grid (without building it).
-fn mip_bytes(rows: u64, cols: u64) -> u64 {
-    let (mut r, mut c) = (rows.saturating_sub(1).max(1), cols.saturating_sub(1).max(1));
-    let mut texels = r * c;
-    while r > 1 || c > 1 {
-        (r, c) = (r.div_ceil(2), c.div_ceil(2));
-        texels += r * c;
-    }
-    4 * texels
-}
-
-/// The largest buffer a block of side `t` needs, bytes.
-fn block_binding_bytes(t: u32) -> u64 {
-    let side = u64::from(t) + 4;
-    (4 * side * side).max(mip_bytes(side, side))
-}
-
 impl DpTiling {
-    /// The tile side to use for `grid` on `ctx`, `None` for the untiled kernel. A forced side
+    /// The tile side to use for `grid` on `ctx`, `None` for the untiled kernels. A forced side
     /// whose block would exceed the storage binding limit or the dispatch limit is an error.
     pub fn resolve(&self, ctx: &GpuContext, grid: &MarchGrid) -> Result<Option<u32>, GpuError> {
         let limits = ctx.limits();
-        let max_binding = limits
-            .max_storage_buffer_binding_size
-            .min(limits.max_buffer_size);
-        let max_side = u64::from(limits.max_compute_workgroups_per_dimension)
-            * u64::from(WORKGROUP_SIZE_XY)
-            - 1;
-        let fits = |t: u32| block_binding_bytes(t) <= max_binding && u64::from(t) <= max_side;
-        match self.tile_cells {
-            Some(t) => {
-                if !fits(t) {
-                    return Err(GpuError::InvalidInput {
-                        kernel: "dp_tile_cost",
-                        message: format!(
-                            "tiles of {t} cells need a {} B block, over the adapter's storage \
-                             binding limit ({max_binding} B) or dispatch limit",
-                            block_binding_bytes(t)
-                        ),
-                    });
-                }
-                Ok(Some(t))
+        let tile_limits = TileLimits {
+            max_binding_bytes: limits
+                .max_storage_buffer_binding_size
+                .min(limits.max_buffer_size),
+            max_dispatch_cells: u64::from(limits.max_compute_workgroups_per_dimension)
+                * u64::from(WORKGROUP_SIZE_XY),
+        };
+        choose_tile_cells(grid.rows, grid.cols, tile_limits, self.tile_cells).map_err(|e| {
+            GpuError::InvalidInput {
+                kernel: "dp_tile_cost",
+                message: e.to_string(),
             }
-            None => {
-                let (rows, cols) = (u64::from(grid.rows), u64::from(grid.cols));
-                let heights = 4 * rows * cols;
-                let mip = mip_bytes(rows, cols);
-                let too_wide = u64::from(grid.cols.div_ceil(WORKGROUP_SIZE_XY))
-                    > u64::from(limits.max_compute_workgroups_per_dimension);
-                if heights.max(mip) <= max_binding
-                    && heights + mip <= DEFAULT_RESIDENT_BUDGET_BYTES
-                    && !too_wide
-                {
-                    return Ok(None);
-                }
-                let mut t = DEFAULT_TILE_CELLS;
-                while !fits(t) && t > 64 {
-                    t /= 2;
-                }
-                if !fits(t) {
-                    return Err(GpuError::InvalidInput {
-                        kernel: "dp_tile_cost",
-                        message: format!(
-                            "the adapter's storage binding limit ({max_binding} B) is too \
-                             small even for tiles of {t} cells"
-                        ),
-                    });
-                }
-                Ok(Some(t))
-            }
-        }
+        })
     }
 }
 

@@ -46,6 +46,104 @@ pub enum TileError {
         /// The side asked for.
         tile_cells: u32,
     },
+    /// A tile's block does not fit the adapter's storage binding or dispatch limits.
+    #[error(
+        "tiles of {tile_cells} cells need a {block_bytes} B block, over the adapter's storage \
+         binding limit ({max_binding_bytes} B) or dispatch limit"
+    )]
+    TooBig {
+        /// The side asked for (or the smallest tried).
+        tile_cells: u32,
+        /// The largest buffer of one block, bytes.
+        block_bytes: u64,
+        /// The adapter's limit, bytes.
+        max_binding_bytes: u64,
+    },
+}
+
+/// Tile side chosen automatically, cells: 2048² = 4.2 M invocations per dispatch (≈ 15 × the
+/// 270 k resident threads of an H100, so a tile still fills the GPU), 39 MB per source block
+/// (16.8 MB heights + 22.4 MB mipmap), far below every adapter's binding limit (lavapipe:
+/// 128 MiB).
+pub const DEFAULT_TILE_CELLS: u32 = 2048;
+/// Above this many bytes of heights + mipmap the untiled kernels are not used even where the
+/// binding limit would allow them (keeps the GPU memory of a map bounded on big adapters too).
+pub const DEFAULT_RESIDENT_BUDGET_BYTES: u64 = 4 << 30;
+
+/// The adapter limits that decide between the untiled and the tiled DP kernels.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct TileLimits {
+    /// Largest storage binding (and buffer), bytes.
+    pub max_binding_bytes: u64,
+    /// Largest output side one dispatch covers, cells (workgroups per dimension × 8).
+    pub max_dispatch_cells: u64,
+}
+
+/// Bytes of the maximum mipmap texels of a `rows × cols` grid (without building it).
+pub fn mip_bytes(rows: u64, cols: u64) -> u64 {
+    let (mut r, mut c) = (rows.saturating_sub(1).max(1), cols.saturating_sub(1).max(1));
+    let mut texels = r * c;
+    while r > 1 || c > 1 {
+        (r, c) = (r.div_ceil(2), c.div_ceil(2));
+        texels += r * c;
+    }
+    4 * texels
+}
+
+/// The largest buffer one block of tiles of side `t` needs, bytes (heights `(t + 3)²`, the
+/// last tile one more: `(t + 4)²` bounds both).
+pub fn block_binding_bytes(t: u32) -> u64 {
+    let side = u64::from(t) + 4;
+    (4 * side * side).max(mip_bytes(side, side))
+}
+
+/// Tile side for a `rows × cols` grid: `forced` if its blocks fit `limits` (else
+/// [`TileError::TooBig`]); without `forced`, `None` (the untiled kernels) when the heights and the
+/// mipmap each fit one binding, together fit [`DEFAULT_RESIDENT_BUDGET_BYTES`] and the width fits
+/// one dispatch, else [`DEFAULT_TILE_CELLS`] halved (down to 64) until a block fits.
+pub fn choose_tile_cells(
+    rows: u32,
+    cols: u32,
+    limits: TileLimits,
+    forced: Option<u32>,
+) -> Result<Option<u32>, TileError> {
+    let fits = |t: u32| {
+        block_binding_bytes(t) <= limits.max_binding_bytes
+            && u64::from(t) + 1 <= limits.max_dispatch_cells
+    };
+    let too_big = |t: u32| TileError::TooBig {
+        tile_cells: t,
+        block_bytes: block_binding_bytes(t),
+        max_binding_bytes: limits.max_binding_bytes,
+    };
+    if let Some(t) = forced {
+        if t < MIN_TILE_CELLS {
+            return Err(TileError::TooSmall { tile_cells: t });
+        }
+        return if fits(t) {
+            Ok(Some(t))
+        } else {
+            Err(too_big(t))
+        };
+    }
+    let (r, c) = (u64::from(rows), u64::from(cols));
+    let heights = 4 * r * c;
+    let mip = mip_bytes(r, c);
+    if heights.max(mip) <= limits.max_binding_bytes
+        && heights + mip <= DEFAULT_RESIDENT_BUDGET_BYTES
+        && c <= limits.max_dispatch_cells
+    {
+        return Ok(None);
+    }
+    let mut t = DEFAULT_TILE_CELLS;
+    while !fits(t) && t > 64 {
+        t /= 2;
+    }
+    if fits(t) {
+        Ok(Some(t))
+    } else {
+        Err(too_big(t))
+    }
 }
 
 /// One tile: its output cells, dual cells (the source region of its mipmap) and heights block.
@@ -571,6 +669,60 @@ mod tests {
         }
         assert_eq!(
             TilePlan::new(10, 10, 1),
+            Err(TileError::TooSmall { tile_cells: 1 })
+        );
+    }
+
+    /// The mipmap size formula counts the texels `DpMip::build` makes; the automatic choice
+    /// keeps grids that fit one binding untiled and tiles the rest (lavapipe's 128 MiB limit,
+    /// a 4 GiB limit, 20,000² at 20 m).
+    #[test]
+    fn automatic_tile_choice_follows_the_binding_limit() {
+        use crate::shadow::gpu_twins::{DpMip, MarchGrid};
+        use crate::terrain::HeightField;
+        for (rows, cols) in [(2, 2), (37, 37), (65, 130), (200, 7)] {
+            let grid =
+                MarchGrid::from_height_field(&HeightField::flat(rows, cols, 20.0), 2.0).unwrap();
+            let texels = DpMip::build(&grid).texels.len() as u64;
+            assert_eq!(mip_bytes(rows as u64, cols as u64), 4 * texels);
+        }
+        let lavapipe = TileLimits {
+            max_binding_bytes: 128 << 20,
+            max_dispatch_cells: 65_535 * 8,
+        };
+        let big = TileLimits {
+            max_binding_bytes: (4 << 30) - 1,
+            ..lavapipe
+        };
+        // 5,300²: 112 MB heights, 150 MB mipmap > 128 MiB: tiled on lavapipe only; 5,000²
+        // (133 MB mipmap) still fits.
+        assert_eq!(
+            choose_tile_cells(5300, 5300, lavapipe, None),
+            Ok(Some(2048))
+        );
+        assert_eq!(choose_tile_cells(5300, 5300, big, None), Ok(None));
+        assert_eq!(choose_tile_cells(5000, 5000, lavapipe, None), Ok(None));
+        assert_eq!(choose_tile_cells(4096, 4096, lavapipe, None), Ok(None));
+        // 20,000²: 1.6 GB + 2.1 GB fits a 4 GiB binding and the 4 GiB budget; 30,000² does not.
+        assert_eq!(choose_tile_cells(20_000, 20_000, big, None), Ok(None));
+        assert_eq!(choose_tile_cells(30_000, 30_000, big, None), Ok(Some(2048)));
+        assert_eq!(
+            choose_tile_cells(20_000, 20_000, lavapipe, None),
+            Ok(Some(2048))
+        );
+        let tiny = TileLimits {
+            max_binding_bytes: 1 << 20,
+            ..lavapipe
+        };
+        // 1 MiB binding: 2048 → 1024 → 512 (block 1.4 MB > 1 MiB) → 256 (359 kB).
+        assert_eq!(choose_tile_cells(20_000, 20_000, tiny, None), Ok(Some(256)));
+        assert_eq!(choose_tile_cells(100, 100, tiny, Some(50)), Ok(Some(50)));
+        assert!(matches!(
+            choose_tile_cells(100, 100, tiny, Some(4096)),
+            Err(TileError::TooBig { .. })
+        ));
+        assert_eq!(
+            choose_tile_cells(100, 100, tiny, Some(1)),
             Err(TileError::TooSmall { tile_cells: 1 })
         );
     }

@@ -406,6 +406,78 @@ mod on_gpu {
         assert!(run.max_sources > 1);
     }
 
+    /// `penumbra map --start .. --gpu-tile-cells 64 --backend gpu` (the tiled soft sweep, 3
+    /// epochs, synthetic DEM) writes the same statistics GeoTIFFs as the untiled GPU sweep.
+    #[test]
+    fn map_cli_tiled_sweep_equals_untiled() {
+        if gpu().is_none() {
+            return;
+        }
+        let dir = tempfile::tempdir().unwrap();
+        let k = crate::util::kernels_dir();
+        for (name, extra) in [
+            ("whole", &[][..]),
+            ("tiled", &["--gpu-tile-cells", "64"][..]),
+        ] {
+            let out = std::process::Command::new(env!("CARGO_BIN_EXE_penumbra"))
+                .args([
+                    "map",
+                    "--synthetic",
+                    "--start",
+                    "2027-02-01",
+                    "--stop",
+                    "2027-02-02",
+                    "--step",
+                    "12h",
+                    "--engine",
+                    "dp",
+                    "--backend",
+                    "gpu",
+                    "--out-dir",
+                    name,
+                    "--kernels",
+                    k.to_str().unwrap(),
+                ])
+                .args(extra)
+                .current_dir(dir.path())
+                .env("XDG_RUNTIME_DIR", "/tmp")
+                .env_remove("PENUMBRA_KERNELS")
+                .output()
+                .unwrap();
+            assert!(
+                out.status.success(),
+                "{name}: {}",
+                String::from_utf8_lossy(&out.stderr)
+            );
+        }
+        let mut compared = 0;
+        for entry in std::fs::read_dir(dir.path().join("whole")).unwrap() {
+            let path = entry.unwrap().path();
+            if path.extension().is_none_or(|e| e != "tif") {
+                continue;
+            }
+            let a = penumbra::terrain::read_geotiff(&path).unwrap();
+            let b = penumbra::terrain::read_geotiff(
+                &dir.path().join("tiled").join(path.file_name().unwrap()),
+            )
+            .unwrap();
+            let same = a
+                .heights_m
+                .iter()
+                .zip(&b.heights_m)
+                .filter(|(x, y)| x == y || (x.is_nan() && y.is_nan()))
+                .count();
+            eprintln!(
+                "map sweep --gpu-tile-cells 64 {}: {same}/{} pixels equal",
+                path.display(),
+                a.heights_m.len()
+            );
+            assert_eq!(same, a.heights_m.len());
+            compared += 1;
+        }
+        assert!(compared >= 5, "statistics maps written");
+    }
+
     /// `penumbra map --gpu-tile-cells 64` writes the same fraction and mask GeoTIFFs as the
     /// untiled GPU map (synthetic DEM, Sun at 1° elevation).
     #[test]
