@@ -253,7 +253,8 @@ impl GpuDpGrid {
                 kernel: "dp_visible",
                 message: format!(
                     "the height field or its mipmap ({biggest} B) exceeds the adapter's storage \
-                     binding limit ({max_binding} B); grids beyond one binding are not tiled yet (docs/gpu.md)"
+                     binding limit ({max_binding} B); use the 2-D tiled kernels of gpu::tiles (docs/gpu.md, \
+                     \"Large grids\")"
                 ),
             });
         }

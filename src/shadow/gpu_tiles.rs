@@ -109,7 +109,7 @@ pub fn choose_tile_cells(
 ) -> Result<Option<u32>, TileError> {
     let fits = |t: u32| {
         block_binding_bytes(t) <= limits.max_binding_bytes
-            && u64::from(t) + 1 <= limits.max_dispatch_cells
+            && u64::from(t) < limits.max_dispatch_cells
     };
     let too_big = |t: u32| TileError::TooBig {
         tile_cells: t,
