@@ -460,7 +460,7 @@ pub fn sweep_gpu_soft(
             ]
         })
         .collect();
-    let stats = match tiling.resolve(ctx, &march)? {
+    let stats = match tiling.resolve_sweep(ctx, &march)? {
         Some(tile_cells) => {
             dp_sweep_tiled_gpu(ctx, &march, &table, DpTileSweepOptions::new(tile_cells))?.0
         }

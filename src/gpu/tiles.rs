@@ -2,7 +2,9 @@
 //! whose heights or maximum mipmap exceed one storage binding (or a memory budget), the one-light
 //! DP map is computed per output tile, walking the rays through one source tile at a time
 //! (`shaders/dp_tile_cost.wgsl`, min-accumulating the shadow cost in a per-tile cost buffer),
-//! then turned into fractions (`shaders/dp_tile_fraction.wgsl`). The tile plan, the choice of
+//! then turned into fractions (`shaders/dp_tile_fraction.wgsl`); the soft epoch sweep likewise
+//! per batch of epochs (`shaders/dp_tile_sweep_cost.wgsl`, `dp_tile_sweep_accumulate.wgsl`,
+//! [`dp_sweep_tiled_gpu`]). The tile plan, the choice of
 //! source tiles and the CPU twin live in [`crate::shadow::gpu_tiles`] (why the result is exact is
 //! explained there).
 //!
@@ -43,9 +45,28 @@ pub struct DpTiling {
 }
 
 impl DpTiling {
-    /// The tile side to use for `grid` on `ctx`, `None` for the untiled kernels. A forced side
-    /// whose block would exceed the storage binding limit or the dispatch limit is an error.
+    /// The tile side for a one-light map of `grid` on `ctx`, `None` for the untiled kernel. A
+    /// forced side whose block would exceed the storage binding limit or the dispatch limit is an
+    /// error.
     pub fn resolve(&self, ctx: &GpuContext, grid: &MarchGrid) -> Result<Option<u32>, GpuError> {
+        self.resolve_for(ctx, grid, 4)
+    }
+
+    /// As [`DpTiling::resolve`] for the soft sweep (32 B of statistics per output cell).
+    pub fn resolve_sweep(
+        &self,
+        ctx: &GpuContext,
+        grid: &MarchGrid,
+    ) -> Result<Option<u32>, GpuError> {
+        self.resolve_for(ctx, grid, size_of::<DpCellStats>() as u64)
+    }
+
+    fn resolve_for(
+        &self,
+        ctx: &GpuContext,
+        grid: &MarchGrid,
+        out_bytes_per_cell: u64,
+    ) -> Result<Option<u32>, GpuError> {
         let limits = ctx.limits();
         let tile_limits = TileLimits {
             max_binding_bytes: limits
@@ -54,11 +75,16 @@ impl DpTiling {
             max_dispatch_cells: u64::from(limits.max_compute_workgroups_per_dimension)
                 * u64::from(WORKGROUP_SIZE_XY),
         };
-        choose_tile_cells(grid.rows, grid.cols, tile_limits, self.tile_cells).map_err(|e| {
-            GpuError::InvalidInput {
-                kernel: "dp_tile_cost",
-                message: e.to_string(),
-            }
+        choose_tile_cells(
+            grid.rows,
+            grid.cols,
+            tile_limits,
+            self.tile_cells,
+            out_bytes_per_cell,
+        )
+        .map_err(|e| GpuError::InvalidInput {
+            kernel: "dp_tile_cost",
+            message: e.to_string(),
         })
     }
 }
@@ -438,10 +464,17 @@ pub fn dp_sweep_tiled_gpu(
     DpTiling {
         tile_cells: Some(options.tile_cells),
     }
-    .resolve(ctx, grid)?;
+    .resolve_sweep(ctx, grid)?;
     let bounds = tile_bounds(grid, &plan);
     let (_, max_tile_cells) = plan.max_block_and_tile_cells();
-    let batch = options.epochs_per_batch;
+    // The cost buffer (8 B per cell and epoch) must fit one binding too.
+    let limits = ctx.limits();
+    let max_binding = limits
+        .max_storage_buffer_binding_size
+        .min(limits.max_buffer_size);
+    let batch = options
+        .epochs_per_batch
+        .min((max_binding / (8 * max_tile_cells as u64)).max(1) as u32);
     let stats_bytes = size_of::<DpCellStats>() as u64;
     let cols = grid.cols as usize;
     let mut run = TileRunStats {

@@ -46,7 +46,7 @@ pub enum TileError {
         /// The side asked for.
         tile_cells: u32,
     },
-    /// A tile's block does not fit the adapter's storage binding or dispatch limits.
+    /// A tile's block or output does not fit the adapter's storage binding or dispatch limits.
     #[error(
         "tiles of {tile_cells} cells need a {block_bytes} B block, over the adapter's storage \
          binding limit ({max_binding_bytes} B) or dispatch limit"
@@ -54,7 +54,7 @@ pub enum TileError {
     TooBig {
         /// The side asked for (or the smallest tried).
         tile_cells: u32,
-        /// The largest buffer of one block, bytes.
+        /// The largest buffer of one block or output tile, bytes.
         block_bytes: u64,
         /// The adapter's limit, bytes.
         max_binding_bytes: u64,
@@ -97,23 +97,26 @@ pub fn block_binding_bytes(t: u32) -> u64 {
     (4 * side * side).max(mip_bytes(side, side))
 }
 
-/// Tile side for a `rows × cols` grid: `forced` if its blocks fit `limits` (else
-/// [`TileError::TooBig`]); without `forced`, `None` (the untiled kernels) when the heights and the
-/// mipmap each fit one binding, together fit [`DEFAULT_RESIDENT_BUDGET_BYTES`] and the width fits
-/// one dispatch, else [`DEFAULT_TILE_CELLS`] halved (down to 64) until a block fits.
+/// Tile side for a `rows × cols` grid whose output tile holds `out_bytes_per_cell` bytes per
+/// cell in one binding (4 for a map, 32 for the sweep's statistics): `forced` if its blocks and
+/// output fit `limits` (else [`TileError::TooBig`]); without `forced`, `None` (the untiled
+/// kernels) when the heights and the mipmap each fit one binding, together fit
+/// [`DEFAULT_RESIDENT_BUDGET_BYTES`] and the width fits one dispatch, else
+/// [`DEFAULT_TILE_CELLS`] halved (down to 64) until everything fits.
 pub fn choose_tile_cells(
     rows: u32,
     cols: u32,
     limits: TileLimits,
     forced: Option<u32>,
+    out_bytes_per_cell: u64,
 ) -> Result<Option<u32>, TileError> {
-    let fits = |t: u32| {
-        block_binding_bytes(t) <= limits.max_binding_bytes
-            && u64::from(t) < limits.max_dispatch_cells
-    };
+    let out_bytes = |t: u32| (u64::from(t) + 1).pow(2) * out_bytes_per_cell;
+    let needs = |t: u32| block_binding_bytes(t).max(out_bytes(t));
+    let fits =
+        |t: u32| needs(t) <= limits.max_binding_bytes && u64::from(t) < limits.max_dispatch_cells;
     let too_big = |t: u32| TileError::TooBig {
         tile_cells: t,
-        block_bytes: block_binding_bytes(t),
+        block_bytes: needs(t),
         max_binding_bytes: limits.max_binding_bytes,
     };
     if let Some(t) = forced {
@@ -697,17 +700,20 @@ mod tests {
         // 5,300²: 112 MB heights, 150 MB mipmap > 128 MiB: tiled on lavapipe only; 5,000²
         // (133 MB mipmap) still fits.
         assert_eq!(
-            choose_tile_cells(5300, 5300, lavapipe, None),
+            choose_tile_cells(5300, 5300, lavapipe, None, 4),
             Ok(Some(2048))
         );
-        assert_eq!(choose_tile_cells(5300, 5300, big, None), Ok(None));
-        assert_eq!(choose_tile_cells(5000, 5000, lavapipe, None), Ok(None));
-        assert_eq!(choose_tile_cells(4096, 4096, lavapipe, None), Ok(None));
+        assert_eq!(choose_tile_cells(5300, 5300, big, None, 4), Ok(None));
+        assert_eq!(choose_tile_cells(5000, 5000, lavapipe, None, 4), Ok(None));
+        assert_eq!(choose_tile_cells(4096, 4096, lavapipe, None, 4), Ok(None));
         // 20,000²: 1.6 GB + 2.1 GB fits a 4 GiB binding and the 4 GiB budget; 30,000² does not.
-        assert_eq!(choose_tile_cells(20_000, 20_000, big, None), Ok(None));
-        assert_eq!(choose_tile_cells(30_000, 30_000, big, None), Ok(Some(2048)));
+        assert_eq!(choose_tile_cells(20_000, 20_000, big, None, 4), Ok(None));
         assert_eq!(
-            choose_tile_cells(20_000, 20_000, lavapipe, None),
+            choose_tile_cells(30_000, 30_000, big, None, 4),
+            Ok(Some(2048))
+        );
+        assert_eq!(
+            choose_tile_cells(20_000, 20_000, lavapipe, None, 4),
             Ok(Some(2048))
         );
         let tiny = TileLimits {
@@ -715,15 +721,24 @@ mod tests {
             ..lavapipe
         };
         // 1 MiB binding: 2048 → 1024 → 512 (block 1.4 MB > 1 MiB) → 256 (359 kB).
-        assert_eq!(choose_tile_cells(20_000, 20_000, tiny, None), Ok(Some(256)));
-        assert_eq!(choose_tile_cells(100, 100, tiny, Some(50)), Ok(Some(50)));
+        assert_eq!(
+            choose_tile_cells(20_000, 20_000, tiny, None, 4),
+            Ok(Some(256))
+        );
+        assert_eq!(choose_tile_cells(100, 100, tiny, Some(50), 4), Ok(Some(50)));
         assert!(matches!(
-            choose_tile_cells(100, 100, tiny, Some(4096)),
+            choose_tile_cells(100, 100, tiny, Some(4096), 4),
             Err(TileError::TooBig { .. })
         ));
         assert_eq!(
-            choose_tile_cells(100, 100, tiny, Some(1)),
+            choose_tile_cells(100, 100, tiny, Some(1), 4),
             Err(TileError::TooSmall { tile_cells: 1 })
+        );
+        // The sweep's 32 B of statistics per cell: 2049² × 32 B = 134.3 MB > 128 MiB, so
+        // lavapipe gets tiles of 1024 for a sweep.
+        assert_eq!(
+            choose_tile_cells(20_000, 20_000, lavapipe, None, 32),
+            Ok(Some(1024))
         );
     }
 }
