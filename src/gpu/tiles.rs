@@ -142,11 +142,10 @@ struct GpuTileBlock {
 }
 
 impl GpuTileBlock {
-    fn upload(ctx: &GpuContext, grid: &MarchGrid, rect: TileRect) -> Self {
-        let block = TileBlock::build(grid, rect);
+    fn upload(ctx: &GpuContext, block: &TileBlock) -> Self {
         let DpMip { levels, texels } = &block.mip;
         GpuTileBlock {
-            rect,
+            rect: block.rect,
             heights: storage_init(
                 ctx,
                 "penumbra dp tile heights",
@@ -165,6 +164,9 @@ impl GpuTileBlock {
 
 /// LRU cache of uploaded source blocks.
 struct BlockCache {
+    /// Blocks built on the host (heights copy + mipmap), each once per call: re-uploading an
+    /// evicted block then costs only the transfer. Host memory ≈ 1.3 × the grid's heights.
+    host: Vec<Option<TileBlock>>,
     blocks: HashMap<usize, (Rc<GpuTileBlock>, u64)>,
     bytes: u64,
     cap_bytes: u64,
@@ -185,7 +187,8 @@ impl BlockCache {
             *used = self.clock;
             return Rc::clone(block);
         }
-        let block = Rc::new(GpuTileBlock::upload(ctx, grid, plan.rect(tile)));
+        let host = self.host[tile].get_or_insert_with(|| TileBlock::build(grid, plan.rect(tile)));
+        let block = Rc::new(GpuTileBlock::upload(ctx, host));
         stats.uploads += 1;
         self.bytes += block.bytes;
         self.blocks.insert(tile, (Rc::clone(&block), self.clock));
@@ -339,6 +342,7 @@ pub fn dp_visible_tiled_gpu(
         wgpu::BufferUsages::empty(),
     );
     let mut cache = BlockCache {
+        host: vec![None; plan.len()],
         blocks: HashMap::new(),
         bytes: 0,
         cap_bytes: options.cache_bytes,
@@ -510,6 +514,7 @@ pub fn dp_sweep_tiled_gpu(
         mapped_at_creation: false,
     });
     let mut cache = BlockCache {
+        host: vec![None; plan.len()],
         blocks: HashMap::new(),
         bytes: 0,
         cap_bytes: options.cache_bytes,
