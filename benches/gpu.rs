@@ -235,12 +235,57 @@ fn bench_fourier(c: &mut Criterion, ctx: Option<&GpuContext>) {
     group.finish();
 }
 
+/// One-light DP soft map, whole-grid kernel vs 2-D tiles (docs/gpu.md, "Large grids"), Sun at
+/// 1.5° elevation. Size `PENUMBRA_BENCH_TILED_N` (default 512; `tools/gpu-bench.sh` also runs
+/// 20000 on a GPU machine), tile side `PENUMBRA_BENCH_TILE_CELLS` (default N / 4, at most 2048).
+/// The untiled variant is skipped with a printed reason where the grid exceeds one binding.
+fn bench_dp_tiled(c: &mut Criterion, ctx: Option<&GpuContext>) {
+    use penumbra::gpu::dp::{GpuDpGrid, dp_visible_gpu};
+    use penumbra::gpu::tiles::{DpTileOptions, dp_visible_tiled_gpu};
+    use penumbra::shadow::SUN_ANGULAR_RADIUS_RAD;
+    let Some(ctx) = ctx else { return };
+    let env = |name: &str| {
+        std::env::var(name)
+            .ok()
+            .and_then(|v| v.parse::<usize>().ok())
+    };
+    let n = env("PENUMBRA_BENCH_TILED_N").unwrap_or(512);
+    let tile = env("PENUMBRA_BENCH_TILE_CELLS").unwrap_or((n / 4).clamp(2, 2048)) as u32;
+    let mut group = c.benchmark_group("dp_tiled");
+    group
+        .sample_size(10)
+        .measurement_time(Duration::from_secs(if n > 4096 { 60 } else { 6 }));
+    let light = gpu_twins::disc_light_to_f32(&sun_dir(151.0, 1.5), SUN_ANGULAR_RADIUS_RAD);
+    let grid = hills(n);
+    group.throughput(Throughput::Elements(grid.cells() as u64));
+    let mip = gpu_twins::DpMip::build(&grid);
+    match GpuDpGrid::upload(ctx, &grid, &mip) {
+        Ok(gpu_grid) => {
+            group.bench_with_input(BenchmarkId::new("gpu_untiled", n), &gpu_grid, |b, g| {
+                b.iter(|| dp_visible_gpu(ctx, g, light, DEFAULT_BAND_BYTES).expect("gpu dp"))
+            });
+        }
+        Err(e) => eprintln!("dp_tiled/gpu_untiled/{n}: skipped: {e}"),
+    }
+    drop(mip);
+    let options = DpTileOptions::new(tile);
+    let once = dp_visible_tiled_gpu(ctx, &grid, light, options).expect("tiled dp");
+    eprintln!("dp_tiled/gpu_tiled_{tile}/{n}: {:?}", once.stats);
+    group.bench_with_input(
+        BenchmarkId::new(format!("gpu_tiled_{tile}"), n),
+        &grid,
+        |b, grid| b.iter(|| dp_visible_tiled_gpu(ctx, grid, light, options).expect("tiled dp")),
+    );
+    group.finish();
+}
+
 fn bench_gpu(c: &mut Criterion) {
     let ctx = context();
     bench_march(c, ctx.as_ref());
     bench_sweep(c, ctx.as_ref());
     bench_dp_soft(c, ctx.as_ref());
     bench_fourier(c, ctx.as_ref());
+    bench_dp_tiled(c, ctx.as_ref());
 }
 
 criterion_group!(benches, bench_gpu);

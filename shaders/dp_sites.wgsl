@@ -36,7 +36,7 @@ fn dp_site_horizon_tan(obs: DpObserver, light: vec4<f32>, min_s: f32) -> f32 {
             cap = tan_el - tan(e_low);
         }
     }
-    let j = dp_cost_beyond(obs, l, cap, min_s);
+    let j = dp_cost_beyond(obs, l, cap, DP_FAR, min_s);
     if j >= 0.5 * DP_FAR {
         return -DP_FAR;
     }

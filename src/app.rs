@@ -493,6 +493,9 @@ fn run_map(args: &crate::cli::MapArgs) -> anyhow::Result<()> {
                     args.observer_height_m,
                     &lights,
                     step_h,
+                    crate::gpu::tiles::DpTiling {
+                        tile_cells: args.gpu_tile_cells,
+                    },
                 )?;
                 progress.inc(lights.len() as u64);
                 (
@@ -561,6 +564,10 @@ fn run_map(args: &crate::cli::MapArgs) -> anyhow::Result<()> {
     };
     #[cfg(not(feature = "gpu"))]
     let gpu_ctx: Option<&crate::gpu::GpuContext> = None;
+    #[cfg(feature = "gpu")]
+    let tiling = crate::gpu::tiles::DpTiling {
+        tile_cells: args.gpu_tile_cells,
+    };
     let h_m = args.observer_height_m;
     let engine = match gpu_ctx {
         #[cfg(feature = "gpu")]
@@ -586,7 +593,7 @@ fn run_map(args: &crate::cli::MapArgs) -> anyhow::Result<()> {
             #[cfg(feature = "gpu")]
             Some(ctx) => match &gpu_fourier {
                 Some(on_gpu) => crate::map::fourier_fraction_gpu(ctx, on_gpu, light, radius),
-                None => crate::map::visible_fraction_gpu(ctx, &grid.hf, h_m, light, radius),
+                None => crate::map::visible_fraction_gpu(ctx, &grid.hf, h_m, light, radius, tiling),
             },
             _ => engine.visible_fraction(&grid.hf, h_m, light, radius),
         }
@@ -606,7 +613,7 @@ fn run_map(args: &crate::cli::MapArgs) -> anyhow::Result<()> {
                 Some(on_gpu) => on_gpu
                     .hard_mask(ctx, sun)
                     .context("evaluating the horizon map on the GPU")?,
-                None => crate::map::hard_mask_gpu(ctx, &grid.hf, h_m, sun)?,
+                None => crate::map::hard_mask_gpu(ctx, &grid.hf, h_m, sun, tiling)?,
             },
             _ => engine.hard_mask(&grid.hf, h_m, sun)?,
         };

@@ -509,6 +509,11 @@ pub struct MapArgs {
     /// adapter exists, else the CPU with one warning line).
     #[arg(long, value_enum, default_value_t = crate::gpu::Backend::Auto)]
     pub backend: crate::gpu::Backend,
+    /// GPU maps and sweeps: compute in 2-D tiles of this many cells per side (≥ 2) instead of
+    /// choosing automatically (tiles of 2048 only when the grid or its mipmap exceed one storage
+    /// binding or 4 GiB; docs/gpu.md, "Large grids").
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(2..))]
+    pub gpu_tile_cells: Option<u32>,
     /// Aberration correction: lt+s or none.
     #[arg(long, default_value = "lt+s")]
     pub abcorr: String,

@@ -436,7 +436,8 @@ pub fn sweep_gpu(
 /// [`crate::shadow::dp::visible_fraction`]) and folds them with the same definitions as [`sweep`]
 /// (mean visible fraction, "visible" = fraction > [`VISIBLE_MIN_FRACTION`], longest Sun-dark
 /// run, Earth and Sun-and-Earth counts). The light table goes up once (two f32 discs per epoch);
-/// nothing is read back per epoch. Whatever `--engine` says, the GPU runs DP.
+/// nothing is read back per epoch. Whatever `--engine` says, the GPU runs DP. `tiling` chooses
+/// between the whole-grid sweep and the 2-D tiled sweep (docs/gpu.md, "Large grids").
 #[cfg(feature = "gpu")]
 pub fn sweep_gpu_soft(
     ctx: &crate::gpu::GpuContext,
@@ -444,12 +445,12 @@ pub fn sweep_gpu_soft(
     observer_height_m: f64,
     lights: &[EpochLights],
     step_h: f64,
+    tiling: crate::gpu::tiles::DpTiling,
 ) -> anyhow::Result<SweepStats> {
     use crate::gpu::dp::{DpSweepOptions, GpuDpGrid, dp_sweep_gpu};
+    use crate::gpu::tiles::{DpTileSweepOptions, dp_sweep_tiled_gpu};
     use crate::shadow::gpu_twins::{DpMip, MarchGrid, disc_light_to_f32};
     let march = MarchGrid::from_height_field(&grid.hf, observer_height_m)?;
-    let mip = DpMip::build(&march);
-    let on_gpu = GpuDpGrid::upload(ctx, &march, &mip)?;
     let table: Vec<[f32; 4]> = lights
         .iter()
         .flat_map(|l| {
@@ -459,7 +460,16 @@ pub fn sweep_gpu_soft(
             ]
         })
         .collect();
-    let stats = dp_sweep_gpu(ctx, &on_gpu, &table, DpSweepOptions::default())?;
+    let stats = match tiling.resolve_sweep(ctx, &march)? {
+        Some(tile_cells) => {
+            dp_sweep_tiled_gpu(ctx, &march, &table, DpTileSweepOptions::new(tile_cells))?.0
+        }
+        None => {
+            let mip = DpMip::build(&march);
+            let on_gpu = GpuDpGrid::upload(ctx, &march, &mip)?;
+            dp_sweep_gpu(ctx, &on_gpu, &table, DpSweepOptions::default())?
+        }
+    };
     Ok(SweepStats {
         epochs: lights.len(),
         step_h,
@@ -489,7 +499,9 @@ fn fraction_from_gpu(f: f32) -> f32 {
 /// One-light maps on the GPU (issue 7 item 2): the DP visible fraction of a disc of angular
 /// radius `angular_radius_rad` per model cell (`NaN` for holes), or with `angular_radius_rad` =
 /// 0 the hard mask of the disc centre. Every `--engine` except `fourier` maps to this kernel on
-/// the GPU (see docs/gpu.md).
+/// the GPU (see docs/gpu.md). `tiling` chooses between the whole-grid kernel and 2-D tiles
+/// (automatically: tiles when the grid or its mipmap exceed one storage binding; docs/gpu.md,
+/// "Large grids").
 #[cfg(feature = "gpu")]
 pub fn visible_fraction_gpu(
     ctx: &crate::gpu::GpuContext,
@@ -497,15 +509,24 @@ pub fn visible_fraction_gpu(
     observer_height_m: f64,
     light_in_model: [f64; 3],
     angular_radius_rad: f64,
+    tiling: crate::gpu::tiles::DpTiling,
 ) -> anyhow::Result<Vec<f32>> {
     use crate::gpu::dp::{GpuDpGrid, dp_visible_gpu};
     use crate::gpu::shadow_march::DEFAULT_BAND_BYTES;
+    use crate::gpu::tiles::{DpTileOptions, dp_visible_tiled_gpu};
     use crate::shadow::gpu_twins::{DpMip, MarchGrid, disc_light_to_f32};
     let march = MarchGrid::from_height_field(hf, observer_height_m)?;
-    let mip = DpMip::build(&march);
-    let on_gpu = GpuDpGrid::upload(ctx, &march, &mip)?;
     let light = disc_light_to_f32(&Vector3::from(light_in_model), angular_radius_rad);
-    let out = dp_visible_gpu(ctx, &on_gpu, light, DEFAULT_BAND_BYTES)?;
+    let out = match tiling.resolve(ctx, &march)? {
+        Some(tile_cells) => {
+            dp_visible_tiled_gpu(ctx, &march, light, DpTileOptions::new(tile_cells))?.values
+        }
+        None => {
+            let mip = DpMip::build(&march);
+            let on_gpu = GpuDpGrid::upload(ctx, &march, &mip)?;
+            dp_visible_gpu(ctx, &on_gpu, light, DEFAULT_BAND_BYTES)?
+        }
+    };
     Ok(out.into_iter().map(fraction_from_gpu).collect())
 }
 
@@ -601,9 +622,10 @@ pub fn hard_mask_gpu(
     hf: &HeightField,
     observer_height_m: f64,
     light_in_model: [f64; 3],
+    tiling: crate::gpu::tiles::DpTiling,
 ) -> anyhow::Result<Vec<u8>> {
     Ok(
-        visible_fraction_gpu(ctx, hf, observer_height_m, light_in_model, 0.0)?
+        visible_fraction_gpu(ctx, hf, observer_height_m, light_in_model, 0.0, tiling)?
             .into_iter()
             .map(|f| {
                 if f.is_nan() {

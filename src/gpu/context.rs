@@ -113,6 +113,14 @@ impl GpuContext {
         format!("{:?} {:?}", self.info.backend, self.info.device_type)
     }
 
+    /// The largest storage-buffer binding this device allows, bytes (the binding limit that
+    /// decides between the untiled and the tiled DP kernels).
+    pub fn max_storage_binding_bytes(&self) -> u64 {
+        self.limits
+            .max_storage_buffer_binding_size
+            .min(self.limits.max_buffer_size)
+    }
+
     /// The device limits (the adapter's own).
     pub(crate) fn limits(&self) -> &wgpu::Limits {
         &self.limits

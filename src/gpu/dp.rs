@@ -42,6 +42,22 @@ const DP_SITES_WGSL: &str = include_str!(concat!(
 ));
 /// Workgroup size of `shaders/dp_sites.wgsl` (along the entries). Keep in sync.
 const SITES_WORKGROUP_SIZE_X: u32 = 64;
+const DP_TILE_COST_WGSL: &str = include_str!(concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/shaders/dp_tile_cost.wgsl"
+));
+const DP_TILE_FRACTION_WGSL: &str = include_str!(concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/shaders/dp_tile_fraction.wgsl"
+));
+const DP_TILE_SWEEP_COST_WGSL: &str = include_str!(concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/shaders/dp_tile_sweep_cost.wgsl"
+));
+const DP_TILE_SWEEP_ACCUMULATE_WGSL: &str = include_str!(concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/shaders/dp_tile_sweep_accumulate.wgsl"
+));
 
 /// Mirrors of the WGSL structs.
 pub(crate) mod gpu_data {
@@ -49,14 +65,50 @@ pub(crate) mod gpu_data {
 
     /// Keep in sync with `DpStep` in shaders/shared/dp.wgsl.
     #[repr(C)]
-    #[derive(Debug, Clone, Copy, Pod, Zeroable)]
+    #[derive(Debug, Clone, Copy, Default, Pod, Zeroable)]
     pub(crate) struct DpStep {
         pub light0: u32,
         pub count: u32,
         pub band_row0: u32,
         pub band_rows: u32,
+        pub band_col0: u32,
+        pub band_cols: u32,
+        pub src_row0: u32,
+        pub src_col0: u32,
+        pub hgt_row0: u32,
+        pub hgt_col0: u32,
+        pub hgt_rows: u32,
+        pub hgt_cols: u32,
+        pub first_source: u32,
+        pub obs_row0: u32,
+        pub obs_col0: u32,
+        pub obs_cols: u32,
     }
-    const _: () = assert!(size_of::<DpStep>() == 16);
+    const _: () = assert!(size_of::<DpStep>() == 64);
+
+    impl DpStep {
+        /// A step over the whole grid as one source region (dp_visible, dp_sweep).
+        pub(crate) fn whole(
+            rows: u32,
+            cols: u32,
+            light0: u32,
+            count: u32,
+            band: (u32, u32),
+        ) -> Self {
+            DpStep {
+                light0,
+                count,
+                band_row0: band.0,
+                band_rows: band.1,
+                band_col0: 0,
+                band_cols: cols,
+                hgt_rows: rows,
+                hgt_cols: cols,
+                obs_cols: cols,
+                ..Default::default()
+            }
+        }
+    }
 }
 use super::shadow_march::gpu_data::GridParams;
 use gpu_data::DpStep;
@@ -69,6 +121,18 @@ pub(crate) struct DpPipelines {
     /// Bindings 0..5 as `layout`, 6 the output, 7 the site observers.
     sites_layout: wgpu::BindGroupLayout,
     sites: wgpu::ComputePipeline,
+    /// Layout of the tiled kernels: the DP bindings 0..6 plus 7 (the output tile's heights).
+    pub(crate) tile_layout: wgpu::BindGroupLayout,
+    /// `shaders/dp_tile_cost.wgsl`.
+    pub(crate) tile_cost: wgpu::ComputePipeline,
+    /// `shaders/dp_tile_fraction.wgsl`.
+    pub(crate) tile_fraction: wgpu::ComputePipeline,
+    /// Layout of the tiled sweep: `tile_layout` plus 8 (the output tile's statistics).
+    pub(crate) tile_sweep_layout: wgpu::BindGroupLayout,
+    /// `shaders/dp_tile_sweep_cost.wgsl`.
+    pub(crate) tile_sweep_cost: wgpu::ComputePipeline,
+    /// `shaders/dp_tile_sweep_accumulate.wgsl`.
+    pub(crate) tile_sweep_accumulate: wgpu::ComputePipeline,
 }
 
 fn entry(binding: u32, ty: wgpu::BufferBindingType, dynamic: bool) -> wgpu::BindGroupLayoutEntry {
@@ -99,8 +163,51 @@ impl DpPipelines {
                 entry(6, Storage { read_only: false }, false),
             ],
         });
+        let tile_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("penumbra dp tile layout"),
+            entries: &[
+                entry(0, Uniform, false),
+                entry(1, Storage { read_only: true }, false),
+                entry(2, Storage { read_only: true }, false),
+                entry(3, Storage { read_only: true }, false),
+                entry(4, Storage { read_only: true }, false),
+                entry(5, Uniform, true),
+                entry(6, Storage { read_only: false }, false),
+                entry(7, Storage { read_only: true }, false),
+            ],
+        });
+        let tile_sweep_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("penumbra dp tile sweep layout"),
+            entries: &[
+                entry(0, Uniform, false),
+                entry(1, Storage { read_only: true }, false),
+                entry(2, Storage { read_only: true }, false),
+                entry(3, Storage { read_only: true }, false),
+                entry(4, Storage { read_only: true }, false),
+                entry(5, Uniform, true),
+                entry(6, Storage { read_only: false }, false),
+                entry(7, Storage { read_only: true }, false),
+                entry(8, Storage { read_only: false }, false),
+            ],
+        });
+        let tile_sweep_cost = compute_pipeline(
+            device,
+            &tile_sweep_layout,
+            "dp_tile_sweep_cost",
+            &format!("{SHARED_DP_WGSL}{DP_TILE_SWEEP_COST_WGSL}"),
+            "dp_tile_sweep_cost",
+        );
+        let tile_sweep_accumulate = compute_pipeline(
+            device,
+            &tile_sweep_layout,
+            "dp_tile_sweep_accumulate",
+            &format!("{SHARED_DP_WGSL}{DP_TILE_SWEEP_ACCUMULATE_WGSL}"),
+            "dp_tile_sweep_accumulate",
+        );
         let visible_src = format!("{SHARED_DP_WGSL}{DP_VISIBLE_WGSL}");
         let sweep_src = format!("{SHARED_DP_WGSL}{DP_SWEEP_WGSL}");
+        let tile_cost_src = format!("{SHARED_DP_WGSL}{DP_TILE_COST_WGSL}");
+        let tile_fraction_src = format!("{SHARED_DP_WGSL}{DP_TILE_FRACTION_WGSL}");
         let visible = compute_pipeline(device, &layout, "dp_visible", &visible_src, "dp_visible");
         let sweep = compute_pipeline(device, &layout, "dp_sweep", &sweep_src, "dp_sweep");
         let sites_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
@@ -118,12 +225,32 @@ impl DpPipelines {
         });
         let sites_src = format!("{SHARED_DP_WGSL}{DP_SITES_WGSL}");
         let sites = compute_pipeline(device, &sites_layout, "dp_sites", &sites_src, "dp_sites");
+        let tile_cost = compute_pipeline(
+            device,
+            &tile_layout,
+            "dp_tile_cost",
+            &tile_cost_src,
+            "dp_tile_cost",
+        );
+        let tile_fraction = compute_pipeline(
+            device,
+            &tile_layout,
+            "dp_tile_fraction",
+            &tile_fraction_src,
+            "dp_tile_fraction",
+        );
         DpPipelines {
             layout,
             visible,
             sweep,
             sites_layout,
             sites,
+            tile_layout,
+            tile_cost,
+            tile_fraction,
+            tile_sweep_layout,
+            tile_sweep_cost,
+            tile_sweep_accumulate,
         }
     }
 }
@@ -153,7 +280,8 @@ impl GpuDpGrid {
                 kernel: "dp_visible",
                 message: format!(
                     "the height field or its mipmap ({biggest} B) exceeds the adapter's storage \
-                     binding limit ({max_binding} B); grids beyond one binding are not tiled yet (docs/gpu.md)"
+                     binding limit ({max_binding} B); use the 2-D tiled kernels of gpu::tiles (docs/gpu.md, \
+                     \"Large grids\")"
                 ),
             });
         }
@@ -233,7 +361,7 @@ impl GpuDpGrid {
     }
 }
 
-fn whole(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
+pub(crate) fn whole(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
     wgpu::BindGroupEntry {
         binding,
         resource: buffer.as_entire_binding(),
@@ -241,7 +369,7 @@ fn whole(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
 }
 
 /// Writes `steps` into consecutive [`STEP_SLOT_BYTES`]-strided slots of `slots`.
-fn write_dp_steps(ctx: &GpuContext, slots: &wgpu::Buffer, steps: &[DpStep]) {
+pub(crate) fn write_dp_steps(ctx: &GpuContext, slots: &wgpu::Buffer, steps: &[DpStep]) {
     let mut bytes = Vec::with_capacity(steps.len() * STEP_SLOT_BYTES as usize);
     for step in steps {
         let mut slot = [0_u8; STEP_SLOT_BYTES as usize];
@@ -251,7 +379,7 @@ fn write_dp_steps(ctx: &GpuContext, slots: &wgpu::Buffer, steps: &[DpStep]) {
     ctx.queue.write_buffer(slots, 0, &bytes);
 }
 
-fn slot_buffer(ctx: &GpuContext, slots: u32) -> wgpu::Buffer {
+pub(crate) fn slot_buffer(ctx: &GpuContext, slots: u32) -> wgpu::Buffer {
     ctx.device.create_buffer(&wgpu::BufferDescriptor {
         label: Some("penumbra dp step slots"),
         size: u64::from(slots.max(1)) * STEP_SLOT_BYTES,
@@ -260,7 +388,7 @@ fn slot_buffer(ctx: &GpuContext, slots: u32) -> wgpu::Buffer {
     })
 }
 
-fn check_light(light: [f32; 4], kernel: &'static str) -> Result<(), GpuError> {
+pub(crate) fn check_light(light: [f32; 4], kernel: &'static str) -> Result<(), GpuError> {
     let norm2 = light[0] * light[0] + light[1] * light[1] + light[2] * light[2];
     if !(light.iter().all(|c| c.is_finite())
         && (norm2 - 1.0).abs() < 1e-3
@@ -303,12 +431,7 @@ pub fn dp_visible_gpu(
     let mut row0 = 0;
     while row0 < grid.rows {
         let rows = band_rows.min(grid.rows - row0);
-        let step = DpStep {
-            light0: 0,
-            count: 1,
-            band_row0: row0,
-            band_rows: rows,
-        };
+        let step = DpStep::whole(grid.rows, grid.cols, 0, 1, (row0, rows));
         write_dp_steps(ctx, &slots, &[step]);
         let mut encoder = ctx
             .device
@@ -423,12 +546,13 @@ pub fn dp_sweep_gpu(
             let mut steps = Vec::with_capacity(per_submit as usize);
             while first < epochs && steps.len() < per_submit as usize {
                 let count = options.epochs_per_dispatch.min(epochs - first);
-                steps.push(DpStep {
-                    light0: first,
+                steps.push(DpStep::whole(
+                    grid.rows,
+                    grid.cols,
+                    first,
                     count,
-                    band_row0: row0,
-                    band_rows: rows,
-                });
+                    (row0, rows),
+                ));
                 first += count;
             }
             write_dp_steps(ctx, &slots, &steps);
@@ -538,12 +662,8 @@ pub fn dp_sites_gpu(
         while k0 < per_site {
             let count = entries_per_dispatch.min(per_site - k0);
             steps.push((
-                DpStep {
-                    light0: k0,
-                    count: per_site,
-                    band_row0: site0,
-                    band_rows: sites,
-                },
+                // The whole grid is the one source region; band = the sites of this dispatch.
+                DpStep::whole(grid.rows, grid.cols, k0, per_site, (site0, sites)),
                 count.div_ceil(SITES_WORKGROUP_SIZE_X),
             ));
             k0 += count;

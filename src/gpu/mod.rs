@@ -31,6 +31,8 @@ pub mod render;
 pub mod shadow_march;
 #[cfg(feature = "gpu")]
 pub mod sweep_accumulate;
+#[cfg(feature = "gpu")]
+pub mod tiles;
 
 #[cfg(feature = "gpu")]
 pub use context::{AdapterSummary, GpuContext, adapter_report};

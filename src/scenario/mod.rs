@@ -790,9 +790,14 @@ fn run_map_spec(
             )?
         }
         #[cfg(feature = "gpu")]
-        crate::gpu::ResolvedBackend::Gpu(ctx) => {
-            crate::map::sweep_gpu_soft(ctx, &grid, spec.observer_height_m, &lights, step_h)?
-        }
+        crate::gpu::ResolvedBackend::Gpu(ctx) => crate::map::sweep_gpu_soft(
+            ctx,
+            &grid,
+            spec.observer_height_m,
+            &lights,
+            step_h,
+            crate::gpu::tiles::DpTiling::default(),
+        )?,
         #[cfg(not(feature = "gpu"))]
         crate::gpu::ResolvedBackend::Gpu(ctx) => match **ctx {},
     };

@@ -439,8 +439,25 @@ pub struct DpMip {
 impl DpMip {
     /// Builds every level of `grid`'s maximum mipmap.
     pub fn build(grid: &MarchGrid) -> Self {
-        let (r0, c0) = (grid.rows as usize - 1, grid.cols as usize - 1);
-        let h = |r: usize, c: usize| grid.heights_m[r * grid.cols as usize + c];
+        Self::build_block(
+            &grid.heights_m,
+            grid.cols as usize,
+            (0, 0),
+            (grid.rows as usize - 1, grid.cols as usize - 1),
+        )
+    }
+
+    /// Builds the maximum mipmap of `dual_rows × dual_cols` dual cells (`dual` ≥ 1 × 1) of a
+    /// block of heights (row-major, `stride` cells per row): level-0 texel (i, j) is the max of
+    /// the block cells (`first.0 + i`, `first.1 + j`) .. (+1, +1), which must exist.
+    pub fn build_block(
+        heights_m: &[f32],
+        stride: usize,
+        first: (usize, usize),
+        (dual_rows, dual_cols): (usize, usize),
+    ) -> Self {
+        let (r0, c0) = (dual_rows, dual_cols);
+        let h = |r: usize, c: usize| heights_m[(first.0 + r) * stride + first.1 + c];
         let mut texels: Vec<f32> = (0..r0 * c0)
             .map(|k| {
                 let (i, j) = (k / c0, k % c0);
@@ -496,9 +513,58 @@ pub struct DpObserver {
     pub up: [f32; 3],
 }
 
+/// The part of the grid one DP walk sees (twin of the source-region fields of `DpStep` and of the
+/// bindings 1–3 in `shaders/shared/dp.wgsl`): a maximum mipmap whose level-0 texel (0, 0) is dual
+/// cell (`src_row0`, `src_col0`) of the grid, and a block of heights starting at cell
+/// (`hgt_row0`, `hgt_col0`). [`DpSource::whole`] is the whole grid (what `dp_visible` and
+/// `dp_sweep` bind); the 2-D tiling ([`super::gpu_tiles`]) binds one tile at a time.
+#[derive(Debug, Clone, Copy)]
+pub struct DpSource<'a> {
+    /// Heights of the block, row-major, relative to the grid's `z_ref_m`.
+    pub heights_m: &'a [f32],
+    /// Grid row of the block's first row.
+    pub hgt_row0: u32,
+    /// Grid column of the block's first column.
+    pub hgt_col0: u32,
+    /// Rows of the block.
+    pub hgt_rows: u32,
+    /// Columns of the block.
+    pub hgt_cols: u32,
+    /// Grid dual-cell row of the mipmap's level-0 texel row 0.
+    pub src_row0: u32,
+    /// Grid dual-cell column of the mipmap's level-0 texel column 0.
+    pub src_col0: u32,
+    /// The maximum mipmap of the region (level 0 = its dual cells).
+    pub mip: &'a DpMip,
+}
+
+impl<'a> DpSource<'a> {
+    /// The whole grid and its mipmap as one region.
+    pub fn whole(grid: &'a MarchGrid, mip: &'a DpMip) -> Self {
+        DpSource {
+            heights_m: &grid.heights_m,
+            hgt_row0: 0,
+            hgt_col0: 0,
+            hgt_rows: grid.rows,
+            hgt_cols: grid.cols,
+            src_row0: 0,
+            src_col0: 0,
+            mip,
+        }
+    }
+
+    /// Twin of `dp_height`: grid cell (row, col) from the block (clamped into it).
+    #[inline]
+    fn height_at(&self, row: i32, col: i32) -> f32 {
+        let r = (row - self.hgt_row0 as i32).clamp(0, self.hgt_rows as i32 - 1);
+        let c = (col - self.hgt_col0 as i32).clamp(0, self.hgt_cols as i32 - 1);
+        self.heights_m[r as usize * self.hgt_cols as usize + c as usize]
+    }
+}
+
 /// Twin of `dp_surface`: the surface where the ray crosses a lattice line (`axis` 1: a row line,
-/// linear along the columns; 2: a column line; 0: off the lines, bilinear).
-fn dp_surface(grid: &MarchGrid, axis: u32, v_in: f32, u_in: f32) -> f32 {
+/// linear along the columns; 2: a column line; 0: off the lines, bilinear). Global cell units.
+fn dp_surface(grid: &MarchGrid, src: &DpSource<'_>, axis: u32, v_in: f32, u_in: f32) -> f32 {
     let rows = grid.rows as i32;
     let cols = grid.cols as i32;
     let v = v_in.clamp(0.0, (rows - 1) as f32);
@@ -509,19 +575,29 @@ fn dp_surface(grid: &MarchGrid, axis: u32, v_in: f32, u_in: f32) -> f32 {
     let fc = u - c0 as f32;
     if axis == 1 {
         let k = v.round() as i32;
-        return grid.height_at(k, c0) * (1.0 - fc) + grid.height_at(k, c0 + 1) * fc;
+        return src.height_at(k, c0) * (1.0 - fc) + src.height_at(k, c0 + 1) * fc;
     } else if axis == 2 {
         let k = u.round() as i32;
-        return grid.height_at(r0, k) * (1.0 - fr) + grid.height_at(r0 + 1, k) * fr;
+        return src.height_at(r0, k) * (1.0 - fr) + src.height_at(r0 + 1, k) * fr;
     }
-    let top = grid.height_at(r0, c0) * (1.0 - fc) + grid.height_at(r0, c0 + 1) * fc;
-    let bottom = grid.height_at(r0 + 1, c0) * (1.0 - fc) + grid.height_at(r0 + 1, c0 + 1) * fc;
+    let top = src.height_at(r0, c0) * (1.0 - fc) + src.height_at(r0, c0 + 1) * fc;
+    let bottom = src.height_at(r0 + 1, c0) * (1.0 - fc) + src.height_at(r0 + 1, c0 + 1) * fc;
     top * (1.0 - fr) + bottom * fr
 }
 
 /// Twin of `dp_observer` (the caller checks for holes).
 pub fn dp_observer(grid: &MarchGrid, row: u32, col: u32) -> DpObserver {
-    let z_cell = grid.heights_m[(row * grid.cols + col) as usize];
+    dp_observer_at(
+        grid,
+        row,
+        col,
+        grid.heights_m[(row * grid.cols + col) as usize],
+    )
+}
+
+/// Twin of `dp_observer_at`: the observer of cell (row, col) whose height is `z_cell` (not a
+/// hole; relative to `z_ref_m`).
+pub fn dp_observer_at(grid: &MarchGrid, row: u32, col: u32, z_cell: f32) -> DpObserver {
     let x_m = grid.x0_m + col as f32 * grid.px_m;
     let y_m = grid.y0_m - row as f32 * grid.px_m;
     let up = normalize3([x_m, y_m, z_cell + grid.z_ref_plus_radius_m]);
@@ -533,37 +609,63 @@ pub fn dp_observer(grid: &MarchGrid, row: u32, col: u32) -> DpObserver {
     DpObserver { u0, v0, z0, up }
 }
 
-fn dp_axis_exit(p: f32, d: f32, max_p: f32) -> f32 {
+/// Twin of `dp_slab`: (enter, leave) distances of the ray `p + s d` through `[lo, hi]`.
+fn dp_slab(p: f32, d: f32, lo: f32, hi: f32) -> (f32, f32) {
     if d > 0.0 {
-        (max_p - p) / d
+        ((lo - p) / d, (hi - p) / d)
     } else if d < 0.0 {
-        -p / d
+        ((hi - p) / d, (lo - p) / d)
+    } else if p >= lo && p <= hi {
+        (-FAR_CELLS, FAR_CELLS)
+    } else {
+        (FAR_CELLS, -FAR_CELLS)
+    }
+}
+
+fn dp_texel_exit(i: i32, size: f32, origin: f32, p0: f32, d: f32) -> f32 {
+    if d > 0.0 {
+        ((i + 1) as f32 * size + origin - p0) / d
+    } else if d < 0.0 {
+        (i as f32 * size + origin - p0) / d
     } else {
         FAR_CELLS
     }
 }
 
-fn dp_texel_exit(i: i32, size: f32, p0: f32, d: f32) -> f32 {
-    if d > 0.0 {
-        ((i + 1) as f32 * size - p0) / d
-    } else if d < 0.0 {
-        (i as f32 * size - p0) / d
-    } else {
-        FAR_CELLS
-    }
-}
-
-/// Twin of `dp_cost` in `shaders/shared/dp.wgsl`: `J* = min Δh/t` (tan units) of the ray from
-/// `obs` towards `light` over every lattice-line crossing, by a stackless front-to-back walk of
-/// the maximum mipmap; costs at or above `cap` may be reported as any value `>= cap`;
-/// `1e30` when nothing is along the ray.
+/// Twin of `dp_cost` over the whole grid: `J* = min Δh/t` (tan units) of the ray from `obs`
+/// towards `light` over every lattice-line crossing, by a stackless front-to-back walk of the
+/// maximum mipmap; costs at or above `cap` may be reported as any value `>= cap`; `1e30` when
+/// nothing is along the ray.
 pub fn dp_cost(grid: &MarchGrid, mip: &DpMip, obs: &DpObserver, light: [f32; 3], cap: f32) -> f32 {
-    dp_cost_beyond(grid, mip, obs, light, cap, 0.0)
+    dp_cost_in(
+        grid,
+        &DpSource::whole(grid, mip),
+        obs,
+        light,
+        cap,
+        FAR_CELLS,
+    )
 }
 
-/// Twin of `dp_cost_beyond` in `shaders/shared/dp.wgsl`: [`dp_cost`] ignoring the crossings at
-/// ray distances `<= min_s` (cells) and, when `min_s > 0`, sampling the bilinear surface at
-/// exactly `min_s` first (as [`crate::shadow::dp`]'s `dp_cost_beyond` for the per-site series).
+/// Twin of `dp_cost` in `shaders/shared/dp.wgsl`: the cost over the samples inside `src`,
+/// min-combined with `best0` (the running min of regions already walked; `1e30` for none) and
+/// pruned at `min(best, cap)`. Positions are global cell units, so a sample has the same f32 value
+/// in every region containing it and `J*` of the whole ray is the min over a cover by regions.
+pub fn dp_cost_in(
+    grid: &MarchGrid,
+    src: &DpSource<'_>,
+    obs: &DpObserver,
+    light: [f32; 3],
+    cap: f32,
+    best0: f32,
+) -> f32 {
+    dp_cost_in_beyond(grid, src, obs, light, cap, best0, 0.0)
+}
+
+/// Twin of `dp_cost_beyond` in `shaders/shared/dp.wgsl` over the whole grid: [`dp_cost`]
+/// ignoring the crossings at ray distances `<= min_s` (cells) and, when `min_s > 0`, sampling the
+/// bilinear surface at exactly `min_s` first (as [`crate::shadow::dp`]'s `dp_cost_beyond` for the
+/// per-site series).
 pub fn dp_cost_beyond(
     grid: &MarchGrid,
     mip: &DpMip,
@@ -572,29 +674,49 @@ pub fn dp_cost_beyond(
     cap: f32,
     min_s: f32,
 ) -> f32 {
+    let whole = DpSource::whole(grid, mip);
+    dp_cost_in_beyond(grid, &whole, obs, light, cap, FAR_CELLS, min_s)
+}
+
+/// Twin of `dp_cost_beyond` in `shaders/shared/dp.wgsl`: [`dp_cost_in`] ignoring the crossings
+/// at ray distances `<= min_s` (cells), with the surface at exactly `min_s` as the first sample
+/// when `min_s > 0`.
+fn dp_cost_in_beyond(
+    grid: &MarchGrid,
+    src: &DpSource<'_>,
+    obs: &DpObserver,
+    light: [f32; 3],
+    cap: f32,
+    best0: f32,
+    min_s: f32,
+) -> f32 {
     let hor = (light[0] * light[0] + light[1] * light[1]).sqrt();
     if hor < MIN_HORIZ {
-        return FAR_CELLS;
+        return best0;
     }
+    let mip = src.mip;
     let du = light[0] / hor;
     let dv = -light[1] / hor;
     let tan_el = light[2] / hor;
     let px = grid.px_m;
-    let exit_v = dp_axis_exit(obs.v0, dv, (grid.rows - 1) as f32);
-    let exit_u = dp_axis_exit(obs.u0, du, (grid.cols - 1) as f32);
-    let s_exit = exit_v.min(exit_u).max(0.0);
-    let exit_axis = if exit_v <= exit_u { 1 } else { 2 };
+    let lv0 = mip.levels[0];
+    let v_lo = src.src_row0 as f32;
+    let u_lo = src.src_col0 as f32;
+    let slab_v = dp_slab(obs.v0, dv, v_lo, (src.src_row0 + lv0[0]) as f32);
+    let slab_u = dp_slab(obs.u0, du, u_lo, (src.src_col0 + lv0[1]) as f32);
+    let s_exit = slab_v.1.min(slab_u.1).max(0.0);
+    let exit_axis = if slab_v.1 <= slab_u.1 { 1 } else { 2 };
     let mut s_axis = 0_u32;
     let n_levels = mip.levels.len() as i32;
     let top = n_levels - 1;
-    let max_iter = 8 * (grid.rows + grid.cols) as i32 + 32 * n_levels;
-    let mut best = FAR_CELLS;
+    let max_iter = 8 * (lv0[0] + lv0[1] + 2) as i32 + 32 * n_levels;
+    let mut best = best0;
     if min_s > 0.0 && min_s < s_exit {
-        let z = dp_surface(grid, 0, obs.v0 + min_s * dv, obs.u0 + min_s * du);
-        best = (obs.z0 - z) / (min_s * px) + tan_el;
+        let z = dp_surface(grid, src, 0, obs.v0 + min_s * dv, obs.u0 + min_s * du);
+        best = best.min((obs.z0 - z) / (min_s * px) + tan_el);
     }
     let mut m = top;
-    let mut s = 0.0_f32;
+    let mut s = slab_v.0.max(slab_u.0).max(0.0);
     for _ in 0..max_iter {
         if s >= s_exit {
             break;
@@ -602,13 +724,13 @@ pub fn dp_cost_beyond(
         let lv = mip.levels[m as usize];
         let size = (1_u32 << m as u32) as f32;
         let sm = s + 1.0e-3 + 1.0e-6 * s;
-        let i = (((obs.v0 + sm * dv) / size).floor() as i32).clamp(0, lv[0] as i32 - 1);
-        let j = (((obs.u0 + sm * du) / size).floor() as i32).clamp(0, lv[1] as i32 - 1);
-        let t_v = dp_texel_exit(i, size, obs.v0, dv);
-        let t_u = dp_texel_exit(j, size, obs.u0, du);
+        let i = (((obs.v0 + sm * dv - v_lo) / size).floor() as i32).clamp(0, lv[0] as i32 - 1);
+        let j = (((obs.u0 + sm * du - u_lo) / size).floor() as i32).clamp(0, lv[1] as i32 - 1);
+        let t_v = dp_texel_exit(i, size, v_lo, obs.v0, dv);
+        let t_u = dp_texel_exit(j, size, u_lo, obs.u0, du);
         let mut s_out = t_v.min(t_u);
         let mut out_axis = if t_v <= t_u { 1 } else { 2 };
-        if s_exit <= s_out {
+        if s_exit < s_out {
             s_out = s_exit;
             out_axis = exit_axis;
         }
@@ -633,11 +755,17 @@ pub fn dp_cost_beyond(
             m = (m + 1).min(top);
         } else if m == 0 {
             if s_axis != 0 && s > min_s {
-                let z = dp_surface(grid, s_axis, obs.v0 + s * dv, obs.u0 + s * du);
+                let z = dp_surface(grid, src, s_axis, obs.v0 + s * dv, obs.u0 + s * du);
                 best = best.min((obs.z0 - z) / (s * px) + tan_el);
             }
             if out_axis != 0 && s_out > min_s {
-                let z = dp_surface(grid, out_axis, obs.v0 + s_out * dv, obs.u0 + s_out * du);
+                let z = dp_surface(
+                    grid,
+                    src,
+                    out_axis,
+                    obs.v0 + s_out * dv,
+                    obs.u0 + s_out * du,
+                );
                 best = best.min((obs.z0 - z) / (s_out * px) + tan_el);
             }
             s = s_out;
@@ -650,26 +778,47 @@ pub fn dp_cost_beyond(
     best
 }
 
-/// Twin of `dp_fraction`: visible fraction of the disc `light` (`xyz` unit direction, `w`
-/// angular radius) from `obs` under the prism assumption (paper 000/003 eq. 6–7, as
-/// [`crate::shadow::disc_fraction_above_edge`]); radius 0 gives 1 (lit) or 0 (shadow).
-pub fn dp_fraction(grid: &MarchGrid, mip: &DpMip, obs: &DpObserver, light: [f32; 4]) -> f32 {
-    let l = [light[0], light[1], light[2]];
+/// Twin of `dp_cap`: the cost at or above which the disc `light` (`xyz` unit direction, `w`
+/// angular radius) is entirely visible, `tan e_c − tan(e_c − r)`; 0 for the hard mask.
+pub fn dp_cap(light: [f32; 4]) -> f32 {
     let r = light[3];
-    let hor = (l[0] * l[0] + l[1] * l[1]).sqrt();
-    let e_c = l[2].atan2(hor);
+    let hor = (light[0] * light[0] + light[1] * light[1]).sqrt();
+    let e_c = light[2].atan2(hor);
     let mut cap = 0.0;
     if r > 0.0 {
         let e_low = e_c - r;
         cap = if e_low > -0.5 * DP_PI + 1.0e-6 {
-            l[2] / hor.max(MIN_HORIZ) - e_low.tan()
+            light[2] / hor.max(MIN_HORIZ) - e_low.tan()
         } else {
             FAR_CELLS
         };
     }
+    cap
+}
+
+/// Twin of `dp_fraction`: visible fraction of the disc `light` (`xyz` unit direction, `w`
+/// angular radius) from `obs` under the prism assumption (paper 000/003 eq. 6–7, as
+/// [`crate::shadow::disc_fraction_above_edge`]); radius 0 gives 1 (lit) or 0 (shadow).
+pub fn dp_fraction(grid: &MarchGrid, mip: &DpMip, obs: &DpObserver, light: [f32; 4]) -> f32 {
+    let j = dp_cost(
+        grid,
+        mip,
+        obs,
+        [light[0], light[1], light[2]],
+        dp_cap(light),
+    );
+    dp_fraction_of_cost(obs, light, j)
+}
+
+/// Twin of `dp_fraction_of_cost`: the visible fraction of the disc `light` from `obs` given the
+/// shadow cost `j` of the ray towards its centre (`1e30`: nothing along the ray).
+pub fn dp_fraction_of_cost(obs: &DpObserver, light: [f32; 4], j: f32) -> f32 {
+    let l = [light[0], light[1], light[2]];
+    let r = light[3];
+    let hor = (l[0] * l[0] + l[1] * l[1]).sqrt();
+    let e_c = l[2].atan2(hor);
     let mut e_h = -0.5 * DP_PI;
     if hor >= MIN_HORIZ {
-        let j = dp_cost(grid, mip, obs, l, cap);
         if j < 0.5 * FAR_CELLS {
             e_h = (l[2] / hor - j).atan();
         }

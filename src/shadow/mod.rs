@@ -38,6 +38,7 @@ pub mod brute;
 pub mod dp;
 pub mod fourier;
 pub mod fourier_twin;
+pub mod gpu_tiles;
 pub mod gpu_twins;
 pub mod smap;
 

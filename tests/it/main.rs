@@ -6,6 +6,7 @@ mod gpu;
 mod gpu_dp;
 mod gpu_fourier;
 mod gpu_horizon;
+mod gpu_tiles;
 mod horizon;
 mod illum;
 mod map;

@@ -1,0 +1,599 @@
+//! 2-D tiled DP shadow maps on the GPU (issue 7 item 4; docs/gpu.md, "Large grids"): for grids
+//! whose heights or maximum mipmap exceed one storage binding (or a memory budget), the one-light
+//! DP map is computed per output tile, walking the rays through one source tile at a time
+//! (`shaders/dp_tile_cost.wgsl`, min-accumulating the shadow cost in a per-tile cost buffer),
+//! then turned into fractions (`shaders/dp_tile_fraction.wgsl`); the soft epoch sweep likewise
+//! per batch of epochs (`shaders/dp_tile_sweep_cost.wgsl`, `dp_tile_sweep_accumulate.wgsl`,
+//! [`dp_sweep_tiled_gpu`]). The tile plan, the choice of
+//! source tiles and the CPU twin live in [`crate::shadow::gpu_tiles`] (why the result is exact is
+//! explained there).
+//!
+//! GPU memory: the output tile's cost buffer and readback staging, `2 × 4 (T + 1)²` B, plus the
+//! resident source blocks (heights `4 (T + 3)²` B + mipmap ≈ `4 · 4/3 · T²` B each) of an LRU
+//! cache of at most [`DpTileOptions::cache_bytes`] (at least two blocks), whatever the grid size.
+
+use std::collections::HashMap;
+use std::rc::Rc;
+
+use super::GpuError;
+use super::context::{ErrorScope, GpuContext};
+use super::dp::gpu_data::DpStep;
+use super::dp::{check_light, slot_buffer, whole, write_dp_steps};
+use super::shadow_march::gpu_data::GridParams;
+use super::shadow_march::{STEP_SLOT_BYTES, band_buffer, storage_init};
+pub use crate::shadow::gpu_tiles::{DEFAULT_RESIDENT_BUDGET_BYTES, DEFAULT_TILE_CELLS};
+use crate::shadow::gpu_tiles::{
+    TileBlock, TileLimits, TilePlan, TileRect, choose_tile_cells, sources_for, sources_for_batch,
+    tile_bounds,
+};
+use crate::shadow::gpu_twins::{DpCellStats, DpMip, MarchGrid};
+use wgpu::util::DeviceExt as _;
+
+/// Workgroup size of the tiled kernels. Keep in sync with shaders/dp_tile_*.wgsl.
+const WORKGROUP_SIZE_XY: u32 = 8;
+/// Resident source blocks kept by default, bytes (25 blocks of 2048²).
+pub const DEFAULT_CACHE_BYTES: u64 = 1 << 30;
+
+/// How a DP map or sweep is split (the `--gpu-tile-cells` option of `penumbra map`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct DpTiling {
+    /// Tiles of this side, cells, whatever the grid size (for tests and measurements); `None`:
+    /// the untiled kernels when the heights and the mipmap each fit one storage binding and
+    /// together 4 GiB, else tiles of 2048 (halved until a block fits one binding); see
+    /// [`crate::shadow::gpu_tiles::choose_tile_cells`].
+    pub tile_cells: Option<u32>,
+}
+
+impl DpTiling {
+    /// The tile side for a one-light map of `grid` on `ctx`, `None` for the untiled kernel. A
+    /// forced side whose block would exceed the storage binding limit or the dispatch limit is an
+    /// error.
+    pub fn resolve(&self, ctx: &GpuContext, grid: &MarchGrid) -> Result<Option<u32>, GpuError> {
+        self.resolve_for(ctx, grid, 4)
+    }
+
+    /// As [`DpTiling::resolve`] for the soft sweep (32 B of statistics per output cell).
+    pub fn resolve_sweep(
+        &self,
+        ctx: &GpuContext,
+        grid: &MarchGrid,
+    ) -> Result<Option<u32>, GpuError> {
+        self.resolve_for(ctx, grid, size_of::<DpCellStats>() as u64)
+    }
+
+    fn resolve_for(
+        &self,
+        ctx: &GpuContext,
+        grid: &MarchGrid,
+        out_bytes_per_cell: u64,
+    ) -> Result<Option<u32>, GpuError> {
+        let limits = ctx.limits();
+        let tile_limits = TileLimits {
+            max_binding_bytes: limits
+                .max_storage_buffer_binding_size
+                .min(limits.max_buffer_size),
+            max_dispatch_cells: u64::from(limits.max_compute_workgroups_per_dimension)
+                * u64::from(WORKGROUP_SIZE_XY),
+        };
+        choose_tile_cells(
+            grid.rows,
+            grid.cols,
+            tile_limits,
+            self.tile_cells,
+            out_bytes_per_cell,
+        )
+        .map_err(|e| GpuError::InvalidInput {
+            kernel: "dp_tile_cost",
+            message: e.to_string(),
+        })
+    }
+}
+
+/// Options of [`dp_visible_tiled_gpu`].
+#[derive(Debug, Clone, Copy)]
+pub struct DpTileOptions {
+    /// Tile side, cells (output tiles and source tiles alike).
+    pub tile_cells: u32,
+    /// Bytes of source blocks kept resident between output tiles (LRU; at least two blocks).
+    pub cache_bytes: u64,
+}
+
+impl DpTileOptions {
+    /// Tiles of `tile_cells` with the default cache.
+    pub fn new(tile_cells: u32) -> Self {
+        DpTileOptions {
+            tile_cells,
+            cache_bytes: DEFAULT_CACHE_BYTES,
+        }
+    }
+}
+
+/// What a tiled run did (for the docs' cost figures and the tests).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct TileRunStats {
+    /// Output tiles.
+    pub output_tiles: usize,
+    /// Cost dispatches (one per output tile and source tile walked).
+    pub source_dispatches: usize,
+    /// Most source tiles one output tile needed.
+    pub max_sources: usize,
+    /// Source blocks uploaded (cache misses).
+    pub uploads: usize,
+    /// Largest resident block bytes at once (cache, excluding blocks still in flight).
+    pub peak_cache_bytes: u64,
+}
+
+/// The map of [`dp_visible_tiled_gpu`] and what the run did.
+#[derive(Debug, Clone)]
+pub struct TiledMap {
+    /// Per cell (row-major) the visible fraction (radius 0: 1 lit / 0 shadow), -1 for nodata.
+    pub values: Vec<f32>,
+    /// Tiles, dispatches, uploads.
+    pub stats: TileRunStats,
+}
+
+/// One tile's heights block and mipmap on the GPU.
+struct GpuTileBlock {
+    rect: TileRect,
+    heights: wgpu::Buffer,
+    mip: wgpu::Buffer,
+    levels: wgpu::Buffer,
+    bytes: u64,
+}
+
+impl GpuTileBlock {
+    fn upload(ctx: &GpuContext, block: &TileBlock) -> Self {
+        let DpMip { levels, texels } = &block.mip;
+        GpuTileBlock {
+            rect: block.rect,
+            heights: storage_init(
+                ctx,
+                "penumbra dp tile heights",
+                bytemuck::cast_slice(&block.heights_m),
+            ),
+            mip: storage_init(ctx, "penumbra dp tile mipmap", bytemuck::cast_slice(texels)),
+            levels: storage_init(
+                ctx,
+                "penumbra dp tile mipmap levels",
+                bytemuck::cast_slice(levels),
+            ),
+            bytes: block.bytes(),
+        }
+    }
+}
+
+/// LRU cache of uploaded source blocks.
+struct BlockCache {
+    /// Blocks built on the host (heights copy + mipmap), each once per call: re-uploading an
+    /// evicted block then costs only the transfer. Host memory ≈ 1.3 × the grid's heights.
+    host: Vec<Option<TileBlock>>,
+    blocks: HashMap<usize, (Rc<GpuTileBlock>, u64)>,
+    bytes: u64,
+    cap_bytes: u64,
+    clock: u64,
+}
+
+impl BlockCache {
+    fn get(
+        &mut self,
+        ctx: &GpuContext,
+        grid: &MarchGrid,
+        plan: &TilePlan,
+        tile: usize,
+        stats: &mut TileRunStats,
+    ) -> Rc<GpuTileBlock> {
+        self.clock += 1;
+        if let Some((block, used)) = self.blocks.get_mut(&tile) {
+            *used = self.clock;
+            return Rc::clone(block);
+        }
+        let host = self.host[tile].get_or_insert_with(|| TileBlock::build(grid, plan.rect(tile)));
+        let block = Rc::new(GpuTileBlock::upload(ctx, host));
+        stats.uploads += 1;
+        self.bytes += block.bytes;
+        self.blocks.insert(tile, (Rc::clone(&block), self.clock));
+        while self.bytes > self.cap_bytes && self.blocks.len() > 2 {
+            let oldest = self
+                .blocks
+                .iter()
+                .filter(|(t, _)| **t != tile)
+                .min_by_key(|(_, (_, used))| *used)
+                .map(|(t, _)| *t);
+            let Some(oldest) = oldest else { break };
+            if let Some((evicted, _)) = self.blocks.remove(&oldest) {
+                self.bytes -= evicted.bytes;
+            }
+        }
+        stats.peak_cache_bytes = stats.peak_cache_bytes.max(self.bytes);
+        block
+    }
+}
+
+/// The dispatch parameters of output tile `o` (whose block `own` holds the observers) walking
+/// source tile `s`.
+fn tile_step(
+    o: TileRect,
+    own: TileRect,
+    s: TileRect,
+    first: bool,
+    light0: u32,
+    count: u32,
+) -> DpStep {
+    DpStep {
+        light0,
+        count,
+        band_row0: o.row0,
+        band_rows: o.row1 - o.row0,
+        band_col0: o.col0,
+        band_cols: o.col1 - o.col0,
+        src_row0: s.row0,
+        src_col0: s.col0,
+        hgt_row0: s.hgt_row0,
+        hgt_col0: s.hgt_col0,
+        hgt_rows: s.hgt_row1 - s.hgt_row0,
+        hgt_cols: s.hgt_col1 - s.hgt_col0,
+        first_source: u32::from(first),
+        obs_row0: own.hgt_row0,
+        obs_col0: own.hgt_col0,
+        obs_cols: own.hgt_col1 - own.hgt_col0,
+    }
+}
+
+/// Encodes and submits one dispatch of `pipeline` over output tile `o` with step slot `slot`.
+fn dispatch_tile(
+    ctx: &GpuContext,
+    pipeline: &wgpu::ComputePipeline,
+    group: &wgpu::BindGroup,
+    slot: usize,
+    o: TileRect,
+) {
+    let mut encoder = ctx
+        .device
+        .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+            label: Some("dp_tile"),
+        });
+    {
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("dp_tile"),
+            timestamp_writes: None,
+        });
+        pass.set_pipeline(pipeline);
+        pass.set_bind_group(0, group, &[slot as u32 * STEP_SLOT_BYTES as u32]);
+        pass.dispatch_workgroups(
+            (o.col1 - o.col0).div_ceil(WORKGROUP_SIZE_XY),
+            (o.row1 - o.row0).div_ceil(WORKGROUP_SIZE_XY),
+            1,
+        );
+    }
+    ctx.queue.submit([encoder.finish()]);
+}
+
+/// After a source dispatch: reclaim finished work; when the cache is full wait for the GPU, so
+/// that evicted blocks still referenced by queued dispatches are freed and in-flight memory stays
+/// bounded too.
+fn settle(ctx: &GpuContext, cache: &BlockCache) {
+    let wait = if cache.bytes >= cache.cap_bytes {
+        wgpu::PollType::wait_indefinitely()
+    } else {
+        wgpu::PollType::Poll
+    };
+    ctx.device.poll(wait).ok();
+}
+
+fn binding_entry(binding: u32, buffer: &wgpu::Buffer, size: u64) -> wgpu::BindGroupEntry<'_> {
+    wgpu::BindGroupEntry {
+        binding,
+        resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+            buffer,
+            offset: 0,
+            size: wgpu::BufferSize::new(size),
+        }),
+    }
+}
+
+/// GPU tiled `dp_visible`: per cell (row-major) the visible fraction of the disc `light` (from
+/// [`crate::shadow::gpu_twins::disc_light_to_f32`]; radius 0: 1 lit / 0 shadow), -1 for nodata,
+/// computed output tile by output tile over the source tiles of
+/// [`crate::shadow::gpu_tiles::sources_for`] (own tile first, then nearest first along the
+/// light). Only the heights as a host array are needed, never the whole grid on the GPU. Twin:
+/// [`crate::shadow::gpu_tiles::dp_visible_tiled`].
+pub fn dp_visible_tiled_gpu(
+    ctx: &GpuContext,
+    grid: &MarchGrid,
+    light: [f32; 4],
+    options: DpTileOptions,
+) -> Result<TiledMap, GpuError> {
+    check_light(light, "dp_tile_cost")?;
+    let plan = TilePlan::new(grid.rows, grid.cols, options.tile_cells).map_err(|e| {
+        GpuError::InvalidInput {
+            kernel: "dp_tile_cost",
+            message: e.to_string(),
+        }
+    })?;
+    DpTiling {
+        tile_cells: Some(options.tile_cells),
+    }
+    .resolve(ctx, grid)?;
+    let bounds = tile_bounds(grid, &plan);
+    let (_, max_tile_cells) = plan.max_block_and_tile_cells();
+    let cols = grid.cols as usize;
+    let mut stats = TileRunStats {
+        output_tiles: plan.len(),
+        ..Default::default()
+    };
+    let scope = ErrorScope::push(&ctx.device);
+    let params = ctx
+        .device
+        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("penumbra dp tile grid params"),
+            contents: bytemuck::bytes_of(&GridParams::of(grid)),
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
+    let lights = storage_init(
+        ctx,
+        "penumbra dp tile light",
+        bytemuck::cast_slice(&[light]),
+    );
+    let slots = slot_buffer(ctx, plan.len() as u32 + 1);
+    let cost = band_buffer(
+        ctx,
+        "penumbra dp tile cost",
+        max_tile_cells as u64,
+        wgpu::BufferUsages::empty(),
+    );
+    let mut cache = BlockCache {
+        host: vec![None; plan.len()],
+        blocks: HashMap::new(),
+        bytes: 0,
+        cap_bytes: options.cache_bytes,
+        clock: 0,
+    };
+    let bind_group = |src: &GpuTileBlock, obs: &GpuTileBlock| {
+        ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("penumbra dp tile bind group"),
+            layout: &ctx.dp.tile_layout,
+            entries: &[
+                whole(0, &params),
+                whole(1, &src.heights),
+                whole(2, &src.mip),
+                whole(3, &src.levels),
+                whole(4, &lights),
+                binding_entry(5, &slots, size_of::<DpStep>() as u64),
+                whole(6, &cost),
+                whole(7, &obs.heights),
+            ],
+        })
+    };
+    let mut map = vec![0.0_f32; grid.cells()];
+    for out in 0..plan.len() {
+        let o = plan.rect(out);
+        let sources = sources_for(grid, &plan, &bounds, out, light);
+        stats.source_dispatches += sources.len();
+        stats.max_sources = stats.max_sources.max(sources.len());
+        let own = cache.get(ctx, grid, &plan, out, &mut stats);
+        let band_cols = o.col1 - o.col0;
+        let mut steps: Vec<DpStep> = sources
+            .iter()
+            .enumerate()
+            .map(|(k, &s)| tile_step(o, own.rect, plan.rect(s), k == 0, 0, 1))
+            .collect();
+        steps.push(tile_step(o, own.rect, o, false, 0, 1));
+        write_dp_steps(ctx, &slots, &steps);
+        for (k, &s) in sources.iter().enumerate() {
+            let src = if s == out {
+                Rc::clone(&own)
+            } else {
+                cache.get(ctx, grid, &plan, s, &mut stats)
+            };
+            dispatch_tile(ctx, &ctx.dp.tile_cost, &bind_group(&src, &own), k, o);
+            settle(ctx, &cache);
+        }
+        dispatch_tile(
+            ctx,
+            &ctx.dp.tile_fraction,
+            &bind_group(&own, &own),
+            sources.len(),
+            o,
+        );
+        let bytes = ctx.read_back(&cost, (o.cells() * 4) as u64, "a DP tile")?;
+        let values: Vec<f32> = bytemuck::pod_collect_to_vec(&bytes);
+        for (r, line) in values.chunks_exact(band_cols as usize).enumerate() {
+            let start = (o.row0 as usize + r) * cols + o.col0 as usize;
+            map[start..start + line.len()].copy_from_slice(line);
+        }
+    }
+    scope.pop("running the tiled DP map")?;
+    Ok(TiledMap { values: map, stats })
+}
+
+/// Options of [`dp_sweep_tiled_gpu`].
+#[derive(Debug, Clone, Copy)]
+pub struct DpTileSweepOptions {
+    /// Tile side, cells.
+    pub tile_cells: u32,
+    /// Bytes of source blocks kept resident (LRU; at least two blocks).
+    pub cache_bytes: u64,
+    /// Epochs per batch: the cost buffer holds `2 × epochs_per_batch` costs per output cell.
+    pub epochs_per_batch: u32,
+}
+
+impl DpTileSweepOptions {
+    /// Tiles of `tile_cells`, the default cache, 8 epochs per batch (cost buffer 64 B per
+    /// output cell: 268 MB for a 2048² tile).
+    pub fn new(tile_cells: u32) -> Self {
+        DpTileSweepOptions {
+            tile_cells,
+            cache_bytes: DEFAULT_CACHE_BYTES,
+            epochs_per_batch: 8,
+        }
+    }
+}
+
+/// GPU tiled soft epoch sweep: the [`DpCellStats`] of every cell (row-major) over the epochs of
+/// `lights` (Sun at `2e`, Earth at `2e + 1`, from
+/// [`crate::shadow::gpu_twins::disc_light_to_f32`], in time order), computed output tile by output
+/// tile: per batch of epochs the costs are min-accumulated over the batch's source tiles
+/// ([`crate::shadow::gpu_tiles::sources_for_batch`]) in a `[2 × batch × tile cells]` buffer, then
+/// folded into the tile's statistics in time order; the statistics are read back once per output
+/// tile. GPU memory: `32 (T+1)²` B of statistics (+ as much staging) + `8 B × epochs_per_batch ×
+/// (T+1)²` of costs + the light table (32 B/epoch) + the block cache. Twin:
+/// [`crate::shadow::gpu_tiles::dp_sweep_tiled`].
+pub fn dp_sweep_tiled_gpu(
+    ctx: &GpuContext,
+    grid: &MarchGrid,
+    lights: &[[f32; 4]],
+    options: DpTileSweepOptions,
+) -> Result<(Vec<DpCellStats>, TileRunStats), GpuError> {
+    if lights.is_empty() || !lights.len().is_multiple_of(2) || options.epochs_per_batch == 0 {
+        return Err(GpuError::InvalidInput {
+            kernel: "dp_tile_sweep_cost",
+            message: "the light table needs Sun and Earth discs for at least one epoch (and a \
+                      non-zero batch)"
+                .into(),
+        });
+    }
+    for &l in lights {
+        check_light(l, "dp_tile_sweep_cost")?;
+    }
+    let epochs = u32::try_from(lights.len() / 2).map_err(|_| GpuError::InvalidInput {
+        kernel: "dp_tile_sweep_cost",
+        message: format!("{} epochs exceed 2^32", lights.len() / 2),
+    })?;
+    let plan = TilePlan::new(grid.rows, grid.cols, options.tile_cells).map_err(|e| {
+        GpuError::InvalidInput {
+            kernel: "dp_tile_sweep_cost",
+            message: e.to_string(),
+        }
+    })?;
+    DpTiling {
+        tile_cells: Some(options.tile_cells),
+    }
+    .resolve_sweep(ctx, grid)?;
+    let bounds = tile_bounds(grid, &plan);
+    let (_, max_tile_cells) = plan.max_block_and_tile_cells();
+    // The cost buffer (8 B per cell and epoch) must fit one binding too.
+    let limits = ctx.limits();
+    let max_binding = limits
+        .max_storage_buffer_binding_size
+        .min(limits.max_buffer_size);
+    let batch = options
+        .epochs_per_batch
+        .min((max_binding / (8 * max_tile_cells as u64)).max(1) as u32);
+    let stats_bytes = size_of::<DpCellStats>() as u64;
+    let cols = grid.cols as usize;
+    let mut run = TileRunStats {
+        output_tiles: plan.len(),
+        ..Default::default()
+    };
+    let scope = ErrorScope::push(&ctx.device);
+    let params = ctx
+        .device
+        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("penumbra dp tile sweep grid params"),
+            contents: bytemuck::bytes_of(&GridParams::of(grid)),
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
+    let table = storage_init(
+        ctx,
+        "penumbra dp tile sweep lights",
+        bytemuck::cast_slice(lights),
+    );
+    let slots = slot_buffer(ctx, plan.len() as u32 + 1);
+    let cost = band_buffer(
+        ctx,
+        "penumbra dp tile sweep cost",
+        max_tile_cells as u64 * 2 * u64::from(batch),
+        wgpu::BufferUsages::empty(),
+    );
+    let tile_stats = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("penumbra dp tile sweep stats"),
+        size: max_tile_cells as u64 * stats_bytes,
+        usage: wgpu::BufferUsages::STORAGE
+            | wgpu::BufferUsages::COPY_SRC
+            | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let mut cache = BlockCache {
+        host: vec![None; plan.len()],
+        blocks: HashMap::new(),
+        bytes: 0,
+        cap_bytes: options.cache_bytes,
+        clock: 0,
+    };
+    let bind_group = |src: &GpuTileBlock, obs: &GpuTileBlock| {
+        ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("penumbra dp tile sweep bind group"),
+            layout: &ctx.dp.tile_sweep_layout,
+            entries: &[
+                whole(0, &params),
+                whole(1, &src.heights),
+                whole(2, &src.mip),
+                whole(3, &src.levels),
+                whole(4, &table),
+                binding_entry(5, &slots, size_of::<DpStep>() as u64),
+                whole(6, &cost),
+                whole(7, &obs.heights),
+                whole(8, &tile_stats),
+            ],
+        })
+    };
+    let mut all = vec![DpCellStats::default(); grid.cells()];
+    for out in 0..plan.len() {
+        let o = plan.rect(out);
+        let own = cache.get(ctx, grid, &plan, out, &mut run);
+        let mut clear = ctx
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("penumbra dp tile sweep clear"),
+            });
+        clear.clear_buffer(&tile_stats, 0, None);
+        ctx.queue.submit([clear.finish()]);
+        let mut first = 0_u32;
+        while first < epochs {
+            let count = batch.min(epochs - first);
+            let batch_lights = &lights[2 * first as usize..2 * (first + count) as usize];
+            let sources = sources_for_batch(grid, &plan, &bounds, out, batch_lights);
+            run.source_dispatches += sources.len();
+            run.max_sources = run.max_sources.max(sources.len());
+            let mut steps: Vec<DpStep> = sources
+                .iter()
+                .enumerate()
+                .map(|(k, &s)| tile_step(o, own.rect, plan.rect(s), k == 0, first, count))
+                .collect();
+            steps.push(tile_step(o, own.rect, o, false, first, count));
+            write_dp_steps(ctx, &slots, &steps);
+            for (k, &s) in sources.iter().enumerate() {
+                let src = if s == out {
+                    Rc::clone(&own)
+                } else {
+                    cache.get(ctx, grid, &plan, s, &mut run)
+                };
+                dispatch_tile(ctx, &ctx.dp.tile_sweep_cost, &bind_group(&src, &own), k, o);
+                settle(ctx, &cache);
+            }
+            dispatch_tile(
+                ctx,
+                &ctx.dp.tile_sweep_accumulate,
+                &bind_group(&own, &own),
+                sources.len(),
+                o,
+            );
+            // The next batch rewrites the step slots: queue writes land before later submits
+            // and after earlier ones, so no wait is needed.
+            first += count;
+        }
+        let bytes = ctx.read_back(
+            &tile_stats,
+            o.cells() as u64 * stats_bytes,
+            "DP tile statistics",
+        )?;
+        let values: Vec<DpCellStats> = bytemuck::pod_collect_to_vec(&bytes);
+        let band_cols = (o.col1 - o.col0) as usize;
+        for (r, line) in values.chunks_exact(band_cols).enumerate() {
+            let start = (o.row0 as usize + r) * cols + o.col0 as usize;
+            all[start..start + line.len()].copy_from_slice(line);
+        }
+    }
+    scope.pop("running the tiled DP sweep")?;
+    Ok((all, run))
+}
