@@ -1,6 +1,6 @@
 //! `penumbra map` through the binary: georeferencing read back by GDAL, analytic lights, bad input.
 
-use crate::util::{assert_clean_error, files_in, kernels_dir, penumbra};
+use crate::util::{assert_clean_error, files_in, kernels_dir, penumbra, penumbra_ok, read_tif};
 
 fn gdalinfo_json(path: &std::path::Path) -> Option<serde_json::Value> {
     let out = std::process::Command::new("gdalinfo")
@@ -24,7 +24,7 @@ fn one_light_maps_carry_the_dem_georeferencing_and_obey_the_horizon() {
         ("brute", "30", "ref"),
         ("smap", "-5", "below"),
     ] {
-        let out = penumbra(
+        penumbra_ok(
             dir.path(),
             &[
                 "map",
@@ -41,14 +41,9 @@ fn one_light_maps_carry_the_dem_georeferencing_and_obey_the_horizon() {
                 &format!("{name}_frac.tif"),
             ],
         );
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
     }
     // SMap agrees with brute force on the DEM grid (the tolerance: 0.3% of pixels).
-    let read = |name: &str| penumbra::terrain::read_geotiff(&dir.path().join(name)).unwrap();
+    let read = |name: &str| read_tif(dir.path(), name);
     let (smap, brute) = (read("high_mask.tif"), read("ref_mask.tif"));
     assert_eq!(smap.grid, brute.grid);
     let differ = smap
@@ -68,11 +63,10 @@ fn one_light_maps_carry_the_dem_georeferencing_and_obey_the_horizon() {
         "a 30° Sun lights most of the DEM"
     );
     let dem = dir.path().join("dem.tif");
-    let out = penumbra(
+    penumbra_ok(
         dir.path(),
         &["dem", "synth", "--out", dem.to_str().unwrap()],
     );
-    assert!(out.status.success());
     let Some(dem_info) = gdalinfo_json(&dem) else {
         eprintln!("skipping the GDAL half: gdalinfo is not installed");
         return;
@@ -110,7 +104,7 @@ fn one_light_maps_carry_the_dem_georeferencing_and_obey_the_horizon() {
 fn epoch_range_writes_every_statistic_and_preview() {
     let dir = tempfile::tempdir().unwrap();
     let k = kernels_dir();
-    let out = penumbra(
+    penumbra_ok(
         dir.path(),
         &[
             "map",
@@ -126,11 +120,6 @@ fn epoch_range_writes_every_statistic_and_preview() {
             "--kernels",
             k.to_str().unwrap(),
         ],
-    );
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
     );
     let files = files_in(&dir.path().join("maps"));
     for f in [
@@ -193,7 +182,7 @@ fn bad_light_input_is_a_clean_error() {
 fn fourier_engine_map_agrees_with_brute_force() {
     let dir = tempfile::tempdir().unwrap();
     for engine in ["fourier", "brute"] {
-        let out = penumbra(
+        penumbra_ok(
             dir.path(),
             &[
                 "map",
@@ -208,13 +197,8 @@ fn fourier_engine_map_agrees_with_brute_force() {
                 &format!("{engine}.tif"),
             ],
         );
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
     }
-    let read = |name: &str| penumbra::terrain::read_geotiff(&dir.path().join(name)).unwrap();
+    let read = |name: &str| read_tif(dir.path(), name);
     let (f, b) = (read("fourier.tif"), read("brute.tif"));
     let differ = f
         .heights_m
