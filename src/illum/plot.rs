@@ -11,6 +11,7 @@ use std::sync::OnceLock;
 
 use hifitime::Epoch;
 use plotters::coord::Shift;
+use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 
 use super::IllumError;
@@ -84,6 +85,27 @@ fn render_png(
     Ok(png)
 }
 
+/// The rectangular chart of the fraction and horizon plots (caption, margins and label areas
+/// shared) over the axis ranges `x` and `y`.
+fn rect_chart<'a, 'b>(
+    root: &'a DrawingArea<BitMapBackend<'b>, Shift>,
+    title: &str,
+    x: std::ops::Range<f64>,
+    y: std::ops::Range<f64>,
+    what: &'static str,
+) -> Result<
+    ChartContext<'a, BitMapBackend<'b>, Cartesian2d<RangedCoordf64, RangedCoordf64>>,
+    IllumError,
+> {
+    ChartBuilder::on(root)
+        .caption(title, ("sans-serif", 24))
+        .margin(12)
+        .x_label_area_size(50)
+        .y_label_area_size(60)
+        .build_cartesian_2d(x, y)
+        .map_err(plot_err(what))
+}
+
 /// A visibility time series to plot: uniform grid from `start_utc` every `step_s` seconds.
 #[derive(Debug, Clone, Copy)]
 pub struct FractionSeries<'a> {
@@ -126,13 +148,7 @@ pub fn render_fraction_plot_png(
     let x_max = span_s / unit_s;
     let x_of = |k: usize| k as f64 * series.step_s / unit_s;
     render_png(WHAT, size_px, |root| {
-        let mut chart = ChartBuilder::on(root)
-            .caption(title, ("sans-serif", 24))
-            .margin(12)
-            .x_label_area_size(50)
-            .y_label_area_size(60)
-            .build_cartesian_2d(0.0..x_max, -0.02..1.2)
-            .map_err(plot_err(WHAT))?;
+        let mut chart = rect_chart(root, title, 0.0..x_max, -0.02..1.2, WHAT)?;
         chart
             .configure_mesh()
             .x_desc(format!(
@@ -289,13 +305,7 @@ pub fn render_horizon_plot_png(
     const WHAT: &str = "horizon plot";
     let (el_lo, el_hi) = el_range_deg(horizon, tracks);
     render_png(WHAT, size_px, |root| {
-        let mut chart = ChartBuilder::on(root)
-            .caption(title, ("sans-serif", 24))
-            .margin(12)
-            .x_label_area_size(50)
-            .y_label_area_size(60)
-            .build_cartesian_2d(0.0..360.0, el_lo..el_hi)
-            .map_err(plot_err(WHAT))?;
+        let mut chart = rect_chart(root, title, 0.0..360.0, el_lo..el_hi, WHAT)?;
         chart
             .configure_mesh()
             .x_desc("azimuth (deg, clockwise from north)")
