@@ -14,6 +14,23 @@ fn gdalinfo_json(path: &std::path::Path) -> Option<serde_json::Value> {
     serde_json::from_slice(&out.stdout).ok()
 }
 
+/// Runs `penumbra map --synthetic --engine <engine> --sun-az-deg 135 --sun-el-deg <el_deg>`
+/// with the output options `outputs` in `dir` and asserts that it succeeded.
+fn map_synthetic_az135(dir: &std::path::Path, engine: &str, el_deg: &str, outputs: &[&str]) {
+    let mut args = vec![
+        "map",
+        "--synthetic",
+        "--engine",
+        engine,
+        "--sun-az-deg",
+        "135",
+        "--sun-el-deg",
+        el_deg,
+    ];
+    args.extend_from_slice(outputs);
+    penumbra_ok(dir, &args);
+}
+
 #[test]
 fn one_light_maps_carry_the_dem_georeferencing_and_obey_the_horizon() {
     let dir = tempfile::tempdir().unwrap();
@@ -24,22 +41,12 @@ fn one_light_maps_carry_the_dem_georeferencing_and_obey_the_horizon() {
         ("brute", "30", "ref"),
         ("smap", "-5", "below"),
     ] {
-        penumbra_ok(
+        let (mask, fraction) = (format!("{name}_mask.tif"), format!("{name}_frac.tif"));
+        map_synthetic_az135(
             dir.path(),
-            &[
-                "map",
-                "--synthetic",
-                "--engine",
-                engine,
-                "--sun-az-deg",
-                "135",
-                "--sun-el-deg",
-                el,
-                "--out-mask",
-                &format!("{name}_mask.tif"),
-                "--out-fraction",
-                &format!("{name}_frac.tif"),
-            ],
+            engine,
+            el,
+            &["--out-mask", &mask, "--out-fraction", &fraction],
         );
     }
     // SMap agrees with brute force on the DEM grid (the tolerance: 0.3% of pixels).
@@ -182,20 +189,11 @@ fn bad_light_input_is_a_clean_error() {
 fn fourier_engine_map_agrees_with_brute_force() {
     let dir = tempfile::tempdir().unwrap();
     for engine in ["fourier", "brute"] {
-        penumbra_ok(
+        map_synthetic_az135(
             dir.path(),
-            &[
-                "map",
-                "--synthetic",
-                "--engine",
-                engine,
-                "--sun-az-deg",
-                "135",
-                "--sun-el-deg",
-                "5",
-                "--out-mask",
-                &format!("{engine}.tif"),
-            ],
+            engine,
+            "5",
+            &["--out-mask", &format!("{engine}.tif")],
         );
     }
     let read = |name: &str| read_tif(dir.path(), name);
