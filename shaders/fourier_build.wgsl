@@ -55,83 +55,23 @@ struct FourierBuildParams {
 @group(0) @binding(6) var<storage, read_write> fb_coeffs: array<f32>;
 
 // Largest tan(elevation) of the terrain along the horizontal ray from (u0, v0, z0) with grid
-// direction (du, dv) (unit), at least `start_tan`. Crossings as march_hard (but within
-// FB_EDGE_TOL_CELLS of the edge lines); stops at the grid edge, beyond max_distance_cells, or once no sample can beat the best: (z_max - z0) / t <= best.
+// direction (du, dv) (unit), at least `start_tan`. Crossings from dda_next of shared/march.wgsl
+// (clamped within FB_EDGE_TOL_CELLS of the edge lines); stops at the grid edge, beyond max_distance_cells, or once no sample can beat the best: (z_max - z0) / t <= best.
 fn horizon_tan(u0: f32, v0: f32, z0: f32, du: f32, dv: f32, start_tan: f32) -> f32 {
-    let rows = i32(grid.rows);
-    let cols = i32(grid.cols);
     var best = start_tan;
-    var line_u = 0;
-    var step_u = 0;
-    var t_max_u = FAR_CELLS;
-    var t_delta_u = FAR_CELLS;
-    if du > 0.0 {
-        line_u = i32(floor(u0)) + 1;
-        step_u = 1;
-        t_delta_u = 1.0 / du;
-        t_max_u = (f32(line_u) - u0) * t_delta_u;
-    } else if du < 0.0 {
-        line_u = i32(ceil(u0)) - 1;
-        step_u = -1;
-        t_delta_u = -1.0 / du;
-        t_max_u = (u0 - f32(line_u)) * t_delta_u;
-    }
-    var line_v = 0;
-    var step_v = 0;
-    var t_max_v = FAR_CELLS;
-    var t_delta_v = FAR_CELLS;
-    if dv > 0.0 {
-        line_v = i32(floor(v0)) + 1;
-        step_v = 1;
-        t_delta_v = 1.0 / dv;
-        t_max_v = (f32(line_v) - v0) * t_delta_v;
-    } else if dv < 0.0 {
-        line_v = i32(ceil(v0)) - 1;
-        step_v = -1;
-        t_delta_v = -1.0 / dv;
-        t_max_v = (v0 - f32(line_v)) * t_delta_v;
-    }
-    let max_steps = rows + cols + 4;
+    var dda = dda_start(u0, v0, du, dv);
+    let max_steps = i32(grid.rows) + i32(grid.cols) + 4;
     for (var i = 0; i < max_steps; i++) {
-        var t = 0.0;
-        var z_surf = 0.0;
-        if t_max_u < t_max_v {
-            t = t_max_u;
-            if line_u < 0 || line_u > cols - 1 {
-                return best;
-            }
-            let v = v0 + t * dv;
-            if v < -FB_EDGE_TOL_CELLS || v > f32(rows - 1) + FB_EDGE_TOL_CELLS {
-                return best;
-            }
-            let vc = clamp(v, 0.0, f32(rows - 1));
-            let r0 = min(i32(floor(vc)), rows - 2);
-            let w = vc - f32(r0);
-            z_surf = height_at(r0, line_u) * (1.0 - w) + height_at(r0 + 1, line_u) * w;
-            t_max_u = t_max_u + t_delta_u;
-            line_u = line_u + step_u;
-        } else {
-            t = t_max_v;
-            if line_v < 0 || line_v > rows - 1 {
-                return best;
-            }
-            let u = u0 + t * du;
-            if u < -FB_EDGE_TOL_CELLS || u > f32(cols - 1) + FB_EDGE_TOL_CELLS {
-                return best;
-            }
-            let uc = clamp(u, 0.0, f32(cols - 1));
-            let c0 = min(i32(floor(uc)), cols - 2);
-            let w = uc - f32(c0);
-            z_surf = height_at(line_v, c0) * (1.0 - w) + height_at(line_v, c0 + 1) * w;
-            t_max_v = t_max_v + t_delta_v;
-            line_v = line_v + step_v;
-        }
-        if t > fb.max_distance_cells {
+        let c = dda_next(&dda, FB_EDGE_TOL_CELLS);
+        if !c.inside {
             return best;
         }
-        let t_m = t * grid.px_m;
+        if c.t > fb.max_distance_cells {
+            return best;
+        }
+        let t_m = c.t * grid.px_m;
         // Holes are -1e30 m: their samples never win.
-        best = max(best, (z_surf - z0) / t_m);
+        best = max(best, (c.z_surf - z0) / t_m);
         if (grid.z_max_m - z0) / t_m <= best {
             return best;
         }

@@ -1,6 +1,7 @@
 // Shared by shadow_march.wgsl and shadow_march_soft.wgsl (prepended by the Rust side and by the
-// naga test): the grid bindings 0..3 and `march_hard`, the 2-D DDA ray march of one cell towards
-// one light direction. CPU twin: `march_hard` in src/shadow/gpu_twins.rs (line by line).
+// naga test): the grid bindings 0..3, the 2-D DDA over the lattice lines (`dda_start`, `dda_next`,
+// also used by fourier_build.wgsl) and `march_hard`, the ray march of one cell towards one light
+// direction. CPU twin: `march_hard` in src/shadow/gpu_twins.rs (line by line).
 //
 // Surface: the bilinear interpolant of the cell-centre heights. In grid units (u = col, v = row,
 // cell centres at integers) the ray is tested at every crossing of a lattice line u = k or
@@ -55,10 +56,101 @@ fn height_at(row: i32, col: i32) -> f32 {
     return heights[u32(row) * grid.cols + u32(col)];
 }
 
-// 1 lit, 0 shadow, 255 nodata for cell (row, col) and light direction `light` (model space).
-fn march_hard(row: u32, col: u32, light: vec3<f32>) -> u32 {
+// One axis of the 2-D DDA: the next lattice line, the step to the line after it, and the ray
+// parameter t (cells of horizontal travel) to reach it and between two lines.
+struct DdaAxis {
+    line: i32,
+    step: i32,
+    t_max: f32,
+    t_delta: f32,
+}
+
+// The DDA of the horizontal ray (u0, v0) + t (du, dv) in grid units (direction unit).
+struct Dda {
+    u: DdaAxis,
+    v: DdaAxis,
+    u0: f32,
+    v0: f32,
+    du: f32,
+    dv: f32,
+}
+
+// One crossing of the ray with a lattice line: its t (cells) and the surface height there.
+struct DdaCrossing {
+    // false: the ray has left the lattice (t and z_surf are not set).
+    inside: bool,
+    t: f32,
+    z_surf: f32,
+}
+
+// DDA set-up on one axis (position p0, direction component d): the next lattice line and t.
+fn dda_axis(p0: f32, d: f32) -> DdaAxis {
+    var a = DdaAxis(0, 0, FAR_CELLS, FAR_CELLS);
+    if d > 0.0 {
+        a.line = i32(floor(p0)) + 1;
+        a.step = 1;
+        a.t_delta = 1.0 / d;
+        a.t_max = (f32(a.line) - p0) * a.t_delta;
+    } else if d < 0.0 {
+        a.line = i32(ceil(p0)) - 1;
+        a.step = -1;
+        a.t_delta = -1.0 / d;
+        a.t_max = (p0 - f32(a.line)) * a.t_delta;
+    }
+    return a;
+}
+
+// The DDA of the ray (u0, v0) + t (du, dv), before its first crossing.
+fn dda_start(u0: f32, v0: f32, du: f32, dv: f32) -> Dda {
+    return Dda(dda_axis(u0, du), dda_axis(v0, dv), u0, v0, du, dv);
+}
+
+// Advances the DDA to the next crossing with a lattice line u = k or v = k and samples the
+// surface there (linear between the two lattice heights on that line). A crossing at most
+// `edge_tol_cells` outside the lattice is clamped onto its edge line (0 for march_hard).
+fn dda_next(dda: ptr<function, Dda>, edge_tol_cells: f32) -> DdaCrossing {
     let rows = i32(grid.rows);
     let cols = i32(grid.cols);
+    var c = DdaCrossing(false, 0.0, 0.0);
+    if (*dda).u.t_max < (*dda).v.t_max {
+        c.t = (*dda).u.t_max;
+        let line_u = (*dda).u.line;
+        if line_u < 0 || line_u > cols - 1 {
+            return c;
+        }
+        let v = (*dda).v0 + c.t * (*dda).dv;
+        if v < -edge_tol_cells || v > f32(rows - 1) + edge_tol_cells {
+            return c;
+        }
+        let vc = clamp(v, 0.0, f32(rows - 1));
+        let r0 = min(i32(floor(vc)), rows - 2);
+        let w = vc - f32(r0);
+        c.z_surf = height_at(r0, line_u) * (1.0 - w) + height_at(r0 + 1, line_u) * w;
+        (*dda).u.t_max = (*dda).u.t_max + (*dda).u.t_delta;
+        (*dda).u.line = line_u + (*dda).u.step;
+    } else {
+        c.t = (*dda).v.t_max;
+        let line_v = (*dda).v.line;
+        if line_v < 0 || line_v > rows - 1 {
+            return c;
+        }
+        let u = (*dda).u0 + c.t * (*dda).du;
+        if u < -edge_tol_cells || u > f32(cols - 1) + edge_tol_cells {
+            return c;
+        }
+        let uc = clamp(u, 0.0, f32(cols - 1));
+        let c0 = min(i32(floor(uc)), cols - 2);
+        let w = uc - f32(c0);
+        c.z_surf = height_at(line_v, c0) * (1.0 - w) + height_at(line_v, c0 + 1) * w;
+        (*dda).v.t_max = (*dda).v.t_max + (*dda).v.t_delta;
+        (*dda).v.line = line_v + (*dda).v.step;
+    }
+    c.inside = true;
+    return c;
+}
+
+// 1 lit, 0 shadow, 255 nodata for cell (row, col) and light direction `light` (model space).
+fn march_hard(row: u32, col: u32, light: vec3<f32>) -> u32 {
     let z_cell = heights[row * grid.cols + col];
     if z_cell < HOLE_TEST_M {
         return NODATA;
@@ -78,75 +170,18 @@ fn march_hard(row: u32, col: u32, light: vec3<f32>) -> u32 {
     let du = light.x / horiz_len;
     let dv = -light.y / horiz_len;
     let rise_m_per_cell = light.z / horiz_len * grid.px_m;
-    // DDA set-up: next lattice line on each axis and the ray parameter t (cells) to reach it.
-    var line_u = 0;
-    var step_u = 0;
-    var t_max_u = FAR_CELLS;
-    var t_delta_u = FAR_CELLS;
-    if du > 0.0 {
-        line_u = i32(floor(u0)) + 1;
-        step_u = 1;
-        t_delta_u = 1.0 / du;
-        t_max_u = (f32(line_u) - u0) * t_delta_u;
-    } else if du < 0.0 {
-        line_u = i32(ceil(u0)) - 1;
-        step_u = -1;
-        t_delta_u = -1.0 / du;
-        t_max_u = (u0 - f32(line_u)) * t_delta_u;
-    }
-    var line_v = 0;
-    var step_v = 0;
-    var t_max_v = FAR_CELLS;
-    var t_delta_v = FAR_CELLS;
-    if dv > 0.0 {
-        line_v = i32(floor(v0)) + 1;
-        step_v = 1;
-        t_delta_v = 1.0 / dv;
-        t_max_v = (f32(line_v) - v0) * t_delta_v;
-    } else if dv < 0.0 {
-        line_v = i32(ceil(v0)) - 1;
-        step_v = -1;
-        t_delta_v = -1.0 / dv;
-        t_max_v = (v0 - f32(line_v)) * t_delta_v;
-    }
-    let max_steps = rows + cols + 4;
+    var dda = dda_start(u0, v0, du, dv);
+    let max_steps = i32(grid.rows) + i32(grid.cols) + 4;
     for (var i = 0; i < max_steps; i++) {
-        var t = 0.0;
-        var z_surf = 0.0;
-        if t_max_u < t_max_v {
-            t = t_max_u;
-            if line_u < 0 || line_u > cols - 1 {
-                return LIT;
-            }
-            let v = v0 + t * dv;
-            if v < 0.0 || v > f32(rows - 1) {
-                return LIT;
-            }
-            let r0 = min(i32(floor(v)), rows - 2);
-            let w = v - f32(r0);
-            z_surf = height_at(r0, line_u) * (1.0 - w) + height_at(r0 + 1, line_u) * w;
-            t_max_u = t_max_u + t_delta_u;
-            line_u = line_u + step_u;
-        } else {
-            t = t_max_v;
-            if line_v < 0 || line_v > rows - 1 {
-                return LIT;
-            }
-            let u = u0 + t * du;
-            if u < 0.0 || u > f32(cols - 1) {
-                return LIT;
-            }
-            let c0 = min(i32(floor(u)), cols - 2);
-            let w = u - f32(c0);
-            z_surf = height_at(line_v, c0) * (1.0 - w) + height_at(line_v, c0 + 1) * w;
-            t_max_v = t_max_v + t_delta_v;
-            line_v = line_v + step_v;
+        let c = dda_next(&dda, 0.0);
+        if !c.inside {
+            return LIT;
         }
-        let z_ray = z0 + t * rise_m_per_cell;
+        let z_ray = z0 + c.t * rise_m_per_cell;
         if z_ray > grid.z_max_m {
             return LIT;
         }
-        if z_surf > z_ray {
+        if c.z_surf > z_ray {
             return SHADOW;
         }
     }

@@ -126,6 +126,41 @@ impl GpuContext {
         &self.limits
     }
 
+    /// A uniform buffer of `size` bytes, filled later with `queue.write_buffer`.
+    pub(crate) fn uniform_buffer(&self, label: &str, size: u64) -> wgpu::Buffer {
+        self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(label),
+            size,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        })
+    }
+
+    /// Encodes one compute pass of `pipeline` over `workgroups` (x, y, z) with `bind_group` at
+    /// the dynamic `offsets`, and submits it.
+    pub(crate) fn dispatch(
+        &self,
+        label: &str,
+        pipeline: &wgpu::ComputePipeline,
+        bind_group: &wgpu::BindGroup,
+        offsets: &[u32],
+        workgroups: [u32; 3],
+    ) {
+        let mut encoder = self
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some(label) });
+        {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some(label),
+                timestamp_writes: None,
+            });
+            pass.set_pipeline(pipeline);
+            pass.set_bind_group(0, bind_group, offsets);
+            pass.dispatch_workgroups(workgroups[0], workgroups[1], workgroups[2]);
+        }
+        self.queue.submit([encoder.finish()]);
+    }
+
     /// Copies `size` bytes of `src` into a fresh mappable buffer, waits, and returns them.
     pub(crate) fn read_back(
         &self,
@@ -176,6 +211,41 @@ impl GpuContext {
         };
         staging.unmap();
         Ok(bytes)
+    }
+}
+
+/// A compute-stage buffer entry of a bind group layout (`has_dynamic_offset` for the uniform
+/// slots addressed by dynamic offsets).
+pub(crate) fn buffer_layout_entry(
+    binding: u32,
+    ty: wgpu::BufferBindingType,
+    has_dynamic_offset: bool,
+) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Buffer {
+            ty,
+            has_dynamic_offset,
+            min_binding_size: None,
+        },
+        count: None,
+    }
+}
+
+/// [`buffer_layout_entry`] without a dynamic offset.
+pub(crate) fn layout_entry(
+    binding: u32,
+    ty: wgpu::BufferBindingType,
+) -> wgpu::BindGroupLayoutEntry {
+    buffer_layout_entry(binding, ty, false)
+}
+
+/// A bind group entry binding the whole of `buffer`.
+pub(crate) fn whole(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
+    wgpu::BindGroupEntry {
+        binding,
+        resource: buffer.as_entire_binding(),
     }
 }
 

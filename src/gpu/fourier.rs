@@ -22,7 +22,7 @@
 use wgpu::util::DeviceExt as _;
 
 use super::GpuError;
-use super::context::{ErrorScope, GpuContext};
+use super::context::{ErrorScope, GpuContext, layout_entry, whole};
 use super::shadow_march::{GpuMarchGrid, band_buffer, compute_pipeline, storage_init};
 use crate::shadow::ShadowError;
 use crate::shadow::fourier::{HorizonMap, HorizonMapMeta, HorizonMapParams};
@@ -77,30 +77,17 @@ pub(crate) struct FourierPipelines {
     eval: wgpu::ComputePipeline,
 }
 
-fn entry(binding: u32, ty: wgpu::BufferBindingType) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility: wgpu::ShaderStages::COMPUTE,
-        ty: wgpu::BindingType::Buffer {
-            ty,
-            has_dynamic_offset: false,
-            min_binding_size: None,
-        },
-        count: None,
-    }
-}
-
 impl FourierPipelines {
     pub(crate) fn new(device: &wgpu::Device) -> Self {
         use wgpu::BufferBindingType::{Storage, Uniform};
         let build_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("penumbra fourier_build layout"),
             entries: &[
-                entry(0, Uniform),
-                entry(1, Storage { read_only: true }),
-                entry(4, Storage { read_only: true }),
-                entry(5, Uniform),
-                entry(6, Storage { read_only: false }),
+                layout_entry(0, Uniform),
+                layout_entry(1, Storage { read_only: true }),
+                layout_entry(4, Storage { read_only: true }),
+                layout_entry(5, Uniform),
+                layout_entry(6, Storage { read_only: false }),
             ],
         });
         let build_src = format!("{MARCH_WGSL}{FOURIER_BUILD_WGSL}");
@@ -114,9 +101,9 @@ impl FourierPipelines {
         let eval_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("penumbra fourier_eval layout"),
             entries: &[
-                entry(0, Uniform),
-                entry(1, Storage { read_only: true }),
-                entry(2, Storage { read_only: false }),
+                layout_entry(0, Uniform),
+                layout_entry(1, Storage { read_only: true }),
+                layout_entry(2, Storage { read_only: false }),
             ],
         });
         let eval = compute_pipeline(
@@ -150,22 +137,6 @@ impl Default for GpuBuildOptions {
             band_bytes: DEFAULT_BAND_BYTES,
             azimuths_per_dispatch: DEFAULT_AZIMUTHS_PER_DISPATCH,
         }
-    }
-}
-
-fn uniform_buffer(ctx: &GpuContext, label: &str, size: u64) -> wgpu::Buffer {
-    ctx.device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some(label),
-        size,
-        usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-        mapped_at_creation: false,
-    })
-}
-
-fn whole(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
-    wgpu::BindGroupEntry {
-        binding,
-        resource: buffer.as_entire_binding(),
     }
 }
 
@@ -240,8 +211,7 @@ pub fn build_horizon_map_gpu_with(
         "penumbra fourier sincos",
         bytemuck::cast_slice(&azimuth_table(params.n_azimuths)),
     );
-    let fb_buf = uniform_buffer(
-        ctx,
+    let fb_buf = ctx.uniform_buffer(
         "penumbra fourier_build params",
         size_of::<FourierBuildParams>() as u64,
     );
@@ -266,25 +236,17 @@ pub fn build_horizon_map_gpu_with(
     for fb in &dispatches {
         // write_buffer is ordered before the next submit: one uniform serves every dispatch.
         ctx.queue.write_buffer(&fb_buf, 0, bytemuck::bytes_of(fb));
-        let mut encoder = ctx
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("fourier_build"),
-            });
-        {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("fourier_build"),
-                timestamp_writes: None,
-            });
-            pass.set_pipeline(&ctx.fourier.build);
-            pass.set_bind_group(0, &bind_group, &[]);
-            pass.dispatch_workgroups(
+        ctx.dispatch(
+            "fourier_build",
+            &ctx.fourier.build,
+            &bind_group,
+            &[],
+            [
                 march.cols.div_ceil(WORKGROUP_SIZE_XY),
                 fb.band_rows.div_ceil(WORKGROUP_SIZE_XY),
                 1,
-            );
-        }
-        ctx.queue.submit([encoder.finish()]);
+            ],
+        );
         if fb.last == 1 {
             let bytes = ctx.read_back(
                 &out,
@@ -349,8 +311,7 @@ impl GpuHorizonMap {
         let packed = pack_coeffs(map);
         let band_rows = rows_per_band(ctx, rows, cols, 4 * nk as u64, band_bytes);
         let scope = ErrorScope::push(&ctx.device);
-        let params = uniform_buffer(
-            ctx,
+        let params = ctx.uniform_buffer(
             "penumbra fourier_eval params",
             size_of::<FourierEvalParams>() as u64,
         );
@@ -421,25 +382,17 @@ impl GpuHorizonMap {
             };
             ctx.queue
                 .write_buffer(&self.params, 0, bytemuck::bytes_of(&fe));
-            let mut encoder = ctx
-                .device
-                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                    label: Some("fourier_eval"),
-                });
-            {
-                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                    label: Some("fourier_eval"),
-                    timestamp_writes: None,
-                });
-                pass.set_pipeline(&ctx.fourier.eval);
-                pass.set_bind_group(0, bind_group, &[]);
-                pass.dispatch_workgroups(
+            ctx.dispatch(
+                "fourier_eval",
+                &ctx.fourier.eval,
+                bind_group,
+                &[],
+                [
                     self.cols.div_ceil(WORKGROUP_SIZE_XY),
                     rows.div_ceil(WORKGROUP_SIZE_XY),
                     1,
-                );
-            }
-            ctx.queue.submit([encoder.finish()]);
+                ],
+            );
             let bytes = ctx.read_back(
                 &self.out,
                 u64::from(*rows) * u64::from(self.cols) * 4,

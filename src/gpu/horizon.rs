@@ -11,7 +11,7 @@
 use wgpu::util::DeviceExt as _;
 
 use super::GpuError;
-use super::context::{ErrorScope, GpuContext};
+use super::context::{ErrorScope, GpuContext, layout_entry, whole};
 use super::shadow_march::compute_pipeline;
 use crate::horizon::gpu_twin::{
     ScanParams, ScanTerrain, SiteParams, azimuth_table, site_setup, to_horizon,
@@ -49,19 +49,6 @@ pub struct GpuHorizonScan {
     heights: wgpu::Buffer,
 }
 
-fn entry(binding: u32, ty: wgpu::BufferBindingType) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility: wgpu::ShaderStages::COMPUTE,
-        ty: wgpu::BindingType::Buffer {
-            ty,
-            has_dynamic_offset: false,
-            min_binding_size: None,
-        },
-        count: None,
-    }
-}
-
 impl GpuHorizonScan {
     /// Builds the pipeline and uploads `terrain`. Fails when the heights exceed the adapter's
     /// storage binding limit.
@@ -89,11 +76,11 @@ impl GpuHorizonScan {
             .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
                 label: Some("penumbra horizon_scan layout"),
                 entries: &[
-                    entry(0, wgpu::BufferBindingType::Uniform),
-                    entry(1, storage(true)),
-                    entry(2, storage(true)),
-                    entry(3, storage(true)),
-                    entry(4, storage(false)),
+                    layout_entry(0, wgpu::BufferBindingType::Uniform),
+                    layout_entry(1, storage(true)),
+                    layout_entry(2, storage(true)),
+                    layout_entry(3, storage(true)),
+                    layout_entry(4, storage(false)),
                 ],
             });
         let pipeline = compute_pipeline(
@@ -103,12 +90,10 @@ impl GpuHorizonScan {
             HORIZON_SCAN_WGSL,
             "horizon_scan",
         );
-        let params_buf = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("penumbra horizon_scan params"),
-            size: size_of::<ScanParams>() as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
+        let params_buf = ctx.uniform_buffer(
+            "penumbra horizon_scan params",
+            size_of::<ScanParams>() as u64,
+        );
         let heights = ctx
             .device
             .create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -170,26 +155,11 @@ impl GpuHorizonScan {
             label: Some("penumbra horizon_scan bind group"),
             layout: &self.layout,
             entries: &[
-                wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: self.params_buf.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 1,
-                    resource: self.heights.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 2,
-                    resource: site_buf.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 3,
-                    resource: az_buf.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 4,
-                    resource: out.as_entire_binding(),
-                },
+                whole(0, &self.params_buf),
+                whole(1, &self.heights),
+                whole(2, &site_buf),
+                whole(3, &az_buf),
+                whole(4, &out),
             ],
         });
         let n_sites = sites.len() as u32;
@@ -204,21 +174,13 @@ impl GpuHorizonScan {
             };
             ctx.queue
                 .write_buffer(&self.params_buf, 0, bytemuck::bytes_of(&params));
-            let mut encoder = ctx
-                .device
-                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                    label: Some("horizon_scan"),
-                });
-            {
-                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                    label: Some("horizon_scan"),
-                    timestamp_writes: None,
-                });
-                pass.set_pipeline(&self.pipeline);
-                pass.set_bind_group(0, &bind_group, &[]);
-                pass.dispatch_workgroups(groups_x, chunk, 1);
-            }
-            ctx.queue.submit([encoder.finish()]);
+            ctx.dispatch(
+                "horizon_scan",
+                &self.pipeline,
+                &bind_group,
+                &[],
+                [groups_x, chunk, 1],
+            );
             site0 += chunk;
         }
         let bytes = ctx.read_back(&out, n_out * 8, "the horizons")?;

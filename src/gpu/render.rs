@@ -16,7 +16,7 @@ use bytemuck::{Pod, Zeroable};
 use wgpu::util::DeviceExt as _;
 
 use super::GpuError;
-use super::context::{ErrorScope, GpuContext};
+use super::context::{ErrorScope, GpuContext, layout_entry, whole};
 use super::shadow_march::{DEFAULT_BAND_BYTES, compute_pipeline, storage_init};
 use crate::render::{Camera, Sample, Scene};
 
@@ -74,26 +74,16 @@ pub(crate) struct RenderPipeline {
 
 impl RenderPipeline {
     pub(crate) fn new(device: &wgpu::Device) -> Self {
-        let buffer = |binding, ty| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility: wgpu::ShaderStages::COMPUTE,
-            ty: wgpu::BindingType::Buffer {
-                ty,
-                has_dynamic_offset: false,
-                min_binding_size: None,
-            },
-            count: None,
-        };
         let ro = wgpu::BufferBindingType::Storage { read_only: true };
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("penumbra render layout"),
             entries: &[
-                buffer(0, wgpu::BufferBindingType::Uniform),
-                buffer(1, ro),
-                buffer(2, ro),
-                buffer(3, ro),
-                buffer(4, ro),
-                buffer(5, wgpu::BufferBindingType::Storage { read_only: false }),
+                layout_entry(0, wgpu::BufferBindingType::Uniform),
+                layout_entry(1, ro),
+                layout_entry(2, ro),
+                layout_entry(3, ro),
+                layout_entry(4, ro),
+                layout_entry(5, wgpu::BufferBindingType::Storage { read_only: false }),
             ],
         });
         let pipeline = compute_pipeline(device, &layout, "render", RENDER_WGSL, "render");
@@ -320,30 +310,12 @@ pub fn render_radiance_gpu(
         label: Some("penumbra render bind group"),
         layout: &ctx.render.layout,
         entries: &[
-            wgpu::BindGroupEntry {
-                binding: 0,
-                resource: uniform.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 1,
-                resource: scene.heights.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 2,
-                resource: scene.pyramid.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 3,
-                resource: scene.levels.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 4,
-                resource: scene.fractions.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 5,
-                resource: output.as_entire_binding(),
-            },
+            whole(0, &uniform),
+            whole(1, &scene.heights),
+            whole(2, &scene.pyramid),
+            whole(3, &scene.levels),
+            whole(4, &scene.fractions),
+            whole(5, &output),
         ],
     });
     let mut all = Vec::with_capacity(width as usize * height as usize);
@@ -353,25 +325,17 @@ pub fn render_radiance_gpu(
         params.image = [width, height, row0, rows];
         ctx.queue
             .write_buffer(&uniform, 0, bytemuck::bytes_of(&params));
-        let mut encoder = ctx
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("penumbra render band"),
-            });
-        {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("penumbra render band"),
-                timestamp_writes: None,
-            });
-            pass.set_pipeline(&ctx.render.pipeline);
-            pass.set_bind_group(0, &bind_group, &[]);
-            pass.dispatch_workgroups(
+        ctx.dispatch(
+            "penumbra render band",
+            &ctx.render.pipeline,
+            &bind_group,
+            &[],
+            [
                 width.div_ceil(WORKGROUP_SIZE_XY),
                 rows.div_ceil(WORKGROUP_SIZE_XY),
                 1,
-            );
-        }
-        ctx.queue.submit([encoder.finish()]);
+            ],
+        );
         let bytes = ctx.read_back(
             &output,
             u64::from(rows) * u64::from(width) * 4,

@@ -14,7 +14,7 @@ use bytemuck::{Pod, Zeroable};
 use wgpu::util::DeviceExt as _;
 
 use super::GpuError;
-use super::context::{ErrorScope, GpuContext};
+use super::context::{ErrorScope, GpuContext, buffer_layout_entry, layout_entry, whole};
 use crate::shadow::gpu_twins::MarchGrid;
 
 /// Output bytes per row band by default (64 MiB): small against any GPU, large enough that a
@@ -105,32 +105,6 @@ pub(crate) struct MarchPipelines {
     pub(crate) soft: wgpu::ComputePipeline,
 }
 
-fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility: wgpu::ShaderStages::COMPUTE,
-        ty: wgpu::BindingType::Buffer {
-            ty: wgpu::BufferBindingType::Storage { read_only },
-            has_dynamic_offset: false,
-            min_binding_size: None,
-        },
-        count: None,
-    }
-}
-
-fn uniform_entry(binding: u32, has_dynamic_offset: bool) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility: wgpu::ShaderStages::COMPUTE,
-        ty: wgpu::BindingType::Buffer {
-            ty: wgpu::BufferBindingType::Uniform,
-            has_dynamic_offset,
-            min_binding_size: None,
-        },
-        count: None,
-    }
-}
-
 pub(crate) fn compute_pipeline(
     device: &wgpu::Device,
     layout: &wgpu::BindGroupLayout,
@@ -162,11 +136,11 @@ impl MarchPipelines {
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("penumbra march layout"),
             entries: &[
-                uniform_entry(0, false),
-                storage_entry(1, true),
-                storage_entry(2, true),
-                uniform_entry(3, true),
-                storage_entry(4, false),
+                layout_entry(0, wgpu::BufferBindingType::Uniform),
+                layout_entry(1, wgpu::BufferBindingType::Storage { read_only: true }),
+                layout_entry(2, wgpu::BufferBindingType::Storage { read_only: true }),
+                buffer_layout_entry(3, wgpu::BufferBindingType::Uniform, true),
+                layout_entry(4, wgpu::BufferBindingType::Storage { read_only: false }),
             ],
         });
         let hard = compute_pipeline(
@@ -274,12 +248,7 @@ pub(crate) fn storage_init(ctx: &GpuContext, label: &str, data: &[u8]) -> wgpu::
 
 /// A uniform buffer of `slots` [`StepParams`] slots, [`STEP_SLOT_BYTES`] apart.
 pub(crate) fn step_slots(ctx: &GpuContext, slots: u32) -> wgpu::Buffer {
-    ctx.device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("penumbra step slots"),
-        size: u64::from(slots) * STEP_SLOT_BYTES,
-        usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-        mapped_at_creation: false,
-    })
+    ctx.uniform_buffer("penumbra step slots", u64::from(slots) * STEP_SLOT_BYTES)
 }
 
 /// Writes `steps` into consecutive slots of `slots`.
@@ -315,18 +284,9 @@ pub(crate) fn march_bind_group(
         label: Some("penumbra march bind group"),
         layout: &ctx.march.layout,
         entries: &[
-            wgpu::BindGroupEntry {
-                binding: 0,
-                resource: grid.params.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 1,
-                resource: grid.heights.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 2,
-                resource: lights.as_entire_binding(),
-            },
+            whole(0, &grid.params),
+            whole(1, &grid.heights),
+            whole(2, lights),
             wgpu::BindGroupEntry {
                 binding: 3,
                 resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
@@ -335,10 +295,7 @@ pub(crate) fn march_bind_group(
                     size: wgpu::BufferSize::new(size_of::<StepParams>() as u64),
                 }),
             },
-            wgpu::BindGroupEntry {
-                binding: 4,
-                resource: out.as_entire_binding(),
-            },
+            whole(4, out),
         ],
     })
 }
@@ -386,22 +343,8 @@ fn run_banded<T: Pod>(
     while row0 < grid.rows {
         let rows = band_rows.min(grid.rows - row0);
         write_steps(ctx, &slots, std::iter::once((light_index, row0, rows)));
-        let mut encoder = ctx
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some(action),
-            });
-        {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some(action),
-                timestamp_writes: None,
-            });
-            pass.set_pipeline(pipeline);
-            pass.set_bind_group(0, &bind_group, &[0]);
-            let (gx, gy) = grid.workgroups(rows);
-            pass.dispatch_workgroups(gx, gy, 1);
-        }
-        ctx.queue.submit([encoder.finish()]);
+        let (gx, gy) = grid.workgroups(rows);
+        ctx.dispatch(action, pipeline, &bind_group, &[0], [gx, gy, 1]);
         let bytes = ctx.read_back(&out, u64::from(rows) * cols * 4, "a shadow band")?;
         map.extend_from_slice(bytemuck::cast_slice(&bytes));
         row0 += rows;

@@ -11,6 +11,7 @@ use std::sync::OnceLock;
 
 use hifitime::Epoch;
 use plotters::coord::Shift;
+use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 
 use super::IllumError;
@@ -84,6 +85,27 @@ fn render_png(
     Ok(png)
 }
 
+/// The rectangular chart of the fraction and horizon plots (caption, margins and label areas
+/// shared) over the axis ranges `x` and `y`.
+fn rect_chart<'a, 'b>(
+    root: &'a DrawingArea<BitMapBackend<'b>, Shift>,
+    title: &str,
+    x: std::ops::Range<f64>,
+    y: std::ops::Range<f64>,
+    what: &'static str,
+) -> Result<
+    ChartContext<'a, BitMapBackend<'b>, Cartesian2d<RangedCoordf64, RangedCoordf64>>,
+    IllumError,
+> {
+    ChartBuilder::on(root)
+        .caption(title, ("sans-serif", 24))
+        .margin(12)
+        .x_label_area_size(50)
+        .y_label_area_size(60)
+        .build_cartesian_2d(x, y)
+        .map_err(plot_err(what))
+}
+
 /// A visibility time series to plot: uniform grid from `start_utc` every `step_s` seconds.
 #[derive(Debug, Clone, Copy)]
 pub struct FractionSeries<'a> {
@@ -126,13 +148,7 @@ pub fn render_fraction_plot_png(
     let x_max = span_s / unit_s;
     let x_of = |k: usize| k as f64 * series.step_s / unit_s;
     render_png(WHAT, size_px, |root| {
-        let mut chart = ChartBuilder::on(root)
-            .caption(title, ("sans-serif", 24))
-            .margin(12)
-            .x_label_area_size(50)
-            .y_label_area_size(60)
-            .build_cartesian_2d(0.0..x_max, -0.02..1.2)
-            .map_err(plot_err(WHAT))?;
+        let mut chart = rect_chart(root, title, 0.0..x_max, -0.02..1.2, WHAT)?;
         chart
             .configure_mesh()
             .x_desc(format!(
@@ -168,14 +184,7 @@ pub fn render_fraction_plot_png(
             .map_err(plot_err(WHAT))?
             .label("Sun")
             .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], SUN_COLOR));
-        chart
-            .configure_series_labels()
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK)
-            .label_font(("sans-serif", 15))
-            .position(SeriesLabelPosition::UpperRight)
-            .draw()
-            .map_err(plot_err(WHAT))?;
+        draw_legend(&mut chart, 15, SeriesLabelPosition::UpperRight, WHAT)?;
         Ok(())
     })
 }
@@ -240,6 +249,51 @@ fn horizon_points(horizon: &HorizonProfile<'_>) -> Vec<(f64, f64)> {
     pts
 }
 
+/// The legend box of a chart (white, framed) at `position`.
+fn draw_legend<'a, DB: DrawingBackend + 'a, CT: CoordTranslate>(
+    chart: &mut ChartContext<'a, DB, CT>,
+    font_px: u32,
+    position: SeriesLabelPosition,
+    what: &'static str,
+) -> Result<(), IllumError> {
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .label_font(("sans-serif", font_px))
+        .position(position)
+        .draw()
+        .map_err(plot_err(what))
+}
+
+/// Draws the non-empty Sun and Earth tracks as dots with their legend entries; `to_point` maps
+/// a (thinned) (az, el) sample to the chart's coordinates, or drops it (`None`).
+fn draw_tracks<'a, DB: DrawingBackend + 'a, CT: CoordTranslate<From = (f64, f64)>>(
+    chart: &mut ChartContext<'a, DB, CT>,
+    tracks: &SkyTracks<'_>,
+    to_point: impl Fn((f64, f64)) -> Option<(f64, f64)>,
+    what: &'static str,
+) -> Result<(), IllumError> {
+    for (track, color, label) in [
+        (tracks.sun_az_el_deg, SUN_COLOR, "Sun centre track"),
+        (tracks.earth_az_el_deg, EARTH_COLOR, "Earth centre track"),
+    ] {
+        if track.is_empty() {
+            continue;
+        }
+        chart
+            .draw_series(
+                thinned(track)
+                    .filter_map(&to_point)
+                    .map(|p| Circle::new(p, 1, color.filled())),
+            )
+            .map_err(plot_err(what))?
+            .label(label)
+            .legend(move |(x, y)| Circle::new((x + 10, y), 4, color.filled()));
+    }
+    Ok(())
+}
+
 /// Renders the horizon profile (terrain filled) with the Sun's and the Earth's tracks on a
 /// rectangular azimuth (0–360°) × elevation plot, as PNG bytes.
 pub fn render_horizon_plot_png(
@@ -251,13 +305,7 @@ pub fn render_horizon_plot_png(
     const WHAT: &str = "horizon plot";
     let (el_lo, el_hi) = el_range_deg(horizon, tracks);
     render_png(WHAT, size_px, |root| {
-        let mut chart = ChartBuilder::on(root)
-            .caption(title, ("sans-serif", 24))
-            .margin(12)
-            .x_label_area_size(50)
-            .y_label_area_size(60)
-            .build_cartesian_2d(0.0..360.0, el_lo..el_hi)
-            .map_err(plot_err(WHAT))?;
+        let mut chart = rect_chart(root, title, 0.0..360.0, el_lo..el_hi, WHAT)?;
         chart
             .configure_mesh()
             .x_desc("azimuth (deg, clockwise from north)")
@@ -282,27 +330,8 @@ pub fn render_horizon_plot_png(
             .map_err(plot_err(WHAT))?
             .label("horizon (terrain below)")
             .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK.stroke_width(2)));
-        for (track, color, label) in [
-            (tracks.sun_az_el_deg, SUN_COLOR, "Sun centre track"),
-            (tracks.earth_az_el_deg, EARTH_COLOR, "Earth centre track"),
-        ] {
-            if track.is_empty() {
-                continue;
-            }
-            chart
-                .draw_series(thinned(track).map(|p| Circle::new(p, 1, color.filled())))
-                .map_err(plot_err(WHAT))?
-                .label(label)
-                .legend(move |(x, y)| Circle::new((x + 10, y), 4, color.filled()));
-        }
-        chart
-            .configure_series_labels()
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK)
-            .label_font(("sans-serif", 15))
-            .position(SeriesLabelPosition::UpperRight)
-            .draw()
-            .map_err(plot_err(WHAT))?;
+        draw_tracks(&mut chart, tracks, Some, WHAT)?;
+        draw_legend(&mut chart, 15, SeriesLabelPosition::UpperRight, WHAT)?;
         Ok(())
     })
 }
@@ -389,31 +418,13 @@ pub fn render_horizon_polar_png(
             .map_err(plot_err(WHAT))?
             .label("horizon (terrain outside)")
             .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK.stroke_width(2)));
-        for (track, color, label) in [
-            (tracks.sun_az_el_deg, SUN_COLOR, "Sun centre track"),
-            (tracks.earth_az_el_deg, EARTH_COLOR, "Earth centre track"),
-        ] {
-            if track.is_empty() {
-                continue;
-            }
-            chart
-                .draw_series(
-                    thinned(track)
-                        .filter(|&(_, el)| el >= el_lo)
-                        .map(|(az, el)| Circle::new(to_xy(az, el), 1, color.filled())),
-                )
-                .map_err(plot_err(WHAT))?
-                .label(label)
-                .legend(move |(x, y)| Circle::new((x + 10, y), 4, color.filled()));
-        }
-        chart
-            .configure_series_labels()
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK)
-            .label_font(("sans-serif", 14))
-            .position(SeriesLabelPosition::UpperLeft)
-            .draw()
-            .map_err(plot_err(WHAT))?;
+        draw_tracks(
+            &mut chart,
+            tracks,
+            |(az, el)| (el >= el_lo).then(|| to_xy(az, el)),
+            WHAT,
+        )?;
+        draw_legend(&mut chart, 14, SeriesLabelPosition::UpperLeft, WHAT)?;
         root.draw(&Text::new(
             format!("radius: elevation, {el_hi:.1}° at centre to {el_lo:.1}° at rim"),
             (10, i32::try_from(size_px).unwrap_or(i32::MAX) - 22),

@@ -24,7 +24,7 @@ use rayon::prelude::*;
 
 use super::ShadowError;
 use super::fourier::{HorizonMap, HorizonMapMeta, az_el, half_span_rad};
-use super::gpu_twins::{FAR_CELLS, HOLE_TEST_M, MarchGrid, NODATA_FRACTION, normalize3};
+use super::gpu_twins::{Dda, HOLE_TEST_M, MarchGrid, NODATA_FRACTION, normalize3};
 
 /// A crossing this close outside the lattice (cells) is clamped onto its edge line, as the CPU
 /// engine's march does within 1e-9 (f64): a ray along an edge row or column must sample it.
@@ -90,68 +90,13 @@ pub fn horizon_tan(
     dv: f32,
     start_tan: f32,
 ) -> f32 {
-    let rows = grid.rows as i32;
-    let cols = grid.cols as i32;
     let mut best = start_tan;
-    let (mut line_u, mut step_u, mut t_max_u, mut t_delta_u) = (0_i32, 0_i32, FAR_CELLS, FAR_CELLS);
-    if du > 0.0 {
-        line_u = u0.floor() as i32 + 1;
-        step_u = 1;
-        t_delta_u = 1.0 / du;
-        t_max_u = (line_u as f32 - u0) * t_delta_u;
-    } else if du < 0.0 {
-        line_u = u0.ceil() as i32 - 1;
-        step_u = -1;
-        t_delta_u = -1.0 / du;
-        t_max_u = (u0 - line_u as f32) * t_delta_u;
-    }
-    let (mut line_v, mut step_v, mut t_max_v, mut t_delta_v) = (0_i32, 0_i32, FAR_CELLS, FAR_CELLS);
-    if dv > 0.0 {
-        line_v = v0.floor() as i32 + 1;
-        step_v = 1;
-        t_delta_v = 1.0 / dv;
-        t_max_v = (line_v as f32 - v0) * t_delta_v;
-    } else if dv < 0.0 {
-        line_v = v0.ceil() as i32 - 1;
-        step_v = -1;
-        t_delta_v = -1.0 / dv;
-        t_max_v = (v0 - line_v as f32) * t_delta_v;
-    }
-    let max_steps = rows + cols + 4;
+    let mut dda = Dda::start(u0, v0, du, dv);
+    let max_steps = grid.rows as i32 + grid.cols as i32 + 4;
     for _ in 0..max_steps {
-        let t;
-        let z_surf;
-        if t_max_u < t_max_v {
-            t = t_max_u;
-            if line_u < 0 || line_u > cols - 1 {
-                return best;
-            }
-            let v = v0 + t * dv;
-            if v < -EDGE_TOL_CELLS || v > (rows - 1) as f32 + EDGE_TOL_CELLS {
-                return best;
-            }
-            let vc = v.clamp(0.0, (rows - 1) as f32);
-            let r0 = (vc.floor() as i32).min(rows - 2);
-            let w = vc - r0 as f32;
-            z_surf = grid.height_at(r0, line_u) * (1.0 - w) + grid.height_at(r0 + 1, line_u) * w;
-            t_max_u += t_delta_u;
-            line_u += step_u;
-        } else {
-            t = t_max_v;
-            if line_v < 0 || line_v > rows - 1 {
-                return best;
-            }
-            let u = u0 + t * du;
-            if u < -EDGE_TOL_CELLS || u > (cols - 1) as f32 + EDGE_TOL_CELLS {
-                return best;
-            }
-            let uc = u.clamp(0.0, (cols - 1) as f32);
-            let c0 = (uc.floor() as i32).min(cols - 2);
-            let w = uc - c0 as f32;
-            z_surf = grid.height_at(line_v, c0) * (1.0 - w) + grid.height_at(line_v, c0 + 1) * w;
-            t_max_v += t_delta_v;
-            line_v += step_v;
-        }
+        let Some((t, z_surf)) = dda.next(grid, EDGE_TOL_CELLS) else {
+            return best;
+        };
         if t > max_distance_cells {
             return best;
         }

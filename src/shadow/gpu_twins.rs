@@ -201,11 +201,113 @@ pub fn sun_disc_directions(
         .collect()
 }
 
+/// Twin of `DdaAxis` and `dda_axis` in `shaders/shared/march.wgsl`: one axis of the 2-D DDA,
+/// the next lattice line, the step to the line after it, and the ray parameter `t` (cells of
+/// horizontal travel) to reach it and between two lines.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct DdaAxis {
+    line: i32,
+    step: i32,
+    t_max: f32,
+    t_delta: f32,
+}
+
+impl DdaAxis {
+    fn new(p0: f32, d: f32) -> Self {
+        let mut a = DdaAxis {
+            line: 0,
+            step: 0,
+            t_max: FAR_CELLS,
+            t_delta: FAR_CELLS,
+        };
+        if d > 0.0 {
+            a.line = p0.floor() as i32 + 1;
+            a.step = 1;
+            a.t_delta = 1.0 / d;
+            a.t_max = (a.line as f32 - p0) * a.t_delta;
+        } else if d < 0.0 {
+            a.line = p0.ceil() as i32 - 1;
+            a.step = -1;
+            a.t_delta = -1.0 / d;
+            a.t_max = (p0 - a.line as f32) * a.t_delta;
+        }
+        a
+    }
+}
+
+/// Twin of `Dda`, `dda_start` and `dda_next` in `shaders/shared/march.wgsl`: the DDA of the
+/// horizontal ray `(u0, v0) + t (du, dv)` in grid units (direction unit) over the lattice lines.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Dda {
+    u: DdaAxis,
+    v: DdaAxis,
+    u0: f32,
+    v0: f32,
+    du: f32,
+    dv: f32,
+}
+
+impl Dda {
+    /// `dda_start`: the DDA before its first crossing.
+    pub(crate) fn start(u0: f32, v0: f32, du: f32, dv: f32) -> Self {
+        Dda {
+            u: DdaAxis::new(u0, du),
+            v: DdaAxis::new(v0, dv),
+            u0,
+            v0,
+            du,
+            dv,
+        }
+    }
+
+    /// `dda_next`: advances to the next crossing with a lattice line and returns its `t` (cells)
+    /// and the surface height there, or `None` (WGSL: `inside = false`) once the ray has left
+    /// the lattice by more than `edge_tol_cells` (a crossing within it is clamped onto the edge).
+    pub(crate) fn next(&mut self, grid: &MarchGrid, edge_tol_cells: f32) -> Option<(f32, f32)> {
+        let rows = grid.rows as i32;
+        let cols = grid.cols as i32;
+        let t;
+        let z_surf;
+        if self.u.t_max < self.v.t_max {
+            t = self.u.t_max;
+            let line_u = self.u.line;
+            if line_u < 0 || line_u > cols - 1 {
+                return None;
+            }
+            let v = self.v0 + t * self.dv;
+            if v < -edge_tol_cells || v > (rows - 1) as f32 + edge_tol_cells {
+                return None;
+            }
+            let vc = v.clamp(0.0, (rows - 1) as f32);
+            let r0 = (vc.floor() as i32).min(rows - 2);
+            let w = vc - r0 as f32;
+            z_surf = grid.height_at(r0, line_u) * (1.0 - w) + grid.height_at(r0 + 1, line_u) * w;
+            self.u.t_max += self.u.t_delta;
+            self.u.line = line_u + self.u.step;
+        } else {
+            t = self.v.t_max;
+            let line_v = self.v.line;
+            if line_v < 0 || line_v > rows - 1 {
+                return None;
+            }
+            let u = self.u0 + t * self.du;
+            if u < -edge_tol_cells || u > (cols - 1) as f32 + edge_tol_cells {
+                return None;
+            }
+            let uc = u.clamp(0.0, (cols - 1) as f32);
+            let c0 = (uc.floor() as i32).min(cols - 2);
+            let w = uc - c0 as f32;
+            z_surf = grid.height_at(line_v, c0) * (1.0 - w) + grid.height_at(line_v, c0 + 1) * w;
+            self.v.t_max += self.v.t_delta;
+            self.v.line = line_v + self.v.step;
+        }
+        Some((t, z_surf))
+    }
+}
+
 /// Twin of `march_hard` in `shaders/shared/march.wgsl`: [`LIT`], [`SHADOW`] or [`NODATA`] for
 /// cell (row, col) and the light direction `light` (model space, unit).
 pub fn march_hard(grid: &MarchGrid, row: u32, col: u32, light: [f32; 3]) -> u32 {
-    let rows = grid.rows as i32;
-    let cols = grid.cols as i32;
     let z_cell = grid.heights_m[(row * grid.cols + col) as usize];
     if z_cell < HOLE_TEST_M {
         return NODATA;
@@ -223,63 +325,12 @@ pub fn march_hard(grid: &MarchGrid, row: u32, col: u32, light: [f32; 3]) -> u32 
     let du = light[0] / horiz_len;
     let dv = -light[1] / horiz_len;
     let rise_m_per_cell = light[2] / horiz_len * grid.px_m;
-    let (mut line_u, mut step_u, mut t_max_u, mut t_delta_u) = (0_i32, 0_i32, FAR_CELLS, FAR_CELLS);
-    if du > 0.0 {
-        line_u = u0.floor() as i32 + 1;
-        step_u = 1;
-        t_delta_u = 1.0 / du;
-        t_max_u = (line_u as f32 - u0) * t_delta_u;
-    } else if du < 0.0 {
-        line_u = u0.ceil() as i32 - 1;
-        step_u = -1;
-        t_delta_u = -1.0 / du;
-        t_max_u = (u0 - line_u as f32) * t_delta_u;
-    }
-    let (mut line_v, mut step_v, mut t_max_v, mut t_delta_v) = (0_i32, 0_i32, FAR_CELLS, FAR_CELLS);
-    if dv > 0.0 {
-        line_v = v0.floor() as i32 + 1;
-        step_v = 1;
-        t_delta_v = 1.0 / dv;
-        t_max_v = (line_v as f32 - v0) * t_delta_v;
-    } else if dv < 0.0 {
-        line_v = v0.ceil() as i32 - 1;
-        step_v = -1;
-        t_delta_v = -1.0 / dv;
-        t_max_v = (v0 - line_v as f32) * t_delta_v;
-    }
-    let max_steps = rows + cols + 4;
+    let mut dda = Dda::start(u0, v0, du, dv);
+    let max_steps = grid.rows as i32 + grid.cols as i32 + 4;
     for _ in 0..max_steps {
-        let t;
-        let z_surf;
-        if t_max_u < t_max_v {
-            t = t_max_u;
-            if line_u < 0 || line_u > cols - 1 {
-                return LIT;
-            }
-            let v = v0 + t * dv;
-            if v < 0.0 || v > (rows - 1) as f32 {
-                return LIT;
-            }
-            let r0 = (v.floor() as i32).min(rows - 2);
-            let w = v - r0 as f32;
-            z_surf = grid.height_at(r0, line_u) * (1.0 - w) + grid.height_at(r0 + 1, line_u) * w;
-            t_max_u += t_delta_u;
-            line_u += step_u;
-        } else {
-            t = t_max_v;
-            if line_v < 0 || line_v > rows - 1 {
-                return LIT;
-            }
-            let u = u0 + t * du;
-            if u < 0.0 || u > (cols - 1) as f32 {
-                return LIT;
-            }
-            let c0 = (u.floor() as i32).min(cols - 2);
-            let w = u - c0 as f32;
-            z_surf = grid.height_at(line_v, c0) * (1.0 - w) + grid.height_at(line_v, c0 + 1) * w;
-            t_max_v += t_delta_v;
-            line_v += step_v;
-        }
+        let Some((t, z_surf)) = dda.next(grid, 0.0) else {
+            return LIT;
+        };
         let z_ray = z0 + t * rise_m_per_cell;
         if z_ray > grid.z_max_m {
             return LIT;

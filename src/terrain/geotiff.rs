@@ -957,11 +957,22 @@ fn gdal_metadata_xml(items: &[(&str, &str)]) -> String {
 }
 
 /// Sample types penumbra writes.
-trait WriteSample: Copy {
+trait WriteSample: Copy + std::fmt::Display {
     type Color: colortype::ColorType<Inner = Self>;
+    /// The GDAL_NODATA text of a nodata value.
+    fn nodata_text(self) -> String {
+        self.to_string()
+    }
 }
 impl WriteSample for f32 {
     type Color = colortype::Gray32Float;
+    fn nodata_text(self) -> String {
+        if self.is_nan() {
+            "nan".to_string()
+        } else {
+            self.to_string()
+        }
+    }
 }
 impl WriteSample for u16 {
     type Color = colortype::Gray16;
@@ -975,7 +986,7 @@ fn write_geotiff<T>(
     grid: &GridGeometry,
     projection: &Projection,
     values: &[T],
-    nodata: Option<String>,
+    nodata: Option<T>,
     metadata: &[(&str, &str)],
 ) -> Result<()>
 where
@@ -1036,7 +1047,7 @@ where
                 )
                 .map_err(enc_err)?;
         }
-        if let Some(nd) = nodata {
+        if let Some(nd) = nodata.map(WriteSample::nodata_text) {
             dir_enc
                 .write_tag(Tag::Unknown(TAG_GDAL_NODATA), nd.as_str())
                 .map_err(enc_err)?;
@@ -1064,14 +1075,7 @@ pub fn write_geotiff_f32(
     nodata: Option<f32>,
     metadata: &[(&str, &str)],
 ) -> Result<()> {
-    let nd = nodata.map(|v| {
-        if v.is_nan() {
-            "nan".to_string()
-        } else {
-            format!("{v}")
-        }
-    });
-    write_geotiff(path, grid, projection, values, nd, metadata)
+    write_geotiff(path, grid, projection, values, nodata, metadata)
 }
 
 /// Writes a uint16 single-band GeoTIFF (see [`write_geotiff_f32`]).
@@ -1083,14 +1087,7 @@ pub fn write_geotiff_u16(
     nodata: Option<u16>,
     metadata: &[(&str, &str)],
 ) -> Result<()> {
-    write_geotiff(
-        path,
-        grid,
-        projection,
-        values,
-        nodata.map(|v| v.to_string()),
-        metadata,
-    )
+    write_geotiff(path, grid, projection, values, nodata, metadata)
 }
 
 /// Writes a uint8 single-band GeoTIFF (see [`write_geotiff_f32`]).
@@ -1102,14 +1099,7 @@ pub fn write_geotiff_u8(
     nodata: Option<u8>,
     metadata: &[(&str, &str)],
 ) -> Result<()> {
-    write_geotiff(
-        path,
-        grid,
-        projection,
-        values,
-        nodata.map(|v| v.to_string()),
-        metadata,
-    )
+    write_geotiff(path, grid, projection, values, nodata, metadata)
 }
 
 /// Writes a DEM as a float32 GeoTIFF; holes (`NaN`) are declared with `GDAL_NODATA = nan`.

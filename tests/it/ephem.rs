@@ -9,7 +9,7 @@ use std::collections::HashMap;
 
 use penumbra::ephem::{self, AbCorr, Kernels, Site};
 
-use crate::util::{assert_clean_error, files_in, fixture, kernels_dir, penumbra};
+use crate::util::{assert_clean_error, files_in, fixture, kernels_dir, penumbra, penumbra_ok};
 
 /// Angle tolerance, arcsec: the bound. The Earth's LT+S and geometric directions differ by
 /// only ~0.7 arcsec, so a looser bound could not tell a wrong correction from a right one.
@@ -165,7 +165,7 @@ fn angular_radii_follow_from_range() {
 fn ephem_cli_prints_the_documented_csv() {
     let dir = tempfile::tempdir().unwrap();
     let k = kernels_dir();
-    let out = penumbra(
+    let out = penumbra_ok(
         dir.path(),
         &[
             "ephem",
@@ -178,11 +178,6 @@ fn ephem_cli_prints_the_documented_csv() {
             "--kernels",
             k.to_str().unwrap(),
         ],
-    );
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
     );
     let text = String::from_utf8(out.stdout).unwrap();
     let mut lines = text.lines();
@@ -203,7 +198,7 @@ fn ephem_cli_prints_the_documented_csv() {
 fn ephem_range_to_file_and_json() {
     let dir = tempfile::tempdir().unwrap();
     let k = kernels_dir();
-    let out = penumbra(
+    penumbra_ok(
         dir.path(),
         &[
             "ephem",
@@ -224,11 +219,6 @@ fn ephem_range_to_file_and_json() {
             "--kernels",
             k.to_str().unwrap(),
         ],
-    );
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
     );
     let doc: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.path().join("e.json")).unwrap()).unwrap();
@@ -353,12 +343,7 @@ fn missing_or_corrupt_kernels_are_clean_errors() {
 fn kernels_command_lists_coverage() {
     let dir = tempfile::tempdir().unwrap();
     let k = kernels_dir();
-    let out = penumbra(dir.path(), &["kernels", "--kernels", k.to_str().unwrap()]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let out = penumbra_ok(dir.path(), &["kernels", "--kernels", k.to_str().unwrap()]);
     let text = String::from_utf8(out.stdout).unwrap();
     for needle in ["Sun", "Earth", "Moon", "MOON_ME", "usable epochs", "sha256"] {
         assert!(text.contains(needle), "missing {needle}: {text}");
@@ -393,12 +378,7 @@ lon_deg = 2.93
         ),
     )
     .unwrap();
-    let out = penumbra(dir.path(), &["run", "s.toml"]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    penumbra_ok(dir.path(), &["run", "s.toml"]);
     let res = dir.path().join("res");
     assert_eq!(
         files_in(&res),

@@ -1,6 +1,6 @@
 //! `penumbra map` through the binary: georeferencing read back by GDAL, analytic lights, bad input.
 
-use crate::util::{assert_clean_error, files_in, kernels_dir, penumbra};
+use crate::util::{assert_clean_error, files_in, kernels_dir, penumbra, penumbra_ok, read_tif};
 
 fn gdalinfo_json(path: &std::path::Path) -> Option<serde_json::Value> {
     let out = std::process::Command::new("gdalinfo")
@@ -14,6 +14,23 @@ fn gdalinfo_json(path: &std::path::Path) -> Option<serde_json::Value> {
     serde_json::from_slice(&out.stdout).ok()
 }
 
+/// Runs `penumbra map --synthetic --engine <engine> --sun-az-deg 135 --sun-el-deg <el_deg>`
+/// with the output options `outputs` in `dir` and asserts that it succeeded.
+fn map_synthetic_az135(dir: &std::path::Path, engine: &str, el_deg: &str, outputs: &[&str]) {
+    let mut args = vec![
+        "map",
+        "--synthetic",
+        "--engine",
+        engine,
+        "--sun-az-deg",
+        "135",
+        "--sun-el-deg",
+        el_deg,
+    ];
+    args.extend_from_slice(outputs);
+    penumbra_ok(dir, &args);
+}
+
 #[test]
 fn one_light_maps_carry_the_dem_georeferencing_and_obey_the_horizon() {
     let dir = tempfile::tempdir().unwrap();
@@ -24,31 +41,16 @@ fn one_light_maps_carry_the_dem_georeferencing_and_obey_the_horizon() {
         ("brute", "30", "ref"),
         ("smap", "-5", "below"),
     ] {
-        let out = penumbra(
+        let (mask, fraction) = (format!("{name}_mask.tif"), format!("{name}_frac.tif"));
+        map_synthetic_az135(
             dir.path(),
-            &[
-                "map",
-                "--synthetic",
-                "--engine",
-                engine,
-                "--sun-az-deg",
-                "135",
-                "--sun-el-deg",
-                el,
-                "--out-mask",
-                &format!("{name}_mask.tif"),
-                "--out-fraction",
-                &format!("{name}_frac.tif"),
-            ],
-        );
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
+            engine,
+            el,
+            &["--out-mask", &mask, "--out-fraction", &fraction],
         );
     }
     // SMap agrees with brute force on the DEM grid (the tolerance: 0.3% of pixels).
-    let read = |name: &str| penumbra::terrain::read_geotiff(&dir.path().join(name)).unwrap();
+    let read = |name: &str| read_tif(dir.path(), name);
     let (smap, brute) = (read("high_mask.tif"), read("ref_mask.tif"));
     assert_eq!(smap.grid, brute.grid);
     let differ = smap
@@ -68,11 +70,10 @@ fn one_light_maps_carry_the_dem_georeferencing_and_obey_the_horizon() {
         "a 30° Sun lights most of the DEM"
     );
     let dem = dir.path().join("dem.tif");
-    let out = penumbra(
+    penumbra_ok(
         dir.path(),
         &["dem", "synth", "--out", dem.to_str().unwrap()],
     );
-    assert!(out.status.success());
     let Some(dem_info) = gdalinfo_json(&dem) else {
         eprintln!("skipping the GDAL half: gdalinfo is not installed");
         return;
@@ -110,7 +111,7 @@ fn one_light_maps_carry_the_dem_georeferencing_and_obey_the_horizon() {
 fn epoch_range_writes_every_statistic_and_preview() {
     let dir = tempfile::tempdir().unwrap();
     let k = kernels_dir();
-    let out = penumbra(
+    penumbra_ok(
         dir.path(),
         &[
             "map",
@@ -126,11 +127,6 @@ fn epoch_range_writes_every_statistic_and_preview() {
             "--kernels",
             k.to_str().unwrap(),
         ],
-    );
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
     );
     let files = files_in(&dir.path().join("maps"));
     for f in [
@@ -193,28 +189,14 @@ fn bad_light_input_is_a_clean_error() {
 fn fourier_engine_map_agrees_with_brute_force() {
     let dir = tempfile::tempdir().unwrap();
     for engine in ["fourier", "brute"] {
-        let out = penumbra(
+        map_synthetic_az135(
             dir.path(),
-            &[
-                "map",
-                "--synthetic",
-                "--engine",
-                engine,
-                "--sun-az-deg",
-                "135",
-                "--sun-el-deg",
-                "5",
-                "--out-mask",
-                &format!("{engine}.tif"),
-            ],
-        );
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
+            engine,
+            "5",
+            &["--out-mask", &format!("{engine}.tif")],
         );
     }
-    let read = |name: &str| penumbra::terrain::read_geotiff(&dir.path().join(name)).unwrap();
+    let read = |name: &str| read_tif(dir.path(), name);
     let (f, b) = (read("fourier.tif"), read("brute.tif"));
     let differ = f
         .heights_m

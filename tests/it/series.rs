@@ -6,7 +6,7 @@ use penumbra::illum::DiscMethod;
 use penumbra::series::{self, LimbLaw, SeriesConfig, SeriesSite};
 use penumbra::terrain::{TerrainStack, synth};
 
-use crate::util::{assert_clean_error, files_in, kernels_dir, penumbra, root};
+use crate::util::{assert_clean_error, files_in, kernels_dir, penumbra, penumbra_ok, root};
 
 /// On a flat DEM (a sphere) the horizon is the geometric dip `-acos(R / (R + h))` in every
 /// direction, so the Sun's visible fraction is the circular-segment area below a straight horizon:
@@ -83,7 +83,7 @@ fn flat_terrain_series_matches_the_closed_form_segment() {
 fn series_cli_writes_every_file_and_the_combined_statistics() {
     let dir = tempfile::tempdir().unwrap();
     let k = kernels_dir();
-    let out = penumbra(
+    penumbra_ok(
         dir.path(),
         &[
             "series",
@@ -103,11 +103,6 @@ fn series_cli_writes_every_file_and_the_combined_statistics() {
             "--out-dir",
             "res",
         ],
-    );
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
     );
     let res = dir.path().join("res");
     assert_eq!(
@@ -207,14 +202,9 @@ fn series_bad_input_is_a_clean_error_and_writes_nothing() {
 fn the_demo_scenario_runs_as_the_readme_says() {
     let dir = tempfile::tempdir().unwrap();
     let scenario = root().join("scenarios/south-pole-demo.toml");
-    let out = penumbra(
+    penumbra_ok(
         dir.path(),
         &["run", scenario.to_str().unwrap(), "--out-dir", "demo"],
-    );
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
     );
     let res = dir.path().join("demo");
     let files = files_in(&res);

@@ -43,6 +43,24 @@ pub fn penumbra(cwd: &Path, args: &[&str]) -> Output {
         .expect("the penumbra binary runs")
 }
 
+/// Runs the penumbra binary with `args` in `cwd` and asserts that it succeeded (stderr shown
+/// otherwise).
+pub fn penumbra_ok(cwd: &Path, args: &[&str]) -> Output {
+    let out = penumbra(cwd, args);
+    assert!(
+        out.status.success(),
+        "penumbra {args:?} failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out
+}
+
+/// Reads a GeoTIFF written by a run into `dir`.
+pub fn read_tif(dir: &Path, name: &str) -> penumbra::terrain::Dem {
+    penumbra::terrain::read_geotiff(&dir.join(name))
+        .unwrap_or_else(|e| panic!("reading {name}: {e}"))
+}
+
 /// Asserts that a run failed cleanly: exit code 2 (not a panic's 101), exactly one line on stderr
 /// starting with `penumbra: error:` that contains `needle`.
 pub fn assert_clean_error(out: &Output, needle: &str) {
