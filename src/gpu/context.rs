@@ -249,6 +249,19 @@ pub(crate) fn whole(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry
     }
 }
 
+/// A bind group entry binding the first `size` bytes of `buffer` (one slot of a buffer addressed
+/// by dynamic offsets, or the used part of a larger buffer).
+pub(crate) fn sized(binding: u32, buffer: &wgpu::Buffer, size: u64) -> wgpu::BindGroupEntry<'_> {
+    wgpu::BindGroupEntry {
+        binding,
+        resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+            buffer,
+            offset: 0,
+            size: wgpu::BufferSize::new(size),
+        }),
+    }
+}
+
 /// Validation + out-of-memory error scopes around a group of GPU calls, turned into
 /// [`GpuError::Device`] when popped.
 pub(crate) struct ErrorScope {

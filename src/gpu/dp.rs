@@ -13,7 +13,7 @@ use bytemuck::{Pod, Zeroable};
 use wgpu::util::DeviceExt as _;
 
 use super::GpuError;
-use super::context::{ErrorScope, GpuContext};
+use super::context::{ErrorScope, GpuContext, buffer_layout_entry, layout_entry, sized, whole};
 use super::shadow_march::{STEP_SLOT_BYTES, band_buffer, compute_pipeline, storage_init};
 use crate::shadow::gpu_twins::{DpCellStats, DpMip, MarchGrid};
 
@@ -118,10 +118,9 @@ pub(crate) struct DpPipelines {
     layout: wgpu::BindGroupLayout,
     visible: wgpu::ComputePipeline,
     sweep: wgpu::ComputePipeline,
-    /// Bindings 0..5 as `layout`, 6 the output, 7 the site observers.
-    sites_layout: wgpu::BindGroupLayout,
     sites: wgpu::ComputePipeline,
-    /// Layout of the tiled kernels: the DP bindings 0..6 plus 7 (the output tile's heights).
+    /// Layout of the tiled kernels: the DP bindings 0..6 plus 7 (the output tile's heights); also
+    /// the layout of `sites` (7 = the site observers).
     pub(crate) tile_layout: wgpu::BindGroupLayout,
     /// `shaders/dp_tile_cost.wgsl`.
     pub(crate) tile_cost: wgpu::ComputePipeline,
@@ -135,61 +134,94 @@ pub(crate) struct DpPipelines {
     pub(crate) tile_sweep_accumulate: wgpu::ComputePipeline,
 }
 
-fn entry(binding: u32, ty: wgpu::BufferBindingType, dynamic: bool) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility: wgpu::ShaderStages::COMPUTE,
-        ty: wgpu::BindingType::Buffer {
-            ty,
-            has_dynamic_offset: dynamic,
-            min_binding_size: None,
-        },
-        count: None,
+/// A DP bind group layout: 0 the grid parameters (uniform), 1..4 heights, mip, levels, lights
+/// (read-only storage), 5 the step slots (uniform, dynamic offset), 6 the output (read-write),
+/// then `extra` from binding 7 on.
+fn dp_layout(
+    device: &wgpu::Device,
+    label: &str,
+    extra: &[wgpu::BufferBindingType],
+) -> wgpu::BindGroupLayout {
+    use wgpu::BufferBindingType::{Storage, Uniform};
+    let read = Storage { read_only: true };
+    let mut entries = vec![
+        layout_entry(0, Uniform),
+        layout_entry(1, read),
+        layout_entry(2, read),
+        layout_entry(3, read),
+        layout_entry(4, read),
+        buffer_layout_entry(5, Uniform, true),
+        layout_entry(6, Storage { read_only: false }),
+    ];
+    entries.extend(
+        (7..)
+            .zip(extra)
+            .map(|(binding, ty)| layout_entry(binding, *ty)),
+    );
+    device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some(label),
+        entries: &entries,
+    })
+}
+
+/// The buffers of a DP bind group, in [`dp_layout`] order.
+pub(crate) struct DpBindings<'a> {
+    /// 0: grid parameters.
+    pub(crate) params: &'a wgpu::Buffer,
+    /// 1: source heights.
+    pub(crate) heights: &'a wgpu::Buffer,
+    /// 2: source max-mipmap.
+    pub(crate) mip: &'a wgpu::Buffer,
+    /// 3: mip level table.
+    pub(crate) levels: &'a wgpu::Buffer,
+    /// 4: lights.
+    pub(crate) lights: &'a wgpu::Buffer,
+    /// 5: step slots (one [`DpStep`] bound, addressed by dynamic offsets).
+    pub(crate) slots: &'a wgpu::Buffer,
+    /// 6: output.
+    pub(crate) out: &'a wgpu::Buffer,
+    /// 7..: kernel-specific extras.
+    pub(crate) extra: &'a [&'a wgpu::Buffer],
+}
+
+impl DpBindings<'_> {
+    /// The bind group of these buffers for `layout`.
+    pub(crate) fn bind_group(
+        &self,
+        ctx: &GpuContext,
+        label: &str,
+        layout: &wgpu::BindGroupLayout,
+    ) -> wgpu::BindGroup {
+        let mut entries = vec![
+            whole(0, self.params),
+            whole(1, self.heights),
+            whole(2, self.mip),
+            whole(3, self.levels),
+            whole(4, self.lights),
+            sized(5, self.slots, size_of::<DpStep>() as u64),
+            whole(6, self.out),
+        ];
+        entries.extend((7..).zip(self.extra).map(|(binding, b)| whole(binding, b)));
+        ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some(label),
+            layout,
+            entries: &entries,
+        })
     }
 }
 
 impl DpPipelines {
     pub(crate) fn new(device: &wgpu::Device) -> Self {
-        use wgpu::BufferBindingType::{Storage, Uniform};
-        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("penumbra dp layout"),
-            entries: &[
-                entry(0, Uniform, false),
-                entry(1, Storage { read_only: true }, false),
-                entry(2, Storage { read_only: true }, false),
-                entry(3, Storage { read_only: true }, false),
-                entry(4, Storage { read_only: true }, false),
-                entry(5, Uniform, true),
-                entry(6, Storage { read_only: false }, false),
-            ],
-        });
-        let tile_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("penumbra dp tile layout"),
-            entries: &[
-                entry(0, Uniform, false),
-                entry(1, Storage { read_only: true }, false),
-                entry(2, Storage { read_only: true }, false),
-                entry(3, Storage { read_only: true }, false),
-                entry(4, Storage { read_only: true }, false),
-                entry(5, Uniform, true),
-                entry(6, Storage { read_only: false }, false),
-                entry(7, Storage { read_only: true }, false),
-            ],
-        });
-        let tile_sweep_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("penumbra dp tile sweep layout"),
-            entries: &[
-                entry(0, Uniform, false),
-                entry(1, Storage { read_only: true }, false),
-                entry(2, Storage { read_only: true }, false),
-                entry(3, Storage { read_only: true }, false),
-                entry(4, Storage { read_only: true }, false),
-                entry(5, Uniform, true),
-                entry(6, Storage { read_only: false }, false),
-                entry(7, Storage { read_only: true }, false),
-                entry(8, Storage { read_only: false }, false),
-            ],
-        });
+        use wgpu::BufferBindingType::Storage;
+        let read = Storage { read_only: true };
+        let layout = dp_layout(device, "penumbra dp layout", &[]);
+        // Also the layout of dp_sites (7 = the site observers).
+        let tile_layout = dp_layout(device, "penumbra dp tile layout", &[read]);
+        let tile_sweep_layout = dp_layout(
+            device,
+            "penumbra dp tile sweep layout",
+            &[read, Storage { read_only: false }],
+        );
         let tile_sweep_cost = compute_pipeline(
             device,
             &tile_sweep_layout,
@@ -210,21 +242,8 @@ impl DpPipelines {
         let tile_fraction_src = format!("{SHARED_DP_WGSL}{DP_TILE_FRACTION_WGSL}");
         let visible = compute_pipeline(device, &layout, "dp_visible", &visible_src, "dp_visible");
         let sweep = compute_pipeline(device, &layout, "dp_sweep", &sweep_src, "dp_sweep");
-        let sites_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("penumbra dp sites layout"),
-            entries: &[
-                entry(0, Uniform, false),
-                entry(1, Storage { read_only: true }, false),
-                entry(2, Storage { read_only: true }, false),
-                entry(3, Storage { read_only: true }, false),
-                entry(4, Storage { read_only: true }, false),
-                entry(5, Uniform, true),
-                entry(6, Storage { read_only: false }, false),
-                entry(7, Storage { read_only: true }, false),
-            ],
-        });
         let sites_src = format!("{SHARED_DP_WGSL}{DP_SITES_WGSL}");
-        let sites = compute_pipeline(device, &sites_layout, "dp_sites", &sites_src, "dp_sites");
+        let sites = compute_pipeline(device, &tile_layout, "dp_sites", &sites_src, "dp_sites");
         let tile_cost = compute_pipeline(
             device,
             &tile_layout,
@@ -243,7 +262,6 @@ impl DpPipelines {
             layout,
             visible,
             sweep,
-            sites_layout,
             sites,
             tile_layout,
             tile_cost,
@@ -338,33 +356,17 @@ impl GpuDpGrid {
         slots: &wgpu::Buffer,
         out: &wgpu::Buffer,
     ) -> wgpu::BindGroup {
-        ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("penumbra dp bind group"),
-            layout: &ctx.dp.layout,
-            entries: &[
-                whole(0, &self.params),
-                whole(1, &self.heights),
-                whole(2, &self.mip),
-                whole(3, &self.levels),
-                whole(4, lights),
-                wgpu::BindGroupEntry {
-                    binding: 5,
-                    resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
-                        buffer: slots,
-                        offset: 0,
-                        size: wgpu::BufferSize::new(size_of::<DpStep>() as u64),
-                    }),
-                },
-                whole(6, out),
-            ],
-        })
-    }
-}
-
-pub(crate) fn whole(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
-    wgpu::BindGroupEntry {
-        binding,
-        resource: buffer.as_entire_binding(),
+        DpBindings {
+            params: &self.params,
+            heights: &self.heights,
+            mip: &self.mip,
+            levels: &self.levels,
+            lights,
+            slots,
+            out,
+            extra: &[],
+        }
+        .bind_group(ctx, "penumbra dp bind group", &ctx.dp.layout)
     }
 }
 
@@ -691,27 +693,17 @@ pub fn dp_sites_gpu(
     let slots = slot_buffer(ctx, steps.len() as u32);
     let step_values: Vec<DpStep> = steps.iter().map(|s| s.0).collect();
     write_dp_steps(ctx, &slots, &step_values);
-    let bind_group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-        label: Some("penumbra dp sites bind group"),
-        layout: &ctx.dp.sites_layout,
-        entries: &[
-            whole(0, &grid.params),
-            whole(1, &grid.heights),
-            whole(2, &grid.mip),
-            whole(3, &grid.levels),
-            whole(4, &table),
-            wgpu::BindGroupEntry {
-                binding: 5,
-                resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
-                    buffer: &slots,
-                    offset: 0,
-                    size: wgpu::BufferSize::new(size_of::<DpStep>() as u64),
-                }),
-            },
-            whole(6, &out),
-            whole(7, &obs),
-        ],
-    });
+    let bind_group = DpBindings {
+        params: &grid.params,
+        heights: &grid.heights,
+        mip: &grid.mip,
+        levels: &grid.levels,
+        lights: &table,
+        slots: &slots,
+        out: &out,
+        extra: &[&obs],
+    }
+    .bind_group(ctx, "penumbra dp sites bind group", &ctx.dp.tile_layout);
     let mut encoder = ctx
         .device
         .create_command_encoder(&wgpu::CommandEncoderDescriptor {

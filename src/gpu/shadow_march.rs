@@ -14,7 +14,7 @@ use bytemuck::{Pod, Zeroable};
 use wgpu::util::DeviceExt as _;
 
 use super::GpuError;
-use super::context::{ErrorScope, GpuContext, buffer_layout_entry, layout_entry, whole};
+use super::context::{ErrorScope, GpuContext, buffer_layout_entry, layout_entry, sized, whole};
 use crate::shadow::gpu_twins::MarchGrid;
 
 /// Output bytes per row band by default (64 MiB): small against any GPU, large enough that a
@@ -287,14 +287,7 @@ pub(crate) fn march_bind_group(
             whole(0, &grid.params),
             whole(1, &grid.heights),
             whole(2, lights),
-            wgpu::BindGroupEntry {
-                binding: 3,
-                resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
-                    buffer: slots,
-                    offset: 0,
-                    size: wgpu::BufferSize::new(size_of::<StepParams>() as u64),
-                }),
-            },
+            sized(3, slots, size_of::<StepParams>() as u64),
             whole(4, out),
         ],
     })

@@ -11,7 +11,7 @@
 use bytemuck::{Pod, Zeroable};
 
 use super::GpuError;
-use super::context::{ErrorScope, GpuContext};
+use super::context::{ErrorScope, GpuContext, sized, whole};
 use super::shadow_march::{
     GpuMarchGrid, STEP_SLOT_BYTES, band_buffer, compute_pipeline, march_bind_group, step_slots,
     storage_init, write_steps,
@@ -158,20 +158,7 @@ pub fn sweep_stats_gpu(
         let accumulate_bg = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("penumbra accumulate bind group"),
             layout: &ctx.accumulate.layout,
-            entries: &[
-                wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
-                        buffer: &scratch,
-                        offset: 0,
-                        size: wgpu::BufferSize::new(cells * 4),
-                    }),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 1,
-                    resource: stats.as_entire_binding(),
-                },
-            ],
+            entries: &[sized(0, &scratch, cells * 4), whole(1, &stats)],
         });
         let (march_gx, march_gy) = grid.workgroups(rows);
         let (acc_gx, acc_gy) =

@@ -18,7 +18,7 @@ use std::rc::Rc;
 use super::GpuError;
 use super::context::{ErrorScope, GpuContext};
 use super::dp::gpu_data::DpStep;
-use super::dp::{check_light, slot_buffer, whole, write_dp_steps};
+use super::dp::{DpBindings, check_light, slot_buffer, write_dp_steps};
 use super::shadow_march::gpu_data::GridParams;
 use super::shadow_march::{STEP_SLOT_BYTES, band_buffer, storage_init};
 pub use crate::shadow::gpu_tiles::{DEFAULT_RESIDENT_BUDGET_BYTES, DEFAULT_TILE_CELLS};
@@ -280,17 +280,6 @@ fn settle(ctx: &GpuContext, cache: &BlockCache) {
     ctx.device.poll(wait).ok();
 }
 
-fn binding_entry(binding: u32, buffer: &wgpu::Buffer, size: u64) -> wgpu::BindGroupEntry<'_> {
-    wgpu::BindGroupEntry {
-        binding,
-        resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
-            buffer,
-            offset: 0,
-            size: wgpu::BufferSize::new(size),
-        }),
-    }
-}
-
 /// GPU tiled `dp_visible`: per cell (row-major) the visible fraction of the disc `light` (from
 /// [`crate::shadow::gpu_twins::disc_light_to_f32`]; radius 0: 1 lit / 0 shadow), -1 for nodata,
 /// computed output tile by output tile over the source tiles of
@@ -349,20 +338,17 @@ pub fn dp_visible_tiled_gpu(
         clock: 0,
     };
     let bind_group = |src: &GpuTileBlock, obs: &GpuTileBlock| {
-        ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("penumbra dp tile bind group"),
-            layout: &ctx.dp.tile_layout,
-            entries: &[
-                whole(0, &params),
-                whole(1, &src.heights),
-                whole(2, &src.mip),
-                whole(3, &src.levels),
-                whole(4, &lights),
-                binding_entry(5, &slots, size_of::<DpStep>() as u64),
-                whole(6, &cost),
-                whole(7, &obs.heights),
-            ],
-        })
+        DpBindings {
+            params: &params,
+            heights: &src.heights,
+            mip: &src.mip,
+            levels: &src.levels,
+            lights: &lights,
+            slots: &slots,
+            out: &cost,
+            extra: &[&obs.heights],
+        }
+        .bind_group(ctx, "penumbra dp tile bind group", &ctx.dp.tile_layout)
     };
     let mut map = vec![0.0_f32; grid.cells()];
     for out in 0..plan.len() {
@@ -521,21 +507,21 @@ pub fn dp_sweep_tiled_gpu(
         clock: 0,
     };
     let bind_group = |src: &GpuTileBlock, obs: &GpuTileBlock| {
-        ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("penumbra dp tile sweep bind group"),
-            layout: &ctx.dp.tile_sweep_layout,
-            entries: &[
-                whole(0, &params),
-                whole(1, &src.heights),
-                whole(2, &src.mip),
-                whole(3, &src.levels),
-                whole(4, &table),
-                binding_entry(5, &slots, size_of::<DpStep>() as u64),
-                whole(6, &cost),
-                whole(7, &obs.heights),
-                whole(8, &tile_stats),
-            ],
-        })
+        DpBindings {
+            params: &params,
+            heights: &src.heights,
+            mip: &src.mip,
+            levels: &src.levels,
+            lights: &table,
+            slots: &slots,
+            out: &cost,
+            extra: &[&obs.heights, &tile_stats],
+        }
+        .bind_group(
+            ctx,
+            "penumbra dp tile sweep bind group",
+            &ctx.dp.tile_sweep_layout,
+        )
     };
     let mut all = vec![DpCellStats::default(); grid.cells()];
     for out in 0..plan.len() {
