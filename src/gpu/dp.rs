@@ -10,11 +10,13 @@
 //! (as [`super::shadow_march`]) so that output memory is bounded by the band, not the grid.
 
 use bytemuck::{Pod, Zeroable};
-use wgpu::util::DeviceExt as _;
 
 use super::GpuError;
 use super::context::{ErrorScope, GpuContext, buffer_layout_entry, layout_entry, sized, whole};
-use super::shadow_march::{STEP_SLOT_BYTES, band_buffer, compute_pipeline, storage_init};
+use super::shadow_march::{
+    STEP_SLOT_BYTES, band_buffer, check_dispatch_cols, compute_pipeline, grid_params_buffer,
+    storage_init,
+};
 use crate::shadow::gpu_twins::{DpCellStats, DpMip, MarchGrid};
 
 /// Workgroup size of the DP kernels. Keep in sync with shaders/dp_*.wgsl.
@@ -110,7 +112,6 @@ pub(crate) mod gpu_data {
         }
     }
 }
-use super::shadow_march::gpu_data::GridParams;
 use gpu_data::DpStep;
 
 /// Bind group layout and pipelines of the DP kernels (built once, in [`GpuContext::new`]).
@@ -303,21 +304,9 @@ impl GpuDpGrid {
                 ),
             });
         }
-        if grid.cols.div_ceil(WORKGROUP_SIZE_XY) > limits.max_compute_workgroups_per_dimension {
-            return Err(GpuError::InvalidInput {
-                kernel: "dp_visible",
-                message: format!("{} columns exceed one dispatch row", grid.cols),
-            });
-        }
-        let params = GridParams::of(grid);
+        check_dispatch_cols(ctx, grid.cols, "dp_visible")?;
         let scope = ErrorScope::push(&ctx.device);
-        let params = ctx
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("penumbra dp grid params"),
-                contents: bytemuck::bytes_of(&params),
-                usage: wgpu::BufferUsages::UNIFORM,
-            });
+        let params = grid_params_buffer(ctx, "penumbra dp grid params", grid);
         let heights = storage_init(
             ctx,
             "penumbra dp heights",

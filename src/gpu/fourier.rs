@@ -23,7 +23,9 @@ use wgpu::util::DeviceExt as _;
 
 use super::GpuError;
 use super::context::{ErrorScope, GpuContext, layout_entry, whole};
-use super::shadow_march::{GpuMarchGrid, band_buffer, compute_pipeline, storage_init};
+use super::shadow_march::{
+    GpuMarchGrid, band_buffer, check_dispatch_cols, compute_pipeline, storage_init,
+};
 use crate::shadow::ShadowError;
 use crate::shadow::fourier::{HorizonMap, HorizonMapMeta, HorizonMapParams};
 use crate::shadow::fourier_twin::{
@@ -301,13 +303,7 @@ impl GpuHorizonMap {
             .into());
         }
         let (rows, cols) = (rows as u32, cols as u32);
-        if cols.div_ceil(WORKGROUP_SIZE_XY) > ctx.limits().max_compute_workgroups_per_dimension {
-            return Err(GpuError::InvalidInput {
-                kernel: "fourier_eval",
-                message: format!("{cols} columns exceed one dispatch row"),
-            }
-            .into());
-        }
+        check_dispatch_cols(ctx, cols, "fourier_eval")?;
         let packed = pack_coeffs(map);
         let band_rows = rows_per_band(ctx, rows, cols, 4 * nk as u64, band_bytes);
         let scope = ErrorScope::push(&ctx.device);

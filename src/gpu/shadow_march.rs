@@ -190,21 +190,9 @@ impl GpuMarchGrid {
                 ),
             });
         }
-        if grid.cols.div_ceil(WORKGROUP_SIZE_XY) > limits.max_compute_workgroups_per_dimension {
-            return Err(GpuError::InvalidInput {
-                kernel: "shadow_march",
-                message: format!("{} columns exceed one dispatch row", grid.cols),
-            });
-        }
-        let params = GridParams::of(grid);
+        check_dispatch_cols(ctx, grid.cols, "shadow_march")?;
         let scope = ErrorScope::push(&ctx.device);
-        let params = ctx
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("penumbra grid params"),
-                contents: bytemuck::bytes_of(&params),
-                usage: wgpu::BufferUsages::UNIFORM,
-            });
+        let params = grid_params_buffer(ctx, "penumbra grid params", grid);
         let heights = storage_init(
             ctx,
             "penumbra heights",
@@ -234,6 +222,32 @@ impl GpuMarchGrid {
             band_rows.div_ceil(WORKGROUP_SIZE_XY),
         )
     }
+}
+
+/// The [`GridParams`] uniform of `grid` (the march and DP kernels share its layout).
+pub(crate) fn grid_params_buffer(ctx: &GpuContext, label: &str, grid: &MarchGrid) -> wgpu::Buffer {
+    ctx.device
+        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some(label),
+            contents: bytemuck::bytes_of(&GridParams::of(grid)),
+            usage: wgpu::BufferUsages::UNIFORM,
+        })
+}
+
+/// [`GpuError::InvalidInput`] for `kernel` when `cols` columns need more workgroups than one
+/// dispatch row allows.
+pub(crate) fn check_dispatch_cols(
+    ctx: &GpuContext,
+    cols: u32,
+    kernel: &'static str,
+) -> Result<(), GpuError> {
+    if cols.div_ceil(WORKGROUP_SIZE_XY) > ctx.limits().max_compute_workgroups_per_dimension {
+        return Err(GpuError::InvalidInput {
+            kernel,
+            message: format!("{cols} columns exceed one dispatch row"),
+        });
+    }
+    Ok(())
 }
 
 /// Uploads `data` as a read-only storage buffer.

@@ -19,15 +19,13 @@ use super::GpuError;
 use super::context::{ErrorScope, GpuContext};
 use super::dp::gpu_data::DpStep;
 use super::dp::{DpBindings, check_light, slot_buffer, write_dp_steps};
-use super::shadow_march::gpu_data::GridParams;
-use super::shadow_march::{STEP_SLOT_BYTES, band_buffer, storage_init};
+use super::shadow_march::{STEP_SLOT_BYTES, band_buffer, grid_params_buffer, storage_init};
 pub use crate::shadow::gpu_tiles::{DEFAULT_RESIDENT_BUDGET_BYTES, DEFAULT_TILE_CELLS};
 use crate::shadow::gpu_tiles::{
     TileBlock, TileLimits, TilePlan, TileRect, choose_tile_cells, sources_for, sources_for_batch,
     tile_bounds,
 };
 use crate::shadow::gpu_twins::{DpCellStats, DpMip, MarchGrid};
-use wgpu::util::DeviceExt as _;
 
 /// Workgroup size of the tiled kernels. Keep in sync with shaders/dp_tile_*.wgsl.
 const WORKGROUP_SIZE_XY: u32 = 8;
@@ -174,6 +172,17 @@ struct BlockCache {
 }
 
 impl BlockCache {
+    /// An empty cache for `tiles` output tiles holding at most `cap_bytes` of GPU blocks.
+    fn new(tiles: usize, cap_bytes: u64) -> Self {
+        BlockCache {
+            host: vec![None; tiles],
+            blocks: HashMap::new(),
+            bytes: 0,
+            cap_bytes,
+            clock: 0,
+        }
+    }
+
     fn get(
         &mut self,
         ctx: &GpuContext,
@@ -280,6 +289,19 @@ fn settle(ctx: &GpuContext, cache: &BlockCache) {
     ctx.device.poll(wait).ok();
 }
 
+/// The [`TilePlan`] of `grid` for `tile_cells`, its error as [`GpuError::InvalidInput`] of
+/// `kernel`.
+fn tile_plan(
+    grid: &MarchGrid,
+    tile_cells: u32,
+    kernel: &'static str,
+) -> Result<TilePlan, GpuError> {
+    TilePlan::new(grid.rows, grid.cols, tile_cells).map_err(|e| GpuError::InvalidInput {
+        kernel,
+        message: e.to_string(),
+    })
+}
+
 /// GPU tiled `dp_visible`: per cell (row-major) the visible fraction of the disc `light` (from
 /// [`crate::shadow::gpu_twins::disc_light_to_f32`]; radius 0: 1 lit / 0 shadow), -1 for nodata,
 /// computed output tile by output tile over the source tiles of
@@ -293,12 +315,7 @@ pub fn dp_visible_tiled_gpu(
     options: DpTileOptions,
 ) -> Result<TiledMap, GpuError> {
     check_light(light, "dp_tile_cost")?;
-    let plan = TilePlan::new(grid.rows, grid.cols, options.tile_cells).map_err(|e| {
-        GpuError::InvalidInput {
-            kernel: "dp_tile_cost",
-            message: e.to_string(),
-        }
-    })?;
+    let plan = tile_plan(grid, options.tile_cells, "dp_tile_cost")?;
     DpTiling {
         tile_cells: Some(options.tile_cells),
     }
@@ -311,13 +328,7 @@ pub fn dp_visible_tiled_gpu(
         ..Default::default()
     };
     let scope = ErrorScope::push(&ctx.device);
-    let params = ctx
-        .device
-        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("penumbra dp tile grid params"),
-            contents: bytemuck::bytes_of(&GridParams::of(grid)),
-            usage: wgpu::BufferUsages::UNIFORM,
-        });
+    let params = grid_params_buffer(ctx, "penumbra dp tile grid params", grid);
     let lights = storage_init(
         ctx,
         "penumbra dp tile light",
@@ -330,13 +341,7 @@ pub fn dp_visible_tiled_gpu(
         max_tile_cells as u64,
         wgpu::BufferUsages::empty(),
     );
-    let mut cache = BlockCache {
-        host: vec![None; plan.len()],
-        blocks: HashMap::new(),
-        bytes: 0,
-        cap_bytes: options.cache_bytes,
-        clock: 0,
-    };
+    let mut cache = BlockCache::new(plan.len(), options.cache_bytes);
     let bind_group = |src: &GpuTileBlock, obs: &GpuTileBlock| {
         DpBindings {
             params: &params,
@@ -445,12 +450,7 @@ pub fn dp_sweep_tiled_gpu(
         kernel: "dp_tile_sweep_cost",
         message: format!("{} epochs exceed 2^32", lights.len() / 2),
     })?;
-    let plan = TilePlan::new(grid.rows, grid.cols, options.tile_cells).map_err(|e| {
-        GpuError::InvalidInput {
-            kernel: "dp_tile_sweep_cost",
-            message: e.to_string(),
-        }
-    })?;
+    let plan = tile_plan(grid, options.tile_cells, "dp_tile_sweep_cost")?;
     DpTiling {
         tile_cells: Some(options.tile_cells),
     }
@@ -472,13 +472,7 @@ pub fn dp_sweep_tiled_gpu(
         ..Default::default()
     };
     let scope = ErrorScope::push(&ctx.device);
-    let params = ctx
-        .device
-        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("penumbra dp tile sweep grid params"),
-            contents: bytemuck::bytes_of(&GridParams::of(grid)),
-            usage: wgpu::BufferUsages::UNIFORM,
-        });
+    let params = grid_params_buffer(ctx, "penumbra dp tile sweep grid params", grid);
     let table = storage_init(
         ctx,
         "penumbra dp tile sweep lights",
@@ -499,13 +493,7 @@ pub fn dp_sweep_tiled_gpu(
             | wgpu::BufferUsages::COPY_DST,
         mapped_at_creation: false,
     });
-    let mut cache = BlockCache {
-        host: vec![None; plan.len()],
-        blocks: HashMap::new(),
-        bytes: 0,
-        cap_bytes: options.cache_bytes,
-        clock: 0,
-    };
+    let mut cache = BlockCache::new(plan.len(), options.cache_bytes);
     let bind_group = |src: &GpuTileBlock, obs: &GpuTileBlock| {
         DpBindings {
             params: &params,
