@@ -9,19 +9,6 @@
 
 const WORKGROUP_SIZE_X: u32 = 8u;
 const WORKGROUP_SIZE_Y: u32 = 8u;
-const VISIBLE_MIN_FRACTION: f32 = 1.0e-6;
-
-// Keep in sync with `DpCellStats` in src/shadow/gpu_twins.rs (as in dp_sweep.wgsl).
-struct DpCellStats {
-    sun_fraction_sum: f32,
-    sun_fraction_comp: f32,
-    sun_visible_epochs: u32,
-    dark_run_epochs: u32,
-    longest_dark_run_epochs: u32,
-    earth_visible_epochs: u32,
-    sun_and_earth_epochs: u32,
-    _pad: u32,
-}
 
 @group(0) @binding(6) var<storage, read_write> cost: array<f32>;
 @group(0) @binding(7) var<storage, read> obs_heights: array<f32>;
@@ -46,26 +33,7 @@ fn dp_tile_sweep_accumulate(@builtin(global_invocation_id) gid: vec3<u32>) {
         let e = dp_step.light0 + q;
         let fs = dp_fraction_of_cost(obs, dp_lights[2u * e], cost[(2u * q) * cells + k]);
         let fe = dp_fraction_of_cost(obs, dp_lights[2u * e + 1u], cost[(2u * q + 1u) * cells + k]);
-        // Kahan summation of the Sun's fraction.
-        let y = fs - s.sun_fraction_comp;
-        let t = s.sun_fraction_sum + y;
-        s.sun_fraction_comp = (t - s.sun_fraction_sum) - y;
-        s.sun_fraction_sum = t;
-        let sun_up = fs > VISIBLE_MIN_FRACTION;
-        let earth_up = fe > VISIBLE_MIN_FRACTION;
-        if sun_up {
-            s.sun_visible_epochs += 1u;
-            s.dark_run_epochs = 0u;
-        } else {
-            s.dark_run_epochs += 1u;
-            s.longest_dark_run_epochs = max(s.longest_dark_run_epochs, s.dark_run_epochs);
-        }
-        if earth_up {
-            s.earth_visible_epochs += 1u;
-        }
-        if sun_up && earth_up {
-            s.sun_and_earth_epochs += 1u;
-        }
+        dp_sweep_accumulate(&s, fs, fe);
     }
     stats[k] = s;
 }

@@ -325,3 +325,46 @@ fn dp_fraction(obs: DpObserver, light: vec4<f32>) -> f32 {
 fn dp_is_hole(row: u32, col: u32) -> bool {
     return dp_heights[row * dp_grid.cols + col] < DP_HOLE_TEST_M;
 }
+
+// A disc fraction above this counts as visible (as `map::VISIBLE_MIN_FRACTION`).
+const VISIBLE_MIN_FRACTION: f32 = 1.0e-6;
+
+// Running per-cell statistics of the soft epoch sweeps (dp_sweep.wgsl,
+// dp_tile_sweep_accumulate.wgsl). Keep in sync with `DpCellStats` in src/shadow/gpu_twins.rs.
+struct DpCellStats {
+    sun_fraction_sum: f32,
+    sun_fraction_comp: f32,
+    sun_visible_epochs: u32,
+    dark_run_epochs: u32,
+    longest_dark_run_epochs: u32,
+    earth_visible_epochs: u32,
+    sun_and_earth_epochs: u32,
+    _pad: u32,
+}
+
+// Folds one epoch's Sun (`fs`) and Earth (`fe`) visible fractions into `s` with the definitions
+// of the CPU `map::sweep`: Kahan-compensated f32 sum of the Sun's fraction, visible = fraction
+// > 1e-6, dark runs of the Sun, Earth and Sun-and-Earth counts. CPU twin: `dp_sweep_accumulate`
+// in src/shadow/gpu_twins.rs (line by line).
+fn dp_sweep_accumulate(s: ptr<function, DpCellStats>, fs: f32, fe: f32) {
+    // Kahan summation of the Sun's fraction.
+    let y = fs - (*s).sun_fraction_comp;
+    let t = (*s).sun_fraction_sum + y;
+    (*s).sun_fraction_comp = (t - (*s).sun_fraction_sum) - y;
+    (*s).sun_fraction_sum = t;
+    let sun_up = fs > VISIBLE_MIN_FRACTION;
+    let earth_up = fe > VISIBLE_MIN_FRACTION;
+    if sun_up {
+        (*s).sun_visible_epochs += 1u;
+        (*s).dark_run_epochs = 0u;
+    } else {
+        (*s).dark_run_epochs += 1u;
+        (*s).longest_dark_run_epochs = max((*s).longest_dark_run_epochs, (*s).dark_run_epochs);
+    }
+    if earth_up {
+        (*s).earth_visible_epochs += 1u;
+    }
+    if sun_up && earth_up {
+        (*s).sun_and_earth_epochs += 1u;
+    }
+}

@@ -918,8 +918,8 @@ pub fn dp_visible(
 pub const DP_VISIBLE_MIN_FRACTION: f32 = 1e-6;
 
 /// Running per-cell statistics of the soft epoch sweep (twin of `DpCellStats` in
-/// `shaders/dp_sweep.wgsl`); the definitions are those of the CPU `map::sweep`.
-// Keep in sync with shaders/dp_sweep.wgsl.
+/// `shaders/shared/dp.wgsl`); the definitions are those of the CPU `map::sweep`.
+// Keep in sync with shaders/shared/dp.wgsl.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct DpCellStats {
@@ -942,7 +942,8 @@ pub struct DpCellStats {
 }
 const _: () = assert!(size_of::<DpCellStats>() == 32);
 
-/// Twin of the loop body of `shaders/dp_sweep.wgsl`: folds one epoch's Sun and Earth fractions.
+/// Twin of `dp_sweep_accumulate` in `shaders/shared/dp.wgsl` (the loop body of `dp_sweep.wgsl`
+/// and `dp_tile_sweep_accumulate.wgsl`): folds one epoch's Sun and Earth fractions.
 pub fn dp_sweep_accumulate(fs: f32, fe: f32, s: &mut DpCellStats) {
     let y = fs - s.sun_fraction_comp;
     let t = s.sun_fraction_sum + y;
