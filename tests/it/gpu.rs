@@ -137,23 +137,7 @@ mod on_gpu {
     /// The context shared by the tests of this module, or `None` with a printed reason.
     fn gpu() -> Option<&'static GpuContext> {
         static CTX: OnceLock<Option<GpuContext>> = OnceLock::new();
-        let ctx = CTX.get_or_init(|| match GpuContext::new() {
-            Ok(ctx) => {
-                eprintln!(
-                    "GPU tests run on adapter: {} ({})",
-                    ctx.adapter_name(),
-                    ctx.adapter_kind()
-                );
-                Some(ctx)
-            }
-            Err(e) => {
-                let required = std::env::var("PENUMBRA_REQUIRE_GPU").is_ok_and(|v| v == "1");
-                assert!(!required, "PENUMBRA_REQUIRE_GPU=1 but no GPU context: {e}");
-                eprintln!("skipping GPU test: {e}");
-                None
-            }
-        });
-        ctx.as_ref()
+        crate::util::gpu_context(&CTX)
     }
 
     fn hard_counts(map: &[u32]) -> (usize, usize, usize) {

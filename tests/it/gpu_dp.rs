@@ -136,16 +136,7 @@ mod on_gpu {
 
     fn gpu() -> Option<&'static GpuContext> {
         static CTX: OnceLock<Option<GpuContext>> = OnceLock::new();
-        let ctx = CTX.get_or_init(|| match GpuContext::new() {
-            Ok(ctx) => Some(ctx),
-            Err(e) => {
-                let required = std::env::var("PENUMBRA_REQUIRE_GPU").is_ok_and(|v| v == "1");
-                assert!(!required, "PENUMBRA_REQUIRE_GPU=1 but no GPU context: {e}");
-                eprintln!("skipping GPU test: {e}");
-                None
-            }
-        });
-        ctx.as_ref()
+        crate::util::gpu_context(&CTX)
     }
 
     /// GPU vs its f32 twin (same algorithm, same arithmetic) and vs `dp::visible_fraction` (f64)

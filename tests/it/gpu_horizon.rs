@@ -167,19 +167,7 @@ mod on_gpu {
 
     fn gpu() -> Option<&'static GpuContext> {
         static CTX: OnceLock<Option<GpuContext>> = OnceLock::new();
-        CTX.get_or_init(|| match GpuContext::new() {
-            Ok(ctx) => {
-                eprintln!("GPU horizon tests run on adapter: {}", ctx.adapter_name());
-                Some(ctx)
-            }
-            Err(e) => {
-                let required = std::env::var("PENUMBRA_REQUIRE_GPU").is_ok_and(|v| v == "1");
-                assert!(!required, "PENUMBRA_REQUIRE_GPU=1 but no GPU context: {e}");
-                eprintln!("skipping GPU test: {e}");
-                None
-            }
-        })
-        .as_ref()
+        crate::util::gpu_context(&CTX)
     }
 
     /// GPU vs twin on the synthetic DEM, raw kernel outputs: the same f32 algorithm, so only GPU

@@ -20,6 +20,26 @@ fn month_hourly() -> Vec<hifitime::Epoch> {
     ephem::time::epoch_range(start, stop, ephem::time::parse_step("1h").unwrap()).unwrap()
 }
 
+/// The four sites of the LOLA 240 m crop tests: Shackleton, the connecting ridge, de Gerlache
+/// and Malapert.
+fn lola_crop_sites() -> [SeriesSite; 4] {
+    [
+        site("shackleton_rim", -89.9, 200.0),
+        site("connecting_ridge", -89.45, 222.7),
+        site("de_gerlache_rim", -88.7, 292.0),
+        site("malapert", -86.0, 0.0),
+    ]
+}
+
+/// The default configuration without plots or CSV files.
+fn quiet() -> SeriesConfig {
+    SeriesConfig {
+        plots: false,
+        write_csv: false,
+        ..SeriesConfig::default()
+    }
+}
+
 fn site(name: &str, lat_deg: f64, lon_deg: f64) -> SeriesSite {
     SeriesSite {
         name: name.into(),
@@ -158,10 +178,8 @@ fn smap_dp_on_flat_terrain_matches_the_closed_form_segment() {
     let dir = tempfile::tempdir().unwrap();
     let config = SeriesConfig {
         limb_darkening: LimbLaw::None,
-        plots: false,
-        write_csv: false,
         engine: SeriesEngine::SmapDp,
-        ..SeriesConfig::default()
+        ..quiet()
     };
     let (outcomes, _) = series::run_series(
         &kernels,
@@ -208,11 +226,9 @@ fn engines_agree_on_the_synthetic_dem() {
         site("south", -89.45, 170.0),
     ];
     let config = SeriesConfig {
-        plots: false,
-        write_csv: false,
         disc_method: DiscMethod::Exact,
         limb_darkening: LimbLaw::Eddington,
-        ..SeriesConfig::default()
+        ..quiet()
     };
     let pairs = both_engines(&stack, &sites, config);
     check(
@@ -237,17 +253,8 @@ fn engines_agree_on_the_lola_crop() {
         return;
     };
     let stack = TerrainStack::load(&[path]).unwrap();
-    let sites = [
-        site("shackleton_rim", -89.9, 200.0),
-        site("connecting_ridge", -89.45, 222.7),
-        site("de_gerlache_rim", -88.7, 292.0),
-        site("malapert", -86.0, 0.0),
-    ];
-    let config = SeriesConfig {
-        plots: false,
-        write_csv: false,
-        ..SeriesConfig::default()
-    };
+    let sites = lola_crop_sites();
+    let config = quiet();
     let pairs = both_engines(&stack, &sites, config);
     check(
         "lola-240m",
@@ -557,16 +564,7 @@ mod gpu {
     /// `PENUMBRA_REQUIRE_GPU=1`).
     pub(super) fn context() -> Option<&'static GpuContext> {
         static CTX: OnceLock<Option<GpuContext>> = OnceLock::new();
-        CTX.get_or_init(|| match GpuContext::new() {
-            Ok(ctx) => Some(ctx),
-            Err(e) => {
-                let required = std::env::var("PENUMBRA_REQUIRE_GPU").is_ok_and(|v| v == "1");
-                assert!(!required, "PENUMBRA_REQUIRE_GPU=1 but no GPU context: {e}");
-                eprintln!("skipping GPU test: {e}");
-                None
-            }
-        })
-        .as_ref()
+        crate::util::gpu_context(&CTX)
     }
 
     /// `shaders/dp_sites.wgsl` against its f32 twin on the same inputs (5 sites × 745 epochs ×
@@ -689,17 +687,8 @@ mod gpu {
             return;
         };
         let stack = TerrainStack::load(&[path]).unwrap();
-        let sites = [
-            site("shackleton_rim", -89.9, 200.0),
-            site("connecting_ridge", -89.45, 222.7),
-            site("de_gerlache_rim", -88.7, 292.0),
-            site("malapert", -86.0, 0.0),
-        ];
-        let config = SeriesConfig {
-            plots: false,
-            write_csv: false,
-            ..SeriesConfig::default()
-        };
+        let sites = lola_crop_sites();
+        let config = quiet();
         let cpu = run_with(
             &stack,
             &sites,
@@ -749,12 +738,10 @@ mod gpu {
         let stack = synthetic_stack();
         let sites = synthetic_sites();
         let config = SeriesConfig {
-            plots: false,
-            write_csv: false,
             disc_method: DiscMethod::Exact,
             limb_darkening: LimbLaw::Eddington,
             engine: SeriesEngine::SmapDp,
-            ..SeriesConfig::default()
+            ..quiet()
         };
         let run = |engine, backend| run_with(&stack, &sites, config, engine, backend);
         let cpu = run(SeriesEngine::SmapDp, penumbra::gpu::Backend::Cpu);

@@ -157,3 +157,28 @@ lon_deg = 0.0
         kernels_dir().display()
     )
 }
+
+/// The GPU context cached in a test module's `cell`, or `None` with a printed reason (a failure
+/// instead when `PENUMBRA_REQUIRE_GPU=1`). Each module keeps its own cell (own device).
+#[cfg(feature = "gpu")]
+pub fn gpu_context(
+    cell: &'static std::sync::OnceLock<Option<penumbra::gpu::GpuContext>>,
+) -> Option<&'static penumbra::gpu::GpuContext> {
+    cell.get_or_init(|| match penumbra::gpu::GpuContext::new() {
+        Ok(ctx) => {
+            eprintln!(
+                "GPU tests run on adapter: {} ({})",
+                ctx.adapter_name(),
+                ctx.adapter_kind()
+            );
+            Some(ctx)
+        }
+        Err(e) => {
+            let required = std::env::var("PENUMBRA_REQUIRE_GPU").is_ok_and(|v| v == "1");
+            assert!(!required, "PENUMBRA_REQUIRE_GPU=1 but no GPU context: {e}");
+            eprintln!("skipping GPU test: {e}");
+            None
+        }
+    })
+    .as_ref()
+}
