@@ -289,6 +289,69 @@ fn settle(ctx: &GpuContext, cache: &BlockCache) {
     ctx.device.poll(wait).ok();
 }
 
+/// The GPU passes of one output tile shared by the tiled map and sweep: the `cost` kernel once
+/// per source tile (own tile first), then the `finish` kernel on the output tile.
+struct TilePasses<'a, F> {
+    ctx: &'a GpuContext,
+    grid: &'a MarchGrid,
+    plan: &'a TilePlan,
+    slots: &'a wgpu::Buffer,
+    cost: &'a wgpu::ComputePipeline,
+    finish: &'a wgpu::ComputePipeline,
+    /// The bind group of (source block, output tile's block).
+    bind_group: F,
+}
+
+impl<F: Fn(&GpuTileBlock, &GpuTileBlock) -> wgpu::BindGroup> TilePasses<'_, F> {
+    /// Writes the step slots of output tile `out` (block `own`) for the epochs
+    /// `[first, first + count)` and dispatches the passes over `sources`, counting them in `run`.
+    fn run(
+        &self,
+        cache: &mut BlockCache,
+        run: &mut TileRunStats,
+        out: usize,
+        own: &Rc<GpuTileBlock>,
+        sources: &[usize],
+        (first, count): (u32, u32),
+    ) {
+        let (ctx, o) = (self.ctx, self.plan.rect(out));
+        run.source_dispatches += sources.len();
+        run.max_sources = run.max_sources.max(sources.len());
+        let mut steps: Vec<DpStep> = sources
+            .iter()
+            .enumerate()
+            .map(|(k, &s)| tile_step(o, own.rect, self.plan.rect(s), k == 0, first, count))
+            .collect();
+        steps.push(tile_step(o, own.rect, o, false, first, count));
+        write_dp_steps(ctx, self.slots, &steps);
+        for (k, &s) in sources.iter().enumerate() {
+            let src = if s == out {
+                Rc::clone(own)
+            } else {
+                cache.get(ctx, self.grid, self.plan, s, run)
+            };
+            dispatch_tile(ctx, self.cost, &(self.bind_group)(&src, own), k, o);
+            settle(ctx, cache);
+        }
+        dispatch_tile(
+            ctx,
+            self.finish,
+            &(self.bind_group)(own, own),
+            sources.len(),
+            o,
+        );
+    }
+}
+
+/// Copies the row-major `values` of output tile `o` into the grid-sized `dst` of `cols` columns.
+fn scatter_tile<T: Copy>(dst: &mut [T], cols: usize, o: TileRect, values: &[T]) {
+    let band_cols = (o.col1 - o.col0) as usize;
+    for (r, line) in values.chunks_exact(band_cols).enumerate() {
+        let start = (o.row0 as usize + r) * cols + o.col0 as usize;
+        dst[start..start + line.len()].copy_from_slice(line);
+    }
+}
+
 /// The [`TilePlan`] of `grid` for `tile_cells`, its error as [`GpuError::InvalidInput`] of
 /// `kernel`.
 fn tile_plan(
@@ -355,43 +418,23 @@ pub fn dp_visible_tiled_gpu(
         }
         .bind_group(ctx, "penumbra dp tile bind group", &ctx.dp.tile_layout)
     };
+    let passes = TilePasses {
+        ctx,
+        grid,
+        plan: &plan,
+        slots: &slots,
+        cost: &ctx.dp.tile_cost,
+        finish: &ctx.dp.tile_fraction,
+        bind_group,
+    };
     let mut map = vec![0.0_f32; grid.cells()];
     for out in 0..plan.len() {
         let o = plan.rect(out);
         let sources = sources_for(grid, &plan, &bounds, out, light);
-        stats.source_dispatches += sources.len();
-        stats.max_sources = stats.max_sources.max(sources.len());
         let own = cache.get(ctx, grid, &plan, out, &mut stats);
-        let band_cols = o.col1 - o.col0;
-        let mut steps: Vec<DpStep> = sources
-            .iter()
-            .enumerate()
-            .map(|(k, &s)| tile_step(o, own.rect, plan.rect(s), k == 0, 0, 1))
-            .collect();
-        steps.push(tile_step(o, own.rect, o, false, 0, 1));
-        write_dp_steps(ctx, &slots, &steps);
-        for (k, &s) in sources.iter().enumerate() {
-            let src = if s == out {
-                Rc::clone(&own)
-            } else {
-                cache.get(ctx, grid, &plan, s, &mut stats)
-            };
-            dispatch_tile(ctx, &ctx.dp.tile_cost, &bind_group(&src, &own), k, o);
-            settle(ctx, &cache);
-        }
-        dispatch_tile(
-            ctx,
-            &ctx.dp.tile_fraction,
-            &bind_group(&own, &own),
-            sources.len(),
-            o,
-        );
+        passes.run(&mut cache, &mut stats, out, &own, &sources, (0, 1));
         let bytes = ctx.read_back(&cost, (o.cells() * 4) as u64, "a DP tile")?;
-        let values: Vec<f32> = bytemuck::pod_collect_to_vec(&bytes);
-        for (r, line) in values.chunks_exact(band_cols as usize).enumerate() {
-            let start = (o.row0 as usize + r) * cols + o.col0 as usize;
-            map[start..start + line.len()].copy_from_slice(line);
-        }
+        scatter_tile(&mut map, cols, o, &bytemuck::pod_collect_to_vec(&bytes));
     }
     scope.pop("running the tiled DP map")?;
     Ok(TiledMap { values: map, stats })
@@ -511,6 +554,15 @@ pub fn dp_sweep_tiled_gpu(
             &ctx.dp.tile_sweep_layout,
         )
     };
+    let passes = TilePasses {
+        ctx,
+        grid,
+        plan: &plan,
+        slots: &slots,
+        cost: &ctx.dp.tile_sweep_cost,
+        finish: &ctx.dp.tile_sweep_accumulate,
+        bind_group,
+    };
     let mut all = vec![DpCellStats::default(); grid.cells()];
     for out in 0..plan.len() {
         let o = plan.rect(out);
@@ -527,31 +579,7 @@ pub fn dp_sweep_tiled_gpu(
             let count = batch.min(epochs - first);
             let batch_lights = &lights[2 * first as usize..2 * (first + count) as usize];
             let sources = sources_for_batch(grid, &plan, &bounds, out, batch_lights);
-            run.source_dispatches += sources.len();
-            run.max_sources = run.max_sources.max(sources.len());
-            let mut steps: Vec<DpStep> = sources
-                .iter()
-                .enumerate()
-                .map(|(k, &s)| tile_step(o, own.rect, plan.rect(s), k == 0, first, count))
-                .collect();
-            steps.push(tile_step(o, own.rect, o, false, first, count));
-            write_dp_steps(ctx, &slots, &steps);
-            for (k, &s) in sources.iter().enumerate() {
-                let src = if s == out {
-                    Rc::clone(&own)
-                } else {
-                    cache.get(ctx, grid, &plan, s, &mut run)
-                };
-                dispatch_tile(ctx, &ctx.dp.tile_sweep_cost, &bind_group(&src, &own), k, o);
-                settle(ctx, &cache);
-            }
-            dispatch_tile(
-                ctx,
-                &ctx.dp.tile_sweep_accumulate,
-                &bind_group(&own, &own),
-                sources.len(),
-                o,
-            );
+            passes.run(&mut cache, &mut run, out, &own, &sources, (first, count));
             // The next batch rewrites the step slots: queue writes land before later submits
             // and after earlier ones, so no wait is needed.
             first += count;
@@ -561,12 +589,7 @@ pub fn dp_sweep_tiled_gpu(
             o.cells() as u64 * stats_bytes,
             "DP tile statistics",
         )?;
-        let values: Vec<DpCellStats> = bytemuck::pod_collect_to_vec(&bytes);
-        let band_cols = (o.col1 - o.col0) as usize;
-        for (r, line) in values.chunks_exact(band_cols).enumerate() {
-            let start = (o.row0 as usize + r) * cols + o.col0 as usize;
-            all[start..start + line.len()].copy_from_slice(line);
-        }
+        scatter_tile(&mut all, cols, o, &bytemuck::pod_collect_to_vec(&bytes));
     }
     scope.pop("running the tiled DP sweep")?;
     Ok((all, run))
