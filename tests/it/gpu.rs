@@ -5,9 +5,10 @@
 
 use std::path::Path;
 
-use nalgebra::Vector3;
 use penumbra::shadow::gpu_twins::{self, LIT, MarchGrid, RowBand, SHADOW};
 use penumbra::terrain::HeightField;
+
+use crate::util::sun_dir;
 
 /// The shader source as a pipeline sees it: the `// requires: X` files first, then the file.
 fn composed_source(path: &Path) -> String {
@@ -67,12 +68,6 @@ fn naga_validates_every_shader() {
         }
     }
     assert!(kernels >= 3, "found only {kernels} kernel shaders");
-}
-
-/// Sun direction in model space for an azimuth (from north, clockwise) and elevation.
-fn sun_dir(az_deg: f64, el_deg: f64) -> Vector3<f64> {
-    let (az, el) = (az_deg.to_radians(), el_deg.to_radians());
-    Vector3::new(az.sin() * el.cos(), az.cos() * el.cos(), el.sin())
 }
 
 /// Analytic oracle for the twin (no GPU): a flat plane with a wall of height H along a column;

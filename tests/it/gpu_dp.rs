@@ -4,16 +4,12 @@
 //! adapter exists, a failure with `PENUMBRA_REQUIRE_GPU=1`). naga validation of the DP shaders is
 //! part of `gpu::naga_validates_every_shader` (every `shaders/*.wgsl`).
 
-use nalgebra::Vector3;
 use penumbra::shadow::gpu_twins::{self, DpMip, MarchGrid, RowBand};
 use penumbra::shadow::{Engine, SUN_ANGULAR_RADIUS_RAD, dp};
 
-use crate::util::hills;
-
-fn sun_dir(az_deg: f64, el_deg: f64) -> Vector3<f64> {
-    let (az, el) = (az_deg.to_radians(), el_deg.to_radians());
-    Vector3::new(az.sin() * el.cos(), az.cos() * el.cos(), el.sin())
-}
+#[cfg(feature = "gpu")]
+use crate::util::sweep_lights;
+use crate::util::{hills, sun_dir};
 
 /// Grazing, low and moderate Suns, azimuths off the grid axes (as `gpu.rs`).
 const SUNS_DEG: [(f64, f64); 3] = [(0.5, 37.0), (1.5, 151.0), (5.0, 262.0)];
@@ -259,26 +255,6 @@ mod on_gpu {
         assert!(equal as f64 >= 0.999 * twin.len() as f64);
         assert!(max_sum <= 40.0 * GPU_VS_TWIN_MAX);
     }
-}
-
-/// Sun and Earth discs for `epochs` epochs: the Sun circles the sky at 0.5..5° elevation, the
-/// Earth stays low in the north-west (1..3°), radii 0.2666° and 0.95°.
-#[cfg(feature = "gpu")]
-fn sweep_lights(epochs: usize) -> Vec<[f32; 4]> {
-    (0..epochs)
-        .flat_map(|k| {
-            let phase = k as f64 / epochs as f64;
-            let sun_el = 2.75 + 2.25 * (4.0 * std::f64::consts::TAU * phase).sin();
-            let earth_el = 2.0 + (std::f64::consts::TAU * phase).sin();
-            [
-                gpu_twins::disc_light_to_f32(
-                    &sun_dir(360.0 * phase, sun_el),
-                    SUN_ANGULAR_RADIUS_RAD,
-                ),
-                gpu_twins::disc_light_to_f32(&sun_dir(300.0, earth_el), 0.95_f64.to_radians()),
-            ]
-        })
-        .collect()
 }
 
 /// `penumbra map` over 2027-02-01..05 step 12h (9 epochs) on the synthetic DEM with

@@ -5,17 +5,11 @@
 //! tests run on lavapipe and skip with a printed reason without an adapter (a failure with
 //! `PENUMBRA_REQUIRE_GPU=1`).
 
-use nalgebra::Vector3;
 use penumbra::shadow::gpu_tiles::{self, TileBlock, TilePlan};
 use penumbra::shadow::gpu_twins::{self, DpMip, MarchGrid, RowBand};
 use penumbra::shadow::{Engine, SUN_ANGULAR_RADIUS_RAD, dp};
 
-use crate::util::hills;
-
-fn sun_dir(az_deg: f64, el_deg: f64) -> Vector3<f64> {
-    let (az, el) = (az_deg.to_radians(), el_deg.to_radians());
-    Vector3::new(az.sin() * el.cos(), az.cos() * el.cos(), el.sin())
-}
+use crate::util::{hills, sun_dir, sweep_lights};
 
 /// Low Suns (elevation, azimuth): grazing to 3°, the diagonals, an axis (rays along a row) and
 /// off-axis azimuths.
@@ -189,25 +183,6 @@ fn tiled_twin_matches_cpu_engines() {
         assert!(max <= 5e-2 && mean <= 5e-6 && over_1e3 <= 20);
         assert!(differ as f64 <= 1e-3 * (n * n) as f64);
     }
-}
-
-/// Sun and Earth discs for `epochs` epochs: the Sun circles the sky at 0.5..5° elevation, the
-/// Earth stays low in the north-west (1..3°), radii 0.2666° and 0.95° (as gpu_dp.rs).
-fn sweep_lights(epochs: usize) -> Vec<[f32; 4]> {
-    (0..epochs)
-        .flat_map(|k| {
-            let phase = k as f64 / epochs as f64;
-            let sun_el = 2.75 + 2.25 * (4.0 * std::f64::consts::TAU * phase).sin();
-            let earth_el = 2.0 + (std::f64::consts::TAU * phase).sin();
-            [
-                gpu_twins::disc_light_to_f32(
-                    &sun_dir(360.0 * phase, sun_el),
-                    SUN_ANGULAR_RADIUS_RAD,
-                ),
-                gpu_twins::disc_light_to_f32(&sun_dir(300.0, earth_el), 0.95_f64.to_radians()),
-            ]
-        })
-        .collect()
 }
 
 /// The tiled sweep twin (tiles of 50, batches of 7 epochs) equals the untiled sweep twin in

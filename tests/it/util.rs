@@ -182,3 +182,29 @@ pub fn gpu_context(
     })
     .as_ref()
 }
+
+/// Sun direction in model space for an azimuth (from north, clockwise) and elevation.
+pub fn sun_dir(az_deg: f64, el_deg: f64) -> nalgebra::Vector3<f64> {
+    let (az, el) = (az_deg.to_radians(), el_deg.to_radians());
+    nalgebra::Vector3::new(az.sin() * el.cos(), az.cos() * el.cos(), el.sin())
+}
+
+/// Sun and Earth discs for `epochs` epochs: the Sun circles the sky at 0.5..5° elevation, the
+/// Earth stays low in the north-west (1..3°), radii 0.2666° and 0.95°.
+pub fn sweep_lights(epochs: usize) -> Vec<[f32; 4]> {
+    use penumbra::shadow::gpu_twins::disc_light_to_f32;
+    (0..epochs)
+        .flat_map(|k| {
+            let phase = k as f64 / epochs as f64;
+            let sun_el = 2.75 + 2.25 * (4.0 * std::f64::consts::TAU * phase).sin();
+            let earth_el = 2.0 + (std::f64::consts::TAU * phase).sin();
+            [
+                disc_light_to_f32(
+                    &sun_dir(360.0 * phase, sun_el),
+                    penumbra::shadow::SUN_ANGULAR_RADIUS_RAD,
+                ),
+                disc_light_to_f32(&sun_dir(300.0, earth_el), 0.95_f64.to_radians()),
+            ]
+        })
+        .collect()
+}
