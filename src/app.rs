@@ -337,7 +337,7 @@ fn run_series(args: &crate::cli::SeriesArgs) -> anyhow::Result<()> {
     let step_s = epoch_step_s(&args.epochs)?;
     let (stack, dem_layers) = load_terrain(&args.terrain)?;
     let kernels = load_kernels(&args.kernels)?;
-    let (_, outputs) = series::run_series(
+    let run = series::run_series(
         &kernels,
         &stack,
         &sites,
@@ -350,8 +350,9 @@ fn run_series(args: &crate::cli::SeriesArgs) -> anyhow::Result<()> {
     prov.kernels = kernels.files.clone();
     prov.dem_layers = dem_layers;
     prov.set_epochs(&epochs);
-    prov.outputs = outputs;
+    prov.outputs = run.files;
     prov.series_engine = Some(config.engine.name().into());
+    prov.series_backend = Some(run.backend);
     prov.wall_time_s = t0.elapsed().as_secs_f64();
     prov.write(&args.out_dir.join("run.json"))?;
     eprintln!(

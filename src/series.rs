@@ -203,11 +203,21 @@ pub fn site_horizons(
     sites: &[SeriesSite],
     config: &SeriesConfig,
 ) -> anyhow::Result<Vec<Horizon>> {
+    Ok(site_horizons_on(stack, sites, config)?.0)
+}
+
+/// [`site_horizons`] and the backend that computed them (`run.json`'s `series_backend`).
+fn site_horizons_on(
+    stack: &TerrainStack,
+    sites: &[SeriesSite],
+    config: &SeriesConfig,
+) -> anyhow::Result<(Vec<Horizon>, String)> {
     if config.backend != crate::gpu::Backend::Cpu {
         let resolved = crate::gpu::resolve_backend(config.backend)
             .with_context(|| format!("resolving backend {}", config.backend.as_str()))?;
         if let crate::gpu::ResolvedBackend::Gpu(ctx) = resolved {
-            return gpu_site_horizons(&ctx, stack, sites, config);
+            let horizons = gpu_site_horizons(&ctx, stack, sites, config)?;
+            return Ok((horizons, gpu_backend_note(&ctx, "per-site horizon scan")));
         }
     }
     let engine = horizon::HorizonEngine::new(stack);
@@ -224,7 +234,19 @@ pub fn site_horizons(
                 .horizon(s.lat_deg, s.lon_deg, &params)
                 .with_context(|| format!("horizon of site '{}'", s.name))
         })
-        .collect()
+        .collect::<anyhow::Result<Vec<_>>>()
+        .map(|h| (h, "cpu: per-site horizon scan".to_string()))
+}
+
+/// `run.json`'s description of a GPU stage: `gpu: <what> on <adapter>`.
+#[cfg(feature = "gpu")]
+fn gpu_backend_note(ctx: &crate::gpu::GpuContext, what: &str) -> String {
+    format!("gpu: {what} on {}", ctx.adapter_name())
+}
+
+#[cfg(not(feature = "gpu"))]
+fn gpu_backend_note(ctx: &crate::gpu::GpuContext, _what: &str) -> String {
+    match *ctx {}
 }
 
 /// The GPU path of [`site_horizons`].
@@ -474,8 +496,19 @@ fn write_row(w: &mut dyn Write, epoch: Epoch, r: &SeriesRow) -> std::io::Result<
     )
 }
 
-/// Runs a whole series: horizons, ephemeris, fractions, files. Returns every site's outcome and
-/// the list of files written (relative to `out_dir`), including the combined `stats.json`.
+/// What [`run_series`] did: every site's outcome, the files written (relative to `out_dir`,
+/// including the combined `stats.json`) and the backend that computed the terrain part.
+#[derive(Debug)]
+pub struct SeriesRun {
+    /// Every site's outcome, in input order.
+    pub outcomes: Vec<SiteOutcome>,
+    /// The files written, relative to `out_dir`.
+    pub files: Vec<String>,
+    /// The backend that ran the terrain part (`cpu: …` or `gpu: … on <adapter>`), for `run.json`.
+    pub backend: String,
+}
+
+/// Runs a whole series: horizons, ephemeris, fractions, files (see [`SeriesRun`]).
 pub fn run_series(
     kernels: &Kernels,
     stack: &TerrainStack,
@@ -484,7 +517,7 @@ pub fn run_series(
     step_s: f64,
     config: &SeriesConfig,
     out_dir: &Path,
-) -> anyhow::Result<(Vec<SiteOutcome>, Vec<String>)> {
+) -> anyhow::Result<SeriesRun> {
     if sites.is_empty() {
         anyhow::bail!("no sites given");
     }
@@ -502,12 +535,13 @@ pub fn run_series(
         _ => None,
     };
     let mut gpu_fractions: Option<Vec<(Vec<f64>, Vec<f64>)>> = None;
+    let mut backend_note = "cpu: smap-dp searches".to_string();
     let (horizons, dp, table) = match config.engine {
-        SeriesEngine::Horizon => (
-            site_horizons(stack, sites, config)?,
-            None,
-            ephem::moon_geometry_table(kernels, epochs)?,
-        ),
+        SeriesEngine::Horizon => {
+            let (horizons, note) = site_horizons_on(stack, sites, config)?;
+            backend_note = note;
+            (horizons, None, ephem::moon_geometry_table(kernels, epochs)?)
+        }
         SeriesEngine::SmapDp => {
             let dp = crate::series_dp::SmapDpSites::new(stack, sites)?;
             let ephem_sites = sites
@@ -528,6 +562,7 @@ pub fn run_series(
                     let horizons = gpu.horizons(&dp, sites, &ephem_sites, config)?;
                     let table = ephem::moon_geometry_table(kernels, epochs)?;
                     gpu_fractions = Some(gpu.fractions(&dp, &table, &ephem_sites, config)?);
+                    backend_note = gpu_backend_note(ctx, "smap-dp searches");
                     (horizons, None, table)
                 }
                 None => {
@@ -587,7 +622,11 @@ pub fn run_series(
         .collect();
     StatsFile::from_series(&all)?.write_json(&out_dir.join("stats.json"))?;
     files.push("stats.json".into());
-    Ok((outcomes, files))
+    Ok(SeriesRun {
+        outcomes,
+        files,
+        backend: backend_note,
+    })
 }
 
 /// Where [`run_one_site`] takes its fractions from.

@@ -106,6 +106,10 @@ pub struct Provenance {
     /// Engine of a per-site series (`horizon` or `smap-dp`), when the run made one.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub series_engine: Option<String>,
+    /// Backend of the per-site series' terrain part (`cpu: …` / `gpu: … on <adapter>`), when
+    /// a series ran.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub series_backend: Option<String>,
     /// Files written, relative to the output folder.
     pub outputs: Vec<String>,
     /// Wall time of the run, seconds.
@@ -128,6 +132,7 @@ impl Provenance {
             epoch_count: 0,
             backend: "cpu".into(),
             series_engine: None,
+            series_backend: None,
             outputs: Vec::new(),
             wall_time_s: 0.0,
         }

@@ -590,7 +590,7 @@ pub fn run_file(args: &crate::cli::RunArgs) -> anyhow::Result<()> {
                     height_above_ground_m: s.height_above_ground_m,
                 })
                 .collect();
-            let (_, files) = crate::series::run_series(
+            let run = crate::series::run_series(
                 &kernels,
                 stack,
                 &sites,
@@ -602,8 +602,9 @@ pub fn run_file(args: &crate::cli::RunArgs) -> anyhow::Result<()> {
                 },
                 &out_dir,
             )?;
-            prov.outputs.extend(files);
+            prov.outputs.extend(run.files);
             prov.series_engine = Some(config.engine.name().into());
+            prov.series_backend = Some(run.backend);
         }
         _ => {
             let sites: Vec<Site> = scenario

@@ -35,7 +35,9 @@ fn flat_terrain_series_matches_the_closed_form_segment() {
         plots: false,
         ..SeriesConfig::default()
     };
-    let (outcomes, files) = series::run_series(
+    let series::SeriesRun {
+        outcomes, files, ..
+    } = series::run_series(
         &kernels,
         &stack,
         &[site],

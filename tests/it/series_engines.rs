@@ -60,7 +60,7 @@ fn both_engines(stack: &TerrainStack, sites: &[SeriesSite], config: SeriesConfig
         let cfg = SeriesConfig { engine, ..config };
         series::run_series(&kernels, stack, sites, &epochs, 3600.0, &cfg, dir.path())
             .unwrap()
-            .0
+            .outcomes
     };
     let h = run(SeriesEngine::Horizon);
     let d = run(SeriesEngine::SmapDp);
@@ -181,7 +181,7 @@ fn smap_dp_on_flat_terrain_matches_the_closed_form_segment() {
         engine: SeriesEngine::SmapDp,
         ..quiet()
     };
-    let (outcomes, _) = series::run_series(
+    let series::SeriesRun { outcomes, .. } = series::run_series(
         &kernels,
         &stack,
         std::slice::from_ref(&s),
@@ -302,6 +302,9 @@ fn series_cli_smap_dp_writes_the_same_files_and_records_the_engine() {
         )
         .unwrap();
         assert_eq!(run["series_engine"], engine);
+        // The default backend is the CPU, and run.json says so.
+        let backend = run["series_backend"].as_str().unwrap_or_default();
+        assert!(backend.starts_with("cpu: "), "series_backend {backend:?}");
     }
     assert_eq!(
         files_in(&dir.path().join("h")),
@@ -337,6 +340,14 @@ fn series_cli_smap_dp_writes_the_same_files_and_records_the_engine() {
             .zip(&gpu)
             .map(|(a, b)| (a.0 - b.0).abs().max((a.1 - b.1).abs()))
             .fold(0.0_f64, f64::max);
+        let run: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(dir.path().join("g/run.json")).unwrap())
+                .unwrap();
+        let backend = run["series_backend"].as_str().unwrap_or_default();
+        assert!(
+            backend.starts_with("gpu: smap-dp searches on "),
+            "series_backend {backend:?}"
+        );
         eprintln!("CLI smap-dp gpu vs cpu: max |Δ fraction| {max:.2e}");
         assert!(max < 0.02, "max |Δ fraction| {max}");
     } else {
@@ -666,7 +677,7 @@ mod gpu {
         };
         series::run_series(&kernels, stack, sites, &epochs, 3600.0, &cfg, dir.path())
             .unwrap()
-            .0
+            .outcomes
     }
 
     /// Per-epoch Sun and Earth fractions of every site, concatenated.
