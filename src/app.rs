@@ -448,9 +448,10 @@ fn run_map(args: &crate::cli::MapArgs) -> anyhow::Result<()> {
     let (stack, dem_layers) = load_terrain(&args.terrain)?;
     let grid = MapGrid::new(&stack)?;
     eprintln!(
-        "penumbra: model grid {} x {} at {} m centred on ({:.4}, {:.4}) deg",
+        "penumbra: model grid {} x {} at {} m centred on ({:.4}, {:.4}) deg (every layer)",
         grid.hf.rows, grid.hf.cols, grid.hf.px_m, grid.hf.centre_lat_deg, grid.hf.centre_lon_deg
     );
+    grid.warn_if_clipped();
 
     if range {
         let (Some(kernels), Some(out_dir)) = (&kernels, &args.out_dir) else {
@@ -527,6 +528,10 @@ fn run_map(args: &crate::cli::MapArgs) -> anyhow::Result<()> {
         prov.set_epochs(&epochs);
         prov.outputs = files;
         prov.backend = backend_note;
+        prov.map_rays_blocked_beyond_dem = stats.below_sphere;
+        if let Some(w) = stats.below_sphere.and_then(|b| b.warning()) {
+            eprintln!("{w}");
+        }
         prov.wall_time_s = t0.elapsed().as_secs_f64();
         prov.write(&out_dir.join("run.json"))?;
         eprintln!(
@@ -601,6 +606,9 @@ fn run_map(args: &crate::cli::MapArgs) -> anyhow::Result<()> {
     };
     if let Some(path) = &args.out_fraction {
         let f = fraction(sun, sun_radius_rad)?;
+        if let Some(w) = grid.below_sphere_exits(h_m, sun, &f)?.warning() {
+            eprintln!("{w}");
+        }
         grid.write_f32(
             path,
             &grid.to_output_f32(&f),
@@ -1001,7 +1009,10 @@ pub fn render_frames(
     };
     let abcorr = AbCorr::parse(&args.abcorr)?;
     let (stack, _) = load_terrain(&args.terrain)?;
-    let grid = crate::map::MapGrid::new(&stack)?;
+    let mut grid = crate::map::MapGrid::new(&stack)?;
+    grid.warn_if_clipped();
+    // A frame may look at any terrain of the grid, far field included: shade all of it.
+    grid.hf.window = None;
     let hf = &grid.hf;
     let placed = frames
         .iter()

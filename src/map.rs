@@ -14,8 +14,12 @@
 //! 184 km / 384,400 km = 4.8e-4 rad = 0.027°, about 3% of the Earth's angular radius, which bounds
 //! the Earth-visibility error at the map edges.
 //!
-//! Terrain outside the model grid (the finest layer's extent) casts no shadow in a map; the
-//! per-site horizon engine ([`crate::horizon`]) does include every layer.
+//! **Every layer.** The model grid covers the union of all layers' extents at the finest layer's
+//! pixel size (each model cell takes the finest layer with data there, [`resample_to_model_space`]),
+//! so far-field layers cast shadows exactly as in the per-site horizon engine
+//! ([`crate::horizon`]); only the cells under the output raster are evaluated
+//! ([`HeightField::window`]). Beyond [`MAX_MODEL_CELLS`] the grid is clipped around the map and
+//! [`MapGrid::clipped_to_km`] says where (the caller warns).
 
 use std::path::Path;
 
@@ -26,12 +30,17 @@ use rayon::prelude::*;
 
 use crate::ephem::{self, AbCorr, Kernels, Site};
 use crate::illum::plot::{MapLegend, write_map_preview};
+use crate::output::BelowSphereExits;
 use crate::shadow::{Engine, MASK_NODATA};
 use crate::terrain::model_space::{ModelFrame, ModelGridSpec, resample_to_model_space};
 use crate::terrain::{Dem, HeightField, TerrainStack};
 
 /// A disc counts as visible when its fraction exceeds this (as in [`crate::illum::stats`]).
 pub const VISIBLE_MIN_FRACTION: f32 = 1e-6;
+
+/// Largest model grid a map builds (cells; 4 bytes each, plus the engines' mipmaps): 40 M cells
+/// hold the 1536² 240 m LOLA grid with its ±457 km far field (3,808² cells).
+pub const MAX_MODEL_CELLS: usize = 40_000_000;
 
 /// The model-space height field of a map and the way back to the output (DEM) grid.
 pub struct MapGrid {
@@ -41,6 +50,9 @@ pub struct MapGrid {
     pub hf: HeightField,
     /// For each output pixel, its fractional (row, col) in `hf`; NaN for nodata pixels.
     rc_in_model: Vec<[f32; 2]>,
+    /// `Some(half-width km)` when the coarser layers reach beyond [`MAX_MODEL_CELLS`] and the
+    /// grid was clipped to that half-width around the map centre.
+    pub clipped_to_km: Option<f64>,
 }
 
 impl MapGrid {
@@ -77,8 +89,41 @@ impl MapGrid {
         if max_x == 0.0 && max_y == 0.0 {
             anyhow::bail!("the DEM {} has no valid heights", dem.name);
         }
-        let half_cols = (max_x / px_m).ceil() as usize + 2;
-        let half_rows = (max_y / px_m).ceil() as usize + 2;
+        // The output raster's half-extent, and that of every layer (their outer edges on the
+        // sphere, sampled densely: the model frame is a rotation of the projection's axes).
+        let out_half_cols = (max_x / px_m).ceil() as usize + 2;
+        let out_half_rows = (max_y / px_m).ceil() as usize + 2;
+        let (mut all_x, mut all_y) = (max_x, max_y);
+        for layer in &stack.layers[1..] {
+            let (x0, y0, x1, y1) = layer.grid.bounds_m();
+            const N: usize = 256;
+            for k in 0..=N {
+                let f = k as f64 / N as f64;
+                for (x, y) in [
+                    (x0 + f * (x1 - x0), y0),
+                    (x0 + f * (x1 - x0), y1),
+                    (x0, y0 + f * (y1 - y0)),
+                    (x1, y0 + f * (y1 - y0)),
+                ] {
+                    let (lat, lon) = layer.projection.lat_lon_from_xy(x, y);
+                    let p = frame.model_from_lat_lon_height(lat, lon, 0.0);
+                    if p.x.is_finite() && p.y.is_finite() {
+                        all_x = all_x.max(p.x.abs());
+                        all_y = all_y.max(p.y.abs());
+                    }
+                }
+            }
+        }
+        let mut half_cols = ((all_x / px_m).ceil() as usize + 2).max(out_half_cols);
+        let mut half_rows = ((all_y / px_m).ceil() as usize + 2).max(out_half_rows);
+        let mut clipped_to_km = None;
+        if 4 * half_rows * half_cols > MAX_MODEL_CELLS {
+            // Clip the far field (never the output raster) to the cell budget.
+            let scale = (MAX_MODEL_CELLS as f64 / (4 * half_rows * half_cols) as f64).sqrt();
+            half_cols = ((half_cols as f64 * scale) as usize).max(out_half_cols);
+            half_rows = ((half_rows as f64 * scale) as usize).max(out_half_rows);
+            clipped_to_km = Some(half_cols.min(half_rows) as f64 * px_m / 1e3);
+        }
         let spec = ModelGridSpec {
             centre_lat_deg,
             centre_lon_deg,
@@ -86,7 +131,14 @@ impl MapGrid {
             cols: 2 * half_cols,
             px_m,
         };
-        let (hf, _) = resample_to_model_space(stack, &spec)?;
+        let (mut hf, _) = resample_to_model_space(stack, &spec)?;
+        // Evaluate only the cells under the output raster (and the bilinear neighbours of its
+        // pixels): the rest of the grid is terrain that blocks, not results anyone reads.
+        let (dr, dc) = (half_rows - out_half_rows, half_cols - out_half_cols);
+        hf.window = Some(crate::terrain::CellWindow {
+            rows: (dr, 2 * half_rows - dr),
+            cols: (dc, 2 * half_cols - dc),
+        });
         let rc_in_model = model_xy
             .iter()
             .map(|p| match p {
@@ -101,6 +153,51 @@ impl MapGrid {
             dem,
             hf,
             rc_in_model,
+            clipped_to_km,
+        })
+    }
+
+    /// Prints a one-line warning when the far field was clipped to [`MAX_MODEL_CELLS`].
+    pub fn warn_if_clipped(&self) {
+        if let Some(km) = self.clipped_to_km {
+            eprintln!(
+                "penumbra: warning: the map grid holds terrain only within {km:.0} km of the map \
+                 centre ({MAX_MODEL_CELLS} cells at {} m); coarser layers beyond cast no shadow \
+                 in maps (the per-site series use them)",
+                self.hf.px_m
+            );
+        }
+    }
+
+    /// Number of model cells with data that the engines evaluate (under the output raster).
+    pub fn evaluated_cells(&self) -> usize {
+        (0..self.hf.rows * self.hf.cols)
+            .filter(|&i| {
+                let (r, c) = (i / self.hf.cols, i % self.hf.cols);
+                self.hf.evaluates(r, c) && !self.hf.z_m[i].is_nan()
+            })
+            .count()
+    }
+
+    /// How many cells lit per `fraction` (model grid, `> VISIBLE_MIN_FRACTION`) rest on a ray
+    /// toward `light_in_model` that leaves the DEM below the reference sphere.
+    pub fn below_sphere_exits(
+        &self,
+        observer_height_m: f64,
+        light_in_model: [f64; 3],
+        fraction: &[f32],
+    ) -> anyhow::Result<BelowSphereExits> {
+        let below = crate::shadow::lit_exits_below_sphere(
+            &self.hf,
+            observer_height_m,
+            light_in_model,
+            |i| fraction[i] > VISIBLE_MIN_FRACTION,
+        )?;
+        let cells = below.iter().filter(|&&b| b).count() as u64;
+        Ok(BelowSphereExits {
+            cells,
+            cell_epochs: cells,
+            cells_total: self.evaluated_cells() as u64,
         })
     }
 
@@ -126,8 +223,9 @@ impl MapGrid {
         )?)
     }
 
-    /// Resamples model-space values onto the output grid: bilinear, NaN-aware (a NaN neighbour
-    /// falls back to the nearest cell).
+    /// Resamples model-space values onto the output grid: bilinear, NaN-aware (NaN neighbours are
+    /// left out and the weights of the others renormalised; if all four are NaN, the nearest
+    /// valid cell of the 4 x 4 around the pixel). Every output pixel with data gets a value.
     pub fn to_output_f32(&self, model: &[f32]) -> Vec<f32> {
         let (rows, cols) = (self.hf.rows, self.hf.cols);
         let at = |r: isize, c: isize| -> f32 {
@@ -153,28 +251,51 @@ impl MapGrid {
                     at(r0 + 1, c0 + 1),
                 ];
                 if v.iter().any(|x| x.is_nan()) {
-                    return at(r.round() as isize, c.round() as isize);
+                    let w = [
+                        (1.0 - fr) * (1.0 - fc),
+                        (1.0 - fr) * fc,
+                        fr * (1.0 - fc),
+                        fr * fc,
+                    ];
+                    let (mut sum, mut wsum) = (0.0_f32, 0.0_f32);
+                    for (x, w) in v.iter().zip(w) {
+                        if !x.is_nan() && w > 0.0 {
+                            sum += x * w;
+                            wsum += w;
+                        }
+                    }
+                    if wsum > 0.0 {
+                        return sum / wsum;
+                    }
+                    return nearest_valid(r, c, |r, c| {
+                        let x = at(r, c);
+                        (!x.is_nan()).then_some(x)
+                    })
+                    .unwrap_or(f32::NAN);
                 }
                 (v[0] * (1.0 - fc) + v[1] * fc) * (1.0 - fr) + (v[2] * (1.0 - fc) + v[3] * fc) * fr
             })
             .collect()
     }
 
-    /// Resamples model-space bytes onto the output grid (nearest cell; `MASK_NODATA` outside).
+    /// Resamples model-space bytes onto the output grid (nearest cell with data, among the 4 x 4
+    /// around the pixel; `MASK_NODATA` only for nodata pixels).
     pub fn to_output_u8(&self, model: &[u8]) -> Vec<u8> {
         let (rows, cols) = (self.hf.rows, self.hf.cols);
+        let at = |r: isize, c: isize| -> Option<u8> {
+            if r < 0 || c < 0 || r as usize >= rows || c as usize >= cols {
+                return None;
+            }
+            let v = model[r as usize * cols + c as usize];
+            (v != MASK_NODATA).then_some(v)
+        };
         self.rc_in_model
             .par_iter()
             .map(|&[r, c]| {
                 if r.is_nan() {
                     return MASK_NODATA;
                 }
-                let (r, c) = (r.round() as isize, c.round() as isize);
-                if r < 0 || c < 0 || r as usize >= rows || c as usize >= cols {
-                    MASK_NODATA
-                } else {
-                    model[r as usize * cols + c as usize]
-                }
+                nearest_valid(r, c, at).unwrap_or(MASK_NODATA)
             })
             .collect()
     }
@@ -206,6 +327,25 @@ impl MapGrid {
     }
 }
 
+/// The value of the cell nearest to fractional (row, col) among the 4 x 4 cells around it for
+/// which `at` has one.
+fn nearest_valid<T>(r: f32, c: f32, at: impl Fn(isize, isize) -> Option<T>) -> Option<T> {
+    let (r0, c0) = (r.floor() as isize, c.floor() as isize);
+    let mut best: Option<(f32, T)> = None;
+    for dr in -1..=2 {
+        for dc in -1..=2 {
+            let (rr, cc) = (r0 + dr, c0 + dc);
+            if let Some(v) = at(rr, cc) {
+                let d = (rr as f32 - r).powi(2) + (cc as f32 - c).powi(2);
+                if best.as_ref().is_none_or(|(bd, _)| d < *bd) {
+                    best = Some((d, v));
+                }
+            }
+        }
+    }
+    best.map(|(_, v)| v)
+}
+
 fn metadata(what: &str) -> Vec<(&'static str, &str)> {
     vec![
         ("software", concat!("penumbra ", env!("CARGO_PKG_VERSION"))),
@@ -232,6 +372,9 @@ pub struct SweepStats {
     /// Epochs with both the Sun and the Earth (partly) visible; `None` when the sweep cannot tell
     /// (the GPU sweep folds each light separately), written as an all-NaN map.
     pub sun_and_earth_count: Option<Vec<u32>>,
+    /// Sun-lit results resting on rays that leave the DEM below the reference sphere (counted
+    /// by the CPU sweep; `None` on the GPU).
+    pub below_sphere: Option<BelowSphereExits>,
 }
 
 /// Which shadow engine a map uses.
@@ -348,11 +491,23 @@ pub fn sweep(
         longest_dark_epochs: vec![0; n],
         earth_visible_count: vec![0; n],
         sun_and_earth_count: None,
+        below_sphere: None,
     };
     let mut sun_and_earth_count = vec![0_u32; n];
     let mut current_dark = vec![0_u32; n];
+    let mut below_any = vec![false; n];
+    let mut below_cell_epochs = 0_u64;
     for l in lights {
         let sun = engine.visible_fraction(&grid.hf, observer_height_m, l.sun, l.sun_radius_rad)?;
+        let below =
+            crate::shadow::lit_exits_below_sphere(&grid.hf, observer_height_m, l.sun, |i| {
+                sun[i] > VISIBLE_MIN_FRACTION
+            })?;
+        below_cell_epochs += below.iter().filter(|&&b| b).count() as u64;
+        below_any
+            .par_iter_mut()
+            .zip(&below)
+            .for_each(|(any, &b)| *any |= b);
         let earth =
             engine.visible_fraction(&grid.hf, observer_height_m, l.earth, l.earth_radius_rad)?;
         s.sun_fraction_sum
@@ -388,6 +543,11 @@ pub fn sweep(
         progress.inc(1);
     }
     s.sun_and_earth_count = Some(sun_and_earth_count);
+    s.below_sphere = Some(BelowSphereExits {
+        cells: below_any.iter().filter(|&&b| b).count() as u64,
+        cell_epochs: below_cell_epochs,
+        cells_total: grid.evaluated_cells() as u64,
+    });
     Ok(s)
 }
 
@@ -427,6 +587,7 @@ pub fn sweep_gpu(
         longest_dark_epochs: sun.iter().map(|c| c.longest_dark_run_epochs).collect(),
         earth_visible_count: earth.iter().map(|c| c.lit_epochs).collect(),
         sun_and_earth_count: None,
+        below_sphere: None,
     })
 }
 
@@ -481,6 +642,7 @@ pub fn sweep_gpu_soft(
         longest_dark_epochs: stats.iter().map(|c| c.longest_dark_run_epochs).collect(),
         earth_visible_count: stats.iter().map(|c| c.earth_visible_epochs).collect(),
         sun_and_earth_count: Some(stats.iter().map(|c| c.sun_and_earth_epochs).collect()),
+        below_sphere: None,
     })
 }
 
@@ -713,6 +875,7 @@ pub fn write_sweep(
             .collect(),
     );
     let earth_pct = mask_nodata(pct(&s.earth_visible_count));
+    let sun_visible_pct = mask_nodata(pct(&s.sun_visible_count));
     let both_what = if s.sun_and_earth_count.is_some() {
         "Sun and Earth both (partly) visible, % of time"
     } else {
@@ -732,13 +895,20 @@ pub fn write_sweep(
     let mut files = Vec::new();
     let (rows, cols) = (grid.dem.grid.rows, grid.dem.grid.cols);
     let span_h = n_epochs * s.step_h;
-    let continuous: [(&str, &str, Vec<f32>, f64, String); 4] = [
+    let continuous: [(&str, &str, Vec<f32>, f64, String); 5] = [
         (
             "sun_illumination_pct",
             "average Sun illumination (time-mean visible fraction of the disc), %",
             sun_mean_pct,
             100.0,
             "% of time (disc-weighted)".into(),
+        ),
+        (
+            "sun_visible_pct",
+            "Sun visible (any part of the disc), % of time",
+            sun_visible_pct,
+            100.0,
+            "% of time".into(),
         ),
         (
             "longest_dark_h",

@@ -41,10 +41,9 @@
 //! runs DP alone, and the SMap's role (decide early away from the limb) is played by the cap and
 //! the branch-and-bound pruning.
 //!
-//! *No local-horizontal floor.* The map engines treat a light below the cell's local horizontal
-//! plane as hidden by the Moon ([`crate::shadow`] conventions). A site on a slope or a rim sees
-//! below that plane (the horizon engine reports horizons of −13° on the synthetic ridge), so here,
-//! as in the horizon engine, the horizon is the highest terrain sample of the grid along the ray,
+//! *No local-horizontal floor* (the one blocking rule of every engine, [`crate::shadow`]). A site
+//! on a slope or a rim sees below that plane (the horizon engine reports horizons of −13° on the
+//! synthetic ridge), so here, as in the horizon engine and the map engines, the horizon is the highest terrain sample of the grid along the ray,
 //! whatever its sign; on a flat sphere that is the dip of the geometric horizon.
 //!
 //! **Horizon profile** (for `horizon.csv`, the plots and the CSV's horizon columns): per azimuth

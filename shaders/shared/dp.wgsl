@@ -16,7 +16,7 @@
 // order; the interval concatenation of the paper is not needed (the top level covers the grid).
 //
 // Disc occlusion (paper eq. 6-7, prism assumption, as src/shadow/mod.rs fraction_from_cost):
-// e_h = max(atan(tan e_c - J*), local horizontal), d = clamp((e_c - e_h) / r, -1, 1),
+// e_h = atan(tan e_c - J*) (terrain only: no local-horizontal bound), d = clamp((e_c - e_h) / r, -1, 1),
 // visible = (pi - acos d + d sqrt(1 - d^2)) / pi; r = 0 gives the hard mask (1 iff e_c > e_h).
 //
 // Source region (2-D tiling, src/gpu/tiles.rs): the walk is restricted to the rectangle of dual
@@ -301,11 +301,13 @@ fn dp_fraction_of_cost(obs: DpObserver, light: vec4<f32>, j: f32) -> f32 {
     let e_c = atan2(l.z, hor);
     var e_h = -0.5 * DP_PI;
     if hor >= DP_MIN_HORIZ {
+        // Only terrain makes a horizon (no local-horizontal bound; docs/ARCHITECTURE.md).
         if j < 0.5 * DP_FAR {
             e_h = atan(l.z / hor - j);
         }
-        let tan_local = -(obs.up.x * l.x / hor + obs.up.y * l.y / hor) / obs.up.z;
-        e_h = max(e_h, atan(tan_local));
+    } else if l.z < 0.0 {
+        // Straight down: the observer's own ground.
+        e_h = 0.5 * DP_PI;
     }
     let clearance = e_c - e_h;
     if r <= 0.0 {

@@ -178,7 +178,8 @@ fn march_hard(row: u32, col: u32, light: vec3<f32>) -> u32 {
             return LIT;
         }
         let z_ray = z0 + c.t * rise_m_per_cell;
-        if z_ray > grid.z_max_m {
+        // Above all terrain and not descending: lit (a descending ray comes down again).
+        if z_ray > grid.z_max_m && rise_m_per_cell >= 0.0 {
             return LIT;
         }
         if c.z_surf > z_ray {

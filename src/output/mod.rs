@@ -112,8 +112,39 @@ pub struct Provenance {
     pub series_backend: Option<String>,
     /// Files written, relative to the output folder.
     pub outputs: Vec<String>,
+    /// Map products: lit cells (or cell-epochs of a sweep) whose ray toward the Sun leaves the
+    /// outermost DEM layer below the reference sphere or meets it further on, where the real
+    /// Moon would block it (the DEM is too small for those cells: add a far-field layer), when
+    /// counted.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub map_rays_blocked_beyond_dem: Option<BelowSphereExits>,
     /// Wall time of the run, seconds.
     pub wall_time_s: f64,
+}
+
+/// How many map results rest on a ray that left the DEM below the reference sphere.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
+pub struct BelowSphereExits {
+    /// Output cells with at least one such lit result.
+    pub cells: u64,
+    /// Lit (cell, epoch) results resting on such a ray (one epoch for a one-light map).
+    pub cell_epochs: u64,
+    /// Output cells with data.
+    pub cells_total: u64,
+}
+
+impl BelowSphereExits {
+    /// The one-line warning for the terminal, or `None` when nothing left below the sphere.
+    pub fn warning(&self) -> Option<String> {
+        (self.cells > 0).then(|| {
+            format!(
+                "penumbra: warning: {} of {} map cells ({} cell-epochs) are lit by rays that leave \
+                 the DEM toward the reference sphere, where the real Moon would block them; \
+                 add a far-field layer (--dem) that covers their horizon",
+                self.cells, self.cells_total, self.cell_epochs
+            )
+        })
+    }
 }
 
 impl Provenance {
@@ -134,6 +165,7 @@ impl Provenance {
             series_engine: None,
             series_backend: None,
             outputs: Vec::new(),
+            map_rays_blocked_beyond_dem: None,
             wall_time_s: 0.0,
         }
     }

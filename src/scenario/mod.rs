@@ -637,7 +637,7 @@ pub fn run_file(args: &crate::cli::RunArgs) -> anyhow::Result<()> {
         }
     }
     if let (Some(stack), Some(spec)) = (&stack, &scenario.map) {
-        let files = run_map_spec(
+        let (files, below) = run_map_spec(
             spec,
             stack,
             &kernels,
@@ -646,6 +646,7 @@ pub fn run_file(args: &crate::cli::RunArgs) -> anyhow::Result<()> {
             scenario.abcorr,
             &out_dir,
         )?;
+        prov.map_rays_blocked_beyond_dem = below;
         prov.outputs
             .extend(files.into_iter().map(|f| format!("map/{f}")));
     }
@@ -765,7 +766,7 @@ fn run_map_spec(
     stop: hifitime::Epoch,
     abcorr: AbCorr,
     out_dir: &Path,
-) -> anyhow::Result<Vec<String>> {
+) -> anyhow::Result<(Vec<String>, Option<crate::output::BelowSphereExits>)> {
     let step = ephem::time::parse_step(&spec.step).context("[map] step")?;
     let epochs = ephem::time::epoch_range(start, stop, step)?;
     let kind = crate::map::MapEngineKind::parse(&spec.engine)
@@ -775,6 +776,7 @@ fn run_map_spec(
     let backend = crate::gpu::resolve_backend(requested)
         .with_context(|| format!("[map] backend '{}'", spec.backend))?;
     let grid = crate::map::MapGrid::new(stack)?;
+    grid.warn_if_clipped();
     let lights = crate::map::epoch_lights(&grid, kernels, &epochs, abcorr)?;
     let step_h = step.to_seconds() / 3600.0;
     let progress = indicatif::ProgressBar::new(lights.len() as u64);
@@ -812,5 +814,9 @@ fn run_map_spec(
         epochs.len(),
         spec.step
     );
-    crate::map::write_sweep(&grid, &stats, &dir, &span)
+    let files = crate::map::write_sweep(&grid, &stats, &dir, &span)?;
+    if let Some(w) = stats.below_sphere.and_then(|b| b.warning()) {
+        eprintln!("{w}");
+    }
+    Ok((files, stats.below_sphere))
 }

@@ -24,8 +24,7 @@ use nalgebra::Vector3;
 
 use super::{
     LightDir, MASK_LIT, MASK_NODATA, MASK_SHADOW, Observer, Result, ShadowError,
-    check_observer_height, check_radius, fraction_from_cost, local_horizon_tan, map_cells,
-    max_height_m, unit_light,
+    check_observer_height, check_radius, fraction_from_cost, map_cells, max_height_m, unit_light,
 };
 use crate::terrain::HeightField;
 
@@ -125,14 +124,17 @@ where
 /// Whether the ray from `obs` toward `dir` is blocked (see the module docs).
 #[inline]
 pub(crate) fn ray_blocked(hf: &HeightField, obs: &Observer, dir: &LightDir, z_max_m: f64) -> bool {
-    if dir.unit.dot(&obs.up) <= 0.0 {
-        return true;
+    if dir.hor == 0.0 {
+        // Straight down meets the observer's own ground; straight up meets nothing.
+        return dir.unit.z < 0.0;
     }
     let rise_per_cell = dir.tan_el * hf.px_m;
     let mut blocked = false;
     march(hf, obs, dir, |s, z| {
         let h_ray = obs.z_m + s * rise_per_cell;
-        if h_ray > z_max_m {
+        // Above every terrain height and not descending: nothing further can block. (A
+        // descending ray above the terrain comes down again: no early exit.)
+        if h_ray > z_max_m && rise_per_cell >= 0.0 {
             return false;
         }
         if let Some(z) = z
@@ -158,9 +160,21 @@ pub(crate) fn exact_cost(hf: &HeightField, obs: &Observer, dir: &LightDir, z_max
             let cost = (obs.z_m + t_m * dir.tan_el - z) / t_m;
             best = best.min(cost);
         }
-        dir.tan_el - (z_max_m - obs.z_m) / t_m < best
+        cost_lower_bound(dir.tan_el, z_max_m - obs.z_m, t_m) < best
     });
     best
+}
+
+/// Lower bound of the cost `(z_obs + t' tan e - z) / t'` of every sample beyond distance `t_m`
+/// with `z <= z_max`: `tan e - dz / t'` with `dz = z_max - z_obs`. For `dz > 0` it grows with `t'`
+/// (the bound at `t_m`); for `dz <= 0` (the observer above all terrain) it falls toward `tan e`.
+#[inline]
+pub(crate) fn cost_lower_bound(tan_el: f64, dz_m: f64, t_m: f64) -> f64 {
+    if dz_m > 0.0 {
+        tan_el - dz_m / t_m
+    } else {
+        tan_el
+    }
 }
 
 /// Bilinear surface height at fractional (row, col) between the four surrounding centres;
@@ -219,7 +233,7 @@ pub(crate) fn uniform_cost(
         if let Some(z) = bilinear(hf, row, col) {
             best = best.min((obs.z_m + t_m * dir.tan_el - z) / t_m);
         }
-        if dir.tan_el - (z_max_m - obs.z_m) / t_m >= best {
+        if cost_lower_bound(dir.tan_el, z_max_m - obs.z_m, t_m) >= best {
             return best;
         }
         k += 1.0;
@@ -374,7 +388,7 @@ pub fn visible_fraction_exact_cost(
     let z_max = max_height_m(hf);
     Ok(map_cells(hf, observer_height_m, f32::NAN, |_, _, obs| {
         let j = exact_cost(hf, obs, &dir, z_max);
-        fraction_from_cost(j, &dir, local_horizon_tan(obs, &dir), angular_radius_rad) as f32
+        fraction_from_cost(j, &dir, angular_radius_rad) as f32
     }))
 }
 
@@ -399,7 +413,7 @@ pub fn visible_fraction_uniform(
     let z_max = max_height_m(hf);
     Ok(map_cells(hf, observer_height_m, f32::NAN, |_, _, obs| {
         let j = uniform_cost(hf, obs, &dir, z_max, step_cells);
-        fraction_from_cost(j, &dir, local_horizon_tan(obs, &dir), angular_radius_rad) as f32
+        fraction_from_cost(j, &dir, angular_radius_rad) as f32
     }))
 }
 

@@ -15,8 +15,8 @@
 //! and `visible = (π − acos d + d·sqrt(1 − d²)) / π` (eq. 7's circular segment). The
 //! extraction of eq. 6 reads `d = 2(J*(N·N_L) − r_L)/r_L`; that is the same quantity in the
 //! paper's small-angle, renderer-specific normalisation (J* scaled by the normal term). We
-//! derive `d` from exact angles instead, and take `e_h` as the higher of the terrain horizon and
-//! the observer's local horizontal plane (the Moon's body below); the paper's extra
+//! derive `d` from exact angles instead, with `e_h` the terrain horizon only (no local-horizontal
+//! bound: the curvature is in the grid's `z`, see [`crate::shadow`]); the paper's extra
 //! `max(…, 1 − J*)` term is a rendering heuristic and is not used.
 //!
 //! **Maximum mipmap.** Level 0 has one texel per *dual cell* (the square between four cell
@@ -52,8 +52,8 @@ use super::brute::{bilinear, line_height};
 use super::smap::SMap;
 use super::{
     LightDir, MASK_LIT, MASK_NODATA, MASK_SHADOW, Observer, Result, ShadowError,
-    check_observer_height, check_radius, fraction_from_cost, limb_direction, local_horizon_tan,
-    map_cells, max_height_m, unit_light,
+    check_observer_height, check_radius, fraction_from_cost, limb_direction, map_cells,
+    max_height_m, unit_light,
 };
 use crate::terrain::HeightField;
 
@@ -419,7 +419,8 @@ pub(crate) fn dp_cost_beyond(
         }
         // Exact pruning: nothing beyond s0 can have a cost below this bound.
         if s0 > 0.0 {
-            let lb = dir.tan_el - (z_max_m - obs.z_m) / (s0 * hf.px_m);
+            let lb =
+                crate::shadow::brute::cost_lower_bound(dir.tan_el, z_max_m - obs.z_m, s0 * hf.px_m);
             if lb >= search.best.min(cap) {
                 break;
             }
@@ -481,11 +482,11 @@ pub fn visible_fraction(
     let cap = full_visibility_cap(&dir, angular_radius_rad);
     Ok(map_cells(hf, observer_height_m, f32::NAN, |_, _, obs| {
         let j = dp_cost(hf, &mip, obs, &dir, z_max, cap, cfg);
-        fraction_from_cost(j, &dir, local_horizon_tan(obs, &dir), angular_radius_rad) as f32
+        fraction_from_cost(j, &dir, angular_radius_rad) as f32
     }))
 }
 
-/// DP hard mask of the disc centre (`J* > 0` and above the local horizontal): `1` lit, `0`
+/// DP hard mask of the disc centre (`J* >= 0`: no terrain above the centre ray): `1` lit, `0`
 /// shadow, `255` nodata.
 pub fn hard_mask(
     hf: &HeightField,
@@ -502,9 +503,6 @@ pub fn hard_mask(
         observer_height_m,
         MASK_NODATA,
         |_, _, obs| {
-            if dir.unit.dot(&obs.up) <= 0.0 {
-                return MASK_SHADOW;
-            }
             let j = dp_cost(hf, &mip, obs, &dir, z_max, 0.0, &cfg);
             if j < 0.0 { MASK_SHADOW } else { MASK_LIT }
         },
@@ -555,7 +553,7 @@ pub fn soft_combined(
     let cfg = DpConfig::default();
     let shadowed = |s: &Option<SMap>, d: &LightDir, obs: &Observer| match s {
         Some(s) => s.is_shadow(obs),
-        None => d.unit.dot(&obs.up) <= 0.0,
+        None => d.unit.z < 0.0,
     };
     // Class codes: 0 dark, 1 lit, 2 DP, 3 nodata.
     let out: Vec<(f32, u8)> = map_cells(hf, observer_height_m, (f32::NAN, 3u8), |_, _, obs| {
@@ -566,7 +564,7 @@ pub fn soft_combined(
             return (0.0, 0);
         }
         let j = dp_cost(hf, &mip, obs, &dir, z_max, cap, &cfg);
-        let f = fraction_from_cost(j, &dir, local_horizon_tan(obs, &dir), angular_radius_rad);
+        let f = fraction_from_cost(j, &dir, angular_radius_rad);
         (f as f32, 2)
     });
     let mut stats = CombinedStats::default();
@@ -704,9 +702,8 @@ mod tests {
                     cells += 1;
                     let e = exact_cost(&hf, &obs, &dir, z_max);
                     let d = dp_cost(&hf, &mip, &obs, &dir, z_max, cap, &DpConfig::default());
-                    let lt = local_horizon_tan(&obs, &dir);
-                    let fe = fraction_from_cost(e, &dir, lt, r_sun);
-                    let fd = fraction_from_cost(d, &dir, lt, r_sun);
+                    let fe = fraction_from_cost(e, &dir, r_sun);
+                    let fd = fraction_from_cost(d, &dir, r_sun);
                     let bad_cost = (e.min(cap) - d.min(cap)).abs() >= 1e-9;
                     let bad_fraction = (fe - fd).abs() >= 1e-6;
                     if (bad_cost || bad_fraction) && wrong_costs < 3 {

@@ -5,11 +5,12 @@
 //! `n_azimuths` azimuths `θ_n = 2πn/N` (from model north `+y`, clockwise toward east `+x`). Each
 //! sample is an **angle in radians above the model x/y plane** (the same elevation that a model
 //! space light direction has), the largest of
-//! * the terrain: `atan(max (z_s − z_obs) / t_s)` over the crossings of the horizontal ray with
-//!   the grid's centre lines (the surface convention of [`crate::shadow`], marched by
-//!   [`crate::shadow::brute`]), up to `max_distance_cells` cells, and
-//! * the observer's local horizontal plane in that azimuth (directions below it point into the
-//!   Moon; the shadow engines' "sphere below" rule).
+//! the terrain: `atan(max (z_s − z_obs) / t_s)` over the crossings of the horizontal ray with
+//! the grid's centre lines (the surface convention of [`crate::shadow`], marched by
+//! [`crate::shadow::brute`]), up to `max_distance_cells` cells. Only terrain makes the horizon
+//! (the rule of every engine, see [`crate::shadow`]): on a peak it lies below the local
+//! horizontal. A ray that meets no sample at all (a margin cell looking off the grid) gets the
+//! local horizontal, only so that the DFT sees a finite profile; no output pixel is such a cell.
 //!
 //! So `light elevation > α_h(light azimuth)` is exactly the brute-force engine's "ray not
 //! blocked" test, up to ties. Curvature is in the model-space `z`; the observer stands
@@ -48,7 +49,7 @@ use tiff::tags::Tag;
 
 use super::{
     LightDir, MASK_LIT, MASK_NODATA, MASK_SHADOW, ShadowError, brute, check_observer_height,
-    check_radius, local_horizon_tan, max_height_m, observer_at, unit_light,
+    check_radius, max_height_m, observer_at, unit_light,
 };
 use crate::illum::disc::{LimbDarkening, chord_visible_fraction};
 use crate::terrain::HeightField;
@@ -209,13 +210,17 @@ fn horizon_row(
     let max_s = max_distance_cells as f64;
     for col in 0..hf.cols {
         let cell = &mut out[col * n_az..(col + 1) * n_az];
-        let Some(obs) = observer_at(hf, row, col, observer_height_m) else {
+        let observer = if hf.evaluates(row, col) {
+            observer_at(hf, row, col, observer_height_m)
+        } else {
+            None
+        };
+        let Some(obs) = observer else {
             cell.fill(f32::NAN);
             continue;
         };
         for (v, dir) in cell.iter_mut().zip(dirs) {
-            // Start from the local horizontal: terrain below it cannot matter.
-            let mut best = local_horizon_tan(&obs, dir);
+            let mut best = f64::NEG_INFINITY;
             brute::march(hf, &obs, dir, |s, z| {
                 if s > max_s {
                     return false;
@@ -224,9 +229,14 @@ fn horizon_row(
                 if let Some(z) = z {
                     best = best.max((z - obs.z_m) / t_m);
                 }
-                // Beyond t no sample can rise above (z_max - z_obs) / t.
-                (z_max_m - obs.z_m) / t_m > best
+                // Beyond t no sample rises above (z_max - z_obs) / t' (t' >= t): the bound at t
+                // when the top is above the observer, else 0 (approached as t' grows).
+                ((z_max_m - obs.z_m) / t_m).max(0.0) > best
             });
+            if best == f64::NEG_INFINITY {
+                // No sample at all: the local horizontal, tan e = -(up_xy . a) / up_z.
+                best = -(obs.up.x * dir.unit.x + obs.up.y * dir.unit.y) / obs.up.z;
+            }
             *v = best.atan() as f32;
         }
     }

@@ -332,7 +332,7 @@ pub fn march_hard(grid: &MarchGrid, row: u32, col: u32, light: [f32; 3]) -> u32 
             return LIT;
         };
         let z_ray = z0 + t * rise_m_per_cell;
-        if z_ray > grid.z_max_m {
+        if z_ray > grid.z_max_m && rise_m_per_cell >= 0.0 {
             return LIT;
         }
         if z_surf > z_ray {
@@ -863,7 +863,7 @@ pub fn dp_fraction(grid: &MarchGrid, mip: &DpMip, obs: &DpObserver, light: [f32;
 
 /// Twin of `dp_fraction_of_cost`: the visible fraction of the disc `light` from `obs` given the
 /// shadow cost `j` of the ray towards its centre (`1e30`: nothing along the ray).
-pub fn dp_fraction_of_cost(obs: &DpObserver, light: [f32; 4], j: f32) -> f32 {
+pub fn dp_fraction_of_cost(_obs: &DpObserver, light: [f32; 4], j: f32) -> f32 {
     let l = [light[0], light[1], light[2]];
     let r = light[3];
     let hor = (l[0] * l[0] + l[1] * l[1]).sqrt();
@@ -873,8 +873,8 @@ pub fn dp_fraction_of_cost(obs: &DpObserver, light: [f32; 4], j: f32) -> f32 {
         if j < 0.5 * FAR_CELLS {
             e_h = (l[2] / hor - j).atan();
         }
-        let tan_local = -(obs.up[0] * l[0] / hor + obs.up[1] * l[1] / hor) / obs.up[2];
-        e_h = e_h.max(tan_local.atan());
+    } else if l[2] < 0.0 {
+        e_h = 0.5 * DP_PI;
     }
     let clearance = e_c - e_h;
     if r <= 0.0 {

@@ -27,11 +27,16 @@
 //!   centres restricted to those lines. Rays are tested where they cross such lines. A sample
 //!   whose two centres are not both valid (`NaN` = hole) is no terrain: rays pass.
 //! * **Blocking.** A ray is blocked at a sample if the surface is strictly above the ray.
-//! * **Grid edge.** A ray that leaves the grid is lit (no terrain outside the grid).
-//! * **The sphere below.** A light direction below the observer's local horizontal plane
-//!   (`light · up <= 0`) is blocked by the Moon itself; so a light below the horizon everywhere
-//!   gives an all-dark map, not an error (the dip of the horizon for an observer a few metres up,
-//!   `sqrt(2h/R)` ≈ 0.08° at 2 m, is ignored).
+//! * **Only terrain blocks.** A ray is blocked only by the terrain surface of the grid (which
+//!   holds every DEM layer, the finest with data at each point, and the sphere's curvature in
+//!   `z`). There is **no shortcut on the sign of the elevation**: a light below the observer's
+//!   local horizontal plane is lit when the terrain falls away faster than the ray (a peak or a
+//!   rim sees the Sun down to its horizon dip, ≈ 2.7° from 2 km above the sphere). This is the
+//!   rule of the per-site horizon engine ([`crate::horizon`]); `docs/ARCHITECTURE.md` states it
+//!   once for every engine.
+//! * **Grid edge.** A ray that leaves the grid is lit (no terrain beyond the outermost layer).
+//!   When it leaves below the reference sphere, or meets the sphere further on, the real Moon
+//!   would block it: the map products count such cells ([`lit_exits_below_sphere`]) and warn.
 
 pub mod accuracy;
 pub mod brute;
@@ -274,18 +279,58 @@ pub(crate) fn observer_at(
     })
 }
 
-/// Tangent of the elevation (above the model x/y plane) of the observer's local horizontal plane
-/// in the horizontal azimuth of `light`: directions below it point into the Moon.
-#[inline]
-pub(crate) fn local_horizon_tan(obs: &Observer, light: &LightDir) -> f64 {
+/// Whether the ray from `obs` toward `light`, after it leaves the grid's horizontal extent, is
+/// below the reference sphere there or meets it further on: the DEM is too small for that cell
+/// and that light, since the real Moon would block the ray. A ray that goes straight up never
+/// does; one straight down always does.
+pub(crate) fn exits_below_sphere(hf: &HeightField, obs: &Observer, light: &LightDir) -> bool {
     if light.hor == 0.0 {
-        return f64::NEG_INFINITY;
+        return light.unit.z < 0.0;
     }
-    // A direction (cos e * a, sin e) with a = horizontal unit azimuth is horizontal when
-    // up_xy . a cos e + up_z sin e = 0, i.e. tan e = -(up_xy . a) / up_z.
-    let ax = light.unit.x / light.hor;
-    let ay = light.unit.y / light.hor;
-    -(obs.up.x * ax + obs.up.y * ay) / obs.up.z
+    // Horizontal distance (cells) to the grid's outer edge (cell edges, -0.5 .. n - 0.5).
+    let exit = |p: f64, d: f64, n: usize| -> f64 {
+        if d > 0.0 {
+            (n as f64 - 0.5 - p) / d
+        } else if d < 0.0 {
+            (-0.5 - p) / d
+        } else {
+            f64::INFINITY
+        }
+    };
+    let s = exit(obs.col, light.dcol, hf.cols).min(exit(obs.row, light.drow, hf.rows));
+    let (row, col) = (obs.row + s * light.drow, obs.col + s * light.dcol);
+    let (x, y) = hf.xy_from_row_col(row, col);
+    let z_ray = obs.z_m + s * hf.px_m * light.tan_el;
+    // The sphere's centre is (0, 0, -R) in model space. With w = exit point - centre, the ray
+    // w + t L (t >= 0) meets the sphere iff |w| < R, or b = w.L < 0 and b² >= |w|² - R².
+    let r = crate::MOON_RADIUS_M;
+    let w = Vector3::new(x, y, z_ray + r);
+    let c = w.norm_squared() - r * r;
+    if c < 0.0 {
+        return true;
+    }
+    let b = w.dot(&light.unit);
+    b < 0.0 && b * b >= c
+}
+
+/// For every evaluated cell (see [`map_cells`]) for which `lit(index)` holds: whether its ray
+/// toward `light_in_model` leaves the grid below the reference sphere
+/// ([`exits_below_sphere`]). Cells not counted are `false`.
+pub fn lit_exits_below_sphere<F>(
+    hf: &HeightField,
+    observer_height_m: f64,
+    light_in_model: [f64; 3],
+    lit: F,
+) -> Result<Vec<bool>>
+where
+    F: Fn(usize) -> bool + Sync,
+{
+    check_observer_height(observer_height_m)?;
+    let dir = LightDir::new(unit_light(light_in_model)?);
+    let cols = hf.cols;
+    Ok(map_cells(hf, observer_height_m, false, |row, col, obs| {
+        lit(row * cols + col) && exits_below_sphere(hf, obs, &dir)
+    }))
 }
 
 /// Largest valid height of the field (model z, m); `-inf` if all cells are holes.
@@ -314,22 +359,20 @@ pub fn disc_fraction_above_edge(clearance_rad: f64, angular_radius_rad: f64) -> 
 /// Visible fraction of the disc from the minimum shadow cost `j_min = min over the ray of
 /// Δh / t` (tan units; `+inf` when nothing is along the ray) under the prism assumption of paper
 /// 000/003 §3.4: the occluder's edge is horizontal across the disc. With `tan(e_c)` the centre's
-/// elevation, the horizon along the centre azimuth has `tan(e_h) = tan(e_c) - J*`; the local
-/// horizontal plane `tan_local` is a second (lower-bound) horizon.
+/// elevation, the horizon along the centre azimuth has `tan(e_h) = tan(e_c) - J*`. Only terrain
+/// makes a horizon (no local-horizontal lower bound: see the module docs).
 #[inline]
-pub(crate) fn fraction_from_cost(
-    j_min: f64,
-    light: &LightDir,
-    tan_local: f64,
-    angular_radius_rad: f64,
-) -> f64 {
+pub(crate) fn fraction_from_cost(j_min: f64, light: &LightDir, angular_radius_rad: f64) -> f64 {
+    if light.hor == 0.0 {
+        // Straight up: nothing above; straight down: the observer's own ground.
+        return if light.unit.z > 0.0 { 1.0 } else { 0.0 };
+    }
     let e_c = light.elevation_rad();
-    let e_terrain = if j_min.is_finite() {
+    let e_h = if j_min.is_finite() {
         (light.tan_el - j_min).atan()
     } else {
         f64::NEG_INFINITY
     };
-    let e_h = e_terrain.max(tan_local.atan());
     disc_fraction_above_edge(e_c - e_h, angular_radius_rad)
 }
 
@@ -347,7 +390,8 @@ pub(crate) fn limb_direction(light: &LightDir, angular_radius_rad: f64, sign: f6
     [e.cos() * ax, e.cos() * ay, e.sin()]
 }
 
-/// Runs `f(row, col, observer)` for every cell in parallel over rows; holes give `nodata`.
+/// Runs `f(row, col, observer)` for every cell in parallel over rows; holes and cells outside
+/// [`HeightField::window`] give `nodata`.
 pub(crate) fn map_cells<T, F>(hf: &HeightField, observer_height_m: f64, nodata: T, f: F) -> Vec<T>
 where
     T: Copy + Send + Sync,
@@ -361,6 +405,9 @@ where
         .enumerate()
         .for_each(|(row, line)| {
             for (col, v) in line.iter_mut().enumerate() {
+                if !hf.evaluates(row, col) {
+                    continue;
+                }
                 if let Some(obs) = observer_at(hf, row, col, observer_height_m) {
                     *v = f(row, col, &obs);
                 }

@@ -72,8 +72,6 @@ pub struct SMap {
     next: Vec<i32>,
     /// Largest terrain height, m.
     z_max_m: f64,
-    /// The light.
-    dir: LightDir,
 }
 
 impl SMap {
@@ -113,7 +111,6 @@ impl SMap {
             black: Vec::new(),
             next: Vec::new(),
             z_max_m: max_height_m(hf),
-            dir,
         };
         smap.z.par_chunks_mut(nu).enumerate().for_each(|(v, line)| {
             for (u, z) in line.iter_mut().enumerate() {
@@ -274,9 +271,6 @@ impl SMap {
     /// `IsShadow` (paper §8) for the ray of one observer.
     #[inline]
     pub(crate) fn is_shadow(&self, obs: &Observer) -> bool {
-        if self.dir.unit.dot(&obs.up) <= 0.0 {
-            return true;
-        }
         let (u_f, v_f) = self.uv_of(obs.row, obs.col);
         // Advance to the first integral line toward the light (strictly ahead of the observer).
         let v1 = v_f.ceil() - 1.0;
@@ -298,7 +292,8 @@ impl SMap {
                 return false;
             }
             let w = w_at(vf);
-            if w > self.z_max_m {
+            // Above all terrain and not descending: lit (a descending ray comes down again).
+            if w > self.z_max_m && self.rise_m >= 0.0 {
                 return false;
             }
             if (first || self.black[base + v as usize])
@@ -390,7 +385,7 @@ pub fn hard_mask(
         |_, _, obs| {
             let shadow = match &smap {
                 Some(s) => s.is_shadow(obs),
-                None => dir.unit.dot(&obs.up) <= 0.0,
+                None => dir.unit.z < 0.0,
             };
             if shadow { MASK_SHADOW } else { MASK_LIT }
         },

@@ -48,6 +48,27 @@ pub struct HeightField {
     pub centre_lat_deg: f64,
     /// East longitude of the model-space origin `C`, degrees.
     pub centre_lon_deg: f64,
+    /// The cells whose results are wanted (`None`: all). A map's grid covers every DEM layer so
+    /// that all of them cast shadows, but only the cells under the output raster are evaluated;
+    /// the CPU engines leave the others at their nodata value (the terrain there still blocks).
+    pub window: Option<CellWindow>,
+}
+
+/// A half-open rectangle of cells `rows.0 .. rows.1` x `cols.0 .. cols.1`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct CellWindow {
+    /// First and one-past-last row.
+    pub rows: (usize, usize),
+    /// First and one-past-last column.
+    pub cols: (usize, usize),
+}
+
+impl CellWindow {
+    /// Whether cell (row, col) is inside.
+    #[inline]
+    pub fn contains(&self, row: usize, col: usize) -> bool {
+        (self.rows.0..self.rows.1).contains(&row) && (self.cols.0..self.cols.1).contains(&col)
+    }
 }
 
 impl HeightField {
@@ -63,7 +84,14 @@ impl HeightField {
             z_m: vec![0.0; rows * cols],
             centre_lat_deg: -90.0,
             centre_lon_deg: 0.0,
+            window: None,
         }
+    }
+
+    /// Whether the results of cell (row, col) are wanted (inside [`HeightField::window`]).
+    #[inline]
+    pub fn evaluates(&self, row: usize, col: usize) -> bool {
+        self.window.is_none_or(|w| w.contains(row, col))
     }
 
     /// Height at cell (row, col), metres; `None` outside the grid or in a hole.

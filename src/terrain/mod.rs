@@ -22,7 +22,7 @@ pub use geotiff::{
     read_geotiff, write_dem, write_geotiff_f32, write_geotiff_u8, write_geotiff_u16,
 };
 pub use grid::{Dem, GridGeometry, Projection, TerrainStack};
-pub use heightfield::HeightField;
+pub use heightfield::{CellWindow, HeightField};
 pub use info::DemInfo;
 pub use model_space::{ModelFrame, ModelGridSpec, ResampleStats, resample_to_model_space};
 

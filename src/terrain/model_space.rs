@@ -98,6 +98,7 @@ pub fn resample_to_model_space(
         z_m: vec![f32::NAN; spec.rows * spec.cols],
         centre_lat_deg: spec.centre_lat_deg,
         centre_lon_deg: spec.centre_lon_deg,
+        window: None,
     };
     let frame = ModelFrame::new(spec.centre_lat_deg, spec.centre_lon_deg);
     let geometry = HfGeometry {

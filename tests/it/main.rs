@@ -1,5 +1,6 @@
 //! penumbra's integration tests: one binary, one module per area (anise/ripgrep layout).
 
+mod blocking;
 mod ephem;
 mod fourier;
 mod gpu;
