@@ -4,7 +4,7 @@
 // (n = az0 .. az0 + az_count) it marches the horizontal ray over every crossing with the lattice
 // lines of cell centres (the DDA of shared/march.wgsl, the surface convention of the brute-force
 // engine), keeps the largest tan of the terrain's elevation seen from the observer (terrain
-// only; the local horizontal only when no sample lies along the ray), takes atan, and folds the sample straight into the truncated DFT:
+// only: -90 degrees when no sample lies along the ray), takes atan, and folds the sample straight into the truncated DFT:
 // acc_k += alpha_n (cos k theta_n, -sin k theta_n). No per-azimuth samples are stored; the
 // partial sums live in `coeffs` between dispatches (azimuth chunks keep each dispatch short).
 // The last dispatch multiplies by the eq. 3 weights (1/N for k = 0, 2/N else).
@@ -57,9 +57,8 @@ struct FourierBuildParams {
 // Largest tan(elevation) of the terrain along the horizontal ray from (u0, v0, z0) with grid
 // direction (du, dv) (unit), at least `start_tan`. Crossings from dda_next of shared/march.wgsl
 // (clamped within FB_EDGE_TOL_CELLS of the edge lines); stops at the grid edge, beyond max_distance_cells, or once no sample can beat the best: (z_max - z0) / t <= best.
-// Start value of `horizon_tan` (below any terrain tangent) and the test for "no terrain".
+// Start value of `horizon_tan`: below any terrain tangent.
 const FB_NO_TERRAIN_TAN: f32 = -1.0e30;
-const FB_NO_TERRAIN_TEST: f32 = -1.0e20;
 
 fn horizon_tan(u0: f32, v0: f32, z0: f32, du: f32, dv: f32, start_tan: f32) -> f32 {
     var best = start_tan;
@@ -121,12 +120,8 @@ fn fourier_build(@builtin(global_invocation_id) gid: vec3<u32>) {
         // (sin, cos) of the azimuth: east, north components; rows grow southwards.
         let sc = fb_sincos[n];
         // Only terrain makes the horizon; a ray with no terrain sample at all (a margin cell
-        // looking off the grid) gets the local horizontal so that the DFT sees a finite value.
-        var t_h = horizon_tan(u0, v0, z0, sc.x, -sc.y, FB_NO_TERRAIN_TAN);
-        if t_h < FB_NO_TERRAIN_TEST {
-            t_h = -(up.x * sc.x + up.y * sc.y) / up.z;
-        }
-        let alpha = atan(t_h);
+        // looking off the grid) gets atan(-1e30) = -90 degrees.
+        let alpha = atan(horizon_tan(u0, v0, z0, sc.x, -sc.y, FB_NO_TERRAIN_TAN));
         var m = 0u;
         for (var k = 0u; k < fb.n_coeffs; k++) {
             let tw = fb_sincos[m];

@@ -168,7 +168,6 @@ impl SmapDpSites {
                 row: row.clamp(0.0, (hf.rows - 1) as f64),
                 col: col.clamp(0.0, (hf.cols - 1) as f64),
                 z_m: p.z,
-                up,
             });
             ground_height_m.push(ground_m);
         }

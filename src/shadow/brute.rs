@@ -449,7 +449,6 @@ mod tests {
             row: 10.0,
             col: 10.0,
             z_m: 0.0,
-            up: Vector3::z(),
         };
         let dir = LightDir::new(Vector3::new(3.0, 1.0, 0.1).normalize());
         let mut n = 0;

@@ -9,8 +9,7 @@
 //! the grid's centre lines (the surface convention of [`crate::shadow`], marched by
 //! [`crate::shadow::brute`]), up to `max_distance_cells` cells. Only terrain makes the horizon
 //! (the rule of every engine, see [`crate::shadow`]): on a peak it lies below the local
-//! horizontal. A ray that meets no sample at all (a margin cell looking off the grid) gets the
-//! local horizontal, only so that the DFT sees a finite profile; no output pixel is such a cell.
+//! horizontal. A ray that meets no sample at all (a margin cell looking off the grid) gets −90°.
 //!
 //! So `light elevation > α_h(light azimuth)` is exactly the brute-force engine's "ray not
 //! blocked" test, up to ties. Curvature is in the model-space `z`; the observer stands
@@ -233,10 +232,7 @@ fn horizon_row(
                 // when the top is above the observer, else 0 (approached as t' grows).
                 ((z_max_m - obs.z_m) / t_m).max(0.0) > best
             });
-            if best == f64::NEG_INFINITY {
-                // No sample at all: the local horizontal, tan e = -(up_xy . a) / up_z.
-                best = -(obs.up.x * dir.unit.x + obs.up.y * dir.unit.y) / obs.up.z;
-            }
+            // No sample at all (a margin cell looking off the grid): -90°, finite for the DFT.
             *v = best.atan() as f32;
         }
     }

@@ -12,7 +12,7 @@
 //! **Build** (one invocation per cell): for each azimuth `θ_n = 2πn/N` the horizontal ray is
 //! marched over every crossing with the lines joining cell centres (the DDA of
 //! [`super::gpu_twins::march_hard`], the brute-force engine's surface), keeping the largest
-//! `(z − z_obs) / t` (terrain only; the local horizontal when no sample lies along the ray), until the grid edge, the distance
+//! `(z − z_obs) / t` (terrain only; −90° when no sample lies along the ray), until the grid edge, the distance
 //! limit, or `(z_max − z_obs) / t ≤ best`; `α_n = atan(best)` is folded straight into the DFT sums
 //! `acc_k += α_n (cos kθ_n, −sin kθ_n)` with the twiddles read from the same `(sin, cos)` table at
 //! index `k n mod N`. The azimuths of a build are split into dispatches of `az_count`; the partial
@@ -73,10 +73,9 @@ pub fn azimuth_table(n_az: usize) -> Vec<[f32; 2]> {
         .collect()
 }
 
-/// `FB_NO_TERRAIN_TAN` of `shaders/fourier_build.wgsl`: start value below any terrain tangent.
+/// `FB_NO_TERRAIN_TAN` of `shaders/fourier_build.wgsl`: start value below any terrain tangent
+/// (a ray without terrain samples gets `atan(-1e30)` = −90°).
 pub const NO_TERRAIN_TAN: f32 = -1.0e30;
-/// `FB_NO_TERRAIN_TEST`: a horizon tangent below this means no terrain sample along the ray.
-pub const NO_TERRAIN_TEST: f32 = -1.0e20;
 
 /// Twin of `horizon_tan` in `shaders/fourier_build.wgsl`: the largest `tan` of the terrain's
 /// elevation along the horizontal ray from `(u0, v0, z0)` in grid direction `(du, dv)`, at least
@@ -146,7 +145,7 @@ pub fn fourier_build_cell(
     for a in 0..fb.az_count {
         let n = fb.az0 + a;
         let sc = sincos[n as usize];
-        let mut t_h = horizon_tan(
+        let alpha = horizon_tan(
             grid,
             fb.max_distance_cells,
             u0,
@@ -155,11 +154,8 @@ pub fn fourier_build_cell(
             sc[0],
             -sc[1],
             NO_TERRAIN_TAN,
-        );
-        if t_h < NO_TERRAIN_TEST {
-            t_h = -(up[0] * sc[0] + up[1] * sc[1]) / up[2];
-        }
-        let alpha = t_h.atan();
+        )
+        .atan();
         let mut m = 0_u32;
         for k in 0..fb.n_coeffs as usize {
             let tw = sincos[m as usize];

@@ -251,8 +251,6 @@ pub(crate) struct Observer {
     pub col: f64,
     /// Model z of the observer, metres.
     pub z_m: f64,
-    /// Local radial ("up") direction at the observer, model space.
-    pub up: Vector3<f64>,
 }
 
 /// The observer standing `observer_height_m` above the surface point of cell (row, col), or
@@ -275,7 +273,6 @@ pub(crate) fn observer_at(
         row: r.clamp(0.0, (hf.rows - 1) as f64),
         col: c.clamp(0.0, (hf.cols - 1) as f64),
         z_m: p.z,
-        up,
     })
 }
 
@@ -313,9 +310,9 @@ pub(crate) fn exits_below_sphere(hf: &HeightField, obs: &Observer, light: &Light
     b < 0.0 && b * b >= c
 }
 
-/// For every evaluated cell (see [`map_cells`]) for which `lit(index)` holds: whether its ray
-/// toward `light_in_model` leaves the grid below the reference sphere
-/// ([`exits_below_sphere`]). Cells not counted are `false`.
+/// For every evaluated cell (under [`HeightField::window`]) for which `lit(index)` holds:
+/// whether its ray toward `light_in_model`, once it leaves the grid, is below the reference
+/// sphere or meets it further on (the DEM is too small there). Other cells are `false`.
 pub fn lit_exits_below_sphere<F>(
     hf: &HeightField,
     observer_height_m: f64,

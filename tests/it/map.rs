@@ -34,8 +34,8 @@ fn map_synthetic_az135(dir: &std::path::Path, engine: &str, el_deg: &str, output
 #[test]
 fn one_light_maps_carry_the_dem_georeferencing_and_obey_the_horizon() {
     let dir = tempfile::tempdir().unwrap();
-    // Sun 30° up with SMap and with the brute-force reference; Sun 5° below the horizon: everything
-    // dark (not an error).
+    // Sun 30° up with SMap and with the brute-force reference; Sun 5° below the horizon: almost
+    // everything dark (not an error).
     for (engine, el, name) in [
         ("smap", "30", "high"),
         ("brute", "30", "ref"),
@@ -99,12 +99,15 @@ fn one_light_maps_carry_the_dem_georeferencing_and_obey_the_horizon() {
         "30° Sun lights most cells: {}",
         mean("high_frac.tif")
     );
-    assert_eq!(
-        mean("below_frac.tif"),
-        0.0,
-        "a Sun below the horizon lights nothing"
+    // A Sun 5° below the horizontal at the centre: only terrain blocks (docs/ARCHITECTURE.md), so
+    // the cells lit are those whose rays leave this 40 km DEM above its terrain (edges, summits
+    // facing out; the run warns that the Moon beyond the DEM would block them): a few percent.
+    let (below_frac, below_mask) = (mean("below_frac.tif"), mean("below_mask.tif"));
+    eprintln!("Sun at -5°: mean fraction {below_frac:.4}, mean mask {below_mask:.4}");
+    assert!(
+        below_frac < 0.05 && below_mask < 0.05,
+        "a Sun 5° below the horizon lights almost nothing: {below_frac} {below_mask}"
     );
-    assert_eq!(mean("below_mask.tif"), 0.0);
 }
 
 #[test]

@@ -75,8 +75,16 @@ fn flat_plane_is_lit_above_and_dark_below_the_horizon() {
         for engine in [Engine::Brute, Engine::Smap, Engine::Dp, Engine::Combined] {
             let lit = engine.hard_mask(&hf, 0.0, up).unwrap();
             assert!(lit.iter().all(|&v| v == MASK_LIT), "{engine:?} az {az}");
+            // Only terrain blocks: a ray 0.5° down from 2 m meets the plane 229 m (2.3 cells)
+            // out; cells nearer the edge toward the light see past the grid (no terrain there).
+            let interior = |i: usize| (4..44).contains(&(i / 48)) && (4..44).contains(&(i % 48));
             let dark = engine.hard_mask(&hf, 2.0, down).unwrap();
-            assert!(dark.iter().all(|&v| v == MASK_SHADOW), "{engine:?} az {az}");
+            assert!(
+                dark.iter()
+                    .enumerate()
+                    .all(|(i, &v)| !interior(i) || v == MASK_SHADOW),
+                "{engine:?} az {az}"
+            );
             let f_up = engine
                 .visible_fraction(&hf, 0.0, up, SUN_ANGULAR_RADIUS_RAD)
                 .unwrap();
@@ -84,7 +92,13 @@ fn flat_plane_is_lit_above_and_dark_below_the_horizon() {
             let f_down = engine
                 .visible_fraction(&hf, 0.0, down, SUN_ANGULAR_RADIUS_RAD)
                 .unwrap();
-            assert!(f_down.iter().all(|&f| f == 0.0), "{engine:?} az {az}");
+            assert!(
+                f_down
+                    .iter()
+                    .enumerate()
+                    .all(|(i, &f)| !interior(i) || f == 0.0),
+                "{engine:?} az {az}"
+            );
         }
     }
 }
