@@ -529,8 +529,8 @@ fn run_map(args: &crate::cli::MapArgs) -> anyhow::Result<()> {
         prov.outputs = files;
         prov.backend = backend_note;
         prov.map_rays_blocked_beyond_dem = stats.below_sphere;
-        if let Some(w) = stats.below_sphere.and_then(|b| b.warning()) {
-            eprintln!("{w}");
+        if let Some(b) = stats.below_sphere {
+            b.warn();
         }
         prov.wall_time_s = t0.elapsed().as_secs_f64();
         prov.write(&out_dir.join("run.json"))?;
@@ -606,9 +606,7 @@ fn run_map(args: &crate::cli::MapArgs) -> anyhow::Result<()> {
     };
     if let Some(path) = &args.out_fraction {
         let f = fraction(sun, sun_radius_rad)?;
-        if let Some(w) = grid.below_sphere_exits(h_m, sun, &f)?.warning() {
-            eprintln!("{w}");
-        }
+        grid.below_sphere_exits(h_m, sun, &f)?.warn();
         grid.write_f32(
             path,
             &grid.to_output_f32(&f),

@@ -95,22 +95,12 @@ impl MapGrid {
         let out_half_rows = (max_y / px_m).ceil() as usize + 2;
         let (mut all_x, mut all_y) = (max_x, max_y);
         for layer in &stack.layers[1..] {
-            let (x0, y0, x1, y1) = layer.grid.bounds_m();
-            const N: usize = 256;
-            for k in 0..=N {
-                let f = k as f64 / N as f64;
-                for (x, y) in [
-                    (x0 + f * (x1 - x0), y0),
-                    (x0 + f * (x1 - x0), y1),
-                    (x0, y0 + f * (y1 - y0)),
-                    (x1, y0 + f * (y1 - y0)),
-                ] {
-                    let (lat, lon) = layer.projection.lat_lon_from_xy(x, y);
-                    let p = frame.model_from_lat_lon_height(lat, lon, 0.0);
-                    if p.x.is_finite() && p.y.is_finite() {
-                        all_x = all_x.max(p.x.abs());
-                        all_y = all_y.max(p.y.abs());
-                    }
+            for (x, y) in layer.grid.edge_points_m(256) {
+                let (lat, lon) = layer.projection.lat_lon_from_xy(x, y);
+                let p = frame.model_from_lat_lon_height(lat, lon, 0.0);
+                if p.x.is_finite() && p.y.is_finite() {
+                    all_x = all_x.max(p.x.abs());
+                    all_y = all_y.max(p.y.abs());
                 }
             }
         }
@@ -180,27 +170,66 @@ impl MapGrid {
     }
 
     /// How many cells lit per `fraction` (model grid, `> VISIBLE_MIN_FRACTION`) rest on a ray
-    /// toward `light_in_model` that leaves the DEM below the reference sphere.
+    /// toward `light_in_model` that leaves the DEM toward the reference sphere.
     pub fn below_sphere_exits(
         &self,
         observer_height_m: f64,
         light_in_model: [f64; 3],
         fraction: &[f32],
     ) -> anyhow::Result<BelowSphereExits> {
+        let mut tally = BelowSphereTally::new(self);
+        tally.add(self, observer_height_m, light_in_model, fraction)?;
+        Ok(tally.finish(self))
+    }
+}
+
+/// Accumulates [`BelowSphereExits`] over the epochs of a map: which cells were ever lit by such a
+/// ray, and how many (cell, epoch) results were.
+struct BelowSphereTally {
+    any: Vec<bool>,
+    cell_epochs: u64,
+}
+
+impl BelowSphereTally {
+    fn new(grid: &MapGrid) -> Self {
+        BelowSphereTally {
+            any: vec![false; grid.hf.rows * grid.hf.cols],
+            cell_epochs: 0,
+        }
+    }
+
+    /// Adds one epoch's Sun `fraction` (model grid) for the light `light_in_model`.
+    fn add(
+        &mut self,
+        grid: &MapGrid,
+        observer_height_m: f64,
+        light_in_model: [f64; 3],
+        fraction: &[f32],
+    ) -> anyhow::Result<()> {
         let below = crate::shadow::lit_exits_below_sphere(
-            &self.hf,
+            &grid.hf,
             observer_height_m,
             light_in_model,
             |i| fraction[i] > VISIBLE_MIN_FRACTION,
         )?;
-        let cells = below.iter().filter(|&&b| b).count() as u64;
-        Ok(BelowSphereExits {
-            cells,
-            cell_epochs: cells,
-            cells_total: self.evaluated_cells() as u64,
-        })
+        self.cell_epochs += below.iter().filter(|&&b| b).count() as u64;
+        self.any
+            .par_iter_mut()
+            .zip(&below)
+            .for_each(|(any, &b)| *any |= b);
+        Ok(())
     }
 
+    fn finish(self, grid: &MapGrid) -> BelowSphereExits {
+        BelowSphereExits {
+            cells: self.any.iter().filter(|&&b| b).count() as u64,
+            cell_epochs: self.cell_epochs,
+            cells_total: grid.evaluated_cells() as u64,
+        }
+    }
+}
+
+impl MapGrid {
     /// A unit light direction in model space from a direction in `MOON_ME`.
     pub fn light_from_moon_me(&self, dir_in_moon_me: &Vector3<f64>) -> [f64; 3] {
         let v = self.hf.model_from_moon_me() * dir_in_moon_me;
@@ -495,19 +524,10 @@ pub fn sweep(
     };
     let mut sun_and_earth_count = vec![0_u32; n];
     let mut current_dark = vec![0_u32; n];
-    let mut below_any = vec![false; n];
-    let mut below_cell_epochs = 0_u64;
+    let mut below = BelowSphereTally::new(grid);
     for l in lights {
         let sun = engine.visible_fraction(&grid.hf, observer_height_m, l.sun, l.sun_radius_rad)?;
-        let below =
-            crate::shadow::lit_exits_below_sphere(&grid.hf, observer_height_m, l.sun, |i| {
-                sun[i] > VISIBLE_MIN_FRACTION
-            })?;
-        below_cell_epochs += below.iter().filter(|&&b| b).count() as u64;
-        below_any
-            .par_iter_mut()
-            .zip(&below)
-            .for_each(|(any, &b)| *any |= b);
+        below.add(grid, observer_height_m, l.sun, &sun)?;
         let earth =
             engine.visible_fraction(&grid.hf, observer_height_m, l.earth, l.earth_radius_rad)?;
         s.sun_fraction_sum
@@ -543,11 +563,7 @@ pub fn sweep(
         progress.inc(1);
     }
     s.sun_and_earth_count = Some(sun_and_earth_count);
-    s.below_sphere = Some(BelowSphereExits {
-        cells: below_any.iter().filter(|&&b| b).count() as u64,
-        cell_epochs: below_cell_epochs,
-        cells_total: grid.evaluated_cells() as u64,
-    });
+    s.below_sphere = Some(below.finish(grid));
     Ok(s)
 }
 

@@ -43,7 +43,8 @@
 //!
 //! *No local-horizontal floor* (the one blocking rule of every engine, [`crate::shadow`]). A site
 //! on a slope or a rim sees below that plane (the horizon engine reports horizons of −13° on the
-//! synthetic ridge), so here, as in the horizon engine and the map engines, the horizon is the highest terrain sample of the grid along the ray,
+//! synthetic ridge), so here, as in the horizon engine and the map engines, the horizon is the
+//! highest terrain sample of the grid along the ray,
 //! whatever its sign; on a flat sphere that is the dip of the geometric horizon.
 //!
 //! **Horizon profile** (for `horizon.csv`, the plots and the CSV's horizon columns): per azimuth

@@ -272,22 +272,12 @@ impl<'a> HorizonEngine<'a> {
     pub(super) fn theta_max_rad(&self, up: &Vector3<f64>) -> f64 {
         let mut theta_max: f64 = 0.0;
         for dem in &self.stack.layers {
-            let (x0, y0, x1, y1) = dem.grid.bounds_m();
-            const N: usize = 64;
-            for k in 0..=N {
-                let f = k as f64 / N as f64;
-                for (x, y) in [
-                    (x0 + f * (x1 - x0), y0),
-                    (x0 + f * (x1 - x0), y1),
-                    (x0, y0 + f * (y1 - y0)),
-                    (x1, y0 + f * (y1 - y0)),
-                ] {
-                    let (lat, lon) = dem.projection.lat_lon_from_xy(x, y);
-                    let (slat, clat) = lat.to_radians().sin_cos();
-                    let (slon, clon) = lon.to_radians().sin_cos();
-                    let u = Vector3::new(clat * clon, clat * slon, slat);
-                    theta_max = theta_max.max(up.dot(&u).clamp(-1.0, 1.0).acos());
-                }
+            for (x, y) in dem.grid.edge_points_m(64) {
+                let (lat, lon) = dem.projection.lat_lon_from_xy(x, y);
+                let (slat, clat) = lat.to_radians().sin_cos();
+                let (slon, clon) = lon.to_radians().sin_cos();
+                let u = Vector3::new(clat * clon, clat * slon, slat);
+                theta_max = theta_max.max(up.dot(&u).clamp(-1.0, 1.0).acos());
             }
         }
         (theta_max * 1.01).min(std::f64::consts::FRAC_PI_2 * 0.999)

@@ -134,16 +134,16 @@ pub struct BelowSphereExits {
 }
 
 impl BelowSphereExits {
-    /// The one-line warning for the terminal, or `None` when nothing left below the sphere.
-    pub fn warning(&self) -> Option<String> {
-        (self.cells > 0).then(|| {
-            format!(
+    /// Prints the one-line warning on stderr when any cell rests on such a ray.
+    pub fn warn(&self) {
+        if self.cells > 0 {
+            eprintln!(
                 "penumbra: warning: {} of {} map cells ({} cell-epochs) are lit by rays that leave \
                  the DEM toward the reference sphere, where the real Moon would block them; \
                  add a far-field layer (--dem) that covers their horizon",
                 self.cells, self.cells_total, self.cell_epochs
-            )
-        })
+            );
+        }
     }
 }
 

@@ -815,8 +815,8 @@ fn run_map_spec(
         spec.step
     );
     let files = crate::map::write_sweep(&grid, &stats, &dir, &span)?;
-    if let Some(w) = stats.below_sphere.and_then(|b| b.warning()) {
-        eprintln!("{w}");
+    if let Some(b) = stats.below_sphere {
+        b.warn();
     }
     Ok((files, stats.below_sphere))
 }

@@ -335,7 +335,7 @@ impl RaySearch<'_> {
 }
 
 /// Distance (cells) at which the ray from `obs` leaves the centre-coordinate rectangle.
-fn exit_distance(hf: &HeightField, obs: &Observer, dir: &LightDir) -> f64 {
+pub(crate) fn exit_distance(hf: &HeightField, obs: &Observer, dir: &LightDir) -> f64 {
     // Same rounding tolerance as the brute-force march (a ray along an edge line with a
     // 1e-16 component across it must not exit at once).
     const TOL: f64 = 1e-9;

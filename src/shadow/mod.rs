@@ -276,7 +276,7 @@ pub(crate) fn observer_at(
     })
 }
 
-/// Whether the ray from `obs` toward `light`, after it leaves the grid's horizontal extent, is
+/// Whether the ray from `obs` toward `light`, after it leaves the grid's terrain, is
 /// below the reference sphere there or meets it further on: the DEM is too small for that cell
 /// and that light, since the real Moon would block the ray. A ray that goes straight up never
 /// does; one straight down always does.
@@ -284,17 +284,8 @@ pub(crate) fn exits_below_sphere(hf: &HeightField, obs: &Observer, light: &Light
     if light.hor == 0.0 {
         return light.unit.z < 0.0;
     }
-    // Horizontal distance (cells) to the grid's outer edge (cell edges, -0.5 .. n - 0.5).
-    let exit = |p: f64, d: f64, n: usize| -> f64 {
-        if d > 0.0 {
-            (n as f64 - 0.5 - p) / d
-        } else if d < 0.0 {
-            (-0.5 - p) / d
-        } else {
-            f64::INFINITY
-        }
-    };
-    let s = exit(obs.col, light.dcol, hf.cols).min(exit(obs.row, light.drow, hf.rows));
+    // Where the ray leaves the terrain: the last centre line it crosses.
+    let s = dp::exit_distance(hf, obs, light);
     let (row, col) = (obs.row + s * light.drow, obs.col + s * light.dcol);
     let (x, y) = hf.xy_from_row_col(row, col);
     let z_ray = obs.z_m + s * hf.px_m * light.tan_el;

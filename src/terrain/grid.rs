@@ -205,6 +205,23 @@ impl GridGeometry {
         )
     }
 
+    /// Points on the outer cell edges (map metres): `per_side + 1` evenly spaced on each of the
+    /// four sides, corners included. For bounding the grid's extent in another frame, where the
+    /// image of a side is curved.
+    pub fn edge_points_m(&self, per_side: usize) -> impl Iterator<Item = (f64, f64)> {
+        let (x0, y0, x1, y1) = self.bounds_m();
+        let n = per_side.max(1);
+        (0..=n).flat_map(move |k| {
+            let f = k as f64 / n as f64;
+            [
+                (x0 + f * (x1 - x0), y0),
+                (x0 + f * (x1 - x0), y1),
+                (x0, y0 + f * (y1 - y0)),
+                (x1, y0 + f * (y1 - y0)),
+            ]
+        })
+    }
+
     /// Whether a map point lies inside the outer cell edges.
     pub fn contains_xy(&self, x_m: f64, y_m: f64) -> bool {
         let (x0, y0, x1, y1) = self.bounds_m();

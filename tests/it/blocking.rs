@@ -43,6 +43,54 @@ fn summit_value(dir: &std::path::Path, name: &str) -> f32 {
     dem.heights_m[APEX_ROW * N + APEX_COL]
 }
 
+/// `penumbra map` of the cone for one light (engine, backend, az / el at the map centre, deg),
+/// writing `m.tif` (mask) and `f.tif` (fraction) into `dir`.
+fn cone_map(
+    dir: &std::path::Path,
+    cone: &str,
+    engine: &str,
+    backend: &str,
+    az_deg: f64,
+    el_deg: f64,
+) -> std::process::Output {
+    let (az, el) = (format!("{az_deg}"), format!("{el_deg}"));
+    penumbra(
+        dir,
+        &[
+            "map",
+            "--dem",
+            cone,
+            "--engine",
+            engine,
+            "--backend",
+            backend,
+            "--sun-az-deg",
+            &az,
+            "--sun-el-deg",
+            &el,
+            "--out-mask",
+            "m.tif",
+            "--out-fraction",
+            "f.tif",
+        ],
+    )
+}
+
+/// Asserts the summit of the last [`cone_map`] in `dir`: mask `lit` (1 or 0), and a fraction
+/// above 0.6 when lit, below 0.4 when not (0.1° above the edge leaves less than a third of the
+/// disc of radius 0.2666° hidden, 0.1° below leaves less than a third visible).
+fn assert_summit(dir: &std::path::Path, lit: bool, what: &str) {
+    let mask = summit_value(dir, "m.tif");
+    let frac = summit_value(dir, "f.tif");
+    eprintln!("{what}: mask {mask} fraction {frac}");
+    assert_eq!(mask, if lit { 1.0 } else { 0.0 }, "{what}: mask");
+    if lit {
+        assert!(frac > 0.6, "{what}: fraction {frac}");
+    } else {
+        assert!(frac < 0.4, "{what}: fraction {frac}");
+    }
+}
+
 #[test]
 fn cone_summit_sees_the_sun_down_to_the_dip_in_every_map_engine() {
     let tmp = tempfile::tempdir().unwrap();
@@ -54,39 +102,14 @@ fn cone_summit_sees_the_sun_down_to_the_dip_in_every_map_engine() {
     // vertical is tilted by 707 m / R = 0.023° from it, within the ±0.1° margins below.
     for engine in ["brute", "smap", "dp", "combined", "fourier"] {
         for az in [30.0_f64, 200.0] {
-            for (el, lit) in [(-dip + 0.1, 1.0), (-dip - 0.1, 0.0)] {
-                let (el_s, az_s) = (format!("{el}"), format!("{az}"));
-                penumbra_ok(
-                    tmp.path(),
-                    &[
-                        "map",
-                        "--dem",
-                        cone,
-                        "--engine",
-                        engine,
-                        "--backend",
-                        "cpu",
-                        "--sun-az-deg",
-                        &az_s,
-                        "--sun-el-deg",
-                        &el_s,
-                        "--out-mask",
-                        "m.tif",
-                        "--out-fraction",
-                        "f.tif",
-                    ],
+            for (el, lit) in [(-dip + 0.1, true), (-dip - 0.1, false)] {
+                let out = cone_map(tmp.path(), cone, engine, "cpu", az, el);
+                assert!(
+                    out.status.success(),
+                    "{}",
+                    String::from_utf8_lossy(&out.stderr)
                 );
-                let mask = summit_value(tmp.path(), "m.tif");
-                let frac = summit_value(tmp.path(), "f.tif");
-                eprintln!("{engine} az {az} el {el:.3}: mask {mask} fraction {frac}");
-                assert_eq!(mask, lit as f32, "{engine} az {az} el {el}: mask");
-                // 0.1° above the edge leaves < 1/3 of the disc (radius 0.2666°) hidden, 0.1°
-                // below leaves < 1/3 visible.
-                if lit == 1.0 {
-                    assert!(frac > 0.6, "{engine} az {az} el {el}: fraction {frac}");
-                } else {
-                    assert!(frac < 0.4, "{engine} az {az} el {el}: fraction {frac}");
-                }
+                assert_summit(tmp.path(), lit, &format!("{engine} az {az} el {el:.3}"));
             }
         }
     }
@@ -98,26 +121,8 @@ fn cone_summit_on_the_gpu_dp_kernel() {
     let cone = write_cone(tmp.path());
     let cone = cone.to_str().unwrap();
     let dip = summit_dip_deg();
-    for (el, lit) in [(-dip + 0.1, 1.0), (-dip - 0.1, 0.0)] {
-        let el_s = format!("{el}");
-        let out = penumbra(
-            tmp.path(),
-            &[
-                "map",
-                "--dem",
-                cone,
-                "--backend",
-                "gpu",
-                "--sun-az-deg",
-                "75",
-                "--sun-el-deg",
-                &el_s,
-                "--out-mask",
-                "m.tif",
-                "--out-fraction",
-                "f.tif",
-            ],
-        );
+    for (el, lit) in [(-dip + 0.1, true), (-dip - 0.1, false)] {
+        let out = cone_map(tmp.path(), cone, "dp", "gpu", 75.0, el);
         if !out.status.success() {
             let required = std::env::var("PENUMBRA_REQUIRE_GPU").is_ok_and(|v| v == "1");
             assert!(!required, "{}", String::from_utf8_lossy(&out.stderr));
@@ -127,12 +132,7 @@ fn cone_summit_on_the_gpu_dp_kernel() {
             );
             return;
         }
-        assert_eq!(summit_value(tmp.path(), "m.tif"), lit as f32, "el {el}");
-        let frac = summit_value(tmp.path(), "f.tif");
-        assert!(
-            if lit == 1.0 { frac > 0.6 } else { frac < 0.4 },
-            "el {el}: {frac}"
-        );
+        assert_summit(tmp.path(), lit, &format!("gpu el {el:.3}"));
     }
 }
 
