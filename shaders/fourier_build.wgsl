@@ -3,8 +3,8 @@
 // invocation per cell of one row band. For each azimuth theta_n = 2 pi n / N of this dispatch
 // (n = az0 .. az0 + az_count) it marches the horizontal ray over every crossing with the lattice
 // lines of cell centres (the DDA of shared/march.wgsl, the surface convention of the brute-force
-// engine), keeps the largest tan of the terrain's elevation seen from the observer (terrain
-// only: -90 degrees when no sample lies along the ray), takes atan, and folds the sample straight into the truncated DFT:
+// engine), keeps the largest tan of the terrain's elevation seen from the observer, from the bare
+// sphere's horizon up (fb_sphere_floor_tan), takes atan, and folds the sample straight into the truncated DFT:
 // acc_k += alpha_n (cos k theta_n, -sin k theta_n). No per-azimuth samples are stored; the
 // partial sums live in `coeffs` between dispatches (azimuth chunks keep each dispatch short).
 // The last dispatch multiplies by the eq. 3 weights (1/N for k = 0, 2/N else).
@@ -57,8 +57,20 @@ struct FourierBuildParams {
 // Largest tan(elevation) of the terrain along the horizontal ray from (u0, v0, z0) with grid
 // direction (du, dv) (unit), at least `start_tan`. Crossings from dda_next of shared/march.wgsl
 // (clamped within FB_EDGE_TOL_CELLS of the edge lines); stops at the grid edge, beyond max_distance_cells, or once no sample can beat the best: (z_max - z0) / t <= best.
-// Start value of `horizon_tan`: below any terrain tangent.
-const FB_NO_TERRAIN_TAN: f32 = -1.0e30;
+const FB_MOON_RADIUS_M: f32 = 1737400.0;
+
+// Start value of `horizon_tan` (tan above the model x/y plane): the bare sphere's horizon, the dip
+// sqrt(2 h / R) below the observer's local horizontal (h: its height above the sphere). Fourier
+// profiles need a finite, smooth floor (a -90 degree step where no terrain lies along a ray would
+// ring through the truncated DFT); it differs from "no terrain beyond the outermost layer" only on
+// rays that meet the sphere beyond the grid, which the map products flag.
+fn fb_sphere_floor_tan(x_m: f32, y_m: f32, z0: f32, up: vec3<f32>, sc: vec2<f32>) -> f32 {
+    let tan_local = -(up.x * sc.x + up.y * sc.y) / up.z;
+    let h = z0 + (grid.z_ref_plus_radius_m - FB_MOON_RADIUS_M)
+        + (x_m * x_m + y_m * y_m) / (2.0 * FB_MOON_RADIUS_M);
+    let dip = sqrt(2.0 * max(h, 0.0) / FB_MOON_RADIUS_M);
+    return tan(atan(tan_local) - dip);
+}
 
 fn horizon_tan(u0: f32, v0: f32, z0: f32, du: f32, dv: f32, start_tan: f32) -> f32 {
     var best = start_tan;
@@ -119,9 +131,7 @@ fn fourier_build(@builtin(global_invocation_id) gid: vec3<u32>) {
         let n = fb.az0 + a;
         // (sin, cos) of the azimuth: east, north components; rows grow southwards.
         let sc = fb_sincos[n];
-        // Only terrain makes the horizon; a ray with no terrain sample at all (a margin cell
-        // looking off the grid) gets atan(-1e30) = -90 degrees.
-        let alpha = atan(horizon_tan(u0, v0, z0, sc.x, -sc.y, FB_NO_TERRAIN_TAN));
+        let alpha = atan(horizon_tan(u0, v0, z0, sc.x, -sc.y, fb_sphere_floor_tan(x_m, y_m, z0, up, sc)));
         var m = 0u;
         for (var k = 0u; k < fb.n_coeffs; k++) {
             let tw = fb_sincos[m];

@@ -438,6 +438,18 @@ fn run_map(args: &crate::cli::MapArgs) -> anyhow::Result<()> {
         crate::gpu::resolve_backend(args.backend)
             .with_context(|| format!("resolving --backend {}", args.backend.as_str()))?,
     );
+    let placement = match (&backend, args.observers) {
+        #[cfg(feature = "gpu")]
+        (Some(crate::gpu::ResolvedBackend::Gpu(_)), Some(crate::cli::ObserversArg::Pixels)) => {
+            anyhow::bail!(
+                "--observers pixels needs --backend cpu: the GPU kernels start their rays at the \
+                 model grid's cells (--observers cells)"
+            )
+        }
+        (_, Some(o)) => crate::map::ObserverPlacement::from(o),
+        (Some(crate::gpu::ResolvedBackend::Cpu), None) => crate::map::ObserverPlacement::Pixels,
+        (_, None) => crate::map::ObserverPlacement::Cells,
+    };
     let kernels = if epochs.is_empty() {
         None
     } else {
@@ -478,13 +490,18 @@ fn run_map(args: &crate::cli::MapArgs) -> anyhow::Result<()> {
                     &grid,
                     &engine,
                     args.observer_height_m,
+                    placement,
                     &lights,
                     step_h,
                     &progress,
                 )?;
                 (
                     stats,
-                    format!("cpu: {} soft shadows of the discs", engine.describe()),
+                    format!(
+                        "cpu: {} soft shadows of the discs, rays from the {}",
+                        engine.describe(),
+                        placement.describe()
+                    ),
                 )
             }
             #[cfg(feature = "gpu")]
@@ -594,49 +611,44 @@ fn run_map(args: &crate::cli::MapArgs) -> anyhow::Result<()> {
         ),
         _ => None,
     };
+    // Each DEM pixel's own observer (where the CPU engines start their rays by default).
+    let pixel_observers = grid.pixel_observers(h_m);
+    let observers =
+        (placement == crate::map::ObserverPlacement::Pixels).then_some(pixel_observers.as_slice());
     let fraction = |light: [f64; 3], radius: f64| -> anyhow::Result<Vec<f32>> {
         match gpu_ctx {
             #[cfg(feature = "gpu")]
-            Some(ctx) => match &gpu_fourier {
-                Some(on_gpu) => crate::map::fourier_fraction_gpu(ctx, on_gpu, light, radius),
-                None => crate::map::visible_fraction_gpu(ctx, &grid.hf, h_m, light, radius, tiling),
-            },
-            _ => engine.visible_fraction(&grid.hf, h_m, light, radius),
+            // The GPU kernels run per model cell: resampled onto the DEM grid.
+            Some(ctx) => Ok(grid.to_output_f32(&match &gpu_fourier {
+                Some(on_gpu) => crate::map::fourier_fraction_gpu(ctx, on_gpu, light, radius)?,
+                None => {
+                    crate::map::visible_fraction_gpu(ctx, &grid.hf, h_m, light, radius, tiling)?
+                }
+            })),
+            _ => engine.visible_fraction_on_dem(&grid, observers, h_m, light, radius),
         }
     };
     if let Some(path) = &args.out_fraction {
         let f = fraction(sun, sun_radius_rad)?;
-        grid.below_sphere_exits(h_m, sun, &f)?.warn();
-        grid.write_f32(
-            path,
-            &grid.to_output_f32(&f),
-            "visible fraction of the Sun's disc",
-        )?;
+        grid.below_sphere_exits(&pixel_observers, sun, &f)?.warn();
+        grid.write_f32(path, &f, "visible fraction of the Sun's disc")?;
     }
     if let Some(path) = &args.out_mask {
         let m = match gpu_ctx {
             #[cfg(feature = "gpu")]
-            Some(ctx) => match &gpu_fourier {
+            Some(ctx) => grid.to_output_u8(&match &gpu_fourier {
                 Some(on_gpu) => on_gpu
                     .hard_mask(ctx, sun)
                     .context("evaluating the horizon map on the GPU")?,
                 None => crate::map::hard_mask_gpu(ctx, &grid.hf, h_m, sun, tiling)?,
-            },
-            _ => engine.hard_mask(&grid.hf, h_m, sun)?,
+            }),
+            _ => engine.hard_mask_on_dem(&grid, observers, h_m, sun)?,
         };
-        grid.write_u8(
-            path,
-            &grid.to_output_u8(&m),
-            "Sun disc centre: 1 lit, 0 shadow, 255 no data",
-        )?;
+        grid.write_u8(path, &m, "Sun disc centre: 1 lit, 0 shadow, 255 no data")?;
     }
     if let (Some(path), Some((dir, radius))) = (&args.out_earth_fraction, earth) {
         let f = fraction(dir, radius)?;
-        grid.write_f32(
-            path,
-            &grid.to_output_f32(&f),
-            "visible fraction of the Earth's disc",
-        )?;
+        grid.write_f32(path, &f, "visible fraction of the Earth's disc")?;
     }
     eprintln!(
         "penumbra: map written ({:.1} s)",

@@ -335,6 +335,24 @@ impl From<HorizonMethodArg> for crate::horizon::HorizonMethod {
     }
 }
 
+/// Where a map's rays start (`map --observers`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum ObserversArg {
+    /// At each DEM pixel's own surface point.
+    Pixels,
+    /// At the model grid's cells, resampled back onto the DEM grid.
+    Cells,
+}
+
+impl From<ObserversArg> for crate::map::ObserverPlacement {
+    fn from(o: ObserversArg) -> Self {
+        match o {
+            ObserversArg::Pixels => crate::map::ObserverPlacement::Pixels,
+            ObserversArg::Cells => crate::map::ObserverPlacement::Cells,
+        }
+    }
+}
+
 /// Shadow engine on the command line.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum EngineArg {
@@ -514,6 +532,12 @@ pub struct MapArgs {
     /// binding or 4 GiB; docs/gpu.md, "Large grids").
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(2..))]
     pub gpu_tile_cells: Option<u32>,
+    /// Where the rays start: `pixels` = at each DEM pixel's own surface point (the CPU default;
+    /// the same point as a `series` site at the pixel centre), `cells` = at the cells of the
+    /// resampled model grid (the GPU's method, resampled back onto the DEM grid). Default: the
+    /// backend's own (`pixels` on the CPU, `cells` on the GPU, which has no other).
+    #[arg(long, value_enum)]
+    pub observers: Option<ObserversArg>,
     /// Aberration correction: lt+s or none.
     #[arg(long, default_value = "lt+s")]
     pub abcorr: String,

@@ -31,7 +31,7 @@ use rayon::prelude::*;
 use crate::ephem::{self, AbCorr, Kernels, Site};
 use crate::illum::plot::{MapLegend, write_map_preview};
 use crate::output::BelowSphereExits;
-use crate::shadow::{Engine, MASK_NODATA};
+use crate::shadow::{Engine, MASK_NODATA, Observer, Observers};
 use crate::terrain::model_space::{ModelFrame, ModelGridSpec, resample_to_model_space};
 use crate::terrain::{Dem, HeightField, TerrainStack};
 
@@ -50,6 +50,8 @@ pub struct MapGrid {
     pub hf: HeightField,
     /// For each output pixel, its fractional (row, col) in `hf`; NaN for nodata pixels.
     rc_in_model: Vec<[f32; 2]>,
+    /// For each output pixel, its surface point in model space (`None` for nodata pixels).
+    surface_in_model: Vec<Option<Vector3<f64>>>,
     /// `Some(half-width km)` when the coarser layers reach beyond [`MAX_MODEL_CELLS`] and the
     /// grid was clipped to that half-width around the map centre.
     pub clipped_to_km: Option<f64>,
@@ -63,10 +65,27 @@ impl MapGrid {
         let g = dem.grid;
         let (cx, cy) = g.xy_from_row_col((g.rows as f64 - 1.0) / 2.0, (g.cols as f64 - 1.0) / 2.0);
         let (centre_lat_deg, centre_lon_deg) = dem.projection.lat_lon_from_xy(cx, cy);
-        let frame = ModelFrame::new(centre_lat_deg, centre_lon_deg);
-        let px_m = dem.px_m();
+        // The model grid follows the DEM's: its axes turned onto the DEM's rows and columns at
+        // the centre, its cell the DEM's pixel measured there, and the centre on the same kind of
+        // point (a pixel centre or a pixel corner). So near the centre the model cells are the
+        // DEM's pixels and resampling is (almost) the identity; away from it they drift apart by
+        // the projection's scale change and the tilt of the local vertical (docs/terrain.md).
+        let (rotation_rad, px_m) = {
+            let enu = ModelFrame::new(centre_lat_deg, centre_lon_deg);
+            let d = dem.px_m();
+            let step = |dx: f64, dy: f64| {
+                let (lat, lon) = dem.projection.lat_lon_from_xy(cx + dx, cy + dy);
+                enu.model_from_lat_lon_height(lat, lon, 0.0)
+            };
+            let (east, north) = (step(d, 0.0), step(0.0, d));
+            (
+                north.x.atan2(north.y),
+                0.5 * (east.x.hypot(east.y) + north.x.hypot(north.y)),
+            )
+        };
+        let frame = ModelFrame::rotated(centre_lat_deg, centre_lon_deg, rotation_rad);
         // Model-space position of every output pixel centre (on its own surface).
-        let model_xy: Vec<Option<(f64, f64)>> = (0..g.rows * g.cols)
+        let surface_in_model: Vec<Option<Vector3<f64>>> = (0..g.rows * g.cols)
             .into_par_iter()
             .map(|i| {
                 let (row, col) = (i / g.cols, i % g.cols);
@@ -76,15 +95,14 @@ impl MapGrid {
                 }
                 let (x, y) = g.xy_from_row_col(row as f64, col as f64);
                 let (lat, lon) = dem.projection.lat_lon_from_xy(x, y);
-                let p = frame.model_from_lat_lon_height(lat, lon, f64::from(h));
-                Some((p.x, p.y))
+                Some(frame.model_from_lat_lon_height(lat, lon, f64::from(h)))
             })
             .collect();
-        let (max_x, max_y) = model_xy
+        let (max_x, max_y) = surface_in_model
             .iter()
             .flatten()
-            .fold((0.0_f64, 0.0_f64), |(mx, my), (x, y)| {
-                (mx.max(x.abs()), my.max(y.abs()))
+            .fold((0.0_f64, 0.0_f64), |(mx, my), p| {
+                (mx.max(p.x.abs()), my.max(p.y.abs()))
             });
         if max_x == 0.0 && max_y == 0.0 {
             anyhow::bail!("the DEM {} has no valid heights", dem.name);
@@ -114,26 +132,30 @@ impl MapGrid {
             half_rows = ((half_rows as f64 * scale) as usize).max(out_half_rows);
             clipped_to_km = Some(half_cols.min(half_rows) as f64 * px_m / 1e3);
         }
+        // An odd DEM has a pixel centre at its centre, an even one a pixel corner: so does the
+        // model grid, so that their cells coincide there.
+        let (rows, cols) = (2 * half_rows + g.rows % 2, 2 * half_cols + g.cols % 2);
         let spec = ModelGridSpec {
             centre_lat_deg,
             centre_lon_deg,
-            rows: 2 * half_rows,
-            cols: 2 * half_cols,
+            rows,
+            cols,
             px_m,
+            rotation_rad,
         };
         let (mut hf, _) = resample_to_model_space(stack, &spec)?;
         // Evaluate only the cells under the output raster (and the bilinear neighbours of its
         // pixels): the rest of the grid is terrain that blocks, not results anyone reads.
         let (dr, dc) = (half_rows - out_half_rows, half_cols - out_half_cols);
         hf.window = Some(crate::terrain::CellWindow {
-            rows: (dr, 2 * half_rows - dr),
-            cols: (dc, 2 * half_cols - dc),
+            rows: (dr, rows - dr),
+            cols: (dc, cols - dc),
         });
-        let rc_in_model = model_xy
+        let rc_in_model = surface_in_model
             .iter()
             .map(|p| match p {
-                Some((x, y)) => {
-                    let (r, c) = hf.row_col_from_xy(*x, *y);
+                Some(p) => {
+                    let (r, c) = hf.row_col_from_xy(p.x, p.y);
                     [r as f32, c as f32]
                 }
                 None => [f32::NAN, f32::NAN],
@@ -143,8 +165,41 @@ impl MapGrid {
             dem,
             hf,
             rc_in_model,
+            surface_in_model,
             clipped_to_km,
         })
+    }
+
+    /// The observer of every DEM pixel with data (row-major on the DEM grid): exactly at the
+    /// pixel centre's own surface point (not the model grid's resampled surface),
+    /// `observer_height_m` above it along its radial direction. The CPU map engines run from
+    /// these with [`Observers::Points`] (terrain within [`crate::shadow::OWN_HALF_PIXEL_CELLS`]
+    /// left out, as the per-site horizon engine leaves out the site's own half pixel), so a map
+    /// pixel and a series site at its centre stand at the same point.
+    pub fn pixel_observers(&self, observer_height_m: f64) -> Vec<Option<Observer>> {
+        let hf = &self.hf;
+        let (max_r, max_c) = ((hf.rows - 1) as f64, (hf.cols - 1) as f64);
+        self.surface_in_model
+            .par_iter()
+            .map(|s| {
+                let s = s.as_ref()?;
+                let p = s + observer_height_m * hf.up_at(s.x, s.y, s.z);
+                let (row, col) = hf.row_col_from_xy(p.x, p.y);
+                Some(Observer {
+                    row: row.clamp(0.0, max_r),
+                    col: col.clamp(0.0, max_c),
+                    z_m: p.z,
+                })
+            })
+            .collect()
+    }
+
+    /// [`MapGrid::pixel_observers`] as the engines take them.
+    pub fn pixel_points<'a>(&self, observers: &'a [Option<Observer>]) -> Observers<'a> {
+        Observers::Points {
+            list: observers,
+            min_s_cells: crate::shadow::OWN_HALF_PIXEL_CELLS,
+        }
     }
 
     /// Prints a one-line warning when the far field was clipped to [`MAX_MODEL_CELLS`].
@@ -159,56 +214,49 @@ impl MapGrid {
         }
     }
 
-    /// Number of model cells with data that the engines evaluate (under the output raster).
-    pub fn evaluated_cells(&self) -> usize {
-        (0..self.hf.rows * self.hf.cols)
-            .filter(|&i| {
-                let (r, c) = (i / self.hf.cols, i % self.hf.cols);
-                self.hf.evaluates(r, c) && !self.hf.z_m[i].is_nan()
-            })
-            .count()
-    }
-
-    /// How many cells lit per `fraction` (model grid, `> VISIBLE_MIN_FRACTION`) rest on a ray
-    /// toward `light_in_model` that leaves the DEM toward the reference sphere.
+    /// How many DEM pixels lit per `fraction` (per pixel, `> VISIBLE_MIN_FRACTION`) rest on a
+    /// ray toward `light_in_model` from their `observers` that leaves the DEM toward the
+    /// reference sphere.
     pub fn below_sphere_exits(
         &self,
-        observer_height_m: f64,
+        observers: &[Option<Observer>],
         light_in_model: [f64; 3],
         fraction: &[f32],
     ) -> anyhow::Result<BelowSphereExits> {
-        let mut tally = BelowSphereTally::new(self);
-        tally.add(self, observer_height_m, light_in_model, fraction)?;
-        Ok(tally.finish(self))
+        let mut tally = BelowSphereTally::new(observers);
+        tally.add(self, light_in_model, fraction)?;
+        Ok(tally.finish())
     }
 }
 
-/// Accumulates [`BelowSphereExits`] over the epochs of a map: which cells were ever lit by such a
-/// ray, and how many (cell, epoch) results were.
-struct BelowSphereTally {
+/// Accumulates [`BelowSphereExits`] over the epochs of a map of the DEM's pixels: which pixels
+/// were ever lit by such a ray, and how many (pixel, epoch) results were.
+struct BelowSphereTally<'a> {
+    observers: &'a [Option<Observer>],
     any: Vec<bool>,
     cell_epochs: u64,
 }
 
-impl BelowSphereTally {
-    fn new(grid: &MapGrid) -> Self {
+impl<'a> BelowSphereTally<'a> {
+    /// A tally for the pixels' `observers` ([`MapGrid::pixel_observers`]).
+    fn new(observers: &'a [Option<Observer>]) -> Self {
         BelowSphereTally {
-            any: vec![false; grid.hf.rows * grid.hf.cols],
+            observers,
+            any: vec![false; observers.len()],
             cell_epochs: 0,
         }
     }
 
-    /// Adds one epoch's Sun `fraction` (model grid) for the light `light_in_model`.
+    /// Adds one epoch's Sun `fraction` (per pixel) for the light `light_in_model`.
     fn add(
         &mut self,
         grid: &MapGrid,
-        observer_height_m: f64,
         light_in_model: [f64; 3],
         fraction: &[f32],
     ) -> anyhow::Result<()> {
         let below = crate::shadow::lit_exits_below_sphere(
             &grid.hf,
-            observer_height_m,
+            grid.pixel_points(self.observers),
             light_in_model,
             |i| fraction[i] > VISIBLE_MIN_FRACTION,
         )?;
@@ -220,11 +268,11 @@ impl BelowSphereTally {
         Ok(())
     }
 
-    fn finish(self, grid: &MapGrid) -> BelowSphereExits {
+    fn finish(self) -> BelowSphereExits {
         BelowSphereExits {
             cells: self.any.iter().filter(|&&b| b).count() as u64,
             cell_epochs: self.cell_epochs,
-            cells_total: grid.evaluated_cells() as u64,
+            cells_total: self.observers.iter().flatten().count() as u64,
         }
     }
 }
@@ -239,7 +287,7 @@ impl MapGrid {
 
     /// A unit light direction in model space from azimuth / elevation (deg) at the map centre.
     pub fn light_from_az_el_deg(&self, az_deg: f64, el_deg: f64) -> [f64; 3] {
-        let v = crate::frames::enu_from_az_el_deg(az_deg, el_deg);
+        let v = self.hf.model_from_enu() * crate::frames::enu_from_az_el_deg(az_deg, el_deg);
         [v.x, v.y, v.z]
     }
 
@@ -404,6 +452,28 @@ pub struct SweepStats {
     /// Sun-lit results resting on rays that leave the DEM below the reference sphere (counted
     /// by the CPU sweep; `None` on the GPU).
     pub below_sphere: Option<BelowSphereExits>,
+    /// Whether the arrays are per DEM pixel (the CPU sweep, from the pixels' own observers)
+    /// rather than per model cell (the GPU sweeps).
+    pub on_dem_grid: bool,
+}
+
+/// Where a map's rays start.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ObserverPlacement {
+    /// At each DEM pixel's own surface point ([`MapGrid::pixel_observers`]); results per pixel.
+    Pixels,
+    /// At the model grid's cells; results resampled back onto the DEM grid (the GPU's method).
+    Cells,
+}
+
+impl ObserverPlacement {
+    /// Words for provenance.
+    pub fn describe(self) -> &'static str {
+        match self {
+            ObserverPlacement::Pixels => "DEM pixels' own surface points",
+            ObserverPlacement::Cells => "model grid's cells (resampled onto the DEM grid)",
+        }
+    }
 }
 
 /// Which shadow engine a map uses.
@@ -490,6 +560,65 @@ impl MapEngine {
         })
     }
 
+    /// Visible fraction of a disc per DEM pixel (row-major on the output grid, `NaN` for
+    /// nodata): the per-light engines from the pixels' own observers (`observers`, from
+    /// [`MapGrid::pixel_observers`], or `None`: from the model cells, resampled); the Fourier
+    /// horizon map per model cell, resampled.
+    pub fn visible_fraction_on_dem(
+        &self,
+        grid: &MapGrid,
+        observers: Option<&[Option<Observer>]>,
+        observer_height_m: f64,
+        light_in_model: [f64; 3],
+        angular_radius_rad: f64,
+    ) -> anyhow::Result<Vec<f32>> {
+        let Some(observers) = observers else {
+            return Ok(grid.to_output_f32(&self.visible_fraction(
+                &grid.hf,
+                observer_height_m,
+                light_in_model,
+                angular_radius_rad,
+            )?));
+        };
+        Ok(match self {
+            MapEngine::Direct(e) => e.visible_fraction(
+                &grid.hf,
+                grid.pixel_points(observers),
+                light_in_model,
+                angular_radius_rad,
+            )?,
+            MapEngine::Fourier(map) => grid.to_output_f32(
+                &crate::shadow::fourier::visible_fraction(map, light_in_model, angular_radius_rad)?,
+            ),
+        })
+    }
+
+    /// Hard mask of the disc centre per DEM pixel (1 lit, 0 shadow, 255 nodata), as
+    /// [`MapEngine::visible_fraction_on_dem`].
+    pub fn hard_mask_on_dem(
+        &self,
+        grid: &MapGrid,
+        observers: Option<&[Option<Observer>]>,
+        observer_height_m: f64,
+        light_in_model: [f64; 3],
+    ) -> anyhow::Result<Vec<u8>> {
+        let Some(observers) = observers else {
+            return Ok(grid.to_output_u8(&self.hard_mask(
+                &grid.hf,
+                observer_height_m,
+                light_in_model,
+            )?));
+        };
+        Ok(match self {
+            MapEngine::Direct(e) => {
+                e.hard_mask(&grid.hf, grid.pixel_points(observers), light_in_model)?
+            }
+            MapEngine::Fourier(map) => {
+                grid.to_output_u8(&crate::shadow::fourier::hard_mask(map, light_in_model)?)
+            }
+        })
+    }
+
     /// A short description for provenance.
     pub fn describe(&self) -> String {
         match self {
@@ -501,17 +630,26 @@ impl MapEngine {
     }
 }
 
-/// Runs the engine for every epoch and accumulates the map statistics (CPU, rayon inside the
-/// engines). `progress` is advanced once per epoch.
+/// Runs the engine for every epoch and accumulates the map statistics per DEM pixel (CPU, rayon
+/// inside the engines), with the rays from `placement`. `progress` is advanced once per epoch.
 pub fn sweep(
     grid: &MapGrid,
     engine: &MapEngine,
     observer_height_m: f64,
+    placement: ObserverPlacement,
     lights: &[EpochLights],
     step_h: f64,
     progress: &indicatif::ProgressBar,
 ) -> anyhow::Result<SweepStats> {
-    let n = grid.hf.rows * grid.hf.cols;
+    // Per DEM pixel from the pixels' own observers, or per model cell (resampled at the end, as
+    // the GPU sweeps).
+    let on_dem_grid = placement == ObserverPlacement::Pixels;
+    let observers = grid.pixel_observers(observer_height_m);
+    let n = if on_dem_grid {
+        observers.len()
+    } else {
+        grid.hf.rows * grid.hf.cols
+    };
     let mut s = SweepStats {
         epochs: lights.len(),
         step_h,
@@ -521,15 +659,30 @@ pub fn sweep(
         earth_visible_count: vec![0; n],
         sun_and_earth_count: None,
         below_sphere: None,
+        on_dem_grid,
     };
     let mut sun_and_earth_count = vec![0_u32; n];
     let mut current_dark = vec![0_u32; n];
-    let mut below = BelowSphereTally::new(grid);
+    let mut below = BelowSphereTally::new(&observers);
     for l in lights {
-        let sun = engine.visible_fraction(&grid.hf, observer_height_m, l.sun, l.sun_radius_rad)?;
-        below.add(grid, observer_height_m, l.sun, &sun)?;
-        let earth =
-            engine.visible_fraction(&grid.hf, observer_height_m, l.earth, l.earth_radius_rad)?;
+        let fraction = |light, radius| {
+            if on_dem_grid {
+                engine.visible_fraction_on_dem(
+                    grid,
+                    Some(&observers),
+                    observer_height_m,
+                    light,
+                    radius,
+                )
+            } else {
+                engine.visible_fraction(&grid.hf, observer_height_m, light, radius)
+            }
+        };
+        let sun = fraction(l.sun, l.sun_radius_rad)?;
+        if on_dem_grid {
+            below.add(grid, l.sun, &sun)?;
+        }
+        let earth = fraction(l.earth, l.earth_radius_rad)?;
         s.sun_fraction_sum
             .par_iter_mut()
             .zip(s.sun_visible_count.par_iter_mut())
@@ -563,7 +716,7 @@ pub fn sweep(
         progress.inc(1);
     }
     s.sun_and_earth_count = Some(sun_and_earth_count);
-    s.below_sphere = Some(below.finish(grid));
+    s.below_sphere = on_dem_grid.then(|| below.finish());
     Ok(s)
 }
 
@@ -604,6 +757,7 @@ pub fn sweep_gpu(
         earth_visible_count: earth.iter().map(|c| c.lit_epochs).collect(),
         sun_and_earth_count: None,
         below_sphere: None,
+        on_dem_grid: false,
     })
 }
 
@@ -659,6 +813,7 @@ pub fn sweep_gpu_soft(
         earth_visible_count: stats.iter().map(|c| c.earth_visible_epochs).collect(),
         sun_and_earth_count: Some(stats.iter().map(|c| c.sun_and_earth_epochs).collect()),
         below_sphere: None,
+        on_dem_grid: false,
     })
 }
 
@@ -871,7 +1026,12 @@ pub fn write_sweep(
             .map(|&c| (100.0 * f64::from(c) / n_epochs) as f32)
             .collect()
     };
-    let nodata_model: Vec<bool> = grid.hf.z_m.iter().map(|z| z.is_nan()).collect();
+    // Nodata of the arrays' own grid: the DEM's pixels or the model cells (see `on_dem_grid`).
+    let nodata_model: Vec<bool> = if s.on_dem_grid {
+        grid.dem.heights_m.iter().map(|z| z.is_nan()).collect()
+    } else {
+        grid.hf.z_m.iter().map(|z| z.is_nan()).collect()
+    };
     let mask_nodata = |v: Vec<f32>| -> Vec<f32> {
         v.into_iter()
             .zip(&nodata_model)
@@ -949,7 +1109,11 @@ pub fn write_sweep(
         ),
     ];
     for (name, what, model, max, unit) in continuous {
-        let out = grid.to_output_f32(&model);
+        let out = if s.on_dem_grid {
+            model
+        } else {
+            grid.to_output_f32(&model)
+        };
         // Colour bar up to the data's maximum, rounded up to a tenth of the full scale.
         let data_max = out
             .iter()
@@ -974,7 +1138,11 @@ pub fn write_sweep(
         )?;
         files.extend([tif, png]);
     }
-    let psr_out = grid.to_output_u8(&psr);
+    let psr_out = if s.on_dem_grid {
+        psr
+    } else {
+        grid.to_output_u8(&psr)
+    };
     grid.write_u8(
         &out_dir.join("psr_mask.tif"),
         &psr_out,

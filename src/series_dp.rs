@@ -78,7 +78,7 @@ use crate::terrain::model_space::ModelFrame;
 
 /// Terrain nearer than this (cells of the model grid) is the observer's own ground (as
 /// [`crate::horizon`]'s `min_distance_m`, half a cell).
-pub const MIN_DISTANCE_CELLS: f64 = 0.5;
+pub const MIN_DISTANCE_CELLS: f64 = crate::shadow::OWN_HALF_PIXEL_CELLS;
 
 /// Errors of the smap-dp series engine.
 #[derive(Debug, thiserror::Error)]

@@ -178,39 +178,13 @@ impl<'a> HorizonEngine<'a> {
         lon_deg: f64,
         params: &HorizonParams,
     ) -> Result<Horizon, HorizonError> {
-        if self.layers.is_empty() {
-            return Err(HorizonError::NoLayers);
-        }
-        if !(lat_deg.is_finite() && lon_deg.is_finite() && lat_deg.abs() <= 90.0) {
-            return Err(HorizonError::BadSite { lat_deg, lon_deg });
-        }
-        let h_obs = params.observer_height_m;
-        if !(h_obs.is_finite() && h_obs >= 0.0) {
-            return Err(HorizonError::BadObserverHeight {
-                observer_height_m: h_obs,
-            });
-        }
-        let tol = params.fast_tolerance_deg;
-        if !(tol.is_finite() && tol >= 0.0) {
-            return Err(HorizonError::BadTolerance { tolerance_deg: tol });
-        }
+        let (obs, ground_m, layer_idx) = self.site_observer(lat_deg, lon_deg, params)?;
         let n_az = azimuth_count(params.az_step_deg)?;
-        let (ground_m, layer_idx) = self.ground_at(lat_deg, lon_deg)?;
         let ground_dem = &self.stack.layers[layer_idx];
         let min_distance_m = 0.5 * ground_dem.px_m();
-
-        let enu = enu_from_moon_me(lat_deg, lon_deg);
-        let mut obs = Observer {
-            east: enu.row(0).transpose(),
-            north: enu.row(1).transpose(),
-            up: enu.row(2).transpose(),
-            r0_m: MOON_RADIUS_M + ground_m + h_obs,
-            theta_min_rad: min_distance_m / MOON_RADIUS_M,
-            theta_max_rad: 0.0,
-        };
-        obs.theta_max_rad = self.theta_max_rad(&obs.up);
+        let h_obs = params.observer_height_m;
         let fast = params.method == HorizonMethod::Fast;
-        let tolerance_rad = tol.to_radians();
+        let tolerance_rad = params.fast_tolerance_deg.to_radians();
 
         let results: Vec<(f64, f64)> = (0..n_az)
             .into_par_iter()
@@ -232,6 +206,65 @@ impl<'a> HorizonEngine<'a> {
             elevation_deg: results.iter().map(|r| r.0).collect(),
             distance_m: results.iter().map(|r| r.1).collect(),
         })
+    }
+
+    /// The horizon of a site along one azimuth (deg from north, clockwise; any value, not only a
+    /// multiple of a step): `(elevation deg, distance m)` as one entry of [`Self::horizon`]
+    /// (`(-90, NaN)` when no terrain lies along it; `params.az_step_deg` is not used). An exact
+    /// ray cast on the DEMs' own surfaces toward one direction, for checking map engines.
+    pub fn horizon_toward(
+        &self,
+        lat_deg: f64,
+        lon_deg: f64,
+        az_deg: f64,
+        params: &HorizonParams,
+    ) -> Result<(f64, f64), HorizonError> {
+        let (obs, _, _) = self.site_observer(lat_deg, lon_deg, params)?;
+        Ok(self.scan_azimuth(
+            &obs,
+            az_deg,
+            params.method == HorizonMethod::Fast,
+            params.fast_tolerance_deg.to_radians(),
+        ))
+    }
+
+    /// Checks a site and the scan parameters (all but the azimuth step) and sets up its observer;
+    /// also returns the ground height and the layer it comes from.
+    fn site_observer(
+        &self,
+        lat_deg: f64,
+        lon_deg: f64,
+        params: &HorizonParams,
+    ) -> Result<(Observer, f64, usize), HorizonError> {
+        if self.layers.is_empty() {
+            return Err(HorizonError::NoLayers);
+        }
+        if !(lat_deg.is_finite() && lon_deg.is_finite() && lat_deg.abs() <= 90.0) {
+            return Err(HorizonError::BadSite { lat_deg, lon_deg });
+        }
+        let h_obs = params.observer_height_m;
+        if !(h_obs.is_finite() && h_obs >= 0.0) {
+            return Err(HorizonError::BadObserverHeight {
+                observer_height_m: h_obs,
+            });
+        }
+        let tol = params.fast_tolerance_deg;
+        if !(tol.is_finite() && tol >= 0.0) {
+            return Err(HorizonError::BadTolerance { tolerance_deg: tol });
+        }
+        let (ground_m, layer_idx) = self.ground_at(lat_deg, lon_deg)?;
+        let min_distance_m = 0.5 * self.stack.layers[layer_idx].px_m();
+        let enu = enu_from_moon_me(lat_deg, lon_deg);
+        let mut obs = Observer {
+            east: enu.row(0).transpose(),
+            north: enu.row(1).transpose(),
+            up: enu.row(2).transpose(),
+            r0_m: MOON_RADIUS_M + ground_m + h_obs,
+            theta_min_rad: min_distance_m / MOON_RADIUS_M,
+            theta_max_rad: 0.0,
+        };
+        obs.theta_max_rad = self.theta_max_rad(&obs.up);
+        Ok((obs, ground_m, layer_idx))
     }
 
     /// Ground height at the site from the finest layer with a surface there, and that layer.

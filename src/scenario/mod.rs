@@ -787,6 +787,7 @@ fn run_map_spec(
                 &grid,
                 &engine,
                 spec.observer_height_m,
+                crate::map::ObserverPlacement::Pixels,
                 &lights,
                 step_h,
                 &progress,

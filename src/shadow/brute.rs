@@ -23,8 +23,9 @@
 use nalgebra::Vector3;
 
 use super::{
-    LightDir, MASK_LIT, MASK_NODATA, MASK_SHADOW, Observer, Result, ShadowError,
-    check_observer_height, check_radius, fraction_from_cost, map_cells, max_height_m, unit_light,
+    LightDir, MASK_LIT, MASK_NODATA, MASK_SHADOW, Observer, Observers, Result, ShadowError,
+    check_observer_height, check_radius, fraction_from_cost, map_cells, map_observers,
+    max_height_m, unit_light,
 };
 use crate::terrain::HeightField;
 
@@ -121,9 +122,16 @@ where
     }
 }
 
-/// Whether the ray from `obs` toward `dir` is blocked (see the module docs).
+/// Whether the ray from `obs` toward `dir` is blocked (see the module docs); crossings nearer
+/// than `min_s_cells` (horizontal, cells) are not sampled ([`super::Observers::Points`]).
 #[inline]
-pub(crate) fn ray_blocked(hf: &HeightField, obs: &Observer, dir: &LightDir, z_max_m: f64) -> bool {
+pub(crate) fn ray_blocked(
+    hf: &HeightField,
+    obs: &Observer,
+    dir: &LightDir,
+    z_max_m: f64,
+    min_s_cells: f64,
+) -> bool {
     if dir.hor == 0.0 {
         // Straight down meets the observer's own ground; straight up meets nothing.
         return dir.unit.z < 0.0;
@@ -136,6 +144,9 @@ pub(crate) fn ray_blocked(hf: &HeightField, obs: &Observer, dir: &LightDir, z_ma
         // descending ray above the terrain comes down again: no early exit.)
         if h_ray > z_max_m && rise_per_cell >= 0.0 {
             return false;
+        }
+        if s < min_s_cells {
+            return true;
         }
         if let Some(z) = z
             && z > h_ray
@@ -241,26 +252,23 @@ pub(crate) fn uniform_cost(
 }
 
 /// Brute-force hard mask of the light's centre direction: `1` lit, `0` shadow, `255` nodata.
-pub fn hard_mask(
+pub fn hard_mask<'a>(
     hf: &HeightField,
-    observer_height_m: f64,
+    observers: impl Into<Observers<'a>>,
     light_in_model: [f64; 3],
 ) -> Result<Vec<u8>> {
-    check_observer_height(observer_height_m)?;
+    let observers = observers.into();
+    observers.check()?;
     let dir = LightDir::new(unit_light(light_in_model)?);
     let z_max = max_height_m(hf);
-    Ok(map_cells(
-        hf,
-        observer_height_m,
-        MASK_NODATA,
-        |_, _, obs| {
-            if ray_blocked(hf, obs, &dir, z_max) {
-                MASK_SHADOW
-            } else {
-                MASK_LIT
-            }
-        },
-    ))
+    let min_s = observers.min_s_cells();
+    Ok(map_observers(hf, &observers, MASK_NODATA, |_, obs| {
+        if ray_blocked(hf, obs, &dir, z_max, min_s) {
+            MASK_SHADOW
+        } else {
+            MASK_LIT
+        }
+    }))
 }
 
 /// `n` unit directions spread uniformly over the spherical cap of angular radius `radius_rad`
@@ -290,12 +298,10 @@ pub fn disc_directions(centre: Vector3<f64>, radius_rad: f64, n: usize) -> Vec<V
 /// Validates the inputs of a disc-sampling computation and returns the sample directions
 /// ([`disc_directions`]) ready for marching.
 fn disc_sample_dirs(
-    observer_height_m: f64,
     light_in_model: [f64; 3],
     angular_radius_rad: f64,
     samples: usize,
 ) -> Result<Vec<LightDir>> {
-    check_observer_height(observer_height_m)?;
     check_radius(angular_radius_rad)?;
     if samples == 0 {
         return Err(ShadowError::InvalidParameter {
@@ -312,24 +318,22 @@ fn disc_sample_dirs(
 
 /// Brute-force visible fraction of a uniform disc: the fraction of `samples` directions over the
 /// disc ([`disc_directions`]) whose ray is unblocked. `NaN` for nodata.
-pub fn visible_fraction(
+pub fn visible_fraction<'a>(
     hf: &HeightField,
-    observer_height_m: f64,
+    observers: impl Into<Observers<'a>>,
     light_in_model: [f64; 3],
     angular_radius_rad: f64,
     samples: usize,
 ) -> Result<Vec<f32>> {
-    let dirs = disc_sample_dirs(
-        observer_height_m,
-        light_in_model,
-        angular_radius_rad,
-        samples,
-    )?;
+    let observers = observers.into();
+    observers.check()?;
+    let dirs = disc_sample_dirs(light_in_model, angular_radius_rad, samples)?;
     let z_max = max_height_m(hf);
-    Ok(map_cells(hf, observer_height_m, f32::NAN, |_, _, obs| {
+    let min_s = observers.min_s_cells();
+    Ok(map_observers(hf, &observers, f32::NAN, |_, obs| {
         let lit = dirs
             .iter()
-            .filter(|d| !ray_blocked(hf, obs, d, z_max))
+            .filter(|d| !ray_blocked(hf, obs, d, z_max, min_s))
             .count();
         lit as f32 / samples as f32
     }))
@@ -346,12 +350,8 @@ pub fn visible_fraction_at(
     cells: &[(usize, usize)],
 ) -> Result<Vec<f32>> {
     use rayon::prelude::*;
-    let dirs = disc_sample_dirs(
-        observer_height_m,
-        light_in_model,
-        angular_radius_rad,
-        samples,
-    )?;
+    check_observer_height(observer_height_m)?;
+    let dirs = disc_sample_dirs(light_in_model, angular_radius_rad, samples)?;
     let z_max = max_height_m(hf);
     Ok(cells
         .par_iter()
@@ -364,7 +364,7 @@ pub fn visible_fraction_at(
                 Some(obs) => {
                     let lit = dirs
                         .iter()
-                        .filter(|d| !ray_blocked(hf, &obs, d, z_max))
+                        .filter(|d| !ray_blocked(hf, &obs, d, z_max, 0.0))
                         .count();
                     lit as f32 / samples as f32
                 }

@@ -51,9 +51,8 @@
 use super::brute::{bilinear, line_height};
 use super::smap::SMap;
 use super::{
-    LightDir, MASK_LIT, MASK_NODATA, MASK_SHADOW, Observer, Result, ShadowError,
-    check_observer_height, check_radius, fraction_from_cost, limb_direction, map_cells,
-    max_height_m, unit_light,
+    LightDir, MASK_LIT, MASK_NODATA, MASK_SHADOW, Observer, Observers, Result, ShadowError,
+    check_radius, fraction_from_cost, limb_direction, map_observers, max_height_m, unit_light,
 };
 use crate::terrain::HeightField;
 
@@ -438,6 +437,29 @@ pub(crate) fn dp_cost_beyond(
     search.best
 }
 
+/// [`dp_cost`] for `min_s_cells` = 0 (grid cells), else [`dp_cost_beyond`] from that distance.
+#[expect(
+    clippy::too_many_arguments,
+    reason = "the DP search's inputs, as dp_cost_beyond"
+)]
+#[inline]
+fn dp_cost_from(
+    hf: &HeightField,
+    mip: &MaxMipmap,
+    obs: &Observer,
+    dir: &LightDir,
+    z_max_m: f64,
+    cap: f64,
+    cfg: &DpConfig,
+    min_s_cells: f64,
+) -> f64 {
+    if min_s_cells > 0.0 {
+        dp_cost_beyond(hf, mip, obs, dir, z_max_m, cap, cfg, min_s_cells)
+    } else {
+        dp_cost(hf, mip, obs, dir, z_max_m, cap, cfg)
+    }
+}
+
 /// Cost above which a disc of angular radius `r` is fully visible (`J* ≥ tan(e_c) − tan(e_c −
 /// r)`); `0` for `r = 0` (hard shadows only need the sign of `J*`).
 pub(crate) fn full_visibility_cap(dir: &LightDir, r: f64) -> f64 {
@@ -466,47 +488,46 @@ fn check_config(cfg: &DpConfig) -> Result<()> {
 
 /// DP visible fraction of a uniform disc of angular radius `angular_radius_rad` for every
 /// cell (`NaN` for nodata).
-pub fn visible_fraction(
+pub fn visible_fraction<'a>(
     hf: &HeightField,
-    observer_height_m: f64,
+    observers: impl Into<Observers<'a>>,
     light_in_model: [f64; 3],
     angular_radius_rad: f64,
     cfg: &DpConfig,
 ) -> Result<Vec<f32>> {
-    check_observer_height(observer_height_m)?;
+    let observers = observers.into();
+    observers.check()?;
     check_radius(angular_radius_rad)?;
     check_config(cfg)?;
     let dir = LightDir::new(unit_light(light_in_model)?);
     let mip = MaxMipmap::new(hf);
     let z_max = max_height_m(hf);
     let cap = full_visibility_cap(&dir, angular_radius_rad);
-    Ok(map_cells(hf, observer_height_m, f32::NAN, |_, _, obs| {
-        let j = dp_cost(hf, &mip, obs, &dir, z_max, cap, cfg);
+    let min_s = observers.min_s_cells();
+    Ok(map_observers(hf, &observers, f32::NAN, |_, obs| {
+        let j = dp_cost_from(hf, &mip, obs, &dir, z_max, cap, cfg, min_s);
         fraction_from_cost(j, &dir, angular_radius_rad) as f32
     }))
 }
 
 /// DP hard mask of the disc centre (`J* >= 0`: no terrain above the centre ray): `1` lit, `0`
 /// shadow, `255` nodata.
-pub fn hard_mask(
+pub fn hard_mask<'a>(
     hf: &HeightField,
-    observer_height_m: f64,
+    observers: impl Into<Observers<'a>>,
     light_in_model: [f64; 3],
 ) -> Result<Vec<u8>> {
-    check_observer_height(observer_height_m)?;
+    let observers = observers.into();
+    observers.check()?;
     let dir = LightDir::new(unit_light(light_in_model)?);
     let mip = MaxMipmap::new(hf);
     let z_max = max_height_m(hf);
     let cfg = DpConfig::default();
-    Ok(map_cells(
-        hf,
-        observer_height_m,
-        MASK_NODATA,
-        |_, _, obs| {
-            let j = dp_cost(hf, &mip, obs, &dir, z_max, 0.0, &cfg);
-            if j < 0.0 { MASK_SHADOW } else { MASK_LIT }
-        },
-    ))
+    let min_s = observers.min_s_cells();
+    Ok(map_observers(hf, &observers, MASK_NODATA, |_, obs| {
+        let j = dp_cost_from(hf, &mip, obs, &dir, z_max, 0.0, &cfg, min_s);
+        if j < 0.0 { MASK_SHADOW } else { MASK_LIT }
+    }))
 }
 
 /// Statistics of [`soft_combined`].
@@ -534,13 +555,14 @@ impl CombinedStats {
 /// whose lower limb is visible as fully lit (fraction 1) and cells whose upper limb is hidden as
 /// fully dark (0); DP runs only for the penumbra cells in between. Returns the fractions (`NaN`
 /// for nodata) and the cell counts.
-pub fn soft_combined(
+pub fn soft_combined<'a>(
     hf: &HeightField,
-    observer_height_m: f64,
+    observers: impl Into<Observers<'a>>,
     light_in_model: [f64; 3],
     angular_radius_rad: f64,
 ) -> Result<(Vec<f32>, CombinedStats)> {
-    check_observer_height(observer_height_m)?;
+    let observers = observers.into();
+    observers.check()?;
     check_radius(angular_radius_rad)?;
     let dir = LightDir::new(unit_light(light_in_model)?);
     let upper = LightDir::new(unit_light(limb_direction(&dir, angular_radius_rad, 1.0))?);
@@ -556,14 +578,15 @@ pub fn soft_combined(
         None => d.unit.z < 0.0,
     };
     // Class codes: 0 dark, 1 lit, 2 DP, 3 nodata.
-    let out: Vec<(f32, u8)> = map_cells(hf, observer_height_m, (f32::NAN, 3u8), |_, _, obs| {
+    let min_s = observers.min_s_cells();
+    let out: Vec<(f32, u8)> = map_observers(hf, &observers, (f32::NAN, 3u8), |_, obs| {
         if !shadowed(&smap_lower, &lower, obs) {
             return (1.0, 1);
         }
         if shadowed(&smap_upper, &upper, obs) {
             return (0.0, 0);
         }
-        let j = dp_cost(hf, &mip, obs, &dir, z_max, cap, &cfg);
+        let j = dp_cost_from(hf, &mip, obs, &dir, z_max, cap, &cfg, min_s);
         let f = fraction_from_cost(j, &dir, angular_radius_rad);
         (f as f32, 2)
     });

@@ -7,9 +7,13 @@
 //! space light direction has), the largest of
 //! the terrain: `atan(max (z_s − z_obs) / t_s)` over the crossings of the horizontal ray with
 //! the grid's centre lines (the surface convention of [`crate::shadow`], marched by
-//! [`crate::shadow::brute`]), up to `max_distance_cells` cells. Only terrain makes the horizon
-//! (the rule of every engine, see [`crate::shadow`]): on a peak it lies below the local
-//! horizontal. A ray that meets no sample at all (a margin cell looking off the grid) gets −90°.
+//! [`crate::shadow::brute`]), up to `max_distance_cells` cells, and never below the **bare
+//! sphere's horizon** (the dip `sqrt(2h/R)` below the observer's local horizontal; on a peak the
+//! terrain horizon lies below the local horizontal, above the dip). The floor is this engine's one
+//! departure from "no terrain beyond the outermost layer" (docs/ARCHITECTURE.md): a profile needs
+//! a finite, smooth value where no terrain lies along a ray (a −90° step would ring through the
+//! 16 coefficients), and the two differ only on rays that meet the sphere beyond the grid, which
+//! the map products count and flag as the DEM being too small.
 //!
 //! So `light elevation > α_h(light azimuth)` is exactly the brute-force engine's "ray not
 //! blocked" test, up to ties. Curvature is in the model-space `z`; the observer stands
@@ -105,6 +109,10 @@ pub struct HorizonMapMeta {
     pub centre_lat_deg: f64,
     /// East longitude of the model origin, degrees.
     pub centre_lon_deg: f64,
+    /// Rotation of the model axes from east/north at the origin, degrees (counter-clockwise seen
+    /// from above; 0 in maps written before it was recorded).
+    #[serde(default)]
+    pub rotation_deg: f64,
     /// Observer height above the ground, metres.
     pub observer_height_m: f64,
     /// Number of sampled azimuths before the DFT.
@@ -159,6 +167,7 @@ impl HorizonMapMeta {
             y_top_m: hf.y_top_m,
             centre_lat_deg: hf.centre_lat_deg,
             centre_lon_deg: hf.centre_lon_deg,
+            rotation_deg: hf.rotation_rad.to_degrees(),
             observer_height_m: params.observer_height_m,
             n_azimuths: params.n_azimuths,
             max_distance_cells: params.max_distance_cells,
@@ -219,7 +228,7 @@ fn horizon_row(
             continue;
         };
         for (v, dir) in cell.iter_mut().zip(dirs) {
-            let mut best = f64::NEG_INFINITY;
+            let mut best = sphere_floor_tan(hf, &obs, dir);
             brute::march(hf, &obs, dir, |s, z| {
                 if s > max_s {
                     return false;
@@ -232,10 +241,22 @@ fn horizon_row(
                 // when the top is above the observer, else 0 (approached as t' grows).
                 ((z_max_m - obs.z_m) / t_m).max(0.0) > best
             });
-            // No sample at all (a margin cell looking off the grid): -90°, finite for the DFT.
             *v = best.atan() as f32;
         }
     }
+}
+
+/// The floor of a sampled horizon (`tan` above the model x/y plane) toward the horizontal `dir`:
+/// the bare sphere's horizon, the dip `sqrt(2h/R)` below the observer's local horizontal (`h` its
+/// height above the sphere, to second order `z + (x² + y²)/2R`). See the module docs.
+fn sphere_floor_tan(hf: &HeightField, obs: &super::Observer, dir: &LightDir) -> f64 {
+    let r = crate::MOON_RADIUS_M;
+    let (x, y) = hf.xy_from_row_col(obs.row, obs.col);
+    let up = hf.up_at(x, y, obs.z_m);
+    let tan_local = -(up.x * dir.unit.x + up.y * dir.unit.y) / up.z;
+    let h = obs.z_m + (x * x + y * y) / (2.0 * r);
+    let dip = (2.0 * h.max(0.0) / r).sqrt();
+    (tan_local.atan() - dip).tan()
 }
 
 /// Horizontal unit directions of the `n_az` azimuths `2πn/N` (from north, clockwise).

@@ -12,7 +12,7 @@
 //! **Build** (one invocation per cell): for each azimuth `θ_n = 2πn/N` the horizontal ray is
 //! marched over every crossing with the lines joining cell centres (the DDA of
 //! [`super::gpu_twins::march_hard`], the brute-force engine's surface), keeping the largest
-//! `(z − z_obs) / t` (terrain only; −90° when no sample lies along the ray), until the grid edge, the distance
+//! `(z − z_obs) / t` from the bare sphere's horizon up ([`sphere_floor_tan`]), until the grid edge, the distance
 //! limit, or `(z_max − z_obs) / t ≤ best`; `α_n = atan(best)` is folded straight into the DFT sums
 //! `acc_k += α_n (cos kθ_n, −sin kθ_n)` with the twiddles read from the same `(sin, cos)` table at
 //! index `k n mod N`. The azimuths of a build are split into dispatches of `az_count`; the partial
@@ -73,9 +73,24 @@ pub fn azimuth_table(n_az: usize) -> Vec<[f32; 2]> {
         .collect()
 }
 
-/// `FB_NO_TERRAIN_TAN` of `shaders/fourier_build.wgsl`: start value below any terrain tangent
-/// (a ray without terrain samples gets `atan(-1e30)` = −90°).
-pub const NO_TERRAIN_TAN: f32 = -1.0e30;
+/// Twin of `fb_sphere_floor_tan` in `shaders/fourier_build.wgsl`: the start value of
+/// [`horizon_tan`], the bare sphere's horizon (the dip `sqrt(2h/R)` below the observer's local
+/// horizontal, `h` its height above the sphere) as `tan` above the model x/y plane; see
+/// [`crate::shadow::fourier`] for why Fourier profiles have this floor.
+pub fn sphere_floor_tan(
+    grid: &MarchGrid,
+    x_m: f32,
+    y_m: f32,
+    z0: f32,
+    up: [f32; 3],
+    sc: [f32; 2],
+) -> f32 {
+    const R: f32 = crate::MOON_RADIUS_M as f32;
+    let tan_local = -(up[0] * sc[0] + up[1] * sc[1]) / up[2];
+    let h = z0 + (grid.z_ref_plus_radius_m - R) + (x_m * x_m + y_m * y_m) / (2.0 * R);
+    let dip = (2.0 * h.max(0.0) / R).sqrt();
+    (tan_local.atan() - dip).tan()
+}
 
 /// Twin of `horizon_tan` in `shaders/fourier_build.wgsl`: the largest `tan` of the terrain's
 /// elevation along the horizontal ray from `(u0, v0, z0)` in grid direction `(du, dv)`, at least
@@ -153,7 +168,7 @@ pub fn fourier_build_cell(
             z0,
             sc[0],
             -sc[1],
-            NO_TERRAIN_TAN,
+            sphere_floor_tan(grid, x_m, y_m, z0, up, sc),
         )
         .atan();
         let mut m = 0_u32;

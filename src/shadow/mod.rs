@@ -56,6 +56,10 @@ use crate::terrain::HeightField;
 pub const SUN_ANGULAR_RADIUS_RAD: f64 = crate::SUN_RADIUS_KM / crate::AU_KM;
 /// Typical apparent angular radius of the Earth's disc seen from the Moon, radians (0.95°).
 pub const EARTH_ANGULAR_RADIUS_RAD: f64 = 0.0166;
+/// Terrain nearer than this (horizontal, cells) to an observer placed at a DEM pixel's own
+/// surface point is not sampled: the observer's own half pixel, as the per-site horizon engine
+/// starts its scan at half a pixel ([`Observers::Points`]).
+pub const OWN_HALF_PIXEL_CELLS: f64 = 0.5;
 /// Mask value for a lit cell.
 pub const MASK_LIT: u8 = 1;
 /// Mask value for a shadowed cell.
@@ -111,45 +115,44 @@ pub enum Engine {
 
 impl Engine {
     /// Hard lit/shadow mask of the light disc's centre: `1` lit, `0` shadow, `255` nodata.
-    pub fn hard_mask(
+    pub fn hard_mask<'a>(
         self,
         hf: &HeightField,
-        observer_height_m: f64,
+        observers: impl Into<Observers<'a>>,
         light_in_model: [f64; 3],
     ) -> Result<Vec<u8>> {
+        let observers = observers.into();
         match self {
-            Engine::Brute => brute::hard_mask(hf, observer_height_m, light_in_model),
-            Engine::Smap | Engine::Combined => {
-                smap::hard_mask(hf, observer_height_m, light_in_model)
-            }
-            Engine::Dp => dp::hard_mask(hf, observer_height_m, light_in_model),
+            Engine::Brute => brute::hard_mask(hf, observers, light_in_model),
+            Engine::Smap | Engine::Combined => smap::hard_mask(hf, observers, light_in_model),
+            Engine::Dp => dp::hard_mask(hf, observers, light_in_model),
         }
     }
 
     /// Visible fraction (0..=1) of a uniform disc of angular radius `angular_radius_rad` centred
     /// on `light_in_model`; `NaN` for nodata cells.
-    pub fn visible_fraction(
+    pub fn visible_fraction<'a>(
         self,
         hf: &HeightField,
-        observer_height_m: f64,
+        observers: impl Into<Observers<'a>>,
         light_in_model: [f64; 3],
         angular_radius_rad: f64,
     ) -> Result<Vec<f32>> {
+        let observers = observers.into();
         match self {
             Engine::Brute => brute::visible_fraction(
                 hf,
-                observer_height_m,
+                observers,
                 light_in_model,
                 angular_radius_rad,
                 brute::DEFAULT_DISC_SAMPLES,
             ),
             Engine::Smap | Engine::Combined => {
-                dp::soft_combined(hf, observer_height_m, light_in_model, angular_radius_rad)
-                    .map(|(f, _)| f)
+                dp::soft_combined(hf, observers, light_in_model, angular_radius_rad).map(|(f, _)| f)
             }
             Engine::Dp => dp::visible_fraction(
                 hf,
-                observer_height_m,
+                observers,
                 light_in_model,
                 angular_radius_rad,
                 &dp::DpConfig::default(),
@@ -242,9 +245,9 @@ impl LightDir {
     }
 }
 
-/// The observer of one cell: start of every ray of that cell.
-#[derive(Debug, Clone, Copy)]
-pub(crate) struct Observer {
+/// An observer in model space: the start of every ray of one map cell or pixel.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Observer {
     /// Fractional row of the observer (centre coordinates: integers are cell centres).
     pub row: f64,
     /// Fractional column of the observer.
@@ -266,7 +269,13 @@ pub(crate) fn observer_at(
     let (x, y) = hf.xy_from_row_col(row as f64, col as f64);
     let up = hf.up_at(x, y, z);
     let p = Vector3::new(x, y, z) + observer_height_m * up;
-    let (r, c) = hf.row_col_from_xy(p.x, p.y);
+    // Offset from the cell's own (integer) position, not a round trip through x/y: a round trip
+    // leaves a 1e-12-cell error with a non-round cell size, and the first line crossing of a
+    // ray then lands on the observer's own cell (as the GPU's u0 = col + h up_x / px).
+    let (r, c) = (
+        row as f64 - observer_height_m * up.y / hf.px_m,
+        col as f64 + observer_height_m * up.x / hf.px_m,
+    );
     // The radial offset moves an edge cell's observer off the grid by at most
     // h * sin(tilt) (1 cm for 2 m at 6° tilt); keep rays starting inside the grid.
     Some(Observer {
@@ -301,23 +310,23 @@ pub(crate) fn exits_below_sphere(hf: &HeightField, obs: &Observer, light: &Light
     b < 0.0 && b * b >= c
 }
 
-/// For every evaluated cell (under [`HeightField::window`]) for which `lit(index)` holds:
+/// For every observer (see [`Observers`]) for which `lit(index)` holds:
 /// whether its ray toward `light_in_model`, once it leaves the grid, is below the reference
 /// sphere or meets it further on (the DEM is too small there). Other cells are `false`.
-pub fn lit_exits_below_sphere<F>(
+pub fn lit_exits_below_sphere<'a, F>(
     hf: &HeightField,
-    observer_height_m: f64,
+    observers: impl Into<Observers<'a>>,
     light_in_model: [f64; 3],
     lit: F,
 ) -> Result<Vec<bool>>
 where
     F: Fn(usize) -> bool + Sync,
 {
-    check_observer_height(observer_height_m)?;
+    let observers = observers.into();
+    observers.check()?;
     let dir = LightDir::new(unit_light(light_in_model)?);
-    let cols = hf.cols;
-    Ok(map_cells(hf, observer_height_m, false, |row, col, obs| {
-        lit(row * cols + col) && exits_below_sphere(hf, obs, &dir)
+    Ok(map_observers(hf, &observers, false, |i, obs| {
+        lit(i) && exits_below_sphere(hf, obs, &dir)
     }))
 }
 
@@ -376,6 +385,79 @@ pub(crate) fn limb_direction(light: &LightDir, angular_radius_rad: f64, sign: f6
     let ax = light.unit.x / light.hor;
     let ay = light.unit.y / light.hor;
     [e.cos() * ax, e.cos() * ay, e.sin()]
+}
+
+/// Where an engine puts its observers.
+#[derive(Debug, Clone, Copy)]
+pub enum Observers<'a> {
+    /// One per cell of the height field, `height_m` above the cell's surface point along the
+    /// radial direction (results in the grid's row-major order; holes and cells outside
+    /// [`HeightField::window`] give nodata). A plain number converts into this.
+    Cells {
+        /// Observer height above the ground, metres (finite, >= 0).
+        height_m: f64,
+    },
+    /// Given observers (results in the list's order; `None` gives nodata), e.g. the exact
+    /// positions of a DEM's own pixels ([`crate::map::MapGrid::pixel_observers`]). Terrain
+    /// closer than `min_s_cells` (horizontal distance, cells) is not sampled, as the per-site
+    /// horizon engine leaves out the observer's own half pixel.
+    Points {
+        /// The observers.
+        list: &'a [Option<Observer>],
+        /// Nearest terrain sample, cells.
+        min_s_cells: f64,
+    },
+}
+
+impl From<f64> for Observers<'_> {
+    fn from(height_m: f64) -> Self {
+        Observers::Cells { height_m }
+    }
+}
+
+impl Observers<'_> {
+    /// Checks the observer height of [`Observers::Cells`].
+    pub(crate) fn check(&self) -> Result<()> {
+        match *self {
+            Observers::Cells { height_m } => check_observer_height(height_m),
+            Observers::Points { .. } => Ok(()),
+        }
+    }
+
+    /// Nearest terrain sample (cells) an engine takes: `min_s_cells` for points, 0 for cells.
+    pub(crate) fn min_s_cells(&self) -> f64 {
+        match *self {
+            Observers::Cells { .. } => 0.0,
+            Observers::Points { min_s_cells, .. } => min_s_cells,
+        }
+    }
+}
+
+/// Runs `f(index, observer)` for every observer of `observers` in parallel (`index` into the
+/// result); the others give `nodata` (see [`Observers`]).
+pub(crate) fn map_observers<T, F>(
+    hf: &HeightField,
+    observers: &Observers,
+    nodata: T,
+    f: F,
+) -> Vec<T>
+where
+    T: Copy + Send + Sync,
+    F: Fn(usize, &Observer) -> T + Sync,
+{
+    match *observers {
+        Observers::Cells { height_m } => {
+            let cols = hf.cols;
+            map_cells(hf, height_m, nodata, |row, col, obs| {
+                f(row * cols + col, obs)
+            })
+        }
+        Observers::Points { list, .. } => list
+            .par_iter()
+            .enumerate()
+            .map(|(i, o)| o.as_ref().map_or(nodata, |obs| f(i, obs)))
+            .collect(),
+    }
 }
 
 /// Runs `f(row, col, observer)` for every cell in parallel over rows; holes and cells outside

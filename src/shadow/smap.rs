@@ -38,8 +38,8 @@
 use rayon::prelude::*;
 
 use super::{
-    LightDir, MASK_LIT, MASK_NODATA, MASK_SHADOW, Observer, Result, check_observer_height,
-    map_cells, max_height_m, unit_light,
+    LightDir, MASK_LIT, MASK_NODATA, MASK_SHADOW, Observer, Observers, Result, map_observers,
+    max_height_m, unit_light,
 };
 use crate::terrain::HeightField;
 
@@ -370,26 +370,22 @@ pub(crate) fn find_next_v_quad(black: &[bool], next: &mut [i32]) {
 }
 
 /// SMap hard mask of the light's centre direction: `1` lit, `0` shadow, `255` nodata.
-pub fn hard_mask(
+pub fn hard_mask<'a>(
     hf: &HeightField,
-    observer_height_m: f64,
+    observers: impl Into<Observers<'a>>,
     light_in_model: [f64; 3],
 ) -> Result<Vec<u8>> {
-    check_observer_height(observer_height_m)?;
+    let observers = observers.into();
+    observers.check()?;
     let dir = LightDir::new(unit_light(light_in_model)?);
     let smap = SMap::build(hf, dir);
-    Ok(map_cells(
-        hf,
-        observer_height_m,
-        MASK_NODATA,
-        |_, _, obs| {
-            let shadow = match &smap {
-                Some(s) => s.is_shadow(obs),
-                None => dir.unit.z < 0.0,
-            };
-            if shadow { MASK_SHADOW } else { MASK_LIT }
-        },
-    ))
+    Ok(map_observers(hf, &observers, MASK_NODATA, |_, obs| {
+        let shadow = match &smap {
+            Some(s) => s.is_shadow(obs),
+            None => dir.unit.z < 0.0,
+        };
+        if shadow { MASK_SHADOW } else { MASK_LIT }
+    }))
 }
 
 /// Fraction of Black SMap elements for a light (diagnostics; `0` for a vertical light).

@@ -48,6 +48,10 @@ pub struct HeightField {
     pub centre_lat_deg: f64,
     /// East longitude of the model-space origin `C`, degrees.
     pub centre_lon_deg: f64,
+    /// Rotation (rad, counter-clockwise seen from above) of the model x/y axes from east/north at
+    /// `C`: a map's model grid is turned so that its rows and columns run along the DEM's
+    /// (see [`crate::map::MapGrid`]); 0 gives the plain ENU frame.
+    pub rotation_rad: f64,
     /// The cells whose results are wanted (`None`: all). A map's grid covers every DEM layer so
     /// that all of them cast shadows, but only the cells under the output raster are evaluated;
     /// the CPU engines leave the others at their nodata value (the terrain there still blocks).
@@ -84,6 +88,7 @@ impl HeightField {
             z_m: vec![0.0; rows * cols],
             centre_lat_deg: -90.0,
             centre_lon_deg: 0.0,
+            rotation_rad: 0.0,
             window: None,
         }
     }
@@ -122,10 +127,17 @@ impl HeightField {
         )
     }
 
-    /// Rotation from `MOON_ME` to model space (the ENU frame at the centre `C`). Apply it to a
-    /// body-fixed light direction to get the model-space light direction.
+    /// Rotation from `MOON_ME` to model space (the ENU frame at the centre `C`, turned by
+    /// [`HeightField::rotation_rad`]). Apply it to a body-fixed light direction to get the
+    /// model-space light direction.
     pub fn model_from_moon_me(&self) -> Matrix3<f64> {
-        enu_from_moon_me(self.centre_lat_deg, self.centre_lon_deg)
+        model_from_enu(self.rotation_rad)
+            * enu_from_moon_me(self.centre_lat_deg, self.centre_lon_deg)
+    }
+
+    /// Rotation from the ENU frame at `C` to model space.
+    pub fn model_from_enu(&self) -> Matrix3<f64> {
+        model_from_enu(self.rotation_rad)
     }
 
     /// Unit radial ("up") direction of the Moon at a model-space point, in model space. An
@@ -150,6 +162,13 @@ impl HeightField {
         let c_body_m = MOON_RADIUS_M * Vector3::new(clat * clon, clat * slon, slat);
         self.model_from_moon_me().transpose() * p_model_m + c_body_m
     }
+}
+
+/// The rotation about the up axis by `rotation_rad` (counter-clockwise seen from above) that
+/// takes ENU coordinates at the model centre to model coordinates.
+pub fn model_from_enu(rotation_rad: f64) -> Matrix3<f64> {
+    let (s, c) = rotation_rad.sin_cos();
+    Matrix3::new(c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0)
 }
 
 #[cfg(test)]

@@ -47,6 +47,9 @@ pub struct ModelGridSpec {
     pub cols: usize,
     /// Cell size along model x and y, metres.
     pub px_m: f64,
+    /// Rotation of the model axes from east/north at the centre (rad, counter-clockwise seen
+    /// from above; see [`HeightField::rotation_rad`]).
+    pub rotation_rad: f64,
 }
 
 /// Statistics of one resampling run.
@@ -98,9 +101,10 @@ pub fn resample_to_model_space(
         z_m: vec![f32::NAN; spec.rows * spec.cols],
         centre_lat_deg: spec.centre_lat_deg,
         centre_lon_deg: spec.centre_lon_deg,
+        rotation_rad: spec.rotation_rad,
         window: None,
     };
-    let frame = ModelFrame::new(spec.centre_lat_deg, spec.centre_lon_deg);
+    let frame = ModelFrame::rotated(spec.centre_lat_deg, spec.centre_lon_deg, spec.rotation_rad);
     let geometry = HfGeometry {
         x_left_m: hf.x_left_m,
         y_top_m: hf.y_top_m,
@@ -179,19 +183,26 @@ pub struct ModelFrame {
 }
 
 impl ModelFrame {
-    /// The frame of a model space centred at (`lat_deg`, `lon_deg`).
+    /// The frame of a model space centred at (`lat_deg`, `lon_deg`), axes east/north/up.
     pub fn new(lat_deg: f64, lon_deg: f64) -> Self {
+        Self::rotated(lat_deg, lon_deg, 0.0)
+    }
+
+    /// As [`ModelFrame::new`] with the x/y axes turned by `rotation_rad` (counter-clockwise seen
+    /// from above) from east/north.
+    pub fn rotated(lat_deg: f64, lon_deg: f64, rotation_rad: f64) -> Self {
         let (slat, clat) = lat_deg.to_radians().sin_cos();
         let (slon, clon) = lon_deg.to_radians().sin_cos();
         ModelFrame {
-            model_from_moon_me: crate::frames::enu_from_moon_me(lat_deg, lon_deg),
+            model_from_moon_me: crate::terrain::heightfield::model_from_enu(rotation_rad)
+                * crate::frames::enu_from_moon_me(lat_deg, lon_deg),
             origin_in_moon_me_m: MOON_RADIUS_M * Vector3::new(clat * clon, clat * slon, slat),
         }
     }
 
     /// The frame of a height field.
     pub fn of(hf: &HeightField) -> Self {
-        Self::new(hf.centre_lat_deg, hf.centre_lon_deg)
+        Self::rotated(hf.centre_lat_deg, hf.centre_lon_deg, hf.rotation_rad)
     }
 
     /// Body-fixed position (m) of a model-space point.
@@ -302,6 +313,7 @@ mod tests {
             rows: 41,
             cols: 41,
             px_m: 2500.0,
+            rotation_rad: 0.0,
         };
         let (hf, stats) = resample_to_model_space(&stack, &spec).unwrap();
         assert_eq!(stats.holes, 0);
@@ -334,6 +346,7 @@ mod tests {
             rows: 21,
             cols: 21,
             px_m: 5000.0,
+            rotation_rad: 0.0,
         };
         let (hf, _) = resample_to_model_space(&stack, &spec).unwrap();
         for row in 0..hf.rows {
@@ -359,6 +372,7 @@ mod tests {
             rows: 64,
             cols: 64,
             px_m: 1500.0,
+            rotation_rad: 0.0,
         };
         let (hf, stats) = resample_to_model_space(&stack, &spec).unwrap();
         let mut max_residual_m: f64 = 0.0;
@@ -396,6 +410,7 @@ mod tests {
             rows: 50,
             cols: 50,
             px_m: 730.0,
+            rotation_rad: 0.0,
         };
         let (hf, _) = resample_to_model_space(&stack, &spec).unwrap();
         let frame = ModelFrame::of(&hf);
@@ -456,6 +471,7 @@ mod tests {
             rows: 4,
             cols: 4,
             px_m: 100.0,
+            rotation_rad: 0.0,
         };
         let err = resample_to_model_space(&stack, &spec).unwrap_err();
         assert!(matches!(err, DemError::OutsideLayers { .. }), "{err}");

@@ -178,6 +178,7 @@ pub fn flat_height_field(dem: &Dem) -> HeightField {
         z_m: dem.heights_m.clone(),
         centre_lat_deg: -90.0,
         centre_lon_deg: 0.0,
+        rotation_rad: 0.0,
         window: None,
     }
 }

@@ -353,6 +353,9 @@ fn map_range(cwd: &Path, wgpu_backend: Option<&str>, backend: &str) -> std::proc
         k.to_str().unwrap(),
         "--backend",
         backend,
+        // The GPU's method on both backends (the CPU default starts at the DEM's own pixels).
+        "--observers",
+        "cells",
     ])
     .current_dir(cwd)
     .env("XDG_RUNTIME_DIR", "/tmp")

@@ -280,6 +280,9 @@ fn map_range_dp(cwd: &std::path::Path, backend: &str) -> std::process::Output {
             k.to_str().unwrap(),
             "--backend",
             backend,
+            // The GPU's method on both backends (the CPU default starts at the DEM's own pixels).
+            "--observers",
+            "cells",
         ])
         .current_dir(cwd)
         .env("XDG_RUNTIME_DIR", "/tmp")
@@ -494,6 +497,9 @@ fn map_one_light_gpu_matches_cpu() {
                 &format!("m_{backend}.tif"),
                 "--backend",
                 backend,
+                // The GPU's method on both backends (the CPU default: the DEM's own pixels).
+                "--observers",
+                "cells",
             ])
             .current_dir(dir.path())
             .env("XDG_RUNTIME_DIR", "/tmp")

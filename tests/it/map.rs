@@ -214,3 +214,29 @@ fn fourier_engine_map_agrees_with_brute_force() {
         "fourier vs brute force: {pct:.3}% of pixels differ"
     );
 }
+
+#[test]
+fn gpu_maps_refuse_pixel_observers_cleanly() {
+    // The GPU kernels start their rays at the model cells only: asking for pixel observers on the
+    // GPU is one error line (or, without an adapter, the adapter's error line).
+    let dir = tempfile::tempdir().unwrap();
+    let out = crate::util::penumbra(
+        dir.path(),
+        &[
+            "map",
+            "--synthetic",
+            "--sun-az-deg",
+            "10",
+            "--sun-el-deg",
+            "3",
+            "--out-mask",
+            "m.tif",
+            "--backend",
+            "gpu",
+            "--observers",
+            "pixels",
+        ],
+    );
+    crate::util::assert_clean_error(&out, "--backend");
+    assert!(!dir.path().join("m.tif").exists());
+}

@@ -242,6 +242,7 @@ fn resampling_the_lola_stack_into_model_space_lands_on_the_surface() {
         rows: 128,
         cols: 128,
         px_m: 1000.0,
+        rotation_rad: 0.0,
     };
     let (hf, stats) = resample_to_model_space(&stack, &spec).unwrap();
     assert_eq!(stats.holes, 0);
