@@ -87,6 +87,15 @@ fn bench_maps(c: &mut Criterion) {
         g.bench_function(BenchmarkId::new("hard_smap", name), |b| {
             b.iter(|| smap::hard_mask(hf, 2.0, light).unwrap())
         });
+        // A Sun below the model horizontal: the rays descend and now march until terrain or the
+        // grid edge (no "sphere below" shortcut; issue 13).
+        let below = light_az_el(37.0, -0.5);
+        g.bench_function(BenchmarkId::new("hard_smap_below", name), |b| {
+            b.iter(|| smap::hard_mask(hf, 2.0, below).unwrap())
+        });
+        g.bench_function(BenchmarkId::new("hard_brute_below", name), |b| {
+            b.iter(|| brute::hard_mask(hf, 2.0, below).unwrap())
+        });
         g.bench_function(BenchmarkId::new("soft_dp", name), |b| {
             b.iter(|| {
                 dp::visible_fraction(hf, 2.0, light, SUN_ANGULAR_RADIUS_RAD, &Default::default())
