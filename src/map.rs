@@ -39,7 +39,7 @@ use crate::terrain::{Dem, HeightField, TerrainStack};
 pub const VISIBLE_MIN_FRACTION: f32 = 1e-6;
 
 /// Largest model grid a map builds (cells; 4 bytes each, plus the engines' mipmaps): 40 M cells
-/// hold the 1536² 240 m LOLA grid with its ±457 km far field (3,808² cells).
+/// hold the 1536² 240 m LOLA grid with its ±457 km far field (3,752² cells).
 pub const MAX_MODEL_CELLS: usize = 40_000_000;
 
 /// The model-space height field of a map and the way back to the output (DEM) grid.
