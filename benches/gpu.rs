@@ -19,8 +19,8 @@ use nalgebra::Vector3;
 use penumbra::gpu::GpuContext;
 use penumbra::gpu::shadow_march::{DEFAULT_BAND_BYTES, GpuMarchGrid, shadow_march_gpu};
 use penumbra::gpu::sweep_accumulate::{SweepOptions, sweep_stats_gpu};
-use penumbra::shadow::gpu_twins::{self, MarchGrid, RowBand};
 use penumbra::terrain::HeightField;
+use penumbra::twins::{self, MarchGrid, RowBand};
 
 const SIZES: [usize; 2] = [128, 256];
 const SWEEP_EPOCHS: usize = 32;
@@ -79,12 +79,12 @@ fn bench_march(c: &mut Criterion, ctx: Option<&GpuContext>) {
     group
         .sample_size(10)
         .measurement_time(Duration::from_secs(4));
-    let light = gpu_twins::light_to_f32(&sun_dir(151.0, 1.5));
+    let light = twins::light_to_f32(&sun_dir(151.0, 1.5));
     for n in SIZES {
         let grid = hills(n);
         group.throughput(Throughput::Elements(grid.cells() as u64));
         group.bench_with_input(BenchmarkId::new("cpu_twin", n), &grid, |b, grid| {
-            b.iter(|| gpu_twins::shadow_march(grid, &[light], 0, RowBand::whole(grid)))
+            b.iter(|| twins::shadow_march(grid, &[light], 0, RowBand::whole(grid)))
         });
         if let Some(ctx) = ctx {
             let gpu_grid = GpuMarchGrid::upload(ctx, &grid).expect("upload");
@@ -106,14 +106,14 @@ fn bench_sweep(c: &mut Criterion, ctx: Option<&GpuContext>) {
     let lights: Vec<[f32; 4]> = (0..SWEEP_EPOCHS)
         .map(|k| {
             let phase = k as f64 / SWEEP_EPOCHS as f64;
-            gpu_twins::light_to_f32(&sun_dir(360.0 * phase, 1.5 + (8.0 * phase).sin()))
+            twins::light_to_f32(&sun_dir(360.0 * phase, 1.5 + (8.0 * phase).sin()))
         })
         .collect();
     for n in SIZES {
         let grid = hills(n);
         group.throughput(Throughput::Elements((grid.cells() * SWEEP_EPOCHS) as u64));
         group.bench_with_input(BenchmarkId::new("cpu_twin", n), &grid, |b, grid| {
-            b.iter(|| gpu_twins::sweep_stats(grid, &lights, RowBand::whole(grid)))
+            b.iter(|| twins::sweep_stats(grid, &lights, RowBand::whole(grid)))
         });
         if let Some(ctx) = ctx {
             let gpu_grid = GpuMarchGrid::upload(ctx, &grid).expect("upload");
@@ -139,11 +139,11 @@ fn bench_dp_soft(c: &mut Criterion, ctx: Option<&GpuContext>) {
         .sample_size(10)
         .measurement_time(Duration::from_secs(6));
     let dir = sun_dir(151.0, 1.5);
-    let light = gpu_twins::disc_light_to_f32(&dir, SUN_ANGULAR_RADIUS_RAD);
+    let light = twins::disc_light_to_f32(&dir, SUN_ANGULAR_RADIUS_RAD);
     for n in [256, 512] {
         let hf = hills_hf(n);
         let grid = MarchGrid::from_height_field(&hf, 2.0).expect("valid grid");
-        let mip = gpu_twins::DpMip::build(&grid);
+        let mip = twins::DpMip::build(&grid);
         group.throughput(Throughput::Elements(grid.cells() as u64));
         group.bench_with_input(BenchmarkId::new("cpu_dp", n), &hf, |b, hf| {
             b.iter(|| {
@@ -158,7 +158,7 @@ fn bench_dp_soft(c: &mut Criterion, ctx: Option<&GpuContext>) {
             })
         });
         group.bench_with_input(BenchmarkId::new("cpu_twin", n), &grid, |b, grid| {
-            b.iter(|| gpu_twins::dp_visible(grid, &mip, &[light], 0, RowBand::whole(grid)))
+            b.iter(|| twins::dp_visible(grid, &mip, &[light], 0, RowBand::whole(grid)))
         });
         if let Some(ctx) = ctx {
             let gpu_grid = GpuDpGrid::upload(ctx, &grid, &mip).expect("upload");
@@ -255,10 +255,10 @@ fn bench_dp_tiled(c: &mut Criterion, ctx: Option<&GpuContext>) {
     group
         .sample_size(10)
         .measurement_time(Duration::from_secs(if n > 4096 { 60 } else { 6 }));
-    let light = gpu_twins::disc_light_to_f32(&sun_dir(151.0, 1.5), SUN_ANGULAR_RADIUS_RAD);
+    let light = twins::disc_light_to_f32(&sun_dir(151.0, 1.5), SUN_ANGULAR_RADIUS_RAD);
     let grid = hills(n);
     group.throughput(Throughput::Elements(grid.cells() as u64));
-    let mip = gpu_twins::DpMip::build(&grid);
+    let mip = twins::DpMip::build(&grid);
     match GpuDpGrid::upload(ctx, &grid, &mip) {
         Ok(gpu_grid) => {
             group.bench_with_input(BenchmarkId::new("gpu_untiled", n), &gpu_grid, |b, g| {

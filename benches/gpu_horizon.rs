@@ -18,10 +18,12 @@ use std::time::Duration;
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use penumbra::gpu::GpuContext;
 use penumbra::gpu::horizon::GpuHorizonScan;
-use penumbra::horizon::gpu_twin::{ScanTerrain, SiteParams, azimuth_table, scan_twin, site_setup};
 use penumbra::horizon::{HorizonEngine, HorizonMethod, HorizonParams};
 use penumbra::terrain::TerrainStack;
 use penumbra::terrain::synth::{SynthParams, south_polar_dem};
+use penumbra::twins::horizon_scan::{
+    ScanTerrain, SiteParams, azimuth_table, scan_twin, site_setup,
+};
 
 const SITES: usize = 100;
 

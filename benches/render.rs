@@ -35,7 +35,7 @@ const LOLA_240M: &str = concat!(
 );
 
 struct Setup {
-    grid: penumbra::map::MapGrid,
+    grid: penumbra::model::MapGrid,
     camera: Camera,
     lights: Lights,
 }
@@ -43,12 +43,12 @@ struct Setup {
 /// The terrain (synthetic or a DEM file), a camera 10 m above (-89.6, 0) looking az 20 deg,
 /// el -2 deg, fov 60 deg, Sun at az 30 deg el 1 deg, Earth at az 356 deg el 5.8 deg.
 fn setup(dem: Option<&str>) -> Setup {
-    let args = penumbra::cli::TerrainArgs {
-        dem: dem.map(Into::into).into_iter().collect(),
-        synthetic: dem.is_none(),
+    let source = match dem {
+        Some(path) => penumbra::products::TerrainSource::Dems(vec![path.into()]),
+        None => penumbra::products::TerrainSource::Synthetic(Default::default()),
     };
-    let (stack, _) = penumbra::app::load_terrain(&args).unwrap();
-    let grid = penumbra::map::MapGrid::new(&stack).unwrap();
+    let (stack, _) = source.load().unwrap();
+    let grid = penumbra::model::MapGrid::new(&stack).unwrap();
     let hf = &grid.hf;
     let lights = Lights {
         sun: grid.light_from_az_el_deg(30.0, 1.0),
@@ -86,7 +86,7 @@ fn bench_render(c: &mut Criterion) {
     #[cfg(feature = "gpu")]
     match penumbra::gpu::GpuContext::new() {
         Ok(ctx) => {
-            let fr = penumbra::map::GpuSceneFractions::upload(&ctx, hf).unwrap();
+            let fr = penumbra::compute::gpu_maps::GpuSceneFractions::upload(&ctx, hf).unwrap();
             group.bench_function(
                 format!("scene_fractions_gpu_dp ({})", ctx.adapter_name()),
                 |b| b.iter(|| fr.fractions(&ctx, &s.lights).unwrap()),

@@ -19,8 +19,8 @@
 
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
 use penumbra::ephem::{self, Kernels, Site};
+use penumbra::series::dp::SmapDpSites;
 use penumbra::series::{self, SeriesConfig, SeriesEngine, SeriesSite};
-use penumbra::series_dp::SmapDpSites;
 use penumbra::terrain::{TerrainStack, synth};
 use rayon::prelude::*;
 
@@ -134,7 +134,7 @@ fn bench_engines(c: &mut Criterion) {
             group.bench_with_input(BenchmarkId::new("smap_dp_gpu", n), &sites, |b, sites| {
                 b.iter(|| {
                     let dp = SmapDpSites::new(&stack, sites).unwrap();
-                    let on_gpu = penumbra::series_dp::SmapDpGpu::new(ctx, &dp).unwrap();
+                    let on_gpu = penumbra::series::dp::SmapDpGpu::new(ctx, &dp).unwrap();
                     let ephem_sites: Vec<Site> = sites
                         .iter()
                         .enumerate()

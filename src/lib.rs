@@ -12,29 +12,35 @@
 //!    curvature-exact local model space.
 //! 3. [`horizon`], [`illum`], [`shadow`]: horizons, visible fractions of the Sun's and the Earth's
 //!    discs, shadow maps.
-//! 4. [`output`] and [`scenario`]: CSV/JSON/GeoTIFF/PNG writers and declarative runs.
+//! 4. [`output`], [`products`] and [`scenario`]: CSV/JSON/GeoTIFF/PNG writers, one pipeline per
+//!    job (typed requests in, files out) and declarative runs. The command line lives in the
+//!    binary (`src/cli/`); the library knows no clap.
 //!
 //! Conventions used everywhere: azimuth in degrees from local north, clockwise (north = direction
 //! of increasing latitude, east = increasing longitude); elevation above the plane normal to the
 //! radial direction; heights in metres above the 1737.4 km reference sphere; planetocentric
 //! latitude and east longitude.
 
-pub mod app;
-pub mod cli;
+pub mod compute;
 pub mod ephem;
 pub mod frames;
 pub mod gpu;
 pub mod horizon;
 pub mod illum;
 pub mod map;
+pub mod model;
 pub mod output;
+pub mod products;
 pub mod render;
 pub mod scenario;
 pub mod series;
-pub mod series_dp;
 pub mod shadow;
 pub mod terrain;
+pub mod twins;
 
+/// Observer height above the ground used wherever none is given (maps, series sites, horizons,
+/// site cameras, scenarios), metres: a lander's solar panel or camera mast.
+pub const DEFAULT_OBSERVER_HEIGHT_M: f64 = 2.0;
 /// Mean radius of the Moon's reference sphere, metres (LOLA and PDS convention).
 pub const MOON_RADIUS_M: f64 = 1_737_400.0;
 /// Mean radius of the Moon's reference sphere, kilometres.

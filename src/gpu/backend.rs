@@ -1,9 +1,9 @@
-//! The `--backend cpu|gpu|auto` switch and its resolution (vello `use_cpu`).
+//! The `cpu|gpu|auto` backend choice and its resolution (vello `use_cpu`).
 
 use super::{GpuContext, GpuError};
 
 /// Which compute backend a command should use.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Backend {
     /// The CPU (rayon) reference engines.
     Cpu,
@@ -26,13 +26,27 @@ impl Backend {
     }
 }
 
+impl std::str::FromStr for Backend {
+    type Err = String;
+    /// Parses `cpu`, `gpu` or `auto`.
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "cpu" => Ok(Backend::Cpu),
+            "gpu" => Ok(Backend::Gpu),
+            "auto" => Ok(Backend::Auto),
+            _ => Err(format!("backend '{s}': expected cpu, gpu or auto")),
+        }
+    }
+}
+
 /// The outcome of [`resolve_backend`].
 #[derive(Debug)]
 pub enum ResolvedBackend {
     /// Run on the CPU.
     Cpu,
-    /// Run on the GPU with this context (device and pipelines built once; reuse it).
-    Gpu(Box<GpuContext>),
+    /// Run on the GPU with this context: one per process, shared by every command and stage
+    /// that resolves to the GPU (device once, each kernel family's pipelines on first use).
+    Gpu(std::sync::Arc<GpuContext>),
 }
 
 impl ResolvedBackend {
@@ -55,13 +69,13 @@ impl ResolvedBackend {
 pub fn resolve_backend(requested: Backend) -> Result<ResolvedBackend, GpuError> {
     match requested {
         Backend::Cpu => Ok(ResolvedBackend::Cpu),
-        Backend::Gpu => new_context().map(|ctx| ResolvedBackend::Gpu(Box::new(ctx))),
+        Backend::Gpu => shared_context().map(ResolvedBackend::Gpu),
         // One process (e.g. `penumbra run` with a map and several renders) probes and warns
         // once: after `auto` fell back to the CPU, later `auto` requests take the CPU silently.
         Backend::Auto if AUTO_FELL_BACK.load(std::sync::atomic::Ordering::Relaxed) => {
             Ok(ResolvedBackend::Cpu)
         }
-        Backend::Auto => match new_context() {
+        Backend::Auto => match shared_context() {
             #[cfg(feature = "gpu")]
             Ok(ctx) if ctx.is_software() => {
                 // A software adapter (lavapipe) runs the same kernels on the same CPU cores, more
@@ -74,7 +88,7 @@ pub fn resolve_backend(requested: Backend) -> Result<ResolvedBackend, GpuError> 
                 AUTO_FELL_BACK.store(true, std::sync::atomic::Ordering::Relaxed);
                 Ok(ResolvedBackend::Cpu)
             }
-            Ok(ctx) => Ok(ResolvedBackend::Gpu(Box::new(ctx))),
+            Ok(ctx) => Ok(ResolvedBackend::Gpu(ctx)),
             Err(err) => {
                 eprintln!(
                     "penumbra: warning: --backend auto: {}; using the CPU backend",
@@ -101,12 +115,24 @@ fn one_line(err: &GpuError) -> String {
     s.replace('\n', " ")
 }
 
+/// The process's GPU context, created on the first successful call (a failure is not cached:
+/// the next call tries again).
 #[cfg(feature = "gpu")]
-fn new_context() -> Result<GpuContext, GpuError> {
-    GpuContext::new()
+fn shared_context() -> Result<std::sync::Arc<GpuContext>, GpuError> {
+    static SHARED: std::sync::Mutex<Option<std::sync::Arc<GpuContext>>> =
+        std::sync::Mutex::new(None);
+    let mut shared = SHARED
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
+    if let Some(ctx) = shared.as_ref() {
+        return Ok(ctx.clone());
+    }
+    let ctx = std::sync::Arc::new(GpuContext::new()?);
+    *shared = Some(ctx.clone());
+    Ok(ctx)
 }
 
 #[cfg(not(feature = "gpu"))]
-fn new_context() -> Result<GpuContext, GpuError> {
+fn shared_context() -> Result<std::sync::Arc<GpuContext>, GpuError> {
     Err(GpuError::NotCompiled)
 }

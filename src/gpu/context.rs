@@ -1,27 +1,33 @@
-//! The wgpu instance, adapter, device, queue and compute pipelines, built once per process
-//! ([`GpuContext::new`]) and reused for every kernel call and every epoch (wgpu
-//! `repeated_compute` pattern), plus the adapter listing of `penumbra gpu-info`.
+//! The wgpu instance, adapter, device and queue, built once per process ([`GpuContext::new`],
+//! shared through [`crate::gpu::resolve_backend`]), and each kernel family's pipelines, built on
+//! first use and reused for every later call and epoch (wgpu `repeated_compute`; rerun's
+//! `RenderContext::renderer::<R>()`), plus the adapter listing of `penumbra gpu-info`.
+//!
+//! The context knows no kernel: a kernel module implements [`Pipelines`] for its pipeline set
+//! and asks for it with [`GpuContext::pipelines`], so the kernel modules import the context and
+//! never the other way round.
 
-use std::sync::mpsc;
+use std::any::{Any, TypeId};
+use std::collections::HashMap;
+use std::sync::{Arc, Mutex, mpsc};
 
 use super::GpuError;
-use super::dp::DpPipelines;
-use super::fourier::FourierPipelines;
-use super::render::RenderPipeline;
-use super::shadow_march::MarchPipelines;
-use super::sweep_accumulate::AccumulatePipeline;
 
-/// A ready-to-use GPU: device, queue and every penumbra compute pipeline.
+/// A kernel family's pipelines and layouts, built once per device on first use.
+pub(crate) trait Pipelines: Send + Sync + 'static {
+    /// What is being built, for the error message of a failed build.
+    const WHAT: &'static str;
+    /// Builds the pipelines on `device` (inside an error scope).
+    fn build(device: &wgpu::Device) -> Self;
+}
+
+/// A ready-to-use GPU: device, queue and the pipelines built so far.
 pub struct GpuContext {
     pub(crate) device: wgpu::Device,
     pub(crate) queue: wgpu::Queue,
     info: wgpu::AdapterInfo,
     limits: wgpu::Limits,
-    pub(crate) march: MarchPipelines,
-    pub(crate) accumulate: AccumulatePipeline,
-    pub(crate) dp: DpPipelines,
-    pub(crate) fourier: FourierPipelines,
-    pub(crate) render: RenderPipeline,
+    pipelines: Mutex<HashMap<TypeId, Arc<dyn Any + Send + Sync>>>,
 }
 
 impl std::fmt::Debug for GpuContext {
@@ -45,10 +51,10 @@ fn instance() -> wgpu::Instance {
 }
 
 impl GpuContext {
-    /// Picks the high-performance adapter (honouring `WGPU_BACKEND`), requests a device with
-    /// the adapter's own limits (so that large height fields fit in one storage binding) and
-    /// builds every pipeline. Returns [`GpuError::NoAdapter`] rather than panicking when no
-    /// adapter exists.
+    /// Picks the high-performance adapter (honouring `WGPU_BACKEND`) and requests a device with
+    /// the adapter's own limits (so that large height fields fit in one storage binding); the
+    /// pipelines are built on first use. Returns [`GpuError::NoAdapter`] rather than panicking
+    /// when no adapter exists.
     pub fn new() -> Result<Self, GpuError> {
         let instance = instance();
         let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
@@ -77,24 +83,32 @@ impl GpuContext {
         device.on_uncaptured_error(std::sync::Arc::new(|e: wgpu::Error| {
             eprintln!("penumbra: GPU error outside an error scope: {e}");
         }));
-        let scope = ErrorScope::push(&device);
-        let march = MarchPipelines::new(&device);
-        let accumulate = AccumulatePipeline::new(&device);
-        let dp = DpPipelines::new(&device);
-        let fourier = FourierPipelines::new(&device);
-        let render = RenderPipeline::new(&device);
-        scope.pop("building the compute pipelines")?;
         Ok(GpuContext {
             device,
             queue,
             info,
             limits,
-            march,
-            accumulate,
-            dp,
-            fourier,
-            render,
+            pipelines: Mutex::new(HashMap::new()),
         })
+    }
+
+    /// The pipelines `P`, built on the first call (a failed build is an error, and is tried
+    /// again on the next call).
+    pub(crate) fn pipelines<P: Pipelines>(&self) -> Result<Arc<P>, GpuError> {
+        let mut built = self
+            .pipelines
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        if let Some(p) = built.get(&TypeId::of::<P>())
+            && let Ok(p) = Arc::clone(p).downcast::<P>()
+        {
+            return Ok(p);
+        }
+        let scope = ErrorScope::push(&self.device);
+        let p = Arc::new(P::build(&self.device));
+        scope.pop(P::WHAT)?;
+        built.insert(TypeId::of::<P>(), p.clone());
+        Ok(p)
     }
 
     /// The adapter's name (e.g. `llvmpipe (LLVM 15.0.7, 256 bits)` for lavapipe).

@@ -3,7 +3,7 @@
 //! epoch sweep: Sun and Earth fractions folded into per-cell statistics, GPU-resident) and
 //! `shaders/dp_sites.wgsl` (per-site horizons along a table of discs: the GPU path of
 //! `series --engine smap-dp`, [`dp_sites_gpu`]). All share `shaders/shared/dp.wgsl`; CPU twins:
-//! `dp_visible`, `dp_sweep`, `dp_sites` in [`crate::shadow::gpu_twins`].
+//! `dp_visible`, `dp_sweep`, `dp_sites` in [`crate::twins`].
 //!
 //! The heights and every mipmap level are uploaded once ([`GpuDpGrid::upload`]: 4 B/cell + about
 //! 4/3 × 4 B/cell), the light table once per map or sweep. Outputs are computed in row bands
@@ -17,7 +17,7 @@ use super::shadow_march::{
     STEP_SLOT_BYTES, band_buffer, check_dispatch_cols, compute_pipeline, grid_params_buffer,
     storage_init,
 };
-use crate::shadow::gpu_twins::{DpCellStats, DpMip, MarchGrid};
+use crate::twins::{DpCellStats, DpMip, MarchGrid};
 
 /// Workgroup size of the DP kernels. Keep in sync with shaders/dp_*.wgsl.
 const WORKGROUP_SIZE_XY: u32 = 8;
@@ -211,8 +211,10 @@ impl DpBindings<'_> {
     }
 }
 
-impl DpPipelines {
-    pub(crate) fn new(device: &wgpu::Device) -> Self {
+impl super::context::Pipelines for DpPipelines {
+    const WHAT: &'static str = "building the DP pipelines";
+
+    fn build(device: &wgpu::Device) -> Self {
         use wgpu::BufferBindingType::Storage;
         let read = Storage { read_only: true };
         let layout = dp_layout(device, "penumbra dp layout", &[]);
@@ -341,6 +343,7 @@ impl GpuDpGrid {
     fn bind_group(
         &self,
         ctx: &GpuContext,
+        layout: &wgpu::BindGroupLayout,
         lights: &wgpu::Buffer,
         slots: &wgpu::Buffer,
         out: &wgpu::Buffer,
@@ -355,7 +358,7 @@ impl GpuDpGrid {
             out,
             extra: &[],
         }
-        .bind_group(ctx, "penumbra dp bind group", &ctx.dp.layout)
+        .bind_group(ctx, "penumbra dp bind group", layout)
     }
 }
 
@@ -396,7 +399,7 @@ pub(crate) fn check_light(light: [f32; 4], kernel: &'static str) -> Result<(), G
 }
 
 /// GPU `dp_visible`: per cell (row-major) the visible fraction of the disc `light` (from
-/// [`crate::shadow::gpu_twins::disc_light_to_f32`]; radius 0: 1 lit / 0 shadow), -1 for nodata,
+/// [`crate::twins::disc_light_to_f32`]; radius 0: 1 lit / 0 shadow), -1 for nodata,
 /// computed in row bands of at most `band_bytes` of output
 /// (use [`super::shadow_march::DEFAULT_BAND_BYTES`]).
 pub fn dp_visible_gpu(
@@ -405,6 +408,7 @@ pub fn dp_visible_gpu(
     light: [f32; 4],
     band_bytes: u64,
 ) -> Result<Vec<f32>, GpuError> {
+    let dp = ctx.pipelines::<DpPipelines>()?;
     check_light(light, "dp_visible")?;
     let band_rows = grid.band_rows(ctx, band_bytes, 4);
     let cols = u64::from(grid.cols);
@@ -417,7 +421,7 @@ pub fn dp_visible_gpu(
         u64::from(band_rows) * cols,
         wgpu::BufferUsages::empty(),
     );
-    let bind_group = grid.bind_group(ctx, &lights, &slots, &out);
+    let bind_group = grid.bind_group(ctx, &dp.layout, &lights, &slots, &out);
     let mut map: Vec<f32> = Vec::with_capacity(grid.rows as usize * grid.cols as usize);
     let mut row0 = 0;
     while row0 < grid.rows {
@@ -434,7 +438,7 @@ pub fn dp_visible_gpu(
                 label: Some("dp_visible"),
                 timestamp_writes: None,
             });
-            pass.set_pipeline(&ctx.dp.visible);
+            pass.set_pipeline(&dp.visible);
             pass.set_bind_group(0, &bind_group, &[0]);
             pass.dispatch_workgroups(
                 grid.cols.div_ceil(WORKGROUP_SIZE_XY),
@@ -474,15 +478,16 @@ impl Default for DpSweepOptions {
 
 /// GPU soft epoch sweep: the [`DpCellStats`] of every cell (row-major) over the epochs of
 /// `lights` (two discs per epoch, Sun then Earth, from
-/// [`crate::shadow::gpu_twins::disc_light_to_f32`], in time order). The table is uploaded once;
+/// [`crate::twins::disc_light_to_f32`], in time order). The table is uploaded once;
 /// nothing is read back until a band's last epoch. Twin:
-/// [`crate::shadow::gpu_twins::dp_sweep`].
+/// [`crate::twins::dp_sweep`].
 pub fn dp_sweep_gpu(
     ctx: &GpuContext,
     grid: &GpuDpGrid,
     lights: &[[f32; 4]],
     options: DpSweepOptions,
 ) -> Result<Vec<DpCellStats>, GpuError> {
+    let dp = ctx.pipelines::<DpPipelines>()?;
     if lights.is_empty()
         || !lights.len().is_multiple_of(2)
         || options.epochs_per_dispatch == 0
@@ -519,7 +524,7 @@ pub fn dp_sweep_gpu(
             | wgpu::BufferUsages::COPY_DST,
         mapped_at_creation: false,
     });
-    let bind_group = grid.bind_group(ctx, &table, &slots, &stats);
+    let bind_group = grid.bind_group(ctx, &dp.layout, &table, &slots, &stats);
     let mut all: Vec<DpCellStats> = Vec::with_capacity(grid.rows as usize * grid.cols as usize);
     let mut row0 = 0;
     while row0 < grid.rows {
@@ -557,7 +562,7 @@ pub fn dp_sweep_gpu(
                     label: Some("penumbra dp sweep batch"),
                     timestamp_writes: None,
                 });
-                pass.set_pipeline(&ctx.dp.sweep);
+                pass.set_pipeline(&dp.sweep);
                 for j in 0..steps.len() as u32 {
                     pass.set_bind_group(0, &bind_group, &[j * STEP_SLOT_BYTES as u32]);
                     pass.dispatch_workgroups(
@@ -580,20 +585,21 @@ pub fn dp_sweep_gpu(
 }
 
 /// GPU `dp_sites`: for every site `i` (`observers[i]` from
-/// [`crate::shadow::gpu_twins::site_observer_to_f32`]) and each of its `lights.len() /
+/// [`crate::twins::site_observer_to_f32`]) and each of its `lights.len() /
 /// observers.len()` discs (`lights[i * per_site + k]`, from
-/// [`crate::shadow::gpu_twins::disc_light_to_f32`]; a negative radius asks for the uncapped
+/// [`crate::twins::disc_light_to_f32`]; a negative radius asks for the uncapped
 /// horizon), the tangent of the terrain horizon's elevation along the disc's azimuth, indexed like
-/// `lights` ([`crate::shadow::gpu_twins::NO_HORIZON_TAN`] when no terrain lies along the ray).
+/// `lights` ([`crate::twins::NO_HORIZON_TAN`] when no terrain lies along the ray).
 /// One upload of the table, one dispatch per (site chunk, entry chunk) of at most the dispatch
 /// limit, one read-back. Callers bound the table (the series engine batches its epochs). Twin:
-/// [`crate::shadow::gpu_twins::dp_sites`].
+/// [`crate::twins::dp_sites`].
 pub fn dp_sites_gpu(
     ctx: &GpuContext,
     grid: &GpuDpGrid,
     observers: &[[f32; 4]],
     lights: &[[f32; 4]],
 ) -> Result<Vec<f32>, GpuError> {
+    let dp = ctx.pipelines::<DpPipelines>()?;
     let invalid = |message: String| GpuError::InvalidInput {
         kernel: "dp_sites",
         message,
@@ -692,7 +698,7 @@ pub fn dp_sites_gpu(
         out: &out,
         extra: &[&obs],
     }
-    .bind_group(ctx, "penumbra dp sites bind group", &ctx.dp.tile_layout);
+    .bind_group(ctx, "penumbra dp sites bind group", &dp.tile_layout);
     let mut encoder = ctx
         .device
         .create_command_encoder(&wgpu::CommandEncoderDescriptor {
@@ -703,7 +709,7 @@ pub fn dp_sites_gpu(
             label: Some("dp_sites"),
             timestamp_writes: None,
         });
-        pass.set_pipeline(&ctx.dp.sites);
+        pass.set_pipeline(&dp.sites);
         for (j, (step, groups_x)) in steps.iter().enumerate() {
             pass.set_bind_group(0, &bind_group, &[j as u32 * STEP_SLOT_BYTES as u32]);
             pass.dispatch_workgroups(*groups_x, step.band_rows, 1);

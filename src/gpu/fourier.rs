@@ -1,6 +1,6 @@
 //! Fourier-compressed horizon maps (paper 001) on the GPU: the build (`shaders/fourier_build.wgsl`,
 //! [`build_horizon_map_gpu`]) and the evaluation of one light (`shaders/fourier_eval.wgsl`,
-//! [`GpuHorizonMap`]). CPU twins and the shared data layout: [`crate::shadow::fourier_twin`]; the
+//! [`GpuHorizonMap`]). CPU twins and the shared data layout: [`crate::twins::fourier`]; the
 //! CPU engine: [`crate::shadow::fourier`]. The result of the build is a [`HorizonMap`] identical
 //! in layout to the CPU engine's (f16 coefficients, NaN for holes, same metadata).
 //!
@@ -28,12 +28,12 @@ use super::shadow_march::{
 };
 use crate::shadow::ShadowError;
 use crate::shadow::fourier::{HorizonMap, HorizonMapMeta, HorizonMapParams};
-use crate::shadow::fourier_twin::{
+use crate::terrain::HeightField;
+use crate::twins::fourier::{
     FourierBuildParams, FourierEvalParams, MAX_GPU_COEFFS, azimuth_table, build_dispatches,
     horizon_map_from_f32, pack_coeffs,
 };
-use crate::shadow::gpu_twins::{MarchGrid, MarchGridError, NODATA_FRACTION};
-use crate::terrain::HeightField;
+use crate::twins::{MarchGrid, MarchGridError, NODATA_FRACTION};
 
 pub use super::shadow_march::DEFAULT_BAND_BYTES;
 
@@ -79,8 +79,10 @@ pub(crate) struct FourierPipelines {
     eval: wgpu::ComputePipeline,
 }
 
-impl FourierPipelines {
-    pub(crate) fn new(device: &wgpu::Device) -> Self {
+impl super::context::Pipelines for FourierPipelines {
+    const WHAT: &'static str = "building the Fourier pipelines";
+
+    fn build(device: &wgpu::Device) -> Self {
         use wgpu::BufferBindingType::{Storage, Uniform};
         let build_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("penumbra fourier_build layout"),
@@ -179,6 +181,7 @@ pub fn build_horizon_map_gpu_with(
     params: &HorizonMapParams,
     opts: &GpuBuildOptions,
 ) -> Result<HorizonMap, GpuFourierError> {
+    let fourier = ctx.pipelines::<FourierPipelines>()?;
     params.check()?;
     if params.n_coeffs > MAX_GPU_COEFFS {
         return Err(ShadowError::InvalidParameter {
@@ -225,7 +228,7 @@ pub fn build_horizon_map_gpu_with(
     );
     let bind_group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
         label: Some("penumbra fourier_build bind group"),
-        layout: &ctx.fourier.build_layout,
+        layout: &fourier.build_layout,
         entries: &[
             whole(0, &grid.params),
             whole(1, &grid.heights),
@@ -240,7 +243,7 @@ pub fn build_horizon_map_gpu_with(
         ctx.queue.write_buffer(&fb_buf, 0, bytemuck::bytes_of(fb));
         ctx.dispatch(
             "fourier_build",
-            &ctx.fourier.build,
+            &fourier.build,
             &bind_group,
             &[],
             [
@@ -291,6 +294,7 @@ impl GpuHorizonMap {
         map: &HorizonMap,
         band_bytes: u64,
     ) -> Result<Self, GpuFourierError> {
+        let fourier = ctx.pipelines::<FourierPipelines>()?;
         let (rows, cols, nk) = (map.meta.rows, map.meta.cols, map.meta.n_coeffs);
         if rows == 0 || cols == 0 || nk == 0 || map.coeffs.len() != rows * cols * 2 * nk {
             return Err(GpuError::InvalidInput {
@@ -340,7 +344,7 @@ impl GpuHorizonMap {
             .map(|(_, _, buf)| {
                 ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
                     label: Some("penumbra fourier_eval bind group"),
-                    layout: &ctx.fourier.eval_layout,
+                    layout: &fourier.eval_layout,
                     entries: &[whole(0, &params), whole(1, buf), whole(2, &out)],
                 })
             })
@@ -367,6 +371,7 @@ impl GpuHorizonMap {
         light_in_model: [f64; 3],
         angular_radius_rad: f64,
     ) -> Result<Vec<f32>, GpuFourierError> {
+        let fourier = ctx.pipelines::<FourierPipelines>()?;
         let base = FourierEvalParams::new(&self.meta, light_in_model, angular_radius_rad)?;
         let scope = ErrorScope::push(&ctx.device);
         let mut values: Vec<f32> = Vec::with_capacity(self.rows as usize * self.cols as usize);
@@ -380,7 +385,7 @@ impl GpuHorizonMap {
                 .write_buffer(&self.params, 0, bytemuck::bytes_of(&fe));
             ctx.dispatch(
                 "fourier_eval",
-                &ctx.fourier.eval,
+                &fourier.eval,
                 bind_group,
                 &[],
                 [

@@ -1,7 +1,7 @@
 //! GPU runner of `shaders/horizon_scan.wgsl`: per-site terrain horizons, one invocation per
 //! (site, azimuth), over the layers of a [`TerrainStack`] in their own grids (the terrain of the
 //! CPU [`HorizonEngine`]). The data layout and the CPU twin are in
-//! [`crate::horizon::gpu_twin`].
+//! [`crate::twins::horizon_scan`].
 //!
 //! [`GpuHorizonScan::new`] builds the pipeline and uploads the concatenated heights once;
 //! [`GpuHorizonScan::scan`] runs any number of sites (dispatches of at most
@@ -13,11 +13,11 @@ use wgpu::util::DeviceExt as _;
 use super::GpuError;
 use super::context::{ErrorScope, GpuContext, layout_entry, whole};
 use super::shadow_march::compute_pipeline;
-use crate::horizon::gpu_twin::{
-    ScanParams, ScanTerrain, SiteParams, azimuth_table, site_setup, to_horizon,
-};
 use crate::horizon::{Horizon, HorizonEngine, HorizonError};
 use crate::terrain::TerrainStack;
+use crate::twins::horizon_scan::{
+    ScanParams, ScanTerrain, SiteParams, azimuth_table, site_setup, to_horizon,
+};
 
 /// Sites per dispatch (one submit each).
 pub const SITES_PER_DISPATCH: u32 = 64;
@@ -112,7 +112,7 @@ impl GpuHorizonScan {
     }
 
     /// `(tan el, ground angle rad)` for every (site, azimuth), `site * n_az + az` (as the twin
-    /// [`crate::horizon::gpu_twin::scan_twin`]).
+    /// [`crate::twins::horizon_scan::scan_twin`]).
     pub fn scan(
         &self,
         ctx: &GpuContext,

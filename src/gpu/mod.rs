@@ -1,5 +1,5 @@
 //! The wgpu compute backend: GPU versions of the shadow kernels, checked against their CPU twins
-//! in [`crate::shadow::gpu_twins`].
+//! in [`crate::twins`].
 //!
 //! This is the only module that imports `wgpu`, and only behind the `gpu` cargo feature (on by
 //! default; `--no-default-features` builds a CPU-only binary). [`Backend`], [`GpuError`] and

@@ -72,8 +72,10 @@ pub(crate) struct RenderPipeline {
     pipeline: wgpu::ComputePipeline,
 }
 
-impl RenderPipeline {
-    pub(crate) fn new(device: &wgpu::Device) -> Self {
+impl super::context::Pipelines for RenderPipeline {
+    const WHAT: &'static str = "building the render pipeline";
+
+    fn build(device: &wgpu::Device) -> Self {
         let ro = wgpu::BufferBindingType::Storage { read_only: true };
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("penumbra render layout"),
@@ -246,6 +248,7 @@ pub fn render_radiance_gpu(
     height: u32,
     options: RenderGpuOptions,
 ) -> Result<Vec<f32>, GpuError> {
+    let render = ctx.pipelines::<RenderPipeline>()?;
     crate::render::check_size(width, height).map_err(|e| invalid(e.to_string()))?;
     let limits = ctx.limits();
     let cap = limits
@@ -308,7 +311,7 @@ pub fn render_radiance_gpu(
     });
     let bind_group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
         label: Some("penumbra render bind group"),
-        layout: &ctx.render.layout,
+        layout: &render.layout,
         entries: &[
             whole(0, &uniform),
             whole(1, &scene.heights),
@@ -327,7 +330,7 @@ pub fn render_radiance_gpu(
             .write_buffer(&uniform, 0, bytemuck::bytes_of(&params));
         ctx.dispatch(
             "penumbra render band",
-            &ctx.render.pipeline,
+            &render.pipeline,
             &bind_group,
             &[],
             [

@@ -15,7 +15,7 @@ use wgpu::util::DeviceExt as _;
 
 use super::GpuError;
 use super::context::{ErrorScope, GpuContext, buffer_layout_entry, layout_entry, sized, whole};
-use crate::shadow::gpu_twins::MarchGrid;
+use crate::twins::MarchGrid;
 
 /// Output bytes per row band by default (64 MiB): small against any GPU, large enough that a
 /// 4,096² map is one band.
@@ -70,7 +70,7 @@ pub(crate) mod gpu_data {
     impl GridParams {
         /// The uniform of `grid` (shared by the march and the DP kernels, whose WGSL structs
         /// `GridParams` and `DpGridParams` have this same layout).
-        pub(crate) fn of(grid: &crate::shadow::gpu_twins::MarchGrid) -> Self {
+        pub(crate) fn of(grid: &crate::twins::MarchGrid) -> Self {
             GridParams {
                 rows: grid.rows,
                 cols: grid.cols,
@@ -131,8 +131,10 @@ pub(crate) fn compute_pipeline(
     })
 }
 
-impl MarchPipelines {
-    pub(crate) fn new(device: &wgpu::Device) -> Self {
+impl super::context::Pipelines for MarchPipelines {
+    const WHAT: &'static str = "building the shadow-march pipelines";
+
+    fn build(device: &wgpu::Device) -> Self {
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("penumbra march layout"),
             entries: &[
@@ -289,6 +291,7 @@ pub(crate) fn write_steps(
 /// The march bind group: grid, heights, lights, step slots (dynamic), output.
 pub(crate) fn march_bind_group(
     ctx: &GpuContext,
+    layout: &wgpu::BindGroupLayout,
     grid: &GpuMarchGrid,
     lights: &wgpu::Buffer,
     slots: &wgpu::Buffer,
@@ -296,7 +299,7 @@ pub(crate) fn march_bind_group(
 ) -> wgpu::BindGroup {
     ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
         label: Some("penumbra march bind group"),
-        layout: &ctx.march.layout,
+        layout,
         entries: &[
             whole(0, &grid.params),
             whole(1, &grid.heights),
@@ -344,7 +347,8 @@ fn run_banded<T: Pod>(
         u64::from(band_rows) * cols,
         wgpu::BufferUsages::empty(),
     );
-    let bind_group = march_bind_group(ctx, grid, &lights_buf, &slots, &out);
+    let march = ctx.pipelines::<MarchPipelines>()?;
+    let bind_group = march_bind_group(ctx, &march.layout, grid, &lights_buf, &slots, &out);
     let mut map: Vec<T> = Vec::with_capacity(grid.rows as usize * grid.cols as usize);
     let mut row0 = 0;
     while row0 < grid.rows {
@@ -361,7 +365,7 @@ fn run_banded<T: Pod>(
 }
 
 /// GPU `shadow_march`: the hard-shadow map (1 lit, 0 shadow, 255 nodata; row-major) of the
-/// light `light` (from [`crate::shadow::gpu_twins::light_to_f32`]), computed in row bands of at
+/// light `light` (from [`crate::twins::light_to_f32`]), computed in row bands of at
 /// most `band_bytes` of output (use [`DEFAULT_BAND_BYTES`]).
 pub fn shadow_march_gpu(
     ctx: &GpuContext,
@@ -369,10 +373,11 @@ pub fn shadow_march_gpu(
     light: [f32; 4],
     band_bytes: u64,
 ) -> Result<Vec<u32>, GpuError> {
+    let march = ctx.pipelines::<MarchPipelines>()?;
     run_banded(
         ctx,
         grid,
-        &ctx.march.hard,
+        &march.hard,
         &[light],
         0,
         band_bytes,
@@ -381,13 +386,14 @@ pub fn shadow_march_gpu(
 }
 
 /// GPU `shadow_march_soft`: per cell the fraction of `disc_dirs` (from
-/// [`crate::shadow::gpu_twins::sun_disc_directions`]) that is lit, -1 for nodata.
+/// [`crate::twins::sun_disc_directions`]) that is lit, -1 for nodata.
 pub fn shadow_march_soft_gpu(
     ctx: &GpuContext,
     grid: &GpuMarchGrid,
     disc_dirs: &[[f32; 4]],
     band_bytes: u64,
 ) -> Result<Vec<f32>, GpuError> {
+    let march = ctx.pipelines::<MarchPipelines>()?;
     if disc_dirs.is_empty() {
         return Err(GpuError::InvalidInput {
             kernel: "shadow_march_soft",
@@ -397,7 +403,7 @@ pub fn shadow_march_soft_gpu(
     run_banded(
         ctx,
         grid,
-        &ctx.march.soft,
+        &march.soft,
         disc_dirs,
         0,
         band_bytes,

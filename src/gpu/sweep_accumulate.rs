@@ -13,10 +13,10 @@ use bytemuck::{Pod, Zeroable};
 use super::GpuError;
 use super::context::{ErrorScope, GpuContext, sized, whole};
 use super::shadow_march::{
-    GpuMarchGrid, STEP_SLOT_BYTES, band_buffer, compute_pipeline, march_bind_group, step_slots,
-    storage_init, write_steps,
+    GpuMarchGrid, MarchPipelines, STEP_SLOT_BYTES, band_buffer, compute_pipeline, march_bind_group,
+    step_slots, storage_init, write_steps,
 };
-use crate::shadow::gpu_twins::CellStats;
+use crate::twins::CellStats;
 
 /// Epochs encoded per queue submit by default: amortises the submit overhead (about 0.1 ms) while
 /// keeping each submit short enough not to trip a display watchdog.
@@ -34,7 +34,7 @@ mod gpu_data {
     use super::{Pod, Zeroable};
 
     /// Keep in sync with `CellStats` in shaders/sweep_accumulate.wgsl (same layout as the CPU
-    /// twin's [`crate::shadow::gpu_twins::CellStats`], which readback casts to).
+    /// twin's [`crate::twins::CellStats`], which readback casts to).
     #[repr(C)]
     #[derive(Debug, Clone, Copy, Pod, Zeroable)]
     pub(super) struct CellStatsGpu {
@@ -54,8 +54,10 @@ pub(crate) struct AccumulatePipeline {
     pipeline: wgpu::ComputePipeline,
 }
 
-impl AccumulatePipeline {
-    pub(crate) fn new(device: &wgpu::Device) -> Self {
+impl super::context::Pipelines for AccumulatePipeline {
+    const WHAT: &'static str = "building the sweep-accumulate pipeline";
+
+    fn build(device: &wgpu::Device) -> Self {
         let entry = |binding, read_only| wgpu::BindGroupLayoutEntry {
             binding,
             visibility: wgpu::ShaderStages::COMPUTE,
@@ -109,13 +111,15 @@ fn accumulate_workgroups(cells: u64, max_per_dim: u32) -> (u32, u32) {
 
 /// GPU epoch sweep: the [`CellStats`] of every cell (row-major) over the epochs of `lights`
 /// (one f32 model-space unit vector per epoch, in time order). Twin:
-/// [`crate::shadow::gpu_twins::sweep_stats`].
+/// [`crate::twins::sweep_stats`].
 pub fn sweep_stats_gpu(
     ctx: &GpuContext,
     grid: &GpuMarchGrid,
     lights: &[[f32; 4]],
     options: SweepOptions,
 ) -> Result<Vec<CellStats>, GpuError> {
+    let march = ctx.pipelines::<MarchPipelines>()?;
+    let accumulate = ctx.pipelines::<AccumulatePipeline>()?;
     if lights.is_empty() || options.epochs_per_submit == 0 {
         return Err(GpuError::InvalidInput {
             kernel: "sweep_accumulate",
@@ -148,7 +152,7 @@ pub fn sweep_stats_gpu(
             | wgpu::BufferUsages::COPY_DST,
         mapped_at_creation: false,
     });
-    let march_bg = march_bind_group(ctx, grid, &lights_buf, &slots, &scratch);
+    let march_bg = march_bind_group(ctx, &march.layout, grid, &lights_buf, &slots, &scratch);
     let mut all: Vec<CellStats> = Vec::with_capacity(grid.rows as usize * grid.cols as usize);
     let mut row0 = 0;
     while row0 < grid.rows {
@@ -157,7 +161,7 @@ pub fn sweep_stats_gpu(
         // The last band may be shorter: bind exactly its cells so arrayLength() is right.
         let accumulate_bg = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("penumbra accumulate bind group"),
-            layout: &ctx.accumulate.layout,
+            layout: &accumulate.layout,
             entries: &[sized(0, &scratch, cells * 4), whole(1, &stats)],
         });
         let (march_gx, march_gy) = grid.workgroups(rows);
@@ -185,10 +189,10 @@ pub fn sweep_stats_gpu(
                     timestamp_writes: None,
                 });
                 for j in 0..count {
-                    pass.set_pipeline(&ctx.march.hard);
+                    pass.set_pipeline(&march.hard);
                     pass.set_bind_group(0, &march_bg, &[j * STEP_SLOT_BYTES as u32]);
                     pass.dispatch_workgroups(march_gx, march_gy, 1);
-                    pass.set_pipeline(&ctx.accumulate.pipeline);
+                    pass.set_pipeline(&accumulate.pipeline);
                     pass.set_bind_group(0, &accumulate_bg, &[]);
                     pass.dispatch_workgroups(acc_gx, acc_gy, 1);
                 }

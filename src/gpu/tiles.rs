@@ -5,7 +5,7 @@
 //! then turned into fractions (`shaders/dp_tile_fraction.wgsl`); the soft epoch sweep likewise
 //! per batch of epochs (`shaders/dp_tile_sweep_cost.wgsl`, `dp_tile_sweep_accumulate.wgsl`,
 //! [`dp_sweep_tiled_gpu`]). The tile plan, the choice of
-//! source tiles and the CPU twin live in [`crate::shadow::gpu_tiles`] (why the result is exact is
+//! source tiles and the CPU twin live in [`crate::twins::dp_tiles`] (why the result is exact is
 //! explained there).
 //!
 //! GPU memory: the output tile's cost buffer and readback staging, `2 × 4 (T + 1)²` B, plus the
@@ -20,12 +20,12 @@ use super::context::{ErrorScope, GpuContext};
 use super::dp::gpu_data::DpStep;
 use super::dp::{DpBindings, check_light, slot_buffer, write_dp_steps};
 use super::shadow_march::{STEP_SLOT_BYTES, band_buffer, grid_params_buffer, storage_init};
-pub use crate::shadow::gpu_tiles::{DEFAULT_RESIDENT_BUDGET_BYTES, DEFAULT_TILE_CELLS};
-use crate::shadow::gpu_tiles::{
+pub use crate::twins::dp_tiles::{DEFAULT_RESIDENT_BUDGET_BYTES, DEFAULT_TILE_CELLS};
+use crate::twins::dp_tiles::{
     TileBlock, TileLimits, TilePlan, TileRect, choose_tile_cells, sources_for, sources_for_batch,
     tile_bounds,
 };
-use crate::shadow::gpu_twins::{DpCellStats, DpMip, MarchGrid};
+use crate::twins::{DpCellStats, DpMip, MarchGrid};
 
 /// Workgroup size of the tiled kernels. Keep in sync with shaders/dp_tile_*.wgsl.
 const WORKGROUP_SIZE_XY: u32 = 8;
@@ -38,7 +38,7 @@ pub struct DpTiling {
     /// Tiles of this side, cells, whatever the grid size (for tests and measurements); `None`:
     /// the untiled kernels when the heights and the mipmap each fit one storage binding and
     /// together 4 GiB, else tiles of 2048 (halved until a block fits one binding); see
-    /// [`crate::shadow::gpu_tiles::choose_tile_cells`].
+    /// [`crate::twins::dp_tiles::choose_tile_cells`].
     pub tile_cells: Option<u32>,
 }
 
@@ -366,17 +366,18 @@ fn tile_plan(
 }
 
 /// GPU tiled `dp_visible`: per cell (row-major) the visible fraction of the disc `light` (from
-/// [`crate::shadow::gpu_twins::disc_light_to_f32`]; radius 0: 1 lit / 0 shadow), -1 for nodata,
+/// [`crate::twins::disc_light_to_f32`]; radius 0: 1 lit / 0 shadow), -1 for nodata,
 /// computed output tile by output tile over the source tiles of
-/// [`crate::shadow::gpu_tiles::sources_for`] (own tile first, then nearest first along the
+/// [`crate::twins::dp_tiles::sources_for`] (own tile first, then nearest first along the
 /// light). Only the heights as a host array are needed, never the whole grid on the GPU. Twin:
-/// [`crate::shadow::gpu_tiles::dp_visible_tiled`].
+/// [`crate::twins::dp_tiles::dp_visible_tiled`].
 pub fn dp_visible_tiled_gpu(
     ctx: &GpuContext,
     grid: &MarchGrid,
     light: [f32; 4],
     options: DpTileOptions,
 ) -> Result<TiledMap, GpuError> {
+    let dp = ctx.pipelines::<super::dp::DpPipelines>()?;
     check_light(light, "dp_tile_cost")?;
     let plan = tile_plan(grid, options.tile_cells, "dp_tile_cost")?;
     DpTiling {
@@ -416,15 +417,15 @@ pub fn dp_visible_tiled_gpu(
             out: &cost,
             extra: &[&obs.heights],
         }
-        .bind_group(ctx, "penumbra dp tile bind group", &ctx.dp.tile_layout)
+        .bind_group(ctx, "penumbra dp tile bind group", &dp.tile_layout)
     };
     let passes = TilePasses {
         ctx,
         grid,
         plan: &plan,
         slots: &slots,
-        cost: &ctx.dp.tile_cost,
-        finish: &ctx.dp.tile_fraction,
+        cost: &dp.tile_cost,
+        finish: &dp.tile_fraction,
         bind_group,
     };
     let mut map = vec![0.0_f32; grid.cells()];
@@ -465,19 +466,20 @@ impl DpTileSweepOptions {
 
 /// GPU tiled soft epoch sweep: the [`DpCellStats`] of every cell (row-major) over the epochs of
 /// `lights` (Sun at `2e`, Earth at `2e + 1`, from
-/// [`crate::shadow::gpu_twins::disc_light_to_f32`], in time order), computed output tile by output
+/// [`crate::twins::disc_light_to_f32`], in time order), computed output tile by output
 /// tile: per batch of epochs the costs are min-accumulated over the batch's source tiles
-/// ([`crate::shadow::gpu_tiles::sources_for_batch`]) in a `[2 × batch × tile cells]` buffer, then
+/// ([`crate::twins::dp_tiles::sources_for_batch`]) in a `[2 × batch × tile cells]` buffer, then
 /// folded into the tile's statistics in time order; the statistics are read back once per output
 /// tile. GPU memory: `32 (T+1)²` B of statistics (+ as much staging) + `8 B × epochs_per_batch ×
 /// (T+1)²` of costs + the light table (32 B/epoch) + the block cache. Twin:
-/// [`crate::shadow::gpu_tiles::dp_sweep_tiled`].
+/// [`crate::twins::dp_tiles::dp_sweep_tiled`].
 pub fn dp_sweep_tiled_gpu(
     ctx: &GpuContext,
     grid: &MarchGrid,
     lights: &[[f32; 4]],
     options: DpTileSweepOptions,
 ) -> Result<(Vec<DpCellStats>, TileRunStats), GpuError> {
+    let dp = ctx.pipelines::<super::dp::DpPipelines>()?;
     if lights.is_empty() || !lights.len().is_multiple_of(2) || options.epochs_per_batch == 0 {
         return Err(GpuError::InvalidInput {
             kernel: "dp_tile_sweep_cost",
@@ -551,7 +553,7 @@ pub fn dp_sweep_tiled_gpu(
         .bind_group(
             ctx,
             "penumbra dp tile sweep bind group",
-            &ctx.dp.tile_sweep_layout,
+            &dp.tile_sweep_layout,
         )
     };
     let passes = TilePasses {
@@ -559,8 +561,8 @@ pub fn dp_sweep_tiled_gpu(
         grid,
         plan: &plan,
         slots: &slots,
-        cost: &ctx.dp.tile_sweep_cost,
-        finish: &ctx.dp.tile_sweep_accumulate,
+        cost: &dp.tile_sweep_cost,
+        finish: &dp.tile_sweep_accumulate,
         bind_group,
     };
     let mut all = vec![DpCellStats::default(); grid.cells()];

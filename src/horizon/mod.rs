@@ -36,11 +36,10 @@
 //! the dip of the geometric horizon or of the DEM edge, whichever is nearer): no terrain exists
 //! outside the layers.
 
-mod cli;
-pub mod gpu_twin;
+mod io;
 mod scan;
 
-pub use cli::{cli_run, write_csv, write_json};
+pub use io::{write_csv, write_json};
 pub use scan::HorizonEngine;
 
 use serde::Serialize;
@@ -49,8 +48,6 @@ use crate::terrain::TerrainStack;
 
 /// Default azimuth step, degrees (1440 azimuths).
 pub const DEFAULT_AZ_STEP_DEG: f64 = 0.25;
-/// Default observer height above the surface, metres.
-pub const DEFAULT_OBSERVER_HEIGHT_M: f64 = 2.0;
 /// Default skip tolerance of the fast method, degrees: its horizon is never more than this below
 /// the exact scan's.
 pub const DEFAULT_FAST_TOLERANCE_DEG: f64 = 0.002;
@@ -143,7 +140,7 @@ pub struct HorizonParams {
 impl Default for HorizonParams {
     fn default() -> Self {
         HorizonParams {
-            observer_height_m: DEFAULT_OBSERVER_HEIGHT_M,
+            observer_height_m: crate::DEFAULT_OBSERVER_HEIGHT_M,
             az_step_deg: DEFAULT_AZ_STEP_DEG,
             method: HorizonMethod::Fast,
             fast_tolerance_deg: DEFAULT_FAST_TOLERANCE_DEG,
@@ -209,7 +206,7 @@ pub fn horizon(
 }
 
 /// Validates an azimuth step and returns the number of azimuths.
-fn azimuth_count(az_step_deg: f64) -> Result<usize, HorizonError> {
+pub(crate) fn azimuth_count(az_step_deg: f64) -> Result<usize, HorizonError> {
     let bad = HorizonError::BadAzStep { az_step_deg };
     if !(az_step_deg.is_finite() && (0.001..=360.0).contains(&az_step_deg)) {
         return Err(bad);

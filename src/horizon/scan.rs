@@ -15,7 +15,8 @@ use rayon::prelude::*;
 use super::{Horizon, HorizonError, HorizonMethod, HorizonParams, azimuth_count};
 use crate::MOON_RADIUS_M;
 use crate::frames::enu_from_moon_me;
-use crate::terrain::{Dem, Projection, TerrainStack};
+use crate::terrain::unit_projector::UnitProjector;
+use crate::terrain::{Dem, TerrainStack};
 
 /// Cells of the finest layer at the segment start per path segment.
 const SEGMENT_CELLS: f64 = 8.0;
@@ -268,7 +269,7 @@ impl<'a> HorizonEngine<'a> {
     }
 
     /// Ground height at the site from the finest layer with a surface there, and that layer.
-    pub(super) fn ground_at(
+    pub(crate) fn ground_at(
         &self,
         lat_deg: f64,
         lon_deg: f64,
@@ -302,7 +303,7 @@ impl<'a> HorizonEngine<'a> {
 
     /// The largest ground angle from the observer to any point of any layer (outer edges sampled
     /// densely), plus a 1% margin.
-    pub(super) fn theta_max_rad(&self, up: &Vector3<f64>) -> f64 {
+    pub(crate) fn theta_max_rad(&self, up: &Vector3<f64>) -> f64 {
         let mut theta_max: f64 = 0.0;
         for dem in &self.stack.layers {
             for (x, y) in dem.grid.edge_points_m(64) {
@@ -553,76 +554,6 @@ fn tan_elevation(r0_m: f64, rho_m: f64, theta_rad: f64) -> f64 {
     (rho_m * c - r0_m) / (rho_m * s)
 }
 
-/// Projects unit radial vectors in `MOON_ME` to map coordinates. Polar stereographic is
-/// evaluated straight from the vector (`tan(pi/4 + lat/2) cos(lat) = 1 + sin(lat)` turns the
-/// formulas of [`crate::terrain::Projection`] into `x = 2 R k0 e / (1 - z)`, `y = 2 R k0 n /
-/// (1 - z)` for the south aspect, with `e`, `n` the components along the rotated `lon0` axes),
-/// which avoids the asin/atan2/tan of going through latitude and longitude; other projections
-/// go through them.
-#[derive(Clone, Copy)]
-enum UnitProjector {
-    /// Polar stereographic with its constants precomputed.
-    Stereographic {
-        south: bool,
-        sin_lon0: f64,
-        cos_lon0: f64,
-        two_r_k0_m: f64,
-    },
-    /// Any other projection, through latitude and longitude.
-    Other(Projection),
-}
-
-impl UnitProjector {
-    fn new(projection: &Projection) -> Self {
-        match *projection {
-            Projection::PolarStereographic {
-                south,
-                lon0_deg,
-                k0,
-                radius_m,
-            } => {
-                let (sin_lon0, cos_lon0) = lon0_deg.to_radians().sin_cos();
-                UnitProjector::Stereographic {
-                    south,
-                    sin_lon0,
-                    cos_lon0,
-                    two_r_k0_m: 2.0 * radius_m * k0,
-                }
-            }
-            other => UnitProjector::Other(other),
-        }
-    }
-
-    /// Map coordinates (m) of the unit radial vector `u`.
-    #[inline]
-    fn xy_from_unit(&self, u: &Vector3<f64>) -> (f64, f64) {
-        match *self {
-            UnitProjector::Stereographic {
-                south,
-                sin_lon0,
-                cos_lon0,
-                two_r_k0_m,
-            } => {
-                // sin(lon - lon0) cos(lat) and cos(lon - lon0) cos(lat).
-                let e = u.y * cos_lon0 - u.x * sin_lon0;
-                let n = u.x * cos_lon0 + u.y * sin_lon0;
-                if south {
-                    let f = two_r_k0_m / (1.0 - u.z);
-                    (f * e, f * n)
-                } else {
-                    let f = two_r_k0_m / (1.0 + u.z);
-                    (f * e, -f * n)
-                }
-            }
-            UnitProjector::Other(p) => {
-                let lat_deg = u.z.clamp(-1.0, 1.0).asin().to_degrees();
-                let lon_deg = u.y.atan2(u.x).to_degrees();
-                p.xy_from_lat_lon(lat_deg, lon_deg)
-            }
-        }
-    }
-}
-
 /// Upper bound of `tan(el)` over ground angles `[theta_a, theta_b]` (given as `(sin, cos)`,
 /// `theta_a <= theta_b`) for heights <= `h_max_m`: elevation grows with height, and at a fixed
 /// radius `rho` it peaks at the tangent angle `acos(rho / r0)` when `rho < r0` and otherwise
@@ -708,6 +639,7 @@ fn push_crossings(va: f64, vb: f64, n: f64, ts: &mut Vec<f64>) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::terrain::Projection;
 
     #[test]
     fn crossings_cover_integers_and_edges() {

@@ -18,6 +18,15 @@ pub enum OutputError {
         #[source]
         source: std::io::Error,
     },
+    /// Reading an input file (to hash it for provenance) failed.
+    #[error("reading {path}: {source}")]
+    Read {
+        /// The file that was being read.
+        path: String,
+        /// The underlying I/O error.
+        #[source]
+        source: std::io::Error,
+    },
 }
 
 /// Writes a file atomically: `fill` writes into a temporary file in the same folder, which is
@@ -95,6 +104,9 @@ pub struct Provenance {
     pub kernels: Vec<crate::ephem::kernels::KernelFile>,
     /// DEM layers used (paths, or a description of the synthetic DEM).
     pub dem_layers: Vec<String>,
+    /// The DEM files read, with sizes and sha256 (none for the synthetic DEM).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub dem_files: Vec<InputFile>,
     /// First epoch, UTC.
     pub epoch_start_utc: String,
     /// Last epoch, UTC.
@@ -120,6 +132,32 @@ pub struct Provenance {
     pub map_rays_blocked_beyond_dem: Option<BelowSphereExits>,
     /// Wall time of the run, seconds.
     pub wall_time_s: f64,
+}
+
+/// An input file of a run (a DEM layer), identified like the kernels: path, size, sha256.
+#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize)]
+pub struct InputFile {
+    /// Path as given.
+    pub path: String,
+    /// Size in bytes.
+    pub size_bytes: u64,
+    /// Lowercase hex sha256 of the contents.
+    pub sha256: String,
+}
+
+impl InputFile {
+    /// Reads `path` and hashes it.
+    pub fn of(path: &Path) -> Result<Self, OutputError> {
+        let io = |source| OutputError::Read {
+            path: path.display().to_string(),
+            source,
+        };
+        Ok(InputFile {
+            path: path.display().to_string(),
+            size_bytes: std::fs::metadata(path).map_err(io)?.len(),
+            sha256: sha256_file(path).map_err(io)?,
+        })
+    }
 }
 
 /// How many map results rest on a ray that left the DEM below the reference sphere.
@@ -158,6 +196,7 @@ impl Provenance {
             scenario: None,
             kernels: Vec::new(),
             dem_layers: Vec::new(),
+            dem_files: Vec::new(),
             epoch_start_utc: String::new(),
             epoch_stop_utc: String::new(),
             epoch_count: 0,

@@ -42,9 +42,6 @@ pub mod accuracy;
 pub mod brute;
 pub mod dp;
 pub mod fourier;
-pub mod fourier_twin;
-pub mod gpu_tiles;
-pub mod gpu_twins;
 pub mod smap;
 
 use nalgebra::Vector3;
@@ -398,7 +395,7 @@ pub enum Observers<'a> {
         height_m: f64,
     },
     /// Given observers (results in the list's order; `None` gives nodata), e.g. the exact
-    /// positions of a DEM's own pixels ([`crate::map::MapGrid::pixel_observers`]). Terrain
+    /// positions of a DEM's own pixels ([`crate::model::MapGrid::pixel_observers`]). Terrain
     /// closer than `min_s_cells` (horizontal distance, cells) is not sampled, as the per-site
     /// horizon engine leaves out the observer's own half pixel.
     Points {

@@ -50,7 +50,7 @@ pub struct HeightField {
     pub centre_lon_deg: f64,
     /// Rotation (rad, counter-clockwise seen from above) of the model x/y axes from east/north at
     /// `C`: a map's model grid is turned so that its rows and columns run along the DEM's
-    /// (see [`crate::map::MapGrid`]); 0 gives the plain ENU frame.
+    /// (see [`crate::model::MapGrid`]); 0 gives the plain ENU frame.
     pub rotation_rad: f64,
     /// The cells whose results are wanted (`None`: all). A map's grid covers every DEM layer so
     /// that all of them cast shadows, but only the cells under the output raster are evaluated;

@@ -14,6 +14,7 @@ pub mod heightfield;
 pub mod info;
 pub mod model_space;
 pub mod synth;
+pub(crate) mod unit_projector;
 
 use std::path::Path;
 

@@ -258,7 +258,7 @@ fn sharp_mask_errors(dem: penumbra::terrain::Dem) -> Vec<(&'static str, f64, usi
     use penumbra::shadow::Engine;
     use rayon::prelude::*;
     let stack = penumbra::terrain::TerrainStack::new(vec![dem]);
-    let grid = penumbra::map::MapGrid::new(&stack).unwrap();
+    let grid = penumbra::model::MapGrid::new(&stack).unwrap();
     let dem = &stack.layers[0];
     let (cx, cy) = dem.grid.xy_from_row_col(79.5, 79.5);
     let (clat, clon) = dem.projection.lat_lon_from_xy(cx, cy);

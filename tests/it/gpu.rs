@@ -5,8 +5,8 @@
 
 use std::path::Path;
 
-use penumbra::shadow::gpu_twins::{self, LIT, MarchGrid, RowBand, SHADOW};
 use penumbra::terrain::HeightField;
+use penumbra::twins::{self, LIT, MarchGrid, RowBand, SHADOW};
 
 use crate::util::sun_dir;
 
@@ -85,8 +85,8 @@ fn twin_wall_shadow_length_matches_geometry() {
     }
     let el_deg = 10.0_f64;
     let grid = MarchGrid::from_height_field(&hf, observer_m).unwrap();
-    let light = gpu_twins::light_to_f32(&sun_dir(90.0, el_deg));
-    let map = gpu_twins::shadow_march(&grid, &[light], 0, RowBand::whole(&grid));
+    let light = twins::light_to_f32(&sun_dir(90.0, el_deg));
+    let map = twins::shadow_march(&grid, &[light], 0, RowBand::whole(&grid));
     let row = n / 2;
     // The wall is a tent of the bilinear surface between its neighbours: the ray from col c
     // meets the lattice line at wall_col after (wall_col - c) cells and must pass above H.
@@ -112,12 +112,9 @@ fn twin_wall_shadow_length_matches_geometry() {
 
 #[cfg(feature = "gpu")]
 mod on_gpu {
-    use std::sync::OnceLock;
-
-    use penumbra::gpu::GpuContext;
     use penumbra::gpu::shadow_march::{GpuMarchGrid, shadow_march_gpu, shadow_march_soft_gpu};
     use penumbra::gpu::sweep_accumulate::{SweepOptions, sweep_stats_gpu};
-    use penumbra::shadow::gpu_twins::NODATA;
+    use penumbra::twins::NODATA;
 
     use super::*;
     use crate::util::hills;
@@ -129,11 +126,7 @@ mod on_gpu {
     /// ties at grazing rays (the GPU may contract a*b+c into an FMA and round differently).
     const MAX_HARD_DIFF_FRACTION: f64 = 1e-3;
 
-    /// The context shared by the tests of this module, or `None` with a printed reason.
-    fn gpu() -> Option<&'static GpuContext> {
-        static CTX: OnceLock<Option<GpuContext>> = OnceLock::new();
-        crate::util::gpu_context(&CTX)
-    }
+    use crate::util::gpu;
 
     fn hard_counts(map: &[u32]) -> (usize, usize, usize) {
         let count = |v| map.iter().filter(|&&s| s == v).count();
@@ -147,8 +140,8 @@ mod on_gpu {
         let grid = MarchGrid::from_height_field(&hills(n), 2.0).unwrap();
         let gpu_grid = GpuMarchGrid::upload(ctx, &grid).unwrap();
         for (el_deg, az_deg) in SUNS_DEG {
-            let light = gpu_twins::light_to_f32(&sun_dir(az_deg, el_deg));
-            let cpu = gpu_twins::shadow_march(&grid, &[light], 0, RowBand::whole(&grid));
+            let light = twins::light_to_f32(&sun_dir(az_deg, el_deg));
+            let cpu = twins::shadow_march(&grid, &[light], 0, RowBand::whole(&grid));
             // 40 rows per band: 7 bands, the last one short, so tiling is exercised too.
             let gpu_map = shadow_march_gpu(ctx, &gpu_grid, light, 40 * n as u64 * 4).unwrap();
             assert_eq!(gpu_map.len(), cpu.len());
@@ -178,7 +171,7 @@ mod on_gpu {
         let n = 128;
         let grid = MarchGrid::from_height_field(&hills(n), 2.0).unwrap();
         let gpu_grid = GpuMarchGrid::upload(ctx, &grid).unwrap();
-        let light = gpu_twins::light_to_f32(&sun_dir(151.0, 1.5));
+        let light = twins::light_to_f32(&sun_dir(151.0, 1.5));
         let whole = shadow_march_gpu(ctx, &gpu_grid, light, u64::MAX / 2).unwrap();
         // 1-row and 13-row bands must give bit-identical maps (same kernel, same cells).
         for band_rows in [1_u64, 13] {
@@ -197,9 +190,8 @@ mod on_gpu {
         let grid = MarchGrid::from_height_field(&hills(n), 2.0).unwrap();
         let gpu_grid = GpuMarchGrid::upload(ctx, &grid).unwrap();
         for (el_deg, az_deg) in SUNS_DEG {
-            let dirs =
-                gpu_twins::sun_disc_directions(&sun_dir(az_deg, el_deg), radius_rad, samples);
-            let cpu = gpu_twins::shadow_march_soft(&grid, &dirs, RowBand::whole(&grid));
+            let dirs = twins::sun_disc_directions(&sun_dir(az_deg, el_deg), radius_rad, samples);
+            let cpu = twins::shadow_march_soft(&grid, &dirs, RowBand::whole(&grid));
             let gpu_map = shadow_march_soft_gpu(ctx, &gpu_grid, &dirs, 50 * n as u64 * 4).unwrap();
             let deltas: Vec<f64> = cpu
                 .iter()
@@ -231,10 +223,10 @@ mod on_gpu {
             .map(|k| {
                 let phase = k as f64 / 60.0;
                 let el_deg = 2.75 + 2.25 * (4.0 * std::f64::consts::TAU * phase).sin();
-                gpu_twins::light_to_f32(&sun_dir(360.0 * phase, el_deg))
+                twins::light_to_f32(&sun_dir(360.0 * phase, el_deg))
             })
             .collect();
-        let cpu = gpu_twins::sweep_stats(&grid, &lights, RowBand::whole(&grid));
+        let cpu = twins::sweep_stats(&grid, &lights, RowBand::whole(&grid));
         // 7 epochs per submit and 20-row bands (7 bands): batches and bands both end unevenly.
         let options = SweepOptions {
             epochs_per_submit: 7,
@@ -261,7 +253,7 @@ mod on_gpu {
         // The twin's statistics are consistent with its own per-epoch maps.
         let lit_total: usize = (0..lights.len())
             .map(|e| {
-                let map = gpu_twins::shadow_march(&grid, &lights, e as u32, RowBand::whole(&grid));
+                let map = twins::shadow_march(&grid, &lights, e as u32, RowBand::whole(&grid));
                 map.iter().filter(|&&s| s == LIT).count()
             })
             .sum();

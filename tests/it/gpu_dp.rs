@@ -4,8 +4,8 @@
 //! adapter exists, a failure with `PENUMBRA_REQUIRE_GPU=1`). naga validation of the DP shaders is
 //! part of `gpu::naga_validates_every_shader` (every `shaders/*.wgsl`).
 
-use penumbra::shadow::gpu_twins::{self, DpMip, MarchGrid, RowBand};
 use penumbra::shadow::{Engine, SUN_ANGULAR_RADIUS_RAD, dp};
+use penumbra::twins::{self, DpMip, MarchGrid, RowBand};
 
 #[cfg(feature = "gpu")]
 use crate::util::sweep_lights;
@@ -85,8 +85,8 @@ fn dp_twin_matches_reference_engines() {
             &dp::DpConfig::default(),
         )
         .unwrap();
-        let light = gpu_twins::disc_light_to_f32(&dir, SUN_ANGULAR_RADIUS_RAD);
-        let twin = gpu_twins::dp_visible(&grid, &mip, &[light], 0, RowBand::whole(&grid));
+        let light = twins::disc_light_to_f32(&dir, SUN_ANGULAR_RADIUS_RAD);
+        let twin = twins::dp_visible(&grid, &mip, &[light], 0, RowBand::whole(&grid));
         let (max, mean, mismatch) = deltas(&reference, &twin);
         let partial = penumbra_cells(&reference);
         eprintln!(
@@ -99,8 +99,8 @@ fn dp_twin_matches_reference_engines() {
         let brute = Engine::Brute
             .hard_mask(&hf, OBSERVER_M, dir.into())
             .unwrap();
-        let hard = gpu_twins::disc_light_to_f32(&dir, 0.0);
-        let twin_hard = gpu_twins::dp_visible(&grid, &mip, &[hard], 0, RowBand::whole(&grid));
+        let hard = twins::disc_light_to_f32(&dir, 0.0);
+        let twin_hard = twins::dp_visible(&grid, &mip, &[hard], 0, RowBand::whole(&grid));
         let differ = brute
             .iter()
             .zip(&twin_hard)
@@ -122,18 +122,12 @@ const TWIN_VS_BRUTE_HARD_FRACTION: f64 = 1e-3;
 
 #[cfg(feature = "gpu")]
 mod on_gpu {
-    use std::sync::OnceLock;
-
-    use penumbra::gpu::GpuContext;
     use penumbra::gpu::dp::{DpSweepOptions, GpuDpGrid, dp_sweep_gpu, dp_visible_gpu};
-    use penumbra::shadow::gpu_twins::DpCellStats;
+    use penumbra::twins::DpCellStats;
 
     use super::*;
 
-    fn gpu() -> Option<&'static GpuContext> {
-        static CTX: OnceLock<Option<GpuContext>> = OnceLock::new();
-        crate::util::gpu_context(&CTX)
-    }
+    use crate::util::gpu;
 
     /// GPU vs its f32 twin (same algorithm, same arithmetic) and vs `dp::visible_fraction` (f64)
     /// on the 256² hills, soft (Sun radius) and hard (radius 0), bands of 50 rows.
@@ -147,8 +141,8 @@ mod on_gpu {
         let on_gpu = GpuDpGrid::upload(ctx, &grid, &mip).unwrap();
         for (el_deg, az_deg) in SUNS_DEG {
             let dir = sun_dir(az_deg, el_deg);
-            let light = gpu_twins::disc_light_to_f32(&dir, SUN_ANGULAR_RADIUS_RAD);
-            let twin = gpu_twins::dp_visible(&grid, &mip, &[light], 0, RowBand::whole(&grid));
+            let light = twins::disc_light_to_f32(&dir, SUN_ANGULAR_RADIUS_RAD);
+            let twin = twins::dp_visible(&grid, &mip, &[light], 0, RowBand::whole(&grid));
             let gpu_map = dp_visible_gpu(ctx, &on_gpu, light, 50 * n as u64 * 4).unwrap();
             let (max, mean, mismatch) = deltas(&twin, &gpu_map);
             eprintln!(
@@ -172,7 +166,7 @@ mod on_gpu {
             assert_eq!(mismatch, 0);
             assert!(max <= TWIN_VS_DP_MAX && mean <= TWIN_VS_DP_MEAN);
 
-            let hard = gpu_twins::disc_light_to_f32(&dir, 0.0);
+            let hard = twins::disc_light_to_f32(&dir, 0.0);
             let gpu_hard = dp_visible_gpu(ctx, &on_gpu, hard, 50 * n as u64 * 4).unwrap();
             let brute = Engine::Brute
                 .hard_mask(&hf, OBSERVER_M, dir.into())
@@ -199,7 +193,7 @@ mod on_gpu {
         let grid = MarchGrid::from_height_field(&hills(n), OBSERVER_M).unwrap();
         let mip = DpMip::build(&grid);
         let on_gpu = GpuDpGrid::upload(ctx, &grid, &mip).unwrap();
-        let light = gpu_twins::disc_light_to_f32(&sun_dir(151.0, 1.5), SUN_ANGULAR_RADIUS_RAD);
+        let light = twins::disc_light_to_f32(&sun_dir(151.0, 1.5), SUN_ANGULAR_RADIUS_RAD);
         let whole = dp_visible_gpu(ctx, &on_gpu, light, u64::MAX / 2).unwrap();
         for rows in [1_u64, 13] {
             let banded = dp_visible_gpu(ctx, &on_gpu, light, rows * n as u64 * 4).unwrap();
@@ -217,7 +211,7 @@ mod on_gpu {
         let mip = DpMip::build(&grid);
         let on_gpu = GpuDpGrid::upload(ctx, &grid, &mip).unwrap();
         let lights = sweep_lights(40);
-        let twin = gpu_twins::dp_sweep(&grid, &mip, &lights, RowBand::whole(&grid));
+        let twin = twins::dp_sweep(&grid, &mip, &lights, RowBand::whole(&grid));
         let options = DpSweepOptions {
             epochs_per_dispatch: 3,
             dispatches_per_submit: 5,
@@ -380,8 +374,8 @@ fn dp_twin_hard_matches_brute_next_to_holes() {
             .hard_mask(&hf, OBSERVER_M, dir.into())
             .unwrap();
         let cpu_dp = Engine::Dp.hard_mask(&hf, OBSERVER_M, dir.into()).unwrap();
-        let hard = gpu_twins::disc_light_to_f32(&dir, 0.0);
-        let twin = gpu_twins::dp_visible(&grid, &mip, &[hard], 0, RowBand::whole(&grid));
+        let hard = twins::disc_light_to_f32(&dir, 0.0);
+        let twin = twins::dp_visible(&grid, &mip, &[hard], 0, RowBand::whole(&grid));
         let twin_vs_brute = brute
             .iter()
             .zip(&twin)
@@ -411,8 +405,9 @@ fn dp_twin_hard_matches_brute_next_to_holes() {
 #[test]
 fn dp_twin_vs_cpu_dp_on_synthetic_dem() {
     let (stack, _) =
-        penumbra::app::synthetic_stack(&penumbra::terrain::synth::SynthParams::default()).unwrap();
-    let grid = penumbra::map::MapGrid::new(&stack).unwrap();
+        penumbra::products::synthetic_stack(&penumbra::terrain::synth::SynthParams::default())
+            .unwrap();
+    let grid = penumbra::model::MapGrid::new(&stack).unwrap();
     let hf = &grid.hf;
     let march = MarchGrid::from_height_field(hf, OBSERVER_M).unwrap();
     let mip = DpMip::build(&march);
@@ -427,8 +422,8 @@ fn dp_twin_vs_cpu_dp_on_synthetic_dem() {
             &dp::DpConfig::default(),
         )
         .unwrap();
-        let light = gpu_twins::disc_light_to_f32(&dir, SUN_ANGULAR_RADIUS_RAD);
-        let twin = gpu_twins::dp_visible(&march, &mip, &[light], 0, RowBand::whole(&march));
+        let light = twins::disc_light_to_f32(&dir, SUN_ANGULAR_RADIUS_RAD);
+        let twin = twins::dp_visible(&march, &mip, &[light], 0, RowBand::whole(&march));
         let (max, mean, one_sided) = deltas(&reference, &twin);
         let differ = reference
             .iter()

@@ -6,10 +6,10 @@
 //! `gpu::naga_validates_every_shader` (every `shaders/*.wgsl` with its `// requires:` lines).
 
 use penumbra::shadow::fourier::{self, HorizonMap, HorizonMapMeta, HorizonMapParams};
-use penumbra::shadow::fourier_twin::{self, FourierEvalParams};
-use penumbra::shadow::gpu_twins::MarchGrid;
 use penumbra::shadow::{MASK_NODATA, SUN_ANGULAR_RADIUS_RAD};
 use penumbra::terrain::HeightField;
+use penumbra::twins::MarchGrid;
+use penumbra::twins::fourier::{self as fourier_twin, FourierEvalParams};
 
 use crate::util::hills;
 
@@ -221,9 +221,6 @@ fn to_mask(f: &[f32]) -> Vec<u8> {
 
 #[cfg(feature = "gpu")]
 mod on_gpu {
-    use std::sync::OnceLock;
-
-    use penumbra::gpu::GpuContext;
     use penumbra::gpu::fourier::{
         DEFAULT_BAND_BYTES, GpuBuildOptions, GpuHorizonMap, build_horizon_map_gpu,
         build_horizon_map_gpu_with,
@@ -231,11 +228,7 @@ mod on_gpu {
 
     use super::*;
 
-    /// The context shared by the tests of this module, or `None` with a printed reason.
-    pub(super) fn gpu() -> Option<&'static GpuContext> {
-        static CTX: OnceLock<Option<GpuContext>> = OnceLock::new();
-        crate::util::gpu_context(&CTX)
-    }
+    pub(super) use crate::util::gpu;
 
     /// GPU build vs the twin (oracle for the GPU's arithmetic) and vs the f64 CPU engine
     /// (oracle for the result), 128² hills, 64 azimuths, whole-grid rays.

@@ -1,5 +1,5 @@
 //! Per-site horizons on the GPU (`shaders/horizon_scan.wgsl`, `penumbra::gpu::horizon`) and its
-//! CPU twin (`penumbra::horizon::gpu_twin`): naga layout of the shader's structs (never skipped),
+//! CPU twin (`penumbra::twins::horizon_scan`): naga layout of the shader's structs (never skipped),
 //! the twin against the analytic dip and against the f64 exact scan (no GPU needed), and on an
 //! adapter (lavapipe in CI: `WGPU_BACKEND=vulkan`) the GPU against the twin and against the
 //! exact scan on the synthetic DEM and on the real LOLA grids (skipped with a reason when absent).
@@ -8,10 +8,10 @@
 use std::path::Path;
 
 use penumbra::MOON_RADIUS_M;
-use penumbra::horizon::gpu_twin::{self, ScanParams, SiteParams};
 use penumbra::horizon::{Horizon, HorizonEngine, HorizonMethod, HorizonParams};
 use penumbra::terrain::synth::{SynthParams, south_polar_dem};
 use penumbra::terrain::{Dem, GridGeometry, Projection, TerrainStack};
+use penumbra::twins::horizon_scan::{self, ScanParams, SiteParams};
 
 /// Sorted |a - b| over the azimuths of several horizon pairs: (max, p99, mean).
 fn diff_stats(a: &[Horizon], b: &[Horizon]) -> (f64, f64, f64) {
@@ -72,7 +72,7 @@ fn horizon_scan_struct_layout_matches_rust() {
     };
     assert_eq!(size("ScanParams"), size_of::<ScanParams>());
     assert_eq!(size("Site"), size_of::<SiteParams>());
-    assert_eq!(size("Layer"), size_of::<gpu_twin::LayerParams>());
+    assert_eq!(size("Layer"), size_of::<horizon_scan::LayerParams>());
 }
 
 /// Oracle: geometry. A flat sphere (all heights 0) of 50 m cells reaching 10 km around the pole,
@@ -98,7 +98,8 @@ fn twin_flat_sphere_gives_the_geometric_dip() {
     let stack = TerrainStack::new(vec![dem]);
     let h = 2.0;
     let dip_deg = -(MOON_RADIUS_M / (MOON_RADIUS_M + h)).acos().to_degrees();
-    let hz = gpu_twin::horizons_twin(&stack, &[(-90.0, 0.0), (-89.99, 30.0)], &exact(5.0)).unwrap();
+    let hz =
+        horizon_scan::horizons_twin(&stack, &[(-90.0, 0.0), (-89.99, 30.0)], &exact(5.0)).unwrap();
     let err = hz
         .iter()
         .flat_map(|z| z.elevation_deg.iter().map(|e| (e - dip_deg).abs()))
@@ -119,7 +120,7 @@ fn twin_matches_exact_scan_on_synthetic_dem() {
         .iter()
         .map(|&(lat, lon)| engine.horizon(lat, lon, &p).unwrap())
         .collect();
-    let twin = gpu_twin::horizons_twin(&stack, &SYNTH_SITES, &p).unwrap();
+    let twin = horizon_scan::horizons_twin(&stack, &SYNTH_SITES, &p).unwrap();
     let (max, p99, mean) = diff_stats(&twin, &cpu);
     println!("twin vs exact, synthetic: max {max:.2e} p99 {p99:.2e} mean {mean:.2e} deg");
     // Measured 5.5e-4 / 3.1e-4 deg (f32 positions and heights); bounds ~3x that.
@@ -127,21 +128,9 @@ fn twin_matches_exact_scan_on_synthetic_dem() {
 }
 
 #[cfg(feature = "gpu")]
-fn data_path(name: &str) -> Option<std::path::PathBuf> {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/data/lola-south-pole-moondao")
-        .join(name);
-    if p.exists() {
-        Some(p)
-    } else {
-        println!("skipped: {} is absent", p.display());
-        None
-    }
-}
-
-#[cfg(feature = "gpu")]
 fn real_stack(names: &[&str]) -> Option<TerrainStack> {
-    let paths: Option<Vec<std::path::PathBuf>> = names.iter().map(|n| data_path(n)).collect();
+    let paths: Option<Vec<std::path::PathBuf>> =
+        names.iter().map(|n| crate::util::shared_lola(n)).collect();
     Some(TerrainStack::load(&paths?).unwrap())
 }
 
@@ -157,18 +146,12 @@ const REAL_SITES: [(f64, f64); 2] = [(-89.45, 222.7), (-89.68, 200.0)];
 
 #[cfg(feature = "gpu")]
 mod on_gpu {
-    use std::sync::OnceLock;
-
-    use penumbra::gpu::GpuContext;
     use penumbra::gpu::horizon::{GpuHorizonScan, horizons_gpu};
-    use penumbra::horizon::gpu_twin::{ScanTerrain, azimuth_table, scan_twin, site_setup};
+    use penumbra::twins::horizon_scan::{ScanTerrain, azimuth_table, scan_twin, site_setup};
 
     use super::*;
 
-    fn gpu() -> Option<&'static GpuContext> {
-        static CTX: OnceLock<Option<GpuContext>> = OnceLock::new();
-        crate::util::gpu_context(&CTX)
-    }
+    use crate::util::gpu;
 
     /// GPU vs twin on the synthetic DEM, raw kernel outputs: the same f32 algorithm, so only GPU
     /// rounding (FMA contraction, division) differs.

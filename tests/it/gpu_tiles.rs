@@ -1,13 +1,13 @@
-//! 2-D tiled DP shadow maps (`shadow::gpu_tiles`, `gpu::tiles`; docs/gpu.md, "Large grids").
+//! 2-D tiled DP shadow maps (`twins::dp_tiles`, `gpu::tiles`; docs/gpu.md, "Large grids").
 //! Oracle: the untiled DP walk (twin and GPU), which the tiling must reproduce exactly because
 //! `J*` is a minimum over ray samples and every sample has the same f32 value in every tile; and
 //! the f64 reference engines (`shadow::dp`, `shadow::brute`). The twin tests always run; the GPU
 //! tests run on lavapipe and skip with a printed reason without an adapter (a failure with
 //! `PENUMBRA_REQUIRE_GPU=1`).
 
-use penumbra::shadow::gpu_tiles::{self, TileBlock, TilePlan};
-use penumbra::shadow::gpu_twins::{self, DpMip, MarchGrid, RowBand};
 use penumbra::shadow::{Engine, SUN_ANGULAR_RADIUS_RAD, dp};
+use penumbra::twins::dp_tiles::{self, TileBlock, TilePlan};
+use penumbra::twins::{self, DpMip, MarchGrid, RowBand};
 
 use crate::util::{hills, sun_dir, sweep_lights};
 
@@ -42,7 +42,7 @@ fn max_delta(a: &[f32], b: &[f32]) -> (f64, usize) {
 
 /// Per cell the untiled twin's cost (NaN for holes).
 fn untiled_costs(grid: &MarchGrid, mip: &DpMip, light: [f32; 4]) -> Vec<f32> {
-    let cap = gpu_twins::dp_cap(light);
+    let cap = twins::dp_cap(light);
     (0..grid.cells())
         .map(|k| {
             if grid.heights_m[k] < -1e29 {
@@ -52,8 +52,8 @@ fn untiled_costs(grid: &MarchGrid, mip: &DpMip, light: [f32; 4]) -> Vec<f32> {
                 (k / grid.cols as usize) as u32,
                 (k % grid.cols as usize) as u32,
             );
-            let obs = gpu_twins::dp_observer(grid, row, col);
-            gpu_twins::dp_cost(grid, mip, &obs, [light[0], light[1], light[2]], cap)
+            let obs = twins::dp_observer(grid, row, col);
+            twins::dp_cost(grid, mip, &obs, [light[0], light[1], light[2]], cap)
         })
         .collect()
 }
@@ -75,10 +75,10 @@ fn tiled_twin_equals_untiled_twin() {
             .collect();
         for (el_deg, az_deg) in SUNS_DEG {
             let dir = sun_dir(az_deg, el_deg);
-            let light = gpu_twins::disc_light_to_f32(&dir, SUN_ANGULAR_RADIUS_RAD);
-            let cap = gpu_twins::dp_cap(light);
+            let light = twins::disc_light_to_f32(&dir, SUN_ANGULAR_RADIUS_RAD);
+            let cap = twins::dp_cap(light);
             let whole = untiled_costs(&grid, &mip, light);
-            let tiled = gpu_tiles::dp_costs_tiled(&grid, tile_cells, light).unwrap();
+            let tiled = dp_tiles::dp_costs_tiled(&grid, tile_cells, light).unwrap();
             let (mut differ, mut below_cap, mut from_other_tiles) = (0usize, 0usize, 0usize);
             for (k, (&a, &b)) in whole.iter().zip(&tiled).enumerate() {
                 assert_eq!(a.is_nan(), b.is_nan());
@@ -91,18 +91,18 @@ fn tiled_twin_equals_untiled_twin() {
                     below_cap += 1;
                     let (row, col) = ((k / n) as u32, (k % n) as u32);
                     let own = &blocks[plan.tile_of(row, col)];
-                    let obs = gpu_twins::dp_observer(&grid, row, col);
+                    let obs = twins::dp_observer(&grid, row, col);
                     let l = [light[0], light[1], light[2]];
-                    let own_only = gpu_twins::dp_cost_in(&grid, &own.source(), &obs, l, cap, 1e30);
+                    let own_only = twins::dp_cost_in(&grid, &own.source(), &obs, l, cap, 1e30);
                     from_other_tiles += usize::from(own_only != a);
                 }
             }
-            let soft_whole = gpu_twins::dp_visible(&grid, &mip, &[light], 0, RowBand::whole(&grid));
-            let soft_tiled = gpu_tiles::dp_visible_tiled(&grid, tile_cells, light).unwrap();
+            let soft_whole = twins::dp_visible(&grid, &mip, &[light], 0, RowBand::whole(&grid));
+            let soft_tiled = dp_tiles::dp_visible_tiled(&grid, tile_cells, light).unwrap();
             let (soft_max, soft_mismatch) = max_delta(&soft_whole, &soft_tiled);
-            let hard = gpu_twins::disc_light_to_f32(&dir, 0.0);
-            let hard_whole = gpu_twins::dp_visible(&grid, &mip, &[hard], 0, RowBand::whole(&grid));
-            let hard_tiled = gpu_tiles::dp_visible_tiled(&grid, tile_cells, hard).unwrap();
+            let hard = twins::disc_light_to_f32(&dir, 0.0);
+            let hard_whole = twins::dp_visible(&grid, &mip, &[hard], 0, RowBand::whole(&grid));
+            let hard_tiled = dp_tiles::dp_visible_tiled(&grid, tile_cells, hard).unwrap();
             let hard_differ = hard_whole
                 .iter()
                 .zip(&hard_tiled)
@@ -145,8 +145,8 @@ fn tiled_twin_matches_cpu_engines() {
             &dp::DpConfig::default(),
         )
         .unwrap();
-        let light = gpu_twins::disc_light_to_f32(&dir, SUN_ANGULAR_RADIUS_RAD);
-        let tiled = gpu_tiles::dp_visible_tiled(&grid, 50, light).unwrap();
+        let light = twins::disc_light_to_f32(&dir, SUN_ANGULAR_RADIUS_RAD);
+        let tiled = dp_tiles::dp_visible_tiled(&grid, 50, light).unwrap();
         let (mut max, mut sum, mut count, mut mismatch) = (0.0_f64, 0.0_f64, 0usize, 0usize);
         let mut over_1e3 = 0usize;
         for (&a, &b) in reference.iter().zip(&tiled) {
@@ -164,8 +164,8 @@ fn tiled_twin_matches_cpu_engines() {
         let brute = Engine::Brute
             .hard_mask(&hf, OBSERVER_M, dir.into())
             .unwrap();
-        let hard = gpu_twins::disc_light_to_f32(&dir, 0.0);
-        let hard_tiled = gpu_tiles::dp_visible_tiled(&grid, 50, hard).unwrap();
+        let hard = twins::disc_light_to_f32(&dir, 0.0);
+        let hard_tiled = dp_tiles::dp_visible_tiled(&grid, 50, hard).unwrap();
         let differ = brute
             .iter()
             .zip(&hard_tiled)
@@ -193,8 +193,8 @@ fn tiled_sweep_twin_equals_untiled_sweep_twin() {
     let grid = MarchGrid::from_height_field(&hills(n), OBSERVER_M).unwrap();
     let mip = DpMip::build(&grid);
     let lights = sweep_lights(30);
-    let whole = gpu_twins::dp_sweep(&grid, &mip, &lights, RowBand::whole(&grid));
-    let tiled = gpu_tiles::dp_sweep_tiled(&grid, 50, &lights, 7).unwrap();
+    let whole = twins::dp_sweep(&grid, &mip, &lights, RowBand::whole(&grid));
+    let tiled = dp_tiles::dp_sweep_tiled(&grid, 50, &lights, 7).unwrap();
     let equal = whole.iter().zip(&tiled).filter(|(a, b)| a == b).count();
     let longest = whole
         .iter()
@@ -218,9 +218,6 @@ fn tiled_sweep_twin_equals_untiled_sweep_twin() {
 
 #[cfg(feature = "gpu")]
 mod on_gpu {
-    use std::sync::OnceLock;
-
-    use penumbra::gpu::GpuContext;
     use penumbra::gpu::dp::{DpSweepOptions, GpuDpGrid, dp_sweep_gpu, dp_visible_gpu};
     use penumbra::gpu::tiles::{
         DpTileOptions, DpTileSweepOptions, DpTiling, dp_sweep_tiled_gpu, dp_visible_tiled_gpu,
@@ -228,10 +225,7 @@ mod on_gpu {
 
     use super::*;
 
-    fn gpu() -> Option<&'static GpuContext> {
-        static CTX: OnceLock<Option<GpuContext>> = OnceLock::new();
-        crate::util::gpu_context(&CTX)
-    }
+    use crate::util::gpu;
 
     /// Tiled GPU vs untiled GPU (and vs the tiled twin) on the 256² hills, tiles of 64 and 50,
     /// six low Suns: soft fractions max |Δ| and hard masks cell for cell.
@@ -247,12 +241,12 @@ mod on_gpu {
             for (el_deg, az_deg) in SUNS_DEG {
                 let dir = sun_dir(az_deg, el_deg);
                 for radius in [SUN_ANGULAR_RADIUS_RAD, 0.0] {
-                    let light = gpu_twins::disc_light_to_f32(&dir, radius);
+                    let light = twins::disc_light_to_f32(&dir, radius);
                     let whole = dp_visible_gpu(ctx, &on_gpu, light, u64::MAX / 2).unwrap();
                     let tiled =
                         dp_visible_tiled_gpu(ctx, &grid, light, DpTileOptions::new(tile_cells))
                             .unwrap();
-                    let twin = gpu_tiles::dp_visible_tiled(&grid, tile_cells, light).unwrap();
+                    let twin = dp_tiles::dp_visible_tiled(&grid, tile_cells, light).unwrap();
                     let (max, mismatch) = max_delta(&whole, &tiled.values);
                     let (max_twin, mismatch_twin) = max_delta(&twin, &tiled.values);
                     let differ = whole
@@ -295,7 +289,7 @@ mod on_gpu {
         let Some(ctx) = gpu() else { return };
         let n = 200;
         let grid = MarchGrid::from_height_field(&hills(n), OBSERVER_M).unwrap();
-        let light = gpu_twins::disc_light_to_f32(&sun_dir(200.0, 0.5), SUN_ANGULAR_RADIUS_RAD);
+        let light = twins::disc_light_to_f32(&sun_dir(200.0, 0.5), SUN_ANGULAR_RADIUS_RAD);
         let roomy = dp_visible_tiled_gpu(ctx, &grid, light, DpTileOptions::new(40)).unwrap();
         let tight = dp_visible_tiled_gpu(
             ctx,
@@ -348,9 +342,9 @@ mod on_gpu {
             epochs_per_batch: 4,
         };
         let (tiled, run) = dp_sweep_tiled_gpu(ctx, &grid, &lights, options).unwrap();
-        let twin = gpu_tiles::dp_sweep_tiled(&grid, 50, &lights, 4).unwrap();
+        let twin = dp_tiles::dp_sweep_tiled(&grid, 50, &lights, 4).unwrap();
         let equal = whole.iter().zip(&tiled).filter(|(a, b)| a == b).count();
-        let counts = |s: &penumbra::shadow::gpu_twins::DpCellStats| {
+        let counts = |s: &penumbra::twins::DpCellStats| {
             (
                 s.sun_visible_epochs,
                 s.longest_dark_run_epochs,
@@ -397,7 +391,7 @@ mod on_gpu {
         assert!(message.contains("tiled"), "{message}");
         let tile_cells = DpTiling::default().resolve(ctx, &grid).unwrap();
         assert!(tile_cells.is_some());
-        let light = gpu_twins::disc_light_to_f32(&sun_dir(151.0, 3.0), SUN_ANGULAR_RADIUS_RAD);
+        let light = twins::disc_light_to_f32(&sun_dir(151.0, 3.0), SUN_ANGULAR_RADIUS_RAD);
         let start = std::time::Instant::now();
         let tiled =
             dp_visible_tiled_gpu(ctx, &grid, light, DpTileOptions::new(tile_cells.unwrap()))
@@ -409,8 +403,8 @@ mod on_gpu {
                 continue;
             }
             let (row, col) = ((k / n) as u32, (k % n) as u32);
-            let obs = gpu_twins::dp_observer(&grid, row, col);
-            let twin = gpu_twins::dp_fraction(&grid, &mip, &obs, light);
+            let obs = twins::dp_observer(&grid, row, col);
+            let twin = twins::dp_fraction(&grid, &mip, &obs, light);
             max = max.max(f64::from((twin - tiled.values[k]).abs()));
             checked += 1;
             partial += usize::from(twin > 0.0 && twin < 1.0);

@@ -1,7 +1,7 @@
 //! Horizon tests: analytic cases (flat sphere, ring wall), the exact scan against a brute-force
 //! fine ray march, fast vs exact on the real LOLA grids, bad input, and the CLI.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::Command;
 
 use nalgebra::Vector3;
@@ -231,20 +231,8 @@ fn exact_scan_matches_a_fine_ray_march() {
     assert!(max_err_deg < 1e-4, "{max_err_deg}");
 }
 
-fn data_path(name: &str) -> Option<PathBuf> {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/data/lola-south-pole-moondao")
-        .join(name);
-    if p.exists() {
-        Some(p)
-    } else {
-        println!("skipped: {} is absent", p.display());
-        None
-    }
-}
-
 fn real_stack(names: &[&str]) -> Option<TerrainStack> {
-    let paths: Option<Vec<PathBuf>> = names.iter().map(|n| data_path(n)).collect();
+    let paths: Option<Vec<PathBuf>> = names.iter().map(|n| crate::util::shared_lola(n)).collect();
     Some(penumbra::terrain::TerrainStack::load(&paths?).unwrap())
 }
 
@@ -376,7 +364,7 @@ fn cli_missing_dem_is_a_one_line_error() {
 
 #[test]
 fn cli_writes_csv_and_json_and_rejects_bad_height() {
-    let Some(inner) = data_path(INNER) else {
+    let Some(inner) = crate::util::shared_lola(INNER) else {
         return;
     };
     let dir = tempfile::tempdir().unwrap();

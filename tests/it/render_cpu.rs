@@ -386,11 +386,27 @@ fn cli_epoch_range_writes_numbered_frames_and_radiance() {
             "rad_0000.tif",
             "rad_0001.tif",
             "rad_0002.tif",
+            "seq.run.json",
             "seq_0000.png",
             "seq_0001.png",
             "seq_0002.png"
         ]
     );
+    // The provenance lists exactly the files written, and the epochs.
+    let prov: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.path().join("seq.run.json")).unwrap()).unwrap();
+    let mut listed: Vec<String> = prov["outputs"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_str().unwrap().to_string())
+        .collect();
+    listed.sort();
+    let mut written = names.clone();
+    written.retain(|n| n != "seq.run.json");
+    assert_eq!(listed, written);
+    assert_eq!(prov["epoch_count"], 3);
+    assert_eq!(prov["epoch_start_utc"], "2027-01-20T00:00:00");
     for (k, want_utc) in [
         "2027-01-20T00:00:00",
         "2027-01-20T06:00:00",
@@ -400,15 +416,7 @@ fn cli_epoch_range_writes_numbered_frames_and_radiance() {
     .enumerate()
     {
         let bytes = std::fs::read(dir.path().join(format!("seq_{k:04}.png"))).unwrap();
-        let reader = png::Decoder::new(std::io::Cursor::new(&bytes[..]))
-            .read_info()
-            .unwrap();
-        let utc = reader
-            .info()
-            .uncompressed_latin1_text
-            .iter()
-            .find(|t| t.keyword == "penumbra:epoch_utc")
-            .map(|t| t.text.clone());
+        let utc = crate::util::png_text(&bytes, "penumbra:epoch_utc");
         assert_eq!(utc.as_deref(), Some(*want_utc));
         let rgb = image::load_from_memory(&bytes).unwrap().to_rgb8();
         let mut dec = tiff::decoder::Decoder::new(
@@ -608,18 +616,9 @@ step = "6h"
 width = 16
 height = 12
 "#;
-    std::fs::write(
-        dir.path().join("s.toml"),
-        render_scenario("r", "2027-01-20T02:00", views),
-    )
-    .unwrap();
-    let out = penumbra(dir.path(), &["run", "s.toml"]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let rdir = dir.path().join("res/render");
+    let rdir =
+        crate::util::run_scenario_ok(dir.path(), &render_scenario("r", "2027-01-20T02:00", views))
+            .join("render");
     assert_eq!(
         files_in(&rdir),
         ["seq_0000.png", "seq_0001.png", "site.png"]
@@ -627,15 +626,7 @@ height = 12
     let img = image::open(rdir.join("site.png")).unwrap();
     assert_eq!((img.width(), img.height()), (24, 16));
     let bytes = std::fs::read(rdir.join("seq_0001.png")).unwrap();
-    let reader = png::Decoder::new(std::io::Cursor::new(&bytes[..]))
-        .read_info()
-        .unwrap();
-    let utc = reader
-        .info()
-        .uncompressed_latin1_text
-        .iter()
-        .find(|t| t.keyword == "penumbra:epoch_utc")
-        .map(|t| t.text.clone());
+    let utc = crate::util::png_text(&bytes, "penumbra:epoch_utc");
     assert_eq!(utc.as_deref(), Some("2027-01-20T06:00:00"));
 
     let dir = tempfile::tempdir().unwrap();

@@ -19,13 +19,10 @@ fn dir_az_el_deg(az_deg: f64, el_deg: f64) -> [f64; 3] {
 
 /// The synthetic DEM (400 x 400 px at 100 m) seen from 10 m above (-89.6, 0), looking az 20 deg,
 /// el -2 deg (the render bench's scene), Sun at az 30 deg el 1 deg, Earth at az 356 deg el 5.8.
-fn synthetic_scene() -> (penumbra::map::MapGrid, Lights, Camera) {
-    let args = penumbra::cli::TerrainArgs {
-        dem: vec![],
-        synthetic: true,
-    };
-    let (stack, _) = penumbra::app::load_terrain(&args).unwrap();
-    let grid = penumbra::map::MapGrid::new(&stack).unwrap();
+fn synthetic_scene() -> (penumbra::model::MapGrid, Lights, Camera) {
+    let source = penumbra::products::TerrainSource::Synthetic(Default::default());
+    let (stack, _) = source.load().unwrap();
+    let grid = penumbra::model::MapGrid::new(&stack).unwrap();
     let lights = Lights {
         sun: grid.light_from_az_el_deg(30.0, 1.0),
         sun_radius_rad: 0.267_f64.to_radians(),
@@ -144,10 +141,7 @@ fn naga_validates_render_shader_and_brdf_signature() {
 
 #[cfg(feature = "gpu")]
 mod on_gpu {
-    use std::sync::OnceLock;
-
     use nalgebra::{Matrix3, Vector3};
-    use penumbra::gpu::GpuContext;
     use penumbra::gpu::render::{
         GpuRenderScene, RenderGpuOptions, render_gpu, render_radiance_gpu,
     };
@@ -169,10 +163,7 @@ mod on_gpu {
     /// Mean |dL| / L_p99 (measured 1.3e-8).
     const IMAGE_MEAN_BOUND: f64 = 1e-5;
 
-    fn gpu() -> Option<&'static GpuContext> {
-        static CTX: OnceLock<Option<GpuContext>> = OnceLock::new();
-        crate::util::gpu_context(&CTX)
-    }
+    use crate::util::gpu;
 
     /// Per-pixel comparison of a GPU image with the CPU image: pixels whose class differs or
     /// whose |dL| exceeds 5 % of the CPU image's p99 radiance are "silhouette" pixels (the f32
@@ -264,7 +255,7 @@ mod on_gpu {
     }
 
     /// `penumbra render` on the GPU takes its per-cell Sun and Earth fractions from the GPU DP
-    /// kernel (`map::GpuSceneFractions`) instead of the CPU engine (`Scene::new`, Combined).
+    /// kernel (`compute::gpu_maps::GpuSceneFractions`) instead of the CPU engine (`Scene::new`, Combined).
     /// Synthetic DEM scene, both scenes rendered by the same CPU renderer so that only the
     /// fractions differ: fraction and image differences are printed and bounded.
     #[test]
@@ -276,7 +267,7 @@ mod on_gpu {
         let cpu_scene = Scene::new(hf, lights, Engine::Combined)
             .unwrap()
             .with_brdf(brdf);
-        let fr = penumbra::map::GpuSceneFractions::upload(ctx, hf).unwrap();
+        let fr = penumbra::compute::gpu_maps::GpuSceneFractions::upload(ctx, hf).unwrap();
         let (sun, earth) = fr.fractions(ctx, &lights).unwrap();
         let (cpu_sun, cpu_earth) = cpu_scene.fractions();
         for (name, g, c) in [("sun", &sun, cpu_sun), ("earth", &earth, cpu_earth)] {

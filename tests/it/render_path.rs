@@ -172,18 +172,9 @@ keyframes = [
   { utc = "2027-01-20T02:00:00", lat_deg = -89.6, lon_deg = 0.0, height_m = 30.0, look_az_deg = 20.0, look_el_deg = -2.0 },
 ]
 "#;
-    std::fs::write(
-        dir.path().join("s.toml"),
-        render_scenario("p", "2027-01-20T01:00", paths),
-    )
-    .unwrap();
-    let out = penumbra(dir.path(), &["run", "s.toml"]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let rdir = dir.path().join("res/render");
+    let rdir =
+        crate::util::run_scenario_ok(dir.path(), &render_scenario("p", "2027-01-20T01:00", paths))
+            .join("render");
     assert_eq!(
         files_in(&rdir),
         ["walk_0000.png", "walk_0001.png", "walk_0002.png"]

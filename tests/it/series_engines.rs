@@ -7,10 +7,10 @@ use penumbra::ephem::{self, AbCorr, Kernels};
 use penumbra::illum::DiscMethod;
 use penumbra::illum::LimbDarkening;
 use penumbra::illum::stats::{SUN_FULL_MIN_FRACTION, VISIBLE_MIN_FRACTION};
+use penumbra::series::dp::{SmapDpSites, fraction_from_horizon_tan};
 use penumbra::series::{self, LimbLaw, SeriesConfig, SeriesEngine, SeriesSite};
-use penumbra::series_dp::{SmapDpSites, fraction_from_horizon_tan};
-use penumbra::shadow::gpu_twins::{self, DpMip, MarchGrid};
 use penumbra::terrain::{TerrainStack, synth};
+use penumbra::twins::{self, DpMip, MarchGrid};
 
 use crate::util::{assert_clean_error, files_in, kernels_dir, penumbra, shared_lola};
 
@@ -540,7 +540,7 @@ fn fractions_of(tans: &[f32], discs: &[(f64, f64)]) -> Vec<f64> {
 #[test]
 fn dp_sites_twin_matches_the_cpu_engine() {
     let k = kernel_inputs();
-    let twin = gpu_twins::dp_sites(&k.march, &k.mip, &k.observers, &k.lights);
+    let twin = twins::dp_sites(&k.march, &k.mip, &k.observers, &k.lights);
     let twin_f = fractions_of(&twin, &k.discs);
     let cpu_f: Vec<f64> = k
         .directions
@@ -563,20 +563,12 @@ fn dp_sites_twin_matches_the_cpu_engine() {
 
 #[cfg(feature = "gpu")]
 mod gpu {
-    use std::sync::OnceLock;
-
-    use penumbra::gpu::GpuContext;
     use penumbra::gpu::dp::{GpuDpGrid, dp_sites_gpu};
-    use penumbra::series_dp::SmapDpGpu;
+    use penumbra::series::dp::SmapDpGpu;
 
     use super::*;
 
-    /// The context shared by these tests, or `None` with a printed reason (a failure with
-    /// `PENUMBRA_REQUIRE_GPU=1`).
-    pub(super) fn context() -> Option<&'static GpuContext> {
-        static CTX: OnceLock<Option<GpuContext>> = OnceLock::new();
-        crate::util::gpu_context(&CTX)
-    }
+    pub(super) use crate::util::gpu as context;
 
     /// `shaders/dp_sites.wgsl` against its f32 twin on the same inputs (5 sites × 745 epochs ×
     /// Sun and Earth), as horizon tangents and as visible fractions.
@@ -586,14 +578,14 @@ mod gpu {
         let k = kernel_inputs();
         let grid = GpuDpGrid::upload(ctx, &k.march, &k.mip).unwrap();
         let gpu = dp_sites_gpu(ctx, &grid, &k.observers, &k.lights).unwrap();
-        let twin = gpu_twins::dp_sites(&k.march, &k.mip, &k.observers, &k.lights);
+        let twin = twins::dp_sites(&k.march, &k.mip, &k.observers, &k.lights);
         assert_eq!(gpu.len(), twin.len());
         let (max_f, mean_f) = max_mean(
             &fractions_of(&twin, &k.discs),
             &fractions_of(&gpu, &k.discs),
         );
         // Horizon tangents where both found terrain below the cap (uncapped values agree).
-        let none = 0.5 * gpu_twins::NO_HORIZON_TAN;
+        let none = 0.5 * twins::NO_HORIZON_TAN;
         let mismatched = gpu
             .iter()
             .zip(&twin)

@@ -135,6 +135,14 @@ pub fn png_text(bytes: &[u8], keyword: &str) -> Option<String> {
         .map(|t| t.text.clone())
 }
 
+/// Writes `toml` as `s.toml` in `dir`, runs `penumbra run s.toml` there, asserts success and
+/// returns the output folder of the scenario (`dir/res`, as [`render_scenario`] sets it).
+pub fn run_scenario_ok(dir: &Path, toml: &str) -> PathBuf {
+    std::fs::write(dir.join("s.toml"), toml).unwrap();
+    penumbra_ok(dir, &["run", "s.toml"]);
+    dir.join("res")
+}
+
 /// A small render scenario: the seeded 300² synthetic DEM at 100 m, one site, hourly epochs from
 /// 2027-01-20T00:00 to `stop_utc`, the shipped kernels, then `tables` (`[[render.views]]` or
 /// `[[render.paths]]`).
@@ -158,13 +166,12 @@ lon_deg = 0.0
     )
 }
 
-/// The GPU context cached in a test module's `cell`, or `None` with a printed reason (a failure
-/// instead when `PENUMBRA_REQUIRE_GPU=1`). Each module keeps its own cell (own device).
+/// The GPU context shared by every GPU test of the binary, or `None` with a printed reason (a
+/// failure instead when `PENUMBRA_REQUIRE_GPU=1`).
 #[cfg(feature = "gpu")]
-pub fn gpu_context(
-    cell: &'static std::sync::OnceLock<Option<penumbra::gpu::GpuContext>>,
-) -> Option<&'static penumbra::gpu::GpuContext> {
-    cell.get_or_init(|| match penumbra::gpu::GpuContext::new() {
+pub fn gpu() -> Option<&'static penumbra::gpu::GpuContext> {
+    static CTX: std::sync::OnceLock<Option<penumbra::gpu::GpuContext>> = std::sync::OnceLock::new();
+    CTX.get_or_init(|| match penumbra::gpu::GpuContext::new() {
         Ok(ctx) => {
             eprintln!(
                 "GPU tests run on adapter: {} ({})",
@@ -192,7 +199,7 @@ pub fn sun_dir(az_deg: f64, el_deg: f64) -> nalgebra::Vector3<f64> {
 /// Sun and Earth discs for `epochs` epochs: the Sun circles the sky at 0.5..5° elevation, the
 /// Earth stays low in the north-west (1..3°), radii 0.2666° and 0.95°.
 pub fn sweep_lights(epochs: usize) -> Vec<[f32; 4]> {
-    use penumbra::shadow::gpu_twins::disc_light_to_f32;
+    use penumbra::twins::disc_light_to_f32;
     (0..epochs)
         .flat_map(|k| {
             let phase = k as f64 / epochs as f64;

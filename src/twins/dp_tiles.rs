@@ -8,7 +8,7 @@
 //! any cover of the ray: `J* = min_S J*_S`, where `J*_S` only uses the samples inside source tile
 //! `S`. The tiles partition the dual cells (the squares between four cell centres), every crossing
 //! is the exit of some dual cell along the ray, and the walk computes positions, crossing
-//! distances and sample heights in global cell units ([`super::gpu_twins::dp_cost_in`]), so a
+//! distances and sample heights in global cell units ([`super::dp::dp_cost_in`]), so a
 //! sample has the same f32 value whichever tile evaluates it. Each tile's walk starts from the
 //! running minimum of the tiles already walked, which also prunes it (`min(best, cap)`); a tile
 //! whose highest texel cannot bring the cost below the disc's cap is skipped altogether. The
@@ -23,15 +23,15 @@
 
 use rayon::prelude::*;
 
-use super::gpu_twins::{
-    DpCellStats, DpMip, DpSource, MarchGrid, NODATA_FRACTION, dp_cap, dp_cost_in,
-    dp_fraction_of_cost, dp_observer_at, dp_sweep_accumulate,
+use super::dp::{
+    DpCellStats, DpMip, DpSource, dp_cap, dp_cost_in, dp_fraction_of_cost, dp_observer_at,
+    dp_sweep_accumulate,
 };
+use super::march::MarchGrid;
+use super::{HOLE_TEST_M, NODATA_FRACTION};
 
 /// Smallest tile side, cells.
 pub const MIN_TILE_CELLS: u32 = 2;
-/// Heights below this are holes (as in the twins).
-const HOLE_TEST_M: f32 = -1.0e29;
 /// The twins' "nothing along the ray" cost.
 const FAR_COST: f32 = 1.0e30;
 /// A light whose horizontal component is below this goes straight up or down (as the twins).
@@ -577,7 +577,7 @@ pub fn sources_for_batch(
 /// Twin of the tiled GPU soft sweep (`dp_tile_sweep_cost` over the source tiles of each batch of
 /// `epochs_per_batch` epochs, then `dp_tile_sweep_accumulate`): the [`DpCellStats`] of every
 /// cell (row-major) over the epochs of `lights` (Sun at `2e`, Earth at `2e + 1`), holes zero.
-/// Same result as the untiled [`super::gpu_twins::dp_sweep`] (the costs are equal, see the
+/// Same result as the untiled [`super::dp::dp_sweep`] (the costs are equal, see the
 /// module docs).
 pub fn dp_sweep_tiled(
     grid: &MarchGrid,
@@ -681,8 +681,8 @@ mod tests {
     /// a 4 GiB limit, 20,000² at 20 m).
     #[test]
     fn automatic_tile_choice_follows_the_binding_limit() {
-        use crate::shadow::gpu_twins::{DpMip, MarchGrid};
         use crate::terrain::HeightField;
+        use crate::twins::{DpMip, MarchGrid};
         for (rows, cols) in [(2, 2), (37, 37), (65, 130), (200, 7)] {
             let grid =
                 MarchGrid::from_height_field(&HeightField::flat(rows, cols, 20.0), 2.0).unwrap();

@@ -1,6 +1,6 @@
 //! The map pipeline's engine for per-site series (`penumbra series --engine smap-dp`): each
 //! site's visible fractions come from the model-space height field of the map pipeline
-//! ([`crate::map::MapGrid`]) and the DP maximum-mipmap search ([`crate::shadow::dp`]) instead of a
+//! ([`crate::model::MapGrid`]) and the DP maximum-mipmap search ([`crate::shadow::dp`]) instead of a
 //! per-site horizon ([`crate::horizon`]).
 //!
 //! **Set-up, once per run.** The [`MapGrid`] (the finest DEM layer resampled into model space, with
@@ -22,7 +22,7 @@
 //! **Light directions.** Per site and epoch, exactly as the horizon engine: the topocentric
 //! (light-time and aberration corrected) vector from the site to the Sun or the Earth
 //! ([`crate::ephem::topo`]), rotated into model space. So there is no parallax error; taking the
-//! map-centre direction instead ([`crate::map::epoch_lights`]) would cost, at a site `d` from the
+//! map-centre direction instead ([`crate::model::epoch_lights`]) would cost, at a site `d` from the
 //! centre, `d / 1 au` for the Sun (1.2e-6 rad at 184 km, nothing) and `d / 384,400 km` for the
 //! Earth (4.8e-4 rad = 0.027° at 184 km, 3% of its radius).
 //!
@@ -62,19 +62,19 @@ use anyhow::Context as _;
 use nalgebra::{Matrix3, Vector3};
 use rayon::prelude::*;
 
+use super::config::{SeriesConfig, SeriesSite};
 use crate::ephem::topo::{self, MoonGeometry};
 use crate::ephem::{AbCorr, Site};
 use crate::gpu::GpuContext;
 use crate::horizon::Horizon;
 use crate::illum::LimbDarkening;
 use crate::illum::disc::chord_visible_fraction;
-use crate::map::MapGrid;
-use crate::series::{SeriesConfig, SeriesSite};
+use crate::model::MapGrid;
 use crate::shadow::dp::{DpConfig, MaxMipmap, dp_cost_beyond, full_visibility_cap};
-use crate::shadow::gpu_twins::{self, MarchGrid};
 use crate::shadow::{LightDir, Observer, max_height_m};
 use crate::terrain::TerrainStack;
 use crate::terrain::model_space::ModelFrame;
+use crate::twins::{self, MarchGrid};
 
 /// Terrain nearer than this (cells of the model grid) is the observer's own ground (as
 /// [`crate::horizon`]'s `min_distance_m`, half a cell).
@@ -256,20 +256,18 @@ impl SmapDpSites {
     }
 
     /// The sites' observers as the GPU kernel `shaders/dp_sites.wgsl` reads them
-    /// ([`gpu_twins::site_observer_to_f32`] on `march`, the [`MarchGrid`] of [`Self::grid`]).
+    /// ([`twins::site_observer_to_f32`] on `march`, the [`MarchGrid`] of [`Self::grid`]).
     pub fn site_observers_f32(&self, march: &MarchGrid) -> Vec<[f32; 4]> {
         self.observers
             .iter()
-            .map(|o| {
-                gpu_twins::site_observer_to_f32(march, o.row, o.col, o.z_m, MIN_DISTANCE_CELLS)
-            })
+            .map(|o| twins::site_observer_to_f32(march, o.row, o.col, o.z_m, MIN_DISTANCE_CELLS))
             .collect()
     }
 
     /// The disc table of the GPU kernel for `sites` (the ephemeris sites, one per series site,
     /// in order) over the epochs `table` (in order): per site, per epoch, the Sun then the Earth,
     /// each the topocentric direction of [`crate::ephem::topo`] rotated into model space and
-    /// rounded to f32 with its angular radius ([`gpu_twins::disc_light_to_f32`]); site-major.
+    /// rounded to f32 with its angular radius ([`twins::disc_light_to_f32`]); site-major.
     /// The second vector holds the f64 centre elevation and radius (rad) of every disc, for
     /// [`fraction_from_horizon_tan`]. Rayon over (site, epoch).
     pub fn disc_table(
@@ -293,7 +291,7 @@ impl SmapDpSites {
                     let r = body.radius_deg.to_radians();
                     match self.light_dir(&body.pos_in_moon_me_km) {
                         Some(dir) => (
-                            gpu_twins::disc_light_to_f32(&dir.unit, r),
+                            twins::disc_light_to_f32(&dir.unit, r),
                             (dir.elevation_rad(), r),
                         ),
                         // A degenerate vector (never for real ephemerides): reported as
@@ -413,14 +411,14 @@ pub fn fraction_above_horizon(
 }
 
 /// [`fraction_above_horizon`] for a horizon tangent from the GPU kernel `dp_sites` (or its twin
-/// [`gpu_twins::dp_sites`]): [`gpu_twins::NO_HORIZON_TAN`] is "no terrain".
+/// [`twins::dp_sites`]): [`twins::NO_HORIZON_TAN`] is "no terrain".
 pub fn fraction_from_horizon_tan(
     tan_h: f32,
     e_c_rad: f64,
     radius_rad: f64,
     limb: &LimbDarkening,
 ) -> f64 {
-    let e_h = if tan_h > 0.5 * gpu_twins::NO_HORIZON_TAN {
+    let e_h = if tan_h > 0.5 * twins::NO_HORIZON_TAN {
         f64::from(tan_h).atan()
     } else {
         f64::NEG_INFINITY
@@ -456,7 +454,7 @@ impl<'a> SmapDpGpu<'a> {
         #[cfg(feature = "gpu")]
         {
             let observers = dp.site_observers_f32(&march);
-            let mip = gpu_twins::DpMip::build(&march);
+            let mip = twins::DpMip::build(&march);
             let grid = crate::gpu::dp::GpuDpGrid::upload(ctx, &march, &mip)?;
             Ok(SmapDpGpu {
                 ctx,
@@ -512,10 +510,7 @@ impl<'a> SmapDpGpu<'a> {
             let dirs = dp.profile_dirs(site, config)?;
             n = dirs.len();
             // Negative radius: no cap (the exact horizon).
-            lights.extend(
-                dirs.iter()
-                    .map(|d| gpu_twins::disc_light_to_f32(&d.unit, -1.0)),
-            );
+            lights.extend(dirs.iter().map(|d| twins::disc_light_to_f32(&d.unit, -1.0)));
         }
         let tans = self.run(&lights)?;
         specs
@@ -526,7 +521,7 @@ impl<'a> SmapDpGpu<'a> {
                 dp.horizon_with(i, spec, site, config, |_| {
                     Ok(tans[i * n..(i + 1) * n]
                         .iter()
-                        .map(|&t| (t > 0.5 * gpu_twins::NO_HORIZON_TAN).then_some(f64::from(t)))
+                        .map(|&t| (t > 0.5 * twins::NO_HORIZON_TAN).then_some(f64::from(t)))
                         .collect())
                 })
                 .with_context(|| format!("horizon of site '{}'", spec.name))

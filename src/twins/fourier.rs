@@ -5,13 +5,13 @@
 //! coefficients of [`pack_coeffs`], and the conversion of the kernel's f32 output into a
 //! [`HorizonMap`] identical in layout to the CPU engine's ([`horizon_map_from_f32`]).
 //!
-//! As with [`super::gpu_twins`], a GPU-vs-twin difference can only come from GPU rounding (atan,
+//! As with [`super::march`], a GPU-vs-twin difference can only come from GPU rounding (atan,
 //! FMA contraction) or a bug; a twin-vs-engine difference comes from f32 against f64 (heights
 //! relative to the grid's `z_ref`, cell-unit positions, the azimuth directions rounded to f32).
 //!
 //! **Build** (one invocation per cell): for each azimuth `θ_n = 2πn/N` the horizontal ray is
 //! marched over every crossing with the lines joining cell centres (the DDA of
-//! [`super::gpu_twins::march_hard`], the brute-force engine's surface), keeping the largest
+//! [`super::march::march_hard`], the brute-force engine's surface), keeping the largest
 //! `(z − z_obs) / t` from the bare sphere's horizon up ([`sphere_floor_tan`]), until the grid edge, the distance
 //! limit, or `(z_max − z_obs) / t ≤ best`; `α_n = atan(best)` is folded straight into the DFT sums
 //! `acc_k += α_n (cos kθ_n, −sin kθ_n)` with the twiddles read from the same `(sin, cos)` table at
@@ -22,15 +22,15 @@ use bytemuck::{Pod, Zeroable};
 use half::f16;
 use rayon::prelude::*;
 
-use super::ShadowError;
-use super::fourier::{HorizonMap, HorizonMapMeta, az_el, half_span_rad};
-use super::gpu_twins::{Dda, HOLE_TEST_M, MarchGrid, NODATA_FRACTION, normalize3};
+pub use super::HOLE_COEFF;
+use super::march::{Dda, MarchGrid, normalize3};
+use super::{HOLE_TEST_M, NODATA_FRACTION};
+use crate::shadow::ShadowError;
+use crate::shadow::fourier::{HorizonMap, HorizonMapMeta, az_el, half_span_rad};
 
 /// A crossing this close outside the lattice (cells) is clamped onto its edge line, as the CPU
 /// engine's march does within 1e-9 (f64): a ray along an edge row or column must sample it.
 const EDGE_TOL_CELLS: f32 = 1.0e-3;
-/// Value written for every coefficient of a hole cell by the build kernel (no NaN on the GPU).
-pub const HOLE_COEFF: f32 = -1.0e30;
 /// Largest number of complex coefficients the build kernel accumulates (`2K ≤ 64` partial sums).
 pub const MAX_GPU_COEFFS: usize = 32;
 /// The packed `Re X_0` of a hole in the evaluation kernel's input: `f16::MIN` (−65504).
@@ -324,8 +324,8 @@ impl FourierEvalParams {
         light_in_model: [f64; 3],
         angular_radius_rad: f64,
     ) -> Result<Self, ShadowError> {
-        super::check_radius(angular_radius_rad)?;
-        let l = super::unit_light(light_in_model)?;
+        crate::shadow::check_radius(angular_radius_rad)?;
+        let l = crate::shadow::unit_light(light_in_model)?;
         let (az, el) = az_el(&l);
         let half_span = half_span_rad(el, angular_radius_rad);
         let cs = |a: f64| [a.cos() as f32, a.sin() as f32];

@@ -19,19 +19,17 @@
 use bytemuck::{Pod, Zeroable};
 use rayon::prelude::*;
 
-use super::{Horizon, HorizonEngine, HorizonError, HorizonMethod, HorizonParams, azimuth_count};
+use super::HOLE_TEST_M;
+pub use super::{HOLE_Z_M, NO_SAMPLE};
 use crate::MOON_RADIUS_M;
 use crate::frames::enu_from_moon_me;
+use crate::horizon::{
+    Horizon, HorizonEngine, HorizonError, HorizonMethod, HorizonParams, azimuth_count,
+};
 use crate::terrain::{Projection, TerrainStack};
 
 /// Most layers the kernel takes (the uniform holds a fixed array).
 pub const MAX_LAYERS: usize = 4;
-/// Height stored for a hole (no NaN on the GPU).
-pub const HOLE_Z_M: f32 = -1.0e30;
-/// Heights (and tangents) below this are "no sample".
-const HOLE_TEST_M: f32 = -1.0e29;
-/// "No sample" for heights and for the best tangent.
-pub const NO_SAMPLE: f32 = -1.0e30;
 const MOON_RADIUS_F32_M: f32 = MOON_RADIUS_M as f32;
 const SEGMENT_CELLS: f32 = 8.0;
 const SNAP_EPS: f32 = 1.0e-3;

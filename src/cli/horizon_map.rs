@@ -1,0 +1,66 @@
+//! `penumbra horizon-map build|info`.
+
+use std::path::PathBuf;
+
+use clap::{Args, Subcommand};
+use penumbra::products::horizon_map::HorizonMapBuildRequest;
+
+use super::{BackendArg, TerrainArgs};
+
+/// Actions of `penumbra horizon-map`.
+#[derive(Debug, Clone, Subcommand)]
+pub enum HorizonMapCommand {
+    /// Build a Fourier-compressed horizon map (16 f16 complex coefficients per cell) and write
+    /// it as a multi-page TIFF.
+    Build(HorizonMapBuildArgs),
+    /// Describe a horizon-map TIFF: geometry, parameters, mean coefficient amplitudes.
+    Info {
+        /// The horizon-map TIFF.
+        file: PathBuf,
+    },
+}
+
+/// Arguments of `penumbra horizon-map build`.
+#[derive(Debug, Clone, Args)]
+pub struct HorizonMapBuildArgs {
+    /// The terrain.
+    #[command(flatten)]
+    pub terrain: TerrainArgs,
+    /// Observer height above the ground (radial), metres.
+    #[arg(long, default_value_t = penumbra::DEFAULT_OBSERVER_HEIGHT_M, allow_negative_numbers = true)]
+    pub observer_height_m: f64,
+    /// Number of sampled azimuths before the DFT (at least 32).
+    #[arg(long, default_value_t = penumbra::shadow::fourier::DEFAULT_AZIMUTHS)]
+    pub azimuths: usize,
+    /// Longest horizon ray, cells (default: the grid's rows + columns, i.e. the whole grid).
+    #[arg(long)]
+    pub max_distance_cells: Option<usize>,
+    /// Output TIFF.
+    #[arg(long, value_name = "FILE")]
+    pub out: PathBuf,
+    /// Compute backend of the build: `gpu` (shaders/fourier_build.wgsl, f32; the map agrees with
+    /// the CPU build within the bounds of docs/gpu.md), `cpu` (the rayon engine, f64) or `auto`
+    /// (the GPU when a hardware adapter exists, else the CPU with one warning line).
+    #[arg(long, value_enum, default_value_t = BackendArg::Auto)]
+    pub backend: BackendArg,
+}
+
+/// Runs `penumbra horizon-map …`.
+pub fn run(command: HorizonMapCommand) -> anyhow::Result<()> {
+    match command {
+        HorizonMapCommand::Build(args) => {
+            penumbra::products::horizon_map::build(&HorizonMapBuildRequest {
+                terrain: args.terrain.source(),
+                observer_height_m: args.observer_height_m,
+                azimuths: args.azimuths,
+                max_distance_cells: args.max_distance_cells,
+                out: args.out.clone(),
+                backend: args.backend.into(),
+            })
+        }
+        HorizonMapCommand::Info { file } => {
+            print!("{}", penumbra::products::horizon_map::info(&file)?);
+            Ok(())
+        }
+    }
+}

@@ -1,0 +1,168 @@
+//! `penumbra map`.
+
+use std::path::PathBuf;
+
+use clap::{Args, ValueEnum};
+use penumbra::products::map::MapRequest;
+
+use super::{BackendArg, EpochArgs, KernelArgs, TerrainArgs};
+
+/// Where a map's rays start (`map --observers`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum ObserversArg {
+    /// At each DEM pixel's own surface point.
+    Pixels,
+    /// At the model grid's cells, resampled back onto the DEM grid.
+    Cells,
+}
+
+impl From<ObserversArg> for penumbra::map::ObserverPlacement {
+    fn from(o: ObserversArg) -> Self {
+        match o {
+            ObserversArg::Pixels => penumbra::map::ObserverPlacement::Pixels,
+            ObserversArg::Cells => penumbra::map::ObserverPlacement::Cells,
+        }
+    }
+}
+
+/// Shadow engine on the command line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum EngineArg {
+    /// Brute-force ray march (the reference; slow).
+    Brute,
+    /// SMap hard shadows (paper 004); soft fractions via SMap + DP.
+    Smap,
+    /// DP maximum-mipmap soft shadows everywhere (papers 000/003).
+    Dp,
+    /// SMap at the disc limbs + DP in the penumbra only (the design's combination).
+    Combined,
+    /// Fourier-compressed horizon maps (paper 001): per-cell horizons at 64 azimuths, 16 complex
+    /// DFT coefficients in f16, built once; each light is then a cheap evaluation.
+    Fourier,
+    /// The best available: `combined`.
+    Auto,
+}
+
+impl From<EngineArg> for penumbra::map::MapEngineKind {
+    fn from(e: EngineArg) -> Self {
+        use penumbra::map::MapEngineKind;
+        use penumbra::shadow::Engine;
+        match e {
+            EngineArg::Brute => MapEngineKind::Direct(Engine::Brute),
+            EngineArg::Smap => MapEngineKind::Direct(Engine::Smap),
+            EngineArg::Dp => MapEngineKind::Direct(Engine::Dp),
+            EngineArg::Combined | EngineArg::Auto => MapEngineKind::Direct(Engine::Combined),
+            EngineArg::Fourier => MapEngineKind::Fourier,
+        }
+    }
+}
+
+/// Arguments of `penumbra map`.
+#[derive(Debug, Clone, Args)]
+pub struct MapArgs {
+    /// Terrain: DEM layers or the synthetic DEM.
+    #[command(flatten)]
+    pub terrain: TerrainArgs,
+    /// Observer height above the ground, metres.
+    #[arg(long, default_value_t = penumbra::DEFAULT_OBSERVER_HEIGHT_M, allow_hyphen_values = true)]
+    pub observer_height_m: f64,
+    /// Shadow engine.
+    #[arg(long, value_enum, default_value_t = EngineArg::Auto)]
+    pub engine: EngineArg,
+    /// Epoch(s), UTC: --utc for one light, --start/--stop/--step for statistics over a range.
+    #[command(flatten)]
+    pub epochs: EpochArgs,
+    /// The Sun's direction as a MOON_ME vector x,y,z (any length > 0) instead of an epoch.
+    #[arg(long, value_name = "X,Y,Z", allow_hyphen_values = true, conflicts_with_all = ["utc", "start", "sun_az_deg"])]
+    pub sun_dir_body: Option<String>,
+    /// The Sun's azimuth at the map centre, degrees clockwise from north (with --sun-el-deg).
+    #[arg(long, allow_hyphen_values = true, requires = "sun_el_deg", conflicts_with_all = ["utc", "start"])]
+    pub sun_az_deg: Option<f64>,
+    /// The Sun's elevation at the map centre, degrees.
+    #[arg(long, allow_hyphen_values = true, requires = "sun_az_deg")]
+    pub sun_el_deg: Option<f64>,
+    /// Angular radius of the Sun's disc for an explicit direction, degrees (epochs use the real
+    /// radius).
+    #[arg(long, default_value_t = 0.2666)]
+    pub sun_radius_deg: f64,
+    /// One light: write the Sun's visible fraction (float32 GeoTIFF, NaN = nodata).
+    #[arg(long, value_name = "FILE")]
+    pub out_fraction: Option<PathBuf>,
+    /// One light: write the hard mask of the disc centre (uint8 GeoTIFF: 1 lit, 0 shadow, 255 nodata).
+    #[arg(long, value_name = "FILE")]
+    pub out_mask: Option<PathBuf>,
+    /// One epoch: write the Earth's visible fraction (float32 GeoTIFF).
+    #[arg(long, value_name = "FILE", requires = "utc")]
+    pub out_earth_fraction: Option<PathBuf>,
+    /// Epoch range: output folder for the statistics GeoTIFFs and PNG previews.
+    #[arg(long, value_name = "DIR", requires = "start")]
+    pub out_dir: Option<PathBuf>,
+    /// Compute backend: `gpu` (DP max-mipmap soft shadows of the discs for sweeps and one-light
+    /// maps whatever `--engine` says, except `fourier` one-light maps: horizon map built and
+    /// evaluated on the GPU), `cpu` (the engine of `--engine`) or `auto` (the GPU when a hardware
+    /// adapter exists, else the CPU with one warning line).
+    #[arg(long, value_enum, default_value_t = BackendArg::Auto)]
+    pub backend: BackendArg,
+    /// GPU maps and sweeps: compute in 2-D tiles of this many cells per side (≥ 2) instead of
+    /// choosing automatically (tiles of 2048 only when the grid or its mipmap exceed one storage
+    /// binding or 4 GiB; docs/gpu.md, "Large grids").
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(2..))]
+    pub gpu_tile_cells: Option<u32>,
+    /// Where the rays start: `pixels` = at each DEM pixel's own surface point (the CPU default;
+    /// the same point as a `series` site at the pixel centre), `cells` = at the cells of the
+    /// resampled model grid (the GPU's method, resampled back onto the DEM grid). Default: the
+    /// backend's own (`pixels` on the CPU, `cells` on the GPU, which has no other).
+    #[arg(long, value_enum)]
+    pub observers: Option<ObserversArg>,
+    /// Aberration correction: lt+s or none.
+    #[arg(long, default_value = "lt+s")]
+    pub abcorr: String,
+    /// Kernels.
+    #[command(flatten)]
+    pub kernels: KernelArgs,
+}
+
+/// Parses `x,y,z` into a non-zero finite vector.
+fn parse_vector3(text: &str) -> anyhow::Result<nalgebra::Vector3<f64>> {
+    let v: Vec<f64> = text
+        .split(',')
+        .map(|p| p.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| anyhow::anyhow!("--sun-dir-body '{text}': expected three numbers X,Y,Z"))?;
+    if v.len() != 3 {
+        anyhow::bail!("--sun-dir-body '{text}': expected three numbers X,Y,Z");
+    }
+    let v = nalgebra::Vector3::new(v[0], v[1], v[2]);
+    if !v.iter().all(|c| c.is_finite()) || v.norm() == 0.0 {
+        anyhow::bail!("--sun-dir-body '{text}': the direction must be finite and non-zero");
+    }
+    Ok(v)
+}
+
+/// Runs `penumbra map`.
+pub fn run(args: &MapArgs) -> anyhow::Result<()> {
+    penumbra::products::map::run(&MapRequest {
+        terrain: args.terrain.source(),
+        observer_height_m: args.observer_height_m,
+        engine: args.engine.into(),
+        epochs: args.epochs.spec()?,
+        sun_dir_in_moon_me: args
+            .sun_dir_body
+            .as_deref()
+            .map(parse_vector3)
+            .transpose()?,
+        sun_az_el_deg: args
+            .sun_az_deg
+            .map(|az| (az, args.sun_el_deg.unwrap_or(0.0))),
+        sun_radius_deg: args.sun_radius_deg,
+        out_fraction: args.out_fraction.clone(),
+        out_mask: args.out_mask.clone(),
+        out_earth_fraction: args.out_earth_fraction.clone(),
+        out_dir: args.out_dir.clone(),
+        backend: args.backend.into(),
+        gpu_tile_cells: args.gpu_tile_cells,
+        observers: args.observers.map(Into::into),
+        abcorr: super::abcorr(&args.abcorr)?,
+        kernels: args.kernels.source(),
+    })
+}

@@ -1,0 +1,196 @@
+//! The command line (clap derive): one file per subcommand, each thin (parse the flags into the
+//! library's typed request, run the product). Every argument documents its unit.
+//!
+//! This is the only place that knows clap: the library ([`penumbra::products`]) takes typed
+//! requests, and scenario files build the same requests from TOML.
+
+use std::path::PathBuf;
+
+use clap::{Args, Parser, Subcommand, ValueEnum};
+use penumbra::products::{EpochSpec, KernelSource, TerrainSource};
+
+mod dem;
+mod ephem;
+mod gpu_info;
+mod horizon;
+mod horizon_map;
+mod map;
+mod render;
+mod run;
+mod series;
+
+/// penumbra: sunlight and earthlight at the lunar poles.
+#[derive(Debug, Parser)]
+#[command(name = "penumbra", version, about, long_about = None)]
+pub struct Cli {
+    /// The subcommand to run.
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// penumbra's subcommands.
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Sun and Earth azimuth, elevation, range and angular radius seen from a site.
+    Ephem(ephem::EphemArgs),
+    /// List the SPICE kernels that are loaded: files, bodies, frames and time coverage.
+    Kernels(KernelArgs),
+    /// Run a scenario file (scenarios/*.toml).
+    Run(run::RunArgs),
+    /// Terrain horizon (elevation vs azimuth) seen by an observer above a site.
+    Horizon(horizon::HorizonArgs),
+    /// Illumination maps: one light (Sun fraction, hard mask, Earth fraction) or statistics over
+    /// an epoch range (average illumination, longest darkness, PSR, Earth visibility).
+    Map(map::MapArgs),
+    /// Per-site illumination time series: Sun and Earth visible fractions, irradiance,
+    /// statistics and plots.
+    Series(series::SeriesArgs),
+    /// Inspect or generate DEMs (GeoTIFF).
+    Dem {
+        /// The DEM action.
+        #[command(subcommand)]
+        command: dem::DemCommand,
+    },
+    /// List the GPU adapters wgpu finds (honours WGPU_BACKEND): name, backend, device type,
+    /// driver and the compute limits that bound penumbra's kernels.
+    GpuInfo(gpu_info::GpuInfoArgs),
+    /// Render the terrain seen from a camera at one epoch (CPU reference renderer): Lambert
+    /// sunlight + earthshine with soft shadows, 8-bit sRGB PNG.
+    Render(render::RenderArgs),
+    /// Fourier-compressed horizon maps (paper 001): build one from a DEM, or describe one.
+    HorizonMap {
+        /// The horizon-map action.
+        #[command(subcommand)]
+        command: horizon_map::HorizonMapCommand,
+    },
+}
+
+/// Runs one parsed command line.
+pub fn run(cli: Cli) -> anyhow::Result<()> {
+    match cli.command {
+        Command::Ephem(args) => ephem::run(&args),
+        Command::Kernels(args) => {
+            print!("{}", penumbra::products::kernels::report(&args.source())?);
+            Ok(())
+        }
+        Command::Run(args) => run::run(&args),
+        Command::Dem { command } => dem::run(command),
+        Command::Series(args) => series::run(&args),
+        Command::Map(args) => map::run(&args),
+        Command::Horizon(args) => horizon::run(&args),
+        Command::GpuInfo(args) => gpu_info::run(&args),
+        Command::Render(args) => render::run(&args),
+        Command::HorizonMap { command } => horizon_map::run(command),
+    }
+}
+
+/// Where the SPICE kernels come from.
+#[derive(Debug, Clone, Args)]
+pub struct KernelArgs {
+    /// Folder of SPICE kernels (.bsp, .bpc, .tf, .tls). Default: $PENUMBRA_KERNELS, ./kernels,
+    /// then the kernels/ folder of the source tree.
+    #[arg(long, value_name = "DIR")]
+    pub kernels: Option<PathBuf>,
+}
+
+/// DEM layers or the synthetic DEM.
+#[derive(Debug, Clone, Args)]
+pub struct TerrainArgs {
+    /// DEM GeoTIFF layer; repeat for several layers (the finest with data is used at each point;
+    /// maps are on the finest layer's grid).
+    #[arg(
+        long = "dem",
+        value_name = "FILE",
+        required_unless_present = "synthetic"
+    )]
+    pub dem: Vec<PathBuf>,
+    /// Use penumbra's synthetic south-polar DEM (400 x 400 px at 100 m, seed 1) instead of --dem.
+    #[arg(long, conflicts_with = "dem")]
+    pub synthetic: bool,
+}
+
+/// An epoch or a range of epochs (UTC).
+#[derive(Debug, Clone, Args)]
+pub struct EpochArgs {
+    /// A single epoch, UTC (e.g. 2024-01-03T00:00:00).
+    #[arg(long, value_name = "UTC", conflicts_with_all = ["start", "stop", "step"])]
+    pub utc: Option<String>,
+    /// First epoch of a range, UTC.
+    #[arg(long, value_name = "UTC", requires_all = ["stop", "step"])]
+    pub start: Option<String>,
+    /// Last epoch of a range, UTC (inclusive when it falls on the step grid).
+    #[arg(long, value_name = "UTC", requires_all = ["start", "step"])]
+    pub stop: Option<String>,
+    /// Step of the range: a number and a unit s, m, h or d (e.g. 10m, 1h, 6h, 1d).
+    #[arg(long, value_name = "STEP", requires_all = ["start", "stop"])]
+    pub step: Option<String>,
+}
+
+impl KernelArgs {
+    /// The kernel source of `--kernels`.
+    pub fn source(&self) -> KernelSource {
+        KernelSource {
+            dir: self.kernels.clone(),
+        }
+    }
+}
+
+impl TerrainArgs {
+    /// The terrain of `--dem FILE…` or `--synthetic`.
+    pub fn source(&self) -> TerrainSource {
+        if self.synthetic {
+            TerrainSource::Synthetic(penumbra::terrain::synth::SynthParams::default())
+        } else {
+            TerrainSource::Dems(self.dem.clone())
+        }
+    }
+}
+
+impl EpochArgs {
+    /// The epochs of `--utc` or `--start/--stop/--step`, `None` when neither is given.
+    pub fn spec(&self) -> anyhow::Result<Option<EpochSpec>> {
+        EpochSpec::parse(
+            self.utc.as_deref(),
+            self.start.as_deref(),
+            self.stop.as_deref(),
+            self.step.as_deref(),
+        )
+    }
+
+    /// Like [`EpochArgs::spec`], but one of the two forms is required.
+    pub fn required(&self) -> anyhow::Result<EpochSpec> {
+        EpochSpec::parse_required(
+            self.utc.as_deref(),
+            self.start.as_deref(),
+            self.stop.as_deref(),
+            self.step.as_deref(),
+        )
+    }
+}
+
+/// Compute backend on the command line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum BackendArg {
+    /// The CPU (rayon) reference engines.
+    Cpu,
+    /// The wgpu backend; an error when no adapter exists.
+    Gpu,
+    /// The GPU when a hardware adapter exists, else the CPU with one warning line on stderr
+    /// (a software adapter such as lavapipe counts as none).
+    Auto,
+}
+
+impl From<BackendArg> for penumbra::gpu::Backend {
+    fn from(b: BackendArg) -> Self {
+        match b {
+            BackendArg::Cpu => penumbra::gpu::Backend::Cpu,
+            BackendArg::Gpu => penumbra::gpu::Backend::Gpu,
+            BackendArg::Auto => penumbra::gpu::Backend::Auto,
+        }
+    }
+}
+
+/// Parses `--abcorr`.
+fn abcorr(text: &str) -> anyhow::Result<penumbra::ephem::AbCorr> {
+    Ok(penumbra::ephem::AbCorr::parse(text)?)
+}

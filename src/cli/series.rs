@@ -1,0 +1,177 @@
+//! `penumbra series`.
+
+use std::path::PathBuf;
+
+use clap::{Args, ValueEnum};
+use penumbra::products::series::SeriesRequest;
+use penumbra::series::{LimbLaw, SeriesConfig, SeriesEngine, SeriesSite};
+
+use super::horizon::HorizonMethodArg;
+use super::{BackendArg, EpochArgs, KernelArgs, TerrainArgs};
+
+/// Arguments of `penumbra series`.
+#[derive(Debug, Clone, Args)]
+pub struct SeriesArgs {
+    /// Terrain: DEM layers or the synthetic DEM.
+    #[command(flatten)]
+    pub terrain: TerrainArgs,
+    /// A site as NAME,LAT_DEG,LON_DEG or NAME,LAT_DEG,LON_DEG,HEIGHT_ABOVE_GROUND_M
+    /// (planetocentric latitude, east longitude, degrees; height in metres); repeatable.
+    #[arg(long, value_name = "SITE", allow_hyphen_values = true)]
+    pub site: Vec<String>,
+    /// Latitude of a single site named "site", degrees (alternative to --site).
+    #[arg(
+        long,
+        allow_hyphen_values = true,
+        requires = "lon_deg",
+        conflicts_with = "site"
+    )]
+    pub lat_deg: Option<f64>,
+    /// East longitude of a single site named "site", degrees.
+    #[arg(long, allow_hyphen_values = true, requires = "lat_deg")]
+    pub lon_deg: Option<f64>,
+    /// Observer height above the ground, metres (for sites that do not give their own).
+    #[arg(long, default_value_t = penumbra::DEFAULT_OBSERVER_HEIGHT_M, allow_hyphen_values = true)]
+    pub observer_height_m: f64,
+    /// Epoch(s).
+    #[command(flatten)]
+    pub epochs: EpochArgs,
+    /// Aberration correction: lt+s or none.
+    #[arg(long, default_value = "lt+s")]
+    pub abcorr: String,
+    /// Disc integration: exact (strip integral, default), segment (paper 001 circular segment)
+    /// or middle-value.
+    #[arg(long, value_enum, default_value_t = DiscMethodArg::Exact)]
+    pub disc_method: DiscMethodArg,
+    /// Solar limb darkening used to flux-weight the Sun's visible fraction.
+    #[arg(long, value_enum, default_value_t = LimbLawArg::Eddington)]
+    pub limb_darkening: LimbLawArg,
+    /// Horizon azimuth step, degrees (must divide 360).
+    #[arg(long, default_value_t = 0.25)]
+    pub az_step_deg: f64,
+    /// Horizon scan method.
+    #[arg(long, value_enum, default_value_t = HorizonMethodArg::Fast)]
+    pub horizon_method: HorizonMethodArg,
+    /// Do not draw PNG plots.
+    #[arg(long)]
+    pub no_plots: bool,
+    /// Do not write the per-epoch series.csv files (statistics only).
+    #[arg(long)]
+    pub no_csv: bool,
+    /// Compute backend: with `--engine horizon`, of the horizons (`gpu`: GPU horizon scan,
+    /// sampled like the exact method; `--horizon-method` is then ignored); with
+    /// `--engine smap-dp`, of the per-site DP searches (profiles and every epoch's Sun and Earth).
+    /// `auto`: GPU when a hardware adapter exists; `cpu`.
+    #[arg(long, value_enum, default_value_t = BackendArg::Cpu)]
+    pub backend: BackendArg,
+    /// Engine of the visible fractions: horizon (per-site horizons from every DEM layer) or
+    /// smap-dp (the map pipeline's model grid + DP search at each site; finest layer only;
+    /// CPU or GPU, `--backend`).
+    #[arg(long, value_enum, default_value_t = SeriesEngineArg::Horizon)]
+    pub engine: SeriesEngineArg,
+    /// Kernels.
+    #[command(flatten)]
+    pub kernels: KernelArgs,
+    /// Output folder (created if needed): one sub-folder per site, plus stats.json and run.json.
+    #[arg(long, value_name = "DIR")]
+    pub out_dir: PathBuf,
+}
+
+/// Disc integration method on the command line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum DiscMethodArg {
+    /// Exact strip integral.
+    Exact,
+    /// Circular segment under the line through the disc's edge azimuths (paper 001).
+    Segment,
+    /// Horizontal chord at the centre azimuth's horizon (Max 1988).
+    MiddleValue,
+}
+
+impl From<DiscMethodArg> for penumbra::illum::DiscMethod {
+    fn from(m: DiscMethodArg) -> Self {
+        match m {
+            DiscMethodArg::Exact => penumbra::illum::DiscMethod::Exact,
+            DiscMethodArg::Segment => penumbra::illum::DiscMethod::Segment,
+            DiscMethodArg::MiddleValue => penumbra::illum::DiscMethod::MiddleValue,
+        }
+    }
+}
+
+/// Solar limb darkening on the command line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum LimbLawArg {
+    /// Uniform disc: the visible fraction is an area fraction.
+    None,
+    /// Eddington law `(2 + 3μ)/5`, for total (bolometric) irradiance: the default, since the
+    /// irradiance columns are total irradiance.
+    Eddington,
+    /// Allen's 550 nm quadratic law (visible band).
+    Allen550nm,
+}
+
+impl From<LimbLawArg> for LimbLaw {
+    fn from(l: LimbLawArg) -> Self {
+        match l {
+            LimbLawArg::None => LimbLaw::None,
+            LimbLawArg::Eddington => LimbLaw::Eddington,
+            LimbLawArg::Allen550nm => LimbLaw::Allen550nm,
+        }
+    }
+}
+
+/// Series engine on the command line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum SeriesEngineArg {
+    /// One horizon per site from every DEM layer, then the strip integral of each disc against
+    /// it.
+    Horizon,
+    /// The map pipeline: the model-space grid of the finest layer and the DP max-mipmap search at
+    /// each site's point, per epoch and light.
+    SmapDp,
+}
+
+impl From<SeriesEngineArg> for SeriesEngine {
+    fn from(e: SeriesEngineArg) -> Self {
+        match e {
+            SeriesEngineArg::Horizon => SeriesEngine::Horizon,
+            SeriesEngineArg::SmapDp => SeriesEngine::SmapDp,
+        }
+    }
+}
+
+/// Runs `penumbra series`.
+pub fn run(args: &SeriesArgs) -> anyhow::Result<()> {
+    let mut sites: Vec<SeriesSite> = args
+        .site
+        .iter()
+        .map(|s| penumbra::series::parse_site_flag(s, args.observer_height_m))
+        .collect::<anyhow::Result<_>>()?;
+    if let (Some(lat_deg), Some(lon_deg)) = (args.lat_deg, args.lon_deg) {
+        sites.push(SeriesSite {
+            name: "site".into(),
+            lat_deg,
+            lon_deg,
+            height_above_ground_m: args.observer_height_m,
+        });
+    }
+    let config = SeriesConfig {
+        abcorr: super::abcorr(&args.abcorr)?,
+        disc_method: args.disc_method.into(),
+        limb_darkening: args.limb_darkening.into(),
+        az_step_deg: args.az_step_deg,
+        horizon_method: args.horizon_method.into(),
+        plots: !args.no_plots,
+        write_csv: !args.no_csv,
+        backend: args.backend.into(),
+        engine: args.engine.into(),
+    };
+    penumbra::products::series::run(&SeriesRequest {
+        terrain: args.terrain.source(),
+        sites,
+        epochs: args.epochs.required()?,
+        config,
+        kernels: args.kernels.source(),
+        out_dir: args.out_dir.clone(),
+    })
+}

@@ -1,0 +1,203 @@
+//! `penumbra map`: illumination maps on the DEM's own grid, for one light or as statistics over
+//! an epoch range (average illumination, longest darkness, PSR, Earth visibility).
+
+use std::path::PathBuf;
+
+use anyhow::Context as _;
+
+use super::{EpochSpec, KernelSource, TerrainSource};
+use crate::ephem::{self, AbCorr, time::format_utc};
+use crate::gpu::Backend;
+use crate::map::{MapEngineKind, ObserverPlacement};
+
+/// What `penumbra map` computes.
+#[derive(Debug, Clone)]
+pub struct MapRequest {
+    /// The terrain (every layer).
+    pub terrain: TerrainSource,
+    /// Observer height above the ground, metres.
+    pub observer_height_m: f64,
+    /// Shadow engine of the CPU maps.
+    pub engine: MapEngineKind,
+    /// One epoch (one light) or a range (statistics); `None` with an explicit light.
+    pub epochs: Option<EpochSpec>,
+    /// An explicit Sun direction in `MOON_ME` (any non-zero length), instead of an epoch.
+    pub sun_dir_in_moon_me: Option<nalgebra::Vector3<f64>>,
+    /// An explicit Sun azimuth and elevation at the map centre, degrees, instead of an epoch.
+    pub sun_az_el_deg: Option<(f64, f64)>,
+    /// Angular radius of the Sun's disc for an explicit light, degrees.
+    pub sun_radius_deg: f64,
+    /// One light: the Sun's visible fraction (float32 GeoTIFF).
+    pub out_fraction: Option<PathBuf>,
+    /// One light: the hard mask of the disc centre (uint8 GeoTIFF).
+    pub out_mask: Option<PathBuf>,
+    /// One epoch: the Earth's visible fraction (float32 GeoTIFF).
+    pub out_earth_fraction: Option<PathBuf>,
+    /// Epoch range: the folder of the statistics maps.
+    pub out_dir: Option<PathBuf>,
+    /// Compute backend.
+    pub backend: Backend,
+    /// GPU tiles of this many cells per side (≥ 2) instead of the automatic choice.
+    pub gpu_tile_cells: Option<u32>,
+    /// Where the rays start; `None` for the backend's own (pixels on the CPU, cells on the GPU).
+    pub observers: Option<ObserverPlacement>,
+    /// Aberration correction.
+    pub abcorr: AbCorr,
+    /// The kernels.
+    pub kernels: KernelSource,
+}
+
+/// Runs `penumbra map`.
+pub fn run(req: &MapRequest) -> anyhow::Result<()> {
+    use crate::map::write_sweep;
+    use crate::model::{MapGrid, epoch_lights};
+    let t0 = std::time::Instant::now();
+    if !(req.observer_height_m >= 0.0 && req.observer_height_m.is_finite()) {
+        anyhow::bail!(
+            "--observer-height-m {} must be a finite number >= 0",
+            req.observer_height_m
+        );
+    }
+    if !(req.sun_radius_deg > 0.0 && req.sun_radius_deg < 10.0) {
+        anyhow::bail!("--sun-radius-deg {} must be in (0, 10)", req.sun_radius_deg);
+    }
+    let engine_kind = req.engine;
+    let abcorr = req.abcorr;
+    let range = req.epochs.is_some_and(|e| e.is_range());
+    if range && req.out_dir.is_none() {
+        anyhow::bail!("an epoch range needs --out-dir DIR for the statistics maps");
+    }
+    if !range
+        && req.out_fraction.is_none()
+        && req.out_mask.is_none()
+        && req.out_earth_fraction.is_none()
+    {
+        anyhow::bail!("nothing to write: give --out-fraction, --out-mask or --out-earth-fraction");
+    }
+    let explicit_dir = req.sun_dir_in_moon_me;
+    if !range && explicit_dir.is_none() && req.sun_az_el_deg.is_none() && req.epochs.is_none() {
+        anyhow::bail!("give the light: --utc T, --sun-dir-body X,Y,Z or --sun-az-deg/--sun-el-deg");
+    }
+    let epochs = match &req.epochs {
+        Some(spec) => spec.epochs()?,
+        None => Vec::new(),
+    };
+    // Resolve after the argument checks (bad input is one error line, with no backend warning)
+    // and before any heavy work, so that a missing adapter is one error line (or one warning
+    // line with `auto`).
+    let backend = crate::compute::resolve(req.backend)?;
+    let placement = crate::compute::one_light::placement(&backend, req.observers)?;
+    let kernels = if epochs.is_empty() {
+        None
+    } else {
+        let k = req.kernels.load()?;
+        ephem::moon_geometry_table(&k, &[epochs[0], *epochs.last().unwrap_or(&epochs[0])])?;
+        Some(k)
+    };
+    let (stack, dem_layers) = req.terrain.load()?;
+    let grid = MapGrid::new(&stack)?;
+    eprintln!(
+        "penumbra: model grid {} x {} at {} m centred on ({:.4}, {:.4}) deg (every layer)",
+        grid.hf.rows, grid.hf.cols, grid.hf.px_m, grid.hf.centre_lat_deg, grid.hf.centre_lon_deg
+    );
+    grid.warn_if_clipped();
+
+    if range {
+        let (Some(kernels), Some(out_dir)) = (&kernels, &req.out_dir) else {
+            anyhow::bail!("an epoch range needs kernels and --out-dir");
+        };
+        let step_h = req.epochs.map_or(3600.0, |e| e.step_s()) / 3600.0;
+        let lights = epoch_lights(&grid, kernels, &epochs, abcorr)?;
+        let progress = super::progress_bar(
+            lights.len(),
+            "{spinner} map sweep [{bar:30}] {pos}/{len} epochs (eta {eta})",
+        );
+        let (stats, backend_note) = crate::compute::sweep::map_sweep(
+            &backend,
+            &grid,
+            engine_kind,
+            req.observer_height_m,
+            placement,
+            &lights,
+            step_h,
+            req.gpu_tile_cells,
+            &progress,
+        )?;
+        progress.finish_and_clear();
+        std::fs::create_dir_all(out_dir)
+            .with_context(|| format!("creating output folder {}", out_dir.display()))?;
+        let span = format!(
+            "{} .. {} UTC, {} epochs",
+            format_utc(epochs[0]),
+            format_utc(*epochs.last().unwrap_or(&epochs[0])),
+            epochs.len()
+        );
+        let files = write_sweep(&grid, &stats, out_dir, &span)?;
+        let mut prov = crate::output::Provenance::new();
+        prov.kernels = kernels.files.clone();
+        prov.dem_layers = dem_layers;
+        prov.dem_files = req.terrain.dem_files()?;
+        prov.set_epochs(&epochs);
+        prov.outputs = files;
+        prov.backend = backend_note;
+        prov.map_rays_blocked_beyond_dem = stats.below_sphere;
+        if let Some(b) = stats.below_sphere {
+            b.warn();
+        }
+        prov.wall_time_s = t0.elapsed().as_secs_f64();
+        prov.write(&out_dir.join("run.json"))?;
+        eprintln!(
+            "penumbra: map statistics over {} epochs -> {} ({:.1} s)",
+            epochs.len(),
+            out_dir.display(),
+            prov.wall_time_s
+        );
+        return Ok(());
+    }
+
+    // One light.
+    let (sun, sun_radius_rad, earth) = match (&kernels, explicit_dir, req.sun_az_el_deg) {
+        (Some(k), _, _) => {
+            let l = epoch_lights(&grid, k, &epochs, abcorr)?[0];
+            (l.sun, l.sun_radius_rad, Some((l.earth, l.earth_radius_rad)))
+        }
+        (None, Some(d), _) => (
+            grid.light_from_moon_me(&d),
+            req.sun_radius_deg.to_radians(),
+            None,
+        ),
+        (None, None, Some((az, el))) => (
+            grid.light_from_az_el_deg(az, el),
+            req.sun_radius_deg.to_radians(),
+            None,
+        ),
+        (None, None, None) => anyhow::bail!("no light given"),
+    };
+    let maps = crate::compute::one_light::OneLightMaps::new(
+        &backend,
+        &grid,
+        engine_kind,
+        req.observer_height_m,
+        placement,
+        req.gpu_tile_cells,
+    )?;
+    if let Some(path) = &req.out_fraction {
+        let f = maps.fraction(sun, sun_radius_rad)?;
+        grid.below_sphere_exits(maps.pixel_observers(), sun, &f)?
+            .warn();
+        grid.write_f32(path, &f, "visible fraction of the Sun's disc")?;
+    }
+    if let Some(path) = &req.out_mask {
+        let m = maps.mask(sun)?;
+        grid.write_u8(path, &m, "Sun disc centre: 1 lit, 0 shadow, 255 no data")?;
+    }
+    if let (Some(path), Some((dir, radius))) = (&req.out_earth_fraction, earth) {
+        let f = maps.fraction(dir, radius)?;
+        grid.write_f32(path, &f, "visible fraction of the Earth's disc")?;
+    }
+    eprintln!(
+        "penumbra: map written ({:.1} s)",
+        t0.elapsed().as_secs_f64()
+    );
+    Ok(())
+}

@@ -1,0 +1,219 @@
+//! One product pipeline per job: `ephem`, `kernels`, `dem`, `horizon`, `series`, `map`, `render`,
+//! `horizon-map`, `gpu-info` (the scenario runner, [`crate::scenario`], drives several).
+//!
+//! Each pipeline takes a typed request (its values already parsed: epochs are [`Epoch`]s, the
+//! aberration correction an [`AbCorr`], the backend a [`Backend`]) and writes its files. The
+//! command line (`src/cli/`, in the binary) and the scenario files build the same requests; the
+//! library knows neither clap nor argv.
+//!
+//! [`AbCorr`]: crate::ephem::AbCorr
+//! [`Backend`]: crate::gpu::Backend
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use anyhow::Context as _;
+use hifitime::{Duration, Epoch};
+
+use crate::ephem::Kernels;
+use crate::terrain::{TerrainStack, synth::SynthParams};
+
+pub mod dem;
+pub mod ephem;
+pub mod gpu_info;
+pub mod horizon;
+pub mod horizon_map;
+pub mod kernels;
+pub mod map;
+pub mod render;
+pub mod series;
+
+/// Where the terrain comes from: DEM files (finest first) or the built-in synthetic DEM.
+#[derive(Debug, Clone, PartialEq)]
+pub enum TerrainSource {
+    /// DEM GeoTIFF layers; the finest with data is used at each point.
+    Dems(Vec<PathBuf>),
+    /// penumbra's synthetic south-polar DEM with these parameters.
+    Synthetic(SynthParams),
+}
+
+impl TerrainSource {
+    /// Loads the terrain; returns the stack and one description per layer for provenance.
+    pub fn load(&self) -> anyhow::Result<(TerrainStack, Vec<String>)> {
+        match self {
+            TerrainSource::Synthetic(params) => {
+                let (stack, what) = synthetic_stack(params)?;
+                Ok((stack, vec![what]))
+            }
+            TerrainSource::Dems(paths) => Ok((
+                load_stack(paths)?,
+                paths.iter().map(|p| p.display().to_string()).collect(),
+            )),
+        }
+    }
+}
+
+impl TerrainSource {
+    /// The DEM files with sizes and sha256, for provenance (none for the synthetic DEM).
+    pub fn dem_files(&self) -> anyhow::Result<Vec<crate::output::InputFile>> {
+        match self {
+            TerrainSource::Synthetic(_) => Ok(Vec::new()),
+            TerrainSource::Dems(paths) => paths
+                .iter()
+                .map(|p| Ok(crate::output::InputFile::of(p)?))
+                .collect(),
+        }
+    }
+}
+
+/// Loads DEM layers (GeoTIFF) into a terrain stack, finest first.
+pub fn load_stack(paths: &[PathBuf]) -> anyhow::Result<TerrainStack> {
+    if paths.is_empty() {
+        anyhow::bail!("no DEM given (use --dem FILE, repeatable)");
+    }
+    Ok(TerrainStack::load(paths)?)
+}
+
+/// The built-in synthetic DEM as a one-layer stack, and its description for provenance.
+pub fn synthetic_stack(params: &SynthParams) -> anyhow::Result<(TerrainStack, String)> {
+    let dem = crate::terrain::synth::south_polar_dem(params)?;
+    let what = format!(
+        "synthetic south-polar DEM ({} x {} px at {} m, seed {})",
+        params.size_px, params.size_px, params.px_m, params.seed
+    );
+    Ok((TerrainStack::new(vec![dem]), what))
+}
+
+/// Where the SPICE kernels come from: a folder, or the default search
+/// ([`crate::ephem::kernels::default_kernel_dir`]: `$PENUMBRA_KERNELS`, `./kernels`, the source tree's).
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct KernelSource {
+    /// The kernel folder; `None` for the default search.
+    pub dir: Option<PathBuf>,
+}
+
+impl KernelSource {
+    /// The folder that will be read.
+    pub fn dir(&self) -> PathBuf {
+        self.dir
+            .clone()
+            .unwrap_or_else(crate::ephem::kernels::default_kernel_dir)
+    }
+
+    /// Loads the kernels.
+    pub fn load(&self) -> anyhow::Result<Kernels> {
+        Kernels::load(&self.dir()).context("loading SPICE kernels")
+    }
+}
+
+/// One epoch or an evenly stepped range of epochs (UTC on input, any time scale inside).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum EpochSpec {
+    /// A single epoch.
+    One(Epoch),
+    /// `start`, `start + step`, ... up to `stop` (inclusive when it falls on the step grid).
+    Range {
+        /// First epoch.
+        start: Epoch,
+        /// Last epoch.
+        stop: Epoch,
+        /// Step, > 0.
+        step: Duration,
+    },
+}
+
+impl EpochSpec {
+    /// Parses `utc` or all of `start`, `stop`, `step` (UTC strings and a step such as `6h`);
+    /// `Ok(None)` when none is given. Any other combination is an error naming the options.
+    pub fn parse(
+        utc: Option<&str>,
+        start: Option<&str>,
+        stop: Option<&str>,
+        step: Option<&str>,
+    ) -> anyhow::Result<Option<Self>> {
+        match (utc, start, stop, step) {
+            (None, None, None, None) => Ok(None),
+            (Some(t), None, None, None) => {
+                Ok(Some(EpochSpec::One(crate::ephem::time::parse_utc(t)?)))
+            }
+            (None, Some(a), Some(b), Some(s)) => {
+                let spec = EpochSpec::Range {
+                    start: crate::ephem::time::parse_utc(a)?,
+                    stop: crate::ephem::time::parse_utc(b)?,
+                    step: crate::ephem::time::parse_step(s)?,
+                };
+                Ok(Some(spec))
+            }
+            _ => anyhow::bail!("give either --utc T or all of --start T --stop T --step S"),
+        }
+    }
+
+    /// Like [`EpochSpec::parse`], but one of the two forms is required.
+    pub fn parse_required(
+        utc: Option<&str>,
+        start: Option<&str>,
+        stop: Option<&str>,
+        step: Option<&str>,
+    ) -> anyhow::Result<Self> {
+        Self::parse(utc, start, stop, step)?
+            .context("give either --utc T or all of --start T --stop T --step S")
+    }
+
+    /// The epochs, in order.
+    pub fn epochs(&self) -> anyhow::Result<Vec<Epoch>> {
+        Ok(match *self {
+            EpochSpec::One(e) => vec![e],
+            EpochSpec::Range { start, stop, step } => {
+                crate::ephem::time::epoch_range(start, stop, step)?
+            }
+        })
+    }
+
+    /// The weight of one sample in the statistics, seconds: the step of a range, or 3600 s for a
+    /// single epoch.
+    pub fn step_s(&self) -> f64 {
+        match self {
+            EpochSpec::One(_) => 3600.0,
+            EpochSpec::Range { step, .. } => step.to_seconds(),
+        }
+    }
+
+    /// Whether this is a range (statistics) rather than one epoch.
+    pub fn is_range(&self) -> bool {
+        matches!(self, EpochSpec::Range { .. })
+    }
+}
+
+/// Formats an error chain on one line (`outer: inner: root cause`), as the binary prints it.
+pub fn one_line(err: &anyhow::Error) -> String {
+    format!("{err:#}").replace('\n', " ")
+}
+
+/// Writes to `out` atomically (temporary file, then rename), or to stdout.
+pub fn write_output(
+    out: Option<&Path>,
+    fill: impl FnOnce(&mut dyn Write) -> anyhow::Result<()>,
+) -> anyhow::Result<()> {
+    match out {
+        Some(path) => crate::output::write_atomic(path, fill)
+            .with_context(|| format!("writing {}", path.display())),
+        None => {
+            let stdout = std::io::stdout();
+            let mut lock = stdout.lock();
+            fill(&mut lock)?;
+            lock.flush().ok();
+            Ok(())
+        }
+    }
+}
+
+/// A progress bar of `len` steps with `template` (indicatif syntax), hidden when `len` is 0.
+pub(crate) fn progress_bar(len: usize, template: &str) -> indicatif::ProgressBar {
+    let progress = indicatif::ProgressBar::new(len as u64);
+    progress.set_style(
+        indicatif::ProgressStyle::with_template(template)
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
+            .progress_chars("=> "),
+    );
+    progress
+}

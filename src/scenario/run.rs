@@ -1,0 +1,297 @@
+//! `penumbra run`: a scenario's series, map and render stages, and its `run.json`.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::Context as _;
+
+use super::{MapSpec, PathSpec, Scenario, TerrainSpec, ViewSpec, parse_map_backend};
+use crate::ephem::{self, AbCorr, Site};
+
+/// What `penumbra run` runs: a scenario file and the overrides of the command line.
+#[derive(Debug, Clone)]
+pub struct RunRequest {
+    /// The scenario file (TOML).
+    pub scenario: PathBuf,
+    /// Overrides the scenario's output folder.
+    pub out_dir: Option<PathBuf>,
+    /// Overrides the scenario's kernel folder.
+    pub kernels: Option<PathBuf>,
+}
+
+/// Runs a scenario file (`penumbra run`).
+pub fn run_file(args: &RunRequest) -> anyhow::Result<()> {
+    let t0 = Instant::now();
+    let path = &args.scenario;
+    let scenario = Scenario::load(path)?;
+    let base = Scenario::base_dir(path);
+    let out_dir = args
+        .out_dir
+        .clone()
+        .or_else(|| scenario.output_dir.clone())
+        .unwrap_or_else(|| PathBuf::from("out").join(&scenario.name));
+
+    let kernel_dir = match (&args.kernels, &scenario.kernels) {
+        (Some(k), _) => k.clone(),
+        (None, Some(k)) => base.join(k),
+        (None, None) => ephem::kernels::default_kernel_dir(),
+    };
+    let start = ephem::time::parse_utc(&scenario.time.start).context("[time] start")?;
+    let stop = ephem::time::parse_utc(&scenario.time.stop).context("[time] stop")?;
+    let step = ephem::time::parse_step(&scenario.time.step).context("[time] step")?;
+    let epochs = ephem::time::epoch_range(start, stop, step)?;
+    let kernels = ephem::Kernels::load(&kernel_dir).context("loading SPICE kernels")?;
+    // Fail on coverage before loading terrain or writing anything.
+    ephem::moon_geometry_table(&kernels, &[epochs[0], *epochs.last().unwrap_or(&epochs[0])])?;
+
+    let mut prov = crate::output::Provenance::new();
+    prov.scenario_file = Some(path.display().to_string());
+    prov.scenario = Some(serde_json::to_value(&scenario)?);
+    prov.kernels = kernels.files.clone();
+    prov.set_epochs(&epochs);
+    // What ran where ("series: …; map: …; render: …"), for run.json's `backend`.
+    let mut backends: Vec<String> = Vec::new();
+
+    let stack = match &scenario.terrain {
+        None => None,
+        Some(t) => Some(load_terrain(t, &base, &out_dir, &mut prov)?),
+    };
+    std::fs::create_dir_all(&out_dir)
+        .with_context(|| format!("creating output folder {}", out_dir.display()))?;
+
+    match (&stack, &scenario.series) {
+        (Some(stack), Some(config)) => {
+            let sites: Vec<crate::series::SeriesSite> = scenario
+                .sites
+                .iter()
+                .map(|s| crate::series::SeriesSite {
+                    name: s.name.clone(),
+                    lat_deg: s.lat_deg,
+                    lon_deg: s.lon_deg,
+                    height_above_ground_m: s.height_above_ground_m,
+                })
+                .collect();
+            let run = crate::series::run_series(
+                &kernels,
+                stack,
+                &sites,
+                &epochs,
+                step.to_seconds(),
+                &crate::series::SeriesConfig {
+                    abcorr: scenario.abcorr,
+                    ..*config
+                },
+                &out_dir,
+            )?;
+            prov.outputs.extend(run.files);
+            prov.series_engine = Some(config.engine.name().into());
+            backends.push(format!("series: {}", run.backend));
+            prov.series_backend = Some(run.backend);
+        }
+        _ => {
+            let sites: Vec<Site> = scenario
+                .sites
+                .iter()
+                .map(|s| {
+                    let ground_m = match (&stack, s.ground_height_m) {
+                        (_, Some(g)) => g,
+                        (Some(stack), None) => {
+                            stack.height_at_lat_lon_m_checked(s.lat_deg, s.lon_deg)?.0
+                        }
+                        (None, None) => 0.0,
+                    };
+                    Site::new(s.lat_deg, s.lon_deg, ground_m + s.height_above_ground_m)
+                        .with_context(|| format!("site '{}'", s.name))
+                })
+                .collect::<anyhow::Result<_>>()?;
+            let series = ephem::sun_earth_series(&kernels, &sites, &epochs, scenario.abcorr)?;
+            for (spec, rows) in scenario.sites.iter().zip(&series) {
+                let name = format!("{}_ephem.csv", spec.name);
+                crate::products::write_output(Some(&out_dir.join(&name)), |w| {
+                    writeln!(w, "{}", crate::products::ephem::EPHEM_CSV_HEADER)?;
+                    for (e, v) in epochs.iter().zip(rows) {
+                        crate::products::ephem::write_ephem_row(w, *e, v)?;
+                    }
+                    Ok(())
+                })?;
+                prov.outputs.push(name);
+            }
+        }
+    }
+    if let (Some(stack), Some(spec)) = (&stack, &scenario.map) {
+        let (files, below, map_backend) = run_map_spec(
+            spec,
+            stack,
+            &kernels,
+            start,
+            stop,
+            scenario.abcorr,
+            &out_dir,
+        )?;
+        prov.map_rays_blocked_beyond_dem = below;
+        prov.outputs
+            .extend(files.into_iter().map(|f| format!("map/{f}")));
+        backends.push(format!("map: {map_backend}"));
+    }
+    if let Some(spec) = &scenario.render {
+        if stack.is_none() {
+            anyhow::bail!("scenario {}: [render] needs [terrain]", path.display());
+        }
+        let terrain = match &scenario.terrain {
+            Some(TerrainSpec {
+                synthetic: Some(_), ..
+            }) => vec![out_dir.join("terrain_synthetic.tif")],
+            Some(t) => t.layers.iter().map(|p| base.join(p)).collect(),
+            None => Vec::new(),
+        };
+        let mut render_backends: Vec<String> = Vec::new();
+        let render_dir = out_dir.join("render");
+        std::fs::create_dir_all(&render_dir)
+            .with_context(|| format!("creating {}", render_dir.display()))?;
+        let paths: Vec<(ViewSpec, Option<&PathSpec>)> = spec
+            .views
+            .iter()
+            .map(|v| (v.clone(), None))
+            .chain(spec.paths.iter().map(|p| (p.as_view(), Some(p))))
+            .collect();
+        for (view, path_spec) in &paths {
+            let what = if path_spec.is_some() {
+                "[[render.paths]]"
+            } else {
+                "[[render.views]]"
+            };
+            let options = view
+                .render_options(
+                    crate::products::TerrainSource::Dems(terrain.clone()),
+                    crate::products::KernelSource {
+                        dir: Some(kernel_dir.clone()),
+                    },
+                    scenario.abcorr,
+                    &render_dir,
+                )
+                .map_err(|e| {
+                    anyhow::anyhow!("scenario {}: {what} '{}': {e:#}", path.display(), view.out)
+                })?;
+            let run = match path_spec {
+                None => crate::products::render::camera_frames(&view.camera()?, &view.epochs()?),
+                Some(p) => p.frames(),
+            }
+            .and_then(|frames| crate::products::render::render_frames(&options, &frames))
+            .with_context(|| format!("{what} '{}'", view.out))?;
+            if !render_backends.contains(&run.backend) {
+                render_backends.push(run.backend);
+            }
+            prov.outputs.extend(
+                run.files
+                    .iter()
+                    .map(|f| f.strip_prefix(&out_dir).unwrap_or(f).display().to_string()),
+            );
+        }
+        if !render_backends.is_empty() {
+            backends.push(format!("render: {}", render_backends.join(", ")));
+        }
+    }
+    if !backends.is_empty() {
+        prov.backend = backends.join("; ");
+    }
+    prov.wall_time_s = t0.elapsed().as_secs_f64();
+    prov.write(&out_dir.join("run.json"))?;
+    eprintln!(
+        "penumbra: {} file(s) and run.json written to {} ({} sites, {} epochs, {:.1} s)",
+        prov.outputs.len(),
+        out_dir.display(),
+        scenario.sites.len(),
+        prov.epoch_count,
+        prov.wall_time_s
+    );
+    Ok(())
+}
+
+/// Loads a scenario's terrain; the synthetic DEM is also written to the output folder.
+fn load_terrain(
+    spec: &TerrainSpec,
+    base: &Path,
+    out_dir: &Path,
+    prov: &mut crate::output::Provenance,
+) -> anyhow::Result<crate::terrain::TerrainStack> {
+    if let Some(s) = spec.synthetic {
+        let params = crate::terrain::synth::SynthParams {
+            size_px: s.size_px,
+            px_m: s.px_m,
+            seed: s.seed,
+        };
+        let (stack, what) = crate::products::synthetic_stack(&params)?;
+        std::fs::create_dir_all(out_dir)
+            .with_context(|| format!("creating output folder {}", out_dir.display()))?;
+        crate::terrain::write_dem(
+            &out_dir.join("terrain_synthetic.tif"),
+            &stack.layers[0],
+            &[(
+                "software",
+                &format!("penumbra {}", env!("CARGO_PKG_VERSION")),
+            )],
+        )?;
+        prov.outputs.push("terrain_synthetic.tif".into());
+        prov.dem_layers.push(what);
+        return Ok(stack);
+    }
+    let paths: Vec<PathBuf> = spec.layers.iter().map(|p| base.join(p)).collect();
+    prov.dem_layers = paths.iter().map(|p| p.display().to_string()).collect();
+    let stack = crate::terrain::TerrainStack::load(&paths)?;
+    prov.dem_files = paths
+        .iter()
+        .map(|p| crate::output::InputFile::of(p))
+        .collect::<Result<_, _>>()?;
+    Ok(stack)
+}
+
+/// Runs a scenario's `[map]`: the sweep statistics over the scenario's span at the map's step.
+fn run_map_spec(
+    spec: &MapSpec,
+    stack: &crate::terrain::TerrainStack,
+    kernels: &ephem::Kernels,
+    start: hifitime::Epoch,
+    stop: hifitime::Epoch,
+    abcorr: AbCorr,
+    out_dir: &Path,
+) -> anyhow::Result<(Vec<String>, Option<crate::output::BelowSphereExits>, String)> {
+    let step = ephem::time::parse_step(&spec.step).context("[map] step")?;
+    let epochs = ephem::time::epoch_range(start, stop, step)?;
+    let kind = crate::map::MapEngineKind::parse(&spec.engine)
+        .with_context(|| format!("[map] engine '{}'", spec.engine))?;
+    let requested = parse_map_backend(&spec.backend)
+        .with_context(|| format!("[map] backend '{}'", spec.backend))?;
+    let backend = crate::gpu::resolve_backend(requested)
+        .with_context(|| format!("[map] backend '{}'", spec.backend))?;
+    let grid = crate::model::MapGrid::new(stack)?;
+    grid.warn_if_clipped();
+    let lights = crate::model::epoch_lights(&grid, kernels, &epochs, abcorr)?;
+    let step_h = step.to_seconds() / 3600.0;
+    let progress = indicatif::ProgressBar::new(lights.len() as u64);
+    let (stats, note) = crate::compute::sweep::map_sweep(
+        &backend,
+        &grid,
+        kind,
+        spec.observer_height_m,
+        crate::map::ObserverPlacement::Pixels,
+        &lights,
+        step_h,
+        None,
+        &progress,
+    )?;
+    progress.finish_and_clear();
+    let dir = out_dir.join("map");
+    std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+    let span = format!(
+        "{} .. {} UTC, {} epochs every {}",
+        ephem::time::format_utc(epochs[0]),
+        ephem::time::format_utc(*epochs.last().unwrap_or(&epochs[0])),
+        epochs.len(),
+        spec.step
+    );
+    let files = crate::map::write_sweep(&grid, &stats, &dir, &span)?;
+    if let Some(b) = stats.below_sphere {
+        b.warn();
+    }
+    Ok((files, stats.below_sphere, note))
+}

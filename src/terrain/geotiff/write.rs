@@ -1,0 +1,261 @@
+//! Writing GeoTIFFs: float32/uint16/uint8 rasters with a GeoKeyDirectory on the sphere and GDAL
+//! metadata, atomically.
+
+use std::path::Path;
+
+use tiff::encoder::{TiffEncoder, colortype};
+use tiff::tags::Tag;
+
+use super::*;
+
+/// Builds the GeoKeyDirectory, double and ASCII parameters of a user-defined CRS on the sphere.
+pub(super) fn geo_keys_for(projection: &Projection) -> (Vec<u16>, Vec<f64>, String) {
+    let mut entries: Vec<(u16, GeoKeyValue)> = Vec::new();
+    let r = projection.radius_m();
+    let (citation, ct) = match *projection {
+        Projection::PolarStereographic { south, .. } => (
+            format!(
+                "{} polar stereographic on the lunar sphere R={r} m (penumbra)",
+                if south { "South" } else { "North" }
+            ),
+            CT_POLAR_STEREOGRAPHIC,
+        ),
+        Projection::Equirectangular { .. } => (
+            format!("Equirectangular on the lunar sphere R={r} m (penumbra)"),
+            CT_EQUIRECTANGULAR,
+        ),
+    };
+    entries.push((KEY_MODEL_TYPE, GeoKeyValue::Short(1)));
+    entries.push((KEY_RASTER_TYPE, GeoKeyValue::Short(1)));
+    entries.push((KEY_GT_CITATION, GeoKeyValue::Ascii(citation)));
+    entries.push((KEY_GEOGRAPHIC_TYPE, GeoKeyValue::Short(USER_DEFINED)));
+    entries.push((
+        KEY_GEOG_CITATION,
+        GeoKeyValue::Ascii(format!(
+            "GCS Name = Moon sphere R={r} m|Datum = Moon|Ellipsoid = Moon sphere|Primem = Reference meridian"
+        )),
+    ));
+    entries.push((KEY_GEOG_DATUM, GeoKeyValue::Short(USER_DEFINED)));
+    entries.push((KEY_GEOG_ANGULAR_UNITS, GeoKeyValue::Short(EPSG_DEGREE)));
+    entries.push((KEY_GEOG_ELLIPSOID, GeoKeyValue::Short(USER_DEFINED)));
+    entries.push((KEY_GEOG_SEMI_MAJOR, GeoKeyValue::Doubles(vec![r])));
+    entries.push((KEY_GEOG_SEMI_MINOR, GeoKeyValue::Doubles(vec![r])));
+    entries.push((
+        KEY_GEOG_PRIME_MERIDIAN_LONG,
+        GeoKeyValue::Doubles(vec![0.0]),
+    ));
+    entries.push((KEY_PROJECTED_CS_TYPE, GeoKeyValue::Short(USER_DEFINED)));
+    entries.push((KEY_PROJECTION, GeoKeyValue::Short(USER_DEFINED)));
+    entries.push((KEY_PROJ_COORD_TRANS, GeoKeyValue::Short(ct)));
+    entries.push((KEY_PROJ_LINEAR_UNITS, GeoKeyValue::Short(EPSG_METRE)));
+    match *projection {
+        Projection::PolarStereographic {
+            south,
+            lon0_deg,
+            k0,
+            ..
+        } => {
+            let lat0 = if south { -90.0 } else { 90.0 };
+            entries.push((KEY_PROJ_NAT_ORIGIN_LAT, GeoKeyValue::Doubles(vec![lat0])));
+            entries.push((KEY_PROJ_FALSE_EASTING, GeoKeyValue::Doubles(vec![0.0])));
+            entries.push((KEY_PROJ_FALSE_NORTHING, GeoKeyValue::Doubles(vec![0.0])));
+            entries.push((KEY_PROJ_SCALE_AT_NAT_ORIGIN, GeoKeyValue::Doubles(vec![k0])));
+            entries.push((
+                KEY_PROJ_STRAIGHT_VERT_POLE_LONG,
+                GeoKeyValue::Doubles(vec![lon0_deg]),
+            ));
+        }
+        Projection::Equirectangular {
+            lon0_deg,
+            lat_ts_deg,
+            ..
+        } => {
+            entries.push((
+                KEY_PROJ_STD_PARALLEL1,
+                GeoKeyValue::Doubles(vec![lat_ts_deg]),
+            ));
+            entries.push((KEY_PROJ_FALSE_EASTING, GeoKeyValue::Doubles(vec![0.0])));
+            entries.push((KEY_PROJ_FALSE_NORTHING, GeoKeyValue::Doubles(vec![0.0])));
+            entries.push((KEY_PROJ_CENTER_LONG, GeoKeyValue::Doubles(vec![lon0_deg])));
+            entries.push((KEY_PROJ_CENTER_LAT, GeoKeyValue::Doubles(vec![0.0])));
+        }
+    }
+    entries.sort_by_key(|(k, _)| *k);
+    let mut dir: Vec<u16> = vec![1, 1, 0, entries.len() as u16];
+    let mut doubles = Vec::new();
+    let mut ascii = String::new();
+    for (key, value) in entries {
+        match value {
+            GeoKeyValue::Short(v) => dir.extend([key, 0, 1, v]),
+            GeoKeyValue::Doubles(v) => {
+                dir.extend([key, 34736, v.len() as u16, doubles.len() as u16]);
+                doubles.extend(v);
+            }
+            GeoKeyValue::Ascii(s) => {
+                let text = format!("{s}|");
+                dir.extend([key, 34737, text.len() as u16, ascii.len() as u16]);
+                ascii.push_str(&text);
+            }
+        }
+    }
+    (dir, doubles, ascii)
+}
+
+/// Sample types penumbra writes.
+trait WriteSample: Copy + std::fmt::Display {
+    type Color: colortype::ColorType<Inner = Self>;
+    /// The GDAL_NODATA text of a nodata value.
+    fn nodata_text(self) -> String {
+        self.to_string()
+    }
+}
+impl WriteSample for f32 {
+    type Color = colortype::Gray32Float;
+    fn nodata_text(self) -> String {
+        if self.is_nan() {
+            "nan".to_string()
+        } else {
+            self.to_string()
+        }
+    }
+}
+impl WriteSample for u16 {
+    type Color = colortype::Gray16;
+}
+impl WriteSample for u8 {
+    type Color = colortype::Gray8;
+}
+
+fn write_geotiff<T>(
+    path: &Path,
+    grid: &GridGeometry,
+    projection: &Projection,
+    values: &[T],
+    nodata: Option<T>,
+    metadata: &[(&str, &str)],
+) -> Result<()>
+where
+    T: WriteSample,
+    [T]: tiff::encoder::TiffValue,
+{
+    if grid.rows == 0 || grid.cols == 0 || values.len() != grid.rows * grid.cols {
+        return Err(DemError::InvalidParameter(format!(
+            "raster of {} values for a {}x{} grid",
+            values.len(),
+            grid.rows,
+            grid.cols
+        )));
+    }
+    let name = path.display().to_string();
+    let enc_err = |e: TiffError| DemError::Encode {
+        path: name.clone(),
+        detail: e.to_string(),
+    };
+    let (dir, doubles, ascii) = geo_keys_for(projection);
+    let mut bytes = Cursor::new(Vec::with_capacity(std::mem::size_of_val(values) + 4096));
+    {
+        let mut encoder = TiffEncoder::new(&mut bytes).map_err(enc_err)?;
+        let (w, h) = (
+            u32::try_from(grid.cols)
+                .map_err(|_| DemError::InvalidParameter("too many columns".into()))?,
+            u32::try_from(grid.rows)
+                .map_err(|_| DemError::InvalidParameter("too many rows".into()))?,
+        );
+        let mut image = encoder.new_image::<T::Color>(w, h).map_err(enc_err)?;
+        let dir_enc = image.encoder();
+        dir_enc
+            .write_tag(
+                Tag::ModelPixelScaleTag,
+                &[grid.px_x_m, grid.px_y_m, 0.0][..],
+            )
+            .map_err(enc_err)?;
+        dir_enc
+            .write_tag(
+                Tag::ModelTiepointTag,
+                &[0.0, 0.0, 0.0, grid.x_left_m, grid.y_top_m, 0.0][..],
+            )
+            .map_err(enc_err)?;
+        dir_enc
+            .write_tag(Tag::GeoKeyDirectoryTag, &dir[..])
+            .map_err(enc_err)?;
+        dir_enc
+            .write_tag(Tag::GeoDoubleParamsTag, &doubles[..])
+            .map_err(enc_err)?;
+        dir_enc
+            .write_tag(Tag::GeoAsciiParamsTag, ascii.as_str())
+            .map_err(enc_err)?;
+        if !metadata.is_empty() {
+            dir_enc
+                .write_tag(
+                    Tag::Unknown(TAG_GDAL_METADATA),
+                    gdal_metadata_xml(metadata).as_str(),
+                )
+                .map_err(enc_err)?;
+        }
+        if let Some(nd) = nodata.map(WriteSample::nodata_text) {
+            dir_enc
+                .write_tag(Tag::Unknown(TAG_GDAL_NODATA), nd.as_str())
+                .map_err(enc_err)?;
+        }
+        image.write_data(values).map_err(enc_err)?;
+    }
+    let bytes = bytes.into_inner();
+    write_atomic(path, |w| {
+        w.write_all(&bytes).map_err(|source| {
+            DemError::Output(OutputError::Io {
+                path: name.clone(),
+                source,
+            })
+        })
+    })
+}
+
+/// Writes a float32 single-band GeoTIFF. `nodata` is recorded in GDAL_NODATA (`NaN` allowed);
+/// `metadata` items go into GDAL_METADATA (e.g. `("penumbra_version", "0.1.0")`).
+pub fn write_geotiff_f32(
+    path: &Path,
+    grid: &GridGeometry,
+    projection: &Projection,
+    values: &[f32],
+    nodata: Option<f32>,
+    metadata: &[(&str, &str)],
+) -> Result<()> {
+    write_geotiff(path, grid, projection, values, nodata, metadata)
+}
+
+/// Writes a uint16 single-band GeoTIFF (see [`write_geotiff_f32`]).
+pub fn write_geotiff_u16(
+    path: &Path,
+    grid: &GridGeometry,
+    projection: &Projection,
+    values: &[u16],
+    nodata: Option<u16>,
+    metadata: &[(&str, &str)],
+) -> Result<()> {
+    write_geotiff(path, grid, projection, values, nodata, metadata)
+}
+
+/// Writes a uint8 single-band GeoTIFF (see [`write_geotiff_f32`]).
+pub fn write_geotiff_u8(
+    path: &Path,
+    grid: &GridGeometry,
+    projection: &Projection,
+    values: &[u8],
+    nodata: Option<u8>,
+    metadata: &[(&str, &str)],
+) -> Result<()> {
+    write_geotiff(path, grid, projection, values, nodata, metadata)
+}
+
+/// Writes a DEM as a float32 GeoTIFF; holes (`NaN`) are declared with `GDAL_NODATA = nan`.
+pub fn write_dem(path: &Path, dem: &Dem, metadata: &[(&str, &str)]) -> Result<()> {
+    let nodata = dem.heights_m.iter().any(|h| h.is_nan()).then_some(f32::NAN);
+    write_geotiff_f32(
+        path,
+        &dem.grid,
+        &dem.projection,
+        &dem.heights_m,
+        nodata,
+        metadata,
+    )
+}
