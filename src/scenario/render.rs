@@ -220,10 +220,10 @@ pub struct ViewSpec {
 
 impl ViewSpec {
     /// The camera of this view (the defaults of `penumbra render` where a key is absent).
-    pub(super) fn camera(&self) -> anyhow::Result<crate::products::render::CameraSpec> {
+    pub(super) fn camera(&self) -> crate::products::render::CameraSpec {
         use crate::products::render::CameraSpec;
         let defaults = CameraSpec::site(self.lat_deg, self.lon_deg);
-        Ok(CameraSpec {
+        CameraSpec {
             kind: self.camera.unwrap_or_default(),
             height_m: self.height_m.unwrap_or(defaults.height_m),
             look_az_deg: self.look_az_deg.unwrap_or(defaults.look_az_deg),
@@ -233,7 +233,7 @@ impl ViewSpec {
             target_lon_deg: self.target_lon_deg,
             fov_deg: self.fov_deg.unwrap_or(defaults.fov_deg),
             ..defaults
-        })
+        }
     }
 
     /// The epochs of this view (`utc`, or `start`/`stop`/`step`).
@@ -254,9 +254,9 @@ impl ViewSpec {
         kernels: crate::products::KernelSource,
         abcorr: AbCorr,
         render_dir: &Path,
-    ) -> anyhow::Result<crate::products::render::RenderOptions> {
+    ) -> crate::products::render::RenderOptions {
         use crate::products::render as r;
-        Ok(r::RenderOptions {
+        r::RenderOptions {
             terrain,
             width: self.width.unwrap_or(r::DEFAULT_WIDTH_PX),
             height: self.height.unwrap_or(r::DEFAULT_HEIGHT_PX),
@@ -268,6 +268,6 @@ impl ViewSpec {
             abcorr,
             backend: crate::gpu::Backend::Auto,
             kernels,
-        })
+        }
     }
 }

@@ -160,20 +160,18 @@ pub fn run_file(args: &RunRequest) -> anyhow::Result<()> {
             } else {
                 "[[render.views]]"
             };
-            let options = view
-                .render_options(
-                    crate::products::TerrainSource::Dems(terrain.clone()),
-                    crate::products::KernelSource {
-                        dir: Some(kernel_dir.clone()),
-                    },
-                    scenario.abcorr,
-                    &render_dir,
-                )
-                .map_err(|e| {
-                    anyhow::anyhow!("scenario {}: {what} '{}': {e:#}", path.display(), view.out)
-                })?;
+            let options = view.render_options(
+                crate::products::TerrainSource::Dems(terrain.clone()),
+                crate::products::KernelSource {
+                    dir: Some(kernel_dir.clone()),
+                },
+                scenario.abcorr,
+                &render_dir,
+            );
             let run = match path_spec {
-                None => crate::products::render::camera_frames(&view.camera()?, &view.epochs()?),
+                None => view.epochs().and_then(|epochs| {
+                    crate::products::render::camera_frames(&view.camera(), &epochs)
+                }),
                 Some(p) => p.frames(),
             }
             .and_then(|frames| crate::products::render::render_frames(&options, &frames))
