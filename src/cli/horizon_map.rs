@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 
 use clap::{Args, Subcommand};
-use penumbra::products::horizon_map::HorizonMapBuildRequest;
+use penumbra::products::horizon_map::{HorizonMapBuildRequest, HorizonSweepRequest};
 
 use super::{BackendArg, TerrainArgs};
 
@@ -13,6 +13,9 @@ pub enum HorizonMapCommand {
     /// Build a Fourier-compressed horizon map (16 f16 complex coefficients per cell) and write
     /// it as a multi-page TIFF.
     Build(HorizonMapBuildArgs),
+    /// Exact whole-grid horizons by the line sweep (every layer, on the finest layer's grid):
+    /// a GeoTIFF with one int16 band (centi-degrees) per direction.
+    Sweep(HorizonSweepArgs),
     /// Describe a horizon-map TIFF: geometry, parameters, mean coefficient amplitudes.
     Info {
         /// The horizon-map TIFF.
@@ -45,6 +48,31 @@ pub struct HorizonMapBuildArgs {
     pub backend: BackendArg,
 }
 
+/// Arguments of `penumbra horizon-map sweep`.
+#[derive(Debug, Clone, Args)]
+pub struct HorizonSweepArgs {
+    /// The terrain.
+    #[command(flatten)]
+    pub terrain: TerrainArgs,
+    /// Observer height above the ground (radial), metres.
+    #[arg(long, default_value_t = penumbra::DEFAULT_OBSERVER_HEIGHT_M, allow_negative_numbers = true)]
+    pub observer_height_m: f64,
+    /// Requested azimuths, uniform in grid azimuth; each is served by the nearest line direction
+    /// (band descriptions give the exact grid azimuths).
+    #[arg(long, default_value_t = penumbra::horizon::sweep::DEFAULT_SWEEP_AZIMUTHS)]
+    pub azimuths: usize,
+    /// Largest step component (cells) of a line direction: more directions near the grid axes,
+    /// more work (about |dcol| + |dnorth| samples per pixel and direction).
+    #[arg(long, default_value_t = penumbra::horizon::sweep::DEFAULT_MAX_STEP)]
+    pub max_step: u32,
+    /// Output GeoTIFF of horizon elevations (BigTIFF, one int16 band per direction, centi-degrees).
+    #[arg(long, value_name = "FILE")]
+    pub out: PathBuf,
+    /// Also write the distance to the horizon point (one float16 band per direction, km).
+    #[arg(long, value_name = "FILE")]
+    pub distance_out: Option<PathBuf>,
+}
+
 /// Runs `penumbra horizon-map …`.
 pub fn run(command: HorizonMapCommand) -> anyhow::Result<()> {
     match command {
@@ -56,6 +84,16 @@ pub fn run(command: HorizonMapCommand) -> anyhow::Result<()> {
                 max_distance_cells: args.max_distance_cells,
                 out: args.out.clone(),
                 backend: args.backend.into(),
+            })
+        }
+        HorizonMapCommand::Sweep(args) => {
+            penumbra::products::horizon_map::sweep(&HorizonSweepRequest {
+                terrain: args.terrain.source(),
+                observer_height_m: args.observer_height_m,
+                azimuths: args.azimuths,
+                max_step: args.max_step,
+                out: args.out,
+                distance_out: args.distance_out,
             })
         }
         HorizonMapCommand::Info { file } => {

@@ -38,9 +38,11 @@
 
 mod io;
 mod scan;
+pub mod sweep;
 
 pub use io::{write_csv, write_json};
 pub use scan::HorizonEngine;
+pub use sweep::{HorizonSweep, SweepBand, SweepDirection, SweepParams};
 
 use serde::Serialize;
 
@@ -103,6 +105,12 @@ pub enum HorizonError {
     /// The terrain stack cannot go to the GPU horizon scan (layer count, projection, size).
     #[error("the GPU horizon scan does not support this terrain stack: {reason}")]
     GpuUnsupported {
+        /// What is unsupported.
+        reason: String,
+    },
+    /// The whole-grid sweep cannot run on this stack or with these parameters.
+    #[error("the horizon sweep does not support this input: {reason}")]
+    SweepUnsupported {
         /// What is unsupported.
         reason: String,
     },

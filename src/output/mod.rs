@@ -42,29 +42,39 @@ where
         path: path.display().to_string(),
         source,
     };
-    let dir = match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => Path::new("."),
-    };
-    let mut tmp = tempfile::Builder::new()
-        .prefix(".penumbra-")
-        .suffix(".tmp")
-        .tempfile_in(dir)
-        .map_err(io_err)?;
+    let mut tmp = temp_file_beside(path).map_err(io_err)?;
     {
         let mut buf = std::io::BufWriter::new(tmp.as_file_mut());
         fill(&mut buf)?;
         buf.flush().map_err(io_err)?;
     }
-    // Temporary files are created private (0600); an output file gets the usual 0644.
+    persist_temp(tmp, path).map_err(io_err)?;
+    Ok(())
+}
+
+/// A temporary file (`.penumbra-*.tmp`) in the folder of `path`, removed when dropped: where an
+/// output is built before [`persist_temp`] renames it into place.
+pub fn temp_file_beside(path: &Path) -> std::io::Result<tempfile::NamedTempFile> {
+    let dir = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    tempfile::Builder::new()
+        .prefix(".penumbra-")
+        .suffix(".tmp")
+        .tempfile_in(dir)
+}
+
+/// Renames a finished temporary file onto `path` with the usual 0644 permissions (temporary
+/// files are created private, 0600).
+pub fn persist_temp(tmp: tempfile::NamedTempFile, path: &Path) -> std::io::Result<()> {
     #[cfg(unix)]
     {
         use std::os::unix::fs::PermissionsExt as _;
         tmp.as_file()
-            .set_permissions(std::fs::Permissions::from_mode(0o644))
-            .map_err(io_err)?;
+            .set_permissions(std::fs::Permissions::from_mode(0o644))?;
     }
-    tmp.persist(path).map_err(|e| io_err(e.error))?;
+    tmp.persist(path).map_err(|e| e.error)?;
     Ok(())
 }
 

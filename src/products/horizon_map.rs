@@ -54,6 +54,146 @@ pub fn build(req: &HorizonMapBuildRequest) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// What `penumbra horizon-map sweep` computes: exact whole-grid horizons by the line sweep
+/// ([`crate::horizon::sweep`]) on the finest layer's grid, every layer included.
+#[derive(Debug, Clone)]
+pub struct HorizonSweepRequest {
+    /// The terrain (every layer; one polar stereographic map).
+    pub terrain: TerrainSource,
+    /// Observer height above the ground (radial), metres.
+    pub observer_height_m: f64,
+    /// Requested azimuths (uniform in grid azimuth).
+    pub azimuths: usize,
+    /// Largest step component of a sweep direction.
+    pub max_step: u32,
+    /// Output GeoTIFF of horizon elevations: one int16 band per direction, centi-degrees.
+    pub out: PathBuf,
+    /// Optional GeoTIFF of the distance to the horizon point: one float16 band per direction, km.
+    pub distance_out: Option<PathBuf>,
+}
+
+/// Nodata of the int16 horizon bands.
+pub const HORIZON_NODATA_I16: i16 = i16::MIN;
+
+/// Runs the sweep and streams the bands into the GeoTIFF(s) (written atomically).
+pub fn sweep(req: &HorizonSweepRequest) -> anyhow::Result<()> {
+    use crate::horizon::{HorizonSweep, SweepParams};
+    use crate::terrain::geotiff::{BandSample, MultiBandTiff};
+
+    let (stack, _) = req.terrain.load()?;
+    let params = SweepParams {
+        observer_height_m: req.observer_height_m,
+        azimuths: req.azimuths,
+        max_step: req.max_step,
+    };
+    let sweep = HorizonSweep::new(&stack, params)?;
+    let dem = sweep.grid_dem();
+    let dirs = sweep.directions();
+    let descriptions: Vec<String> = dirs
+        .iter()
+        .map(|d| {
+            format!(
+                "grid_az_deg={:.6} step=({},{})",
+                d.grid_az_deg, d.dcol, d.dnorth
+            )
+        })
+        .collect();
+    let worst_miss = dirs.iter().map(|d| d.target_error_deg).fold(0.0, f64::max);
+    let version = env!("CARGO_PKG_VERSION");
+    let h = format!("{}", req.observer_height_m);
+    let ms = format!("{}", req.max_step);
+    let metadata = [
+        ("penumbra_version", version),
+        ("penumbra_product", "horizon elevation (line sweep)"),
+        ("units", "centi-degrees above the local horizontal"),
+        (
+            "azimuth_convention",
+            "band grid_az_deg: from map +y (grid north), clockwise; local azimuth = grid_az_deg + grid convergence at the pixel",
+        ),
+        ("observer_height_m", h.as_str()),
+        ("max_step", ms.as_str()),
+    ];
+    let mut el_tif = MultiBandTiff::create(
+        &req.out,
+        &dem.grid,
+        &dem.projection,
+        BandSample::I16,
+        &descriptions,
+        &HORIZON_NODATA_I16.to_string(),
+        &metadata,
+    )?;
+    let mut dist_tif = match &req.distance_out {
+        Some(path) => Some(MultiBandTiff::create(
+            path,
+            &dem.grid,
+            &dem.projection,
+            BandSample::F16,
+            &descriptions,
+            "nan",
+            &[
+                ("penumbra_version", version),
+                (
+                    "penumbra_product",
+                    "distance to the horizon point (line sweep)",
+                ),
+                ("units", "km (ground distance)"),
+            ],
+        )?),
+        None => None,
+    };
+    let t0 = std::time::Instant::now();
+    let progress = super::progress_bar(
+        dirs.len(),
+        "penumbra: sweep [{bar:40}] {pos}/{len} bands, {elapsed} (eta {eta})",
+    );
+    sweep.run(
+        |band| -> anyhow::Result<()> {
+            let words: Vec<u16> = band
+                .elevation_deg
+                .iter()
+                .map(|&e| {
+                    if e.is_nan() {
+                        HORIZON_NODATA_I16 as u16
+                    } else {
+                        (e * 100.0).round().clamp(-9000.0, 9000.0) as i16 as u16
+                    }
+                })
+                .collect();
+            el_tif.write_band(band.index, &words)?;
+            if let Some(t) = dist_tif.as_mut() {
+                let words: Vec<u16> = band
+                    .distance_m
+                    .iter()
+                    .map(|&d| half::f16::from_f32(d / 1000.0).to_bits())
+                    .collect();
+                t.write_band(band.index, &words)?;
+            }
+            Ok(())
+        },
+        |done| progress.set_position(done as u64),
+    )?;
+    progress.finish_and_clear();
+    el_tif.finish()?;
+    if let Some(t) = dist_tif {
+        t.finish()?;
+    }
+    let secs = t0.elapsed().as_secs_f64();
+    let pixel_az = (dem.grid.rows * dem.grid.cols * dirs.len()) as f64;
+    eprintln!(
+        "penumbra: horizons {} x {} x {} directions (requested {}, max step {}, largest miss {:.2} deg) in {:.1} s ({:.2} M pixel-azimuths/s) -> {}",
+        dem.grid.rows,
+        dem.grid.cols,
+        dirs.len(),
+        req.azimuths,
+        req.max_step,
+        worst_miss,
+        secs,
+        pixel_az / secs / 1e6,
+        req.out.display()
+    );
+    Ok(())
+}
+
 /// The description of a horizon-map TIFF: geometry, parameters, mean coefficient amplitudes.
 pub fn info(file: &Path) -> anyhow::Result<String> {
     let map = HorizonMap::read_tiff(file)?;

@@ -744,8 +744,11 @@ fn parse_nodata(s: &str) -> Option<f64> {
     t.parse().ok()
 }
 
+mod bands;
 mod gdal_metadata;
 mod write;
+
+pub use bands::{BandSample, MultiBandTiff};
 
 use gdal_metadata::*;
 pub use write::{write_dem, write_geotiff_f32, write_geotiff_u8, write_geotiff_u16};

@@ -64,7 +64,27 @@ pub fn dem_from_fn(
     name: &str,
     f: impl Fn(f64, f64) -> f64 + Sync,
 ) -> Dem {
-    let grid = polar_grid(rows, cols, px_m);
+    dem_on_grid(polar_grid(rows, cols, px_m), name, f)
+}
+
+/// A square south polar stereographic DEM of `n` x `n` cells of `px_m` centred on map point
+/// (`cx_m`, `cy_m`), heights `f(x_m, y_m)` at the cell centres.
+pub fn square_dem_at(
+    n: usize,
+    px_m: f64,
+    (cx_m, cy_m): (f64, f64),
+    name: &str,
+    f: impl Fn(f64, f64) -> f64 + Sync,
+) -> Dem {
+    let mut grid = polar_grid(n, n, px_m);
+    grid.x_left_m += cx_m;
+    grid.y_top_m += cy_m;
+    dem_on_grid(grid, name, f)
+}
+
+/// A DEM on `grid` (south polar stereographic) with heights `f(x_m, y_m)` at the cell centres.
+fn dem_on_grid(grid: GridGeometry, name: &str, f: impl Fn(f64, f64) -> f64 + Sync) -> Dem {
+    let (rows, cols) = (grid.rows, grid.cols);
     let mut heights_m = vec![0.0_f32; rows * cols];
     heights_m
         .par_chunks_mut(cols.max(1))

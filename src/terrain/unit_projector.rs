@@ -72,4 +72,37 @@ impl UnitProjector {
             }
         }
     }
+
+    /// The unit radial vector (`MOON_ME`) of map point `(x_m, y_m)`: the inverse of
+    /// [`Self::xy_from_unit`] (rational for polar stereographic: with `q = (x² + y²) / (2 R k0)²`,
+    /// the axial component is `±(q − 1) / (q + 1)` and the horizontal ones `2 (x, y) / (2 R k0 (1 + q))`
+    /// turned back by `lon0`).
+    #[inline]
+    pub(crate) fn unit_from_xy(&self, x_m: f64, y_m: f64) -> Vector3<f64> {
+        match *self {
+            UnitProjector::Stereographic {
+                south,
+                sin_lon0,
+                cos_lon0,
+                two_r_k0_m,
+            } => {
+                let (a, b) = (x_m / two_r_k0_m, y_m / two_r_k0_m);
+                let q = a * a + b * b;
+                let s = 2.0 / (1.0 + q);
+                // e, n: the components along the rotated lon0 axes (see xy_from_unit).
+                let (e, n, z) = if south {
+                    (a * s, b * s, (q - 1.0) / (q + 1.0))
+                } else {
+                    (a * s, -b * s, (1.0 - q) / (1.0 + q))
+                };
+                Vector3::new(n * cos_lon0 - e * sin_lon0, e * cos_lon0 + n * sin_lon0, z)
+            }
+            UnitProjector::Other(p) => {
+                let (lat_deg, lon_deg) = p.lat_lon_from_xy(x_m, y_m);
+                let (sl, cl) = lat_deg.to_radians().sin_cos();
+                let (so, co) = lon_deg.to_radians().sin_cos();
+                Vector3::new(cl * co, cl * so, sl)
+            }
+        }
+    }
 }

@@ -8,35 +8,20 @@ use nalgebra::Vector3;
 use penumbra::MOON_RADIUS_M;
 use penumbra::frames::enu_from_moon_me;
 use penumbra::horizon::{HorizonEngine, HorizonError, HorizonMethod, HorizonParams, horizon};
-use penumbra::terrain::{Dem, GridGeometry, Projection, TerrainStack};
+use penumbra::terrain::{Dem, Projection, TerrainStack};
 
 const R: f64 = MOON_RADIUS_M;
 
 /// A square polar-stereographic DEM of `n` x `n` cells of `px_m`, centred on map point
 /// (`cx_m`, `cy_m`), heights from `f(x_m, y_m)` at the cell centres.
-fn square_dem(n: usize, px_m: f64, cx_m: f64, cy_m: f64, f: impl Fn(f64, f64) -> f64) -> Dem {
-    let half = n as f64 * px_m / 2.0;
-    let grid = GridGeometry {
-        rows: n,
-        cols: n,
-        x_left_m: cx_m - half,
-        y_top_m: cy_m + half,
-        px_x_m: px_m,
-        px_y_m: px_m,
-    };
-    let mut heights_m = Vec::with_capacity(n * n);
-    for row in 0..n {
-        for col in 0..n {
-            let (x, y) = grid.xy_from_row_col(row as f64, col as f64);
-            heights_m.push(f(x, y) as f32);
-        }
-    }
-    Dem {
-        grid,
-        projection: Projection::LOLA_SOUTH_POLAR,
-        heights_m,
-        name: "synthetic".into(),
-    }
+fn square_dem(
+    n: usize,
+    px_m: f64,
+    cx_m: f64,
+    cy_m: f64,
+    f: impl Fn(f64, f64) -> f64 + Sync,
+) -> Dem {
+    penumbra::terrain::synth::square_dem_at(n, px_m, (cx_m, cy_m), "synthetic", f)
 }
 
 fn params(h_m: f64, step_deg: f64, method: HorizonMethod) -> HorizonParams {

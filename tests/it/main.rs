@@ -9,6 +9,7 @@ mod gpu_fourier;
 mod gpu_horizon;
 mod gpu_tiles;
 mod horizon;
+mod horizon_sweep;
 mod illum;
 mod map;
 mod render;

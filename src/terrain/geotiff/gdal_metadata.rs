@@ -102,12 +102,23 @@ pub(super) fn xml_escape(s: &str) -> String {
 
 /// The GDAL_METADATA XML of `items` (dataset-level items).
 pub(super) fn gdal_metadata_xml(items: &[(&str, &str)]) -> String {
+    gdal_metadata_xml_with_bands(items, &[])
+}
+
+/// The GDAL_METADATA XML of dataset-level `items` and one description per band.
+pub(super) fn gdal_metadata_xml_with_bands(items: &[(&str, &str)], bands: &[String]) -> String {
     let mut xml = String::from("<GDALMetadata>\n");
     for (k, v) in items {
         xml.push_str(&format!(
             "  <Item name=\"{}\">{}</Item>\n",
             xml_escape(k),
             xml_escape(v)
+        ));
+    }
+    for (i, d) in bands.iter().enumerate() {
+        xml.push_str(&format!(
+            "  <Item name=\"DESCRIPTION\" sample=\"{i}\" role=\"description\">{}</Item>\n",
+            xml_escape(d)
         ));
     }
     xml.push_str("</GDALMetadata>");

@@ -1,0 +1,154 @@
+//! Unit tests of the line sweep's lattice, template and arc helpers.
+
+use super::arc::*;
+use super::samples::*;
+use super::*;
+
+#[test]
+fn small_angle_series_match_the_library() {
+    for i in -1000..=1000 {
+        let x = 0.3 * i as f64 / 1000.0;
+        // The series' first omitted term is x^25 / 25 (3.4e-15 at 0.3).
+        assert!((atan_small(x) - x.atan()).abs() < 4e-15, "{x}");
+        let y = 2.0 * x;
+        let (s, c) = sin_cos_small(y);
+        assert!(
+            (s - y.sin()).abs() < 1e-15 && (c - y.cos()).abs() < 1e-15,
+            "{y}"
+        );
+    }
+    assert_eq!(atan_small(2.0), 2f64.atan());
+}
+
+#[test]
+fn arc_tracker_matches_the_direct_formulas() {
+    let two_r_k0 = 2.0 * MOON_RADIUS_M;
+    let l_m = two_r_k0.hypot(200e3);
+    let geom = LineGeometry {
+        ell: (1.0, 0.0),
+        m_hat: (0.0, 1.0),
+        d_m: 200e3,
+        rho_c: two_r_k0 / l_m,
+        l_m,
+    };
+    let mut arc = ArcTracker::new(&geom);
+    let mut t = -450e3;
+    while t < 450e3 {
+        let (psi, s, c) = arc.at(t);
+        let exact = geom.rho_c * 2.0 * (t / l_m).atan();
+        assert!((psi - exact).abs() < 1e-15, "{t}");
+        assert!((s - exact.sin()).abs() < 1e-15 && (c - exact.cos()).abs() < 1e-15);
+        t += 137.0;
+    }
+}
+
+#[test]
+fn ext_gcd_solves_the_key_equation() {
+    for (d_row, d_col) in [(0, 1), (-1, 0), (-3, 5), (7, 2), (-12, 5), (1, 1)] {
+        let (g, a, b) = ext_gcd(d_row, -d_col);
+        assert_eq!(g.abs(), 1);
+        let (x0, y0) = (a * g, b * g);
+        assert_eq!(x0 * d_row - y0 * d_col, 1, "{d_row} {d_col}");
+    }
+}
+
+#[test]
+fn m_range_is_the_inside_range() {
+    for (a, b, n) in [
+        (3, 2, 10),
+        (3, -2, 10),
+        (-5, 3, 10),
+        (12, -3, 10),
+        (4, 0, 10),
+    ] {
+        let brute: Vec<i64> = (-50..50)
+            .filter(|m| (0..n).contains(&(a + m * b)))
+            .collect();
+        let (lo, hi) = m_range(a, b, n).unwrap();
+        if b == 0 {
+            assert!(!brute.is_empty());
+            continue;
+        }
+        assert_eq!((lo, hi), (*brute.first().unwrap(), *brute.last().unwrap()));
+    }
+}
+
+#[test]
+fn template_samples_are_on_the_line() {
+    let cols = 100;
+    for (d_row, d_col) in [(-5, 12), (3, 7), (0, 1), (-1, 0), (4, 1)] {
+        let t = step_template(d_row, d_col, cols);
+        let crossings = t.iter().filter(|e| e.crossing).count() as i64;
+        // The pixel centre plus the |dc| - 1 column and |dr| - 1 row crossings between.
+        assert_eq!(crossings, (d_row.abs() + d_col.abs() - 1).max(1));
+        assert_eq!(t.len() as i64, 2 * crossings);
+        for e in &t {
+            let (row, col) = (e.f * d_row as f64, e.f * d_col as f64);
+            if e.crossing {
+                let on_col = (col - col.round()).abs() < 1e-12;
+                let on_row = (row - row.round()).abs() < 1e-12;
+                assert!(on_col || on_row);
+            }
+            // The weighted cells reproduce the point (row, col) and stay in the step's box.
+            let (mut pr, mut pc, mut ws) = (0.0, 0.0, 0.0);
+            for k in 0..4 {
+                let (r, c) = (
+                    e.off[k].div_euclid(cols as isize),
+                    e.off[k].rem_euclid(cols as isize),
+                );
+                let (r, c) = if c > 50 { (r + 1, c - 100) } else { (r, c) };
+                assert!(r >= d_row.min(0) as isize && r <= d_row.max(0) as isize);
+                assert!(c >= d_col.min(0) as isize && c <= d_col.max(0) as isize);
+                pr += e.w[k] * r as f64;
+                pc += e.w[k] * c as f64;
+                ws += e.w[k];
+            }
+            assert!((ws - 1.0).abs() < 1e-12);
+            assert!(
+                (pr - row).abs() < 1e-12 && (pc - col).abs() < 1e-12,
+                "{e:?}"
+            );
+        }
+    }
+}
+
+#[test]
+fn directions_cover_the_requested_azimuths() {
+    let dirs = sweep_directions(720, 16, 240.0, 240.0);
+    assert!(dirs.len() > 300, "{}", dirs.len());
+    let worst = dirs.iter().map(|d| d.target_error_deg).fold(0.0, f64::max);
+    // Next to the axes the nearest step is (16, 1): 3.58 deg off, so up to half of that.
+    assert!(worst < 1.8, "{worst}");
+    for d in &dirs {
+        let az = grid_az_deg(d.dcol, d.dnorth, 240.0, 240.0);
+        assert!((az - d.grid_az_deg).abs() < 1e-12);
+    }
+}
+
+#[test]
+fn psi_is_the_arc_of_the_circle() {
+    // A line at distance d from the pole: compare ψ(t) with the arc between the unit vectors.
+    let proj = Projection::LOLA_SOUTH_POLAR;
+    let up = UnitProjector::new(&proj);
+    let Projection::PolarStereographic { k0, radius_m, .. } = proj else {
+        unreachable!()
+    };
+    let two_r_k0 = 2.0 * radius_m * k0;
+    for d_m in [0.0, 50e3, 250e3] {
+        let l_m = two_r_k0.hypot(d_m);
+        let geom = LineGeometry {
+            ell: (0.6, 0.8),
+            m_hat: (-0.8, 0.6),
+            d_m,
+            rho_c: two_r_k0 / l_m,
+            l_m,
+        };
+        let (ta, tb) = (-100e3, 350e3);
+        let (pa, pb) = (geom.point(ta), geom.point(tb));
+        let (ua, ub) = (up.unit_from_xy(pa.0, pa.1), up.unit_from_xy(pb.0, pb.1));
+        // Chord of the circle of radius ρc for the arc ψb − ψa.
+        let dpsi = geom.psi_rad(tb) - geom.psi_rad(ta);
+        let chord = 2.0 * geom.rho_c * (dpsi / (2.0 * geom.rho_c)).sin();
+        assert!(((ua - ub).norm() - chord).abs() < 1e-12, "d {d_m}");
+    }
+}

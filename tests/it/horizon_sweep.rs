@@ -1,0 +1,317 @@
+//! The whole-grid line sweep against the exact per-site scan (`HorizonEngine::horizon_toward`,
+//! a different algorithm: great-circle segments, every crossing plus the in-patch maxima, no
+//! hull), on a synthetic two-layer stack away from the pole and on the real LOLA grids.
+
+use penumbra::horizon::sweep::grid_convergence_deg;
+use penumbra::horizon::{HorizonEngine, HorizonMethod, HorizonParams, HorizonSweep, SweepParams};
+use penumbra::terrain::{Dem, TerrainStack};
+
+/// A polar-stereographic DEM of `n` x `n` cells of `px_m` centred on map point (`cx`, `cy`).
+fn dem(
+    name: &str,
+    n: usize,
+    px_m: f64,
+    cx: f64,
+    cy: f64,
+    f: impl Fn(f64, f64) -> f64 + Sync,
+) -> Dem {
+    penumbra::terrain::synth::square_dem_at(n, px_m, (cx, cy), name, f)
+}
+
+/// Craters, ridges and cell-scale roughness (km-scale relief, as at the pole).
+fn terrain(x: f64, y: f64) -> f64 {
+    let hash = ((x * 12.9898 + y * 78.233).sin() * 43758.5453).fract();
+    let r = ((x - 61_000.0).powi(2) + (y + 38_000.0).powi(2)).sqrt();
+    let crater = if r < 6_000.0 {
+        -900.0 * (1.0 - (r / 6_000.0).powi(2))
+    } else {
+        300.0 * (-(r - 6_000.0) / 2_000.0).exp()
+    };
+    800.0 * (x / 9_000.0).sin() * (y / 7_000.0).cos() + crater + 15.0 * hash
+}
+
+/// Percentile of sorted values.
+fn pct(sorted: &[f64], p: f64) -> f64 {
+    sorted[((sorted.len() - 1) as f64 * p).round() as usize]
+}
+
+/// Compares the sweep with the exact scan at `cells` pixels x every `band_stride`-th band.
+fn compare(
+    stack: &TerrainStack,
+    params: SweepParams,
+    cells: &[(usize, usize)],
+    band_stride: usize,
+) -> Vec<f64> {
+    let sweep = HorizonSweep::new(stack, params).unwrap();
+    let engine = HorizonEngine::new(stack);
+    let hp = HorizonParams {
+        observer_height_m: params.observer_height_m,
+        method: HorizonMethod::Exact,
+        ..HorizonParams::default()
+    };
+    let fine = &stack.layers[0];
+    let mut diffs = Vec::new();
+    for &(row, col) in cells {
+        let (x, y) = fine.grid.xy_from_row_col(row as f64, col as f64);
+        let (lat, lon) = fine.projection.lat_lon_from_xy(x, y);
+        let conv = grid_convergence_deg(fine, row as f64, col as f64);
+        for (i, d) in sweep.directions().iter().enumerate().step_by(band_stride) {
+            let (el, _) = sweep.pixel_horizon(row, col, i).unwrap();
+            let (el_exact, _) = engine
+                .horizon_toward(lat, lon, d.grid_az_deg + conv, &hp)
+                .unwrap();
+            if std::env::var("PENUMBRA_SWEEP_SHOW").is_ok() && (el - el_exact).abs() > 0.2 {
+                let (_, dist) = sweep.pixel_horizon(row, col, i).unwrap();
+                let (_, dist_exact) = engine
+                    .horizon_toward(lat, lon, d.grid_az_deg + conv, &hp)
+                    .unwrap();
+                println!(
+                    "  cell ({row}, {col}) step ({}, {}): sweep {el:.3}° at {:.1} km, exact {el_exact:.3}° at {:.1} km",
+                    d.dcol,
+                    d.dnorth,
+                    dist / 1e3,
+                    dist_exact / 1e3
+                );
+            }
+            diffs.push(el - el_exact);
+        }
+    }
+    diffs
+}
+
+fn summary(diffs: &[f64]) -> (f64, f64, f64, f64) {
+    let bias = diffs.iter().sum::<f64>() / diffs.len() as f64;
+    let mut abs: Vec<f64> = diffs.iter().map(|d| d.abs()).collect();
+    abs.sort_by(f64::total_cmp);
+    (pct(&abs, 0.5), pct(&abs, 0.99), *abs.last().unwrap(), bias)
+}
+
+#[test]
+fn sweep_matches_the_exact_scan_on_a_two_layer_stack() {
+    // 200² at 100 m centred 73 km from the pole, inside a 120² far field at 1 km.
+    let (cx, cy) = (60_000.0, -40_000.0);
+    let stack = TerrainStack::new(vec![
+        dem("fine", 200, 100.0, cx, cy, terrain),
+        dem("far", 120, 1_000.0, cx + 5_000.0, cy, terrain),
+    ]);
+    let params = SweepParams {
+        observer_height_m: 2.0,
+        azimuths: 72,
+        max_step: 8,
+    };
+    let cells = random_cells(150, 200, 200, 12345);
+    let diffs = compare(&stack, params, &cells, 1);
+    let (p50, p99, max, bias) = summary(&diffs);
+    println!(
+        "sweep - exact ({} pixel-azimuths): p50 {p50:.2e} p99 {p99:.2e} max {max:.2e} bias {bias:.2e} deg",
+        diffs.len()
+    );
+    assert!(p99 <= 0.02, "p99 {p99}");
+    assert!(bias.abs() <= 0.002, "bias {bias}");
+}
+
+/// Random cells of a `rows` x `cols` grid (a fixed LCG, so runs are comparable).
+fn random_cells(n: usize, rows: usize, cols: usize, seed: u64) -> Vec<(usize, usize)> {
+    let mut state = seed;
+    (0..n)
+        .map(|_| {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((state >> 33) as usize % rows, (state >> 13) as usize % cols)
+        })
+        .collect()
+}
+
+/// The real 240 m LOLA crop with its 1787 m far field: sweep vs exact per-site scan at random
+/// cells (`PENUMBRA_SWEEP_CELLS`, default 200) x every `PENUMBRA_SWEEP_BAND_STRIDE`-th band
+/// (default 24) of the default 720-azimuth, max-step-16 sweep. The full figure in
+/// docs/VALIDATION.md is this test at 2000 cells and stride 8.
+#[test]
+fn sweep_matches_the_exact_scan_on_real_lola_grids() {
+    let (Some(inner), Some(far)) = (
+        crate::util::shared_lola("ldem75s_crop_240m_pm184km.tif"),
+        crate::util::shared_lola("ldem75s_far_1787m_pm457km_feathered.tif"),
+    ) else {
+        return;
+    };
+    let stack = TerrainStack::load(&[inner, far]).unwrap();
+    let env = |k: &str, d: usize| {
+        std::env::var(k)
+            .ok()
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(d)
+    };
+    let n_cells = env("PENUMBRA_SWEEP_CELLS", 200);
+    let stride = env("PENUMBRA_SWEEP_BAND_STRIDE", 24);
+    let g = stack.layers[0].grid;
+    let cells = random_cells(n_cells, g.rows, g.cols, 7);
+    let diffs = compare(&stack, SweepParams::default(), &cells, stride);
+    let (p50, p99, max, bias) = summary(&diffs);
+    println!(
+        "LOLA 240 m + far field, sweep - exact ({} cells x {} bands = {} pixel-azimuths): p50 {p50:.2e} p99 {p99:.2e} max {max:.2e} bias {bias:.2e} deg",
+        cells.len(),
+        diffs.len() / cells.len(),
+        diffs.len()
+    );
+    assert!(p99 <= 0.02, "p99 {p99}");
+    assert!(bias.abs() <= 0.002, "bias {bias}");
+}
+
+/// `gdallocationinfo -valonly -b <band> <file> <col> <row>` as text, or `None` without GDAL.
+fn gdal_value(file: &std::path::Path, band: usize, row: usize, col: usize) -> Option<String> {
+    let out = std::process::Command::new("gdallocationinfo")
+        .args(["-valonly", "-b", &band.to_string()])
+        .arg(file)
+        .args([col.to_string(), row.to_string()])
+        .output()
+        .ok()?;
+    out.status
+        .success()
+        .then(|| String::from_utf8_lossy(&out.stdout).trim().to_string())
+}
+
+/// `penumbra horizon-map sweep` writes a multi-band GeoTIFF that GDAL reads: as many bands as
+/// directions, each described by its grid azimuth, the values those of the library's sweep at
+/// the same pixels (centi-degrees; distances in km as float16); bad input is one error line.
+#[test]
+fn cli_sweep_writes_a_gdal_readable_multiband_geotiff() {
+    let dir = tempfile::tempdir().unwrap();
+    let small = dem("small", 48, 100.0, 30_000.0, -20_000.0, terrain);
+    let dem_path = dir.path().join("small.tif");
+    penumbra::terrain::write_dem(&dem_path, &small, &[]).unwrap();
+    let dem_arg = dem_path.to_str().unwrap();
+    let out = crate::util::penumbra_ok(
+        dir.path(),
+        &[
+            "horizon-map",
+            "sweep",
+            "--dem",
+            dem_arg,
+            "--azimuths",
+            "16",
+            "--max-step",
+            "4",
+            "--out",
+            "hz.tif",
+            "--distance-out",
+            "dist.tif",
+        ],
+    );
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("M pixel-azimuths/s"), "{stderr}");
+    let stack = TerrainStack::new(vec![small]);
+    let sweep = HorizonSweep::new(
+        &stack,
+        SweepParams {
+            observer_height_m: penumbra::DEFAULT_OBSERVER_HEIGHT_M,
+            azimuths: 16,
+            max_step: 4,
+        },
+    )
+    .unwrap();
+    assert_eq!(sweep.directions().len(), 16);
+    let Some(info) = std::process::Command::new("gdalinfo")
+        .arg(dir.path().join("hz.tif"))
+        .output()
+        .ok()
+        .filter(|o| o.status.success())
+    else {
+        eprintln!("skipping the GDAL half: gdalinfo is not installed");
+        return;
+    };
+    let info = String::from_utf8_lossy(&info.stdout);
+    assert_eq!(info.matches("Band ").count(), 16, "{info}");
+    assert!(info.contains("Type=Int16"), "{info}");
+    assert!(info.contains("NoData Value=-32768"), "{info}");
+    let first = &sweep.directions()[3];
+    assert!(
+        info.contains(&format!("grid_az_deg={:.6}", first.grid_az_deg)),
+        "{info}"
+    );
+    for (row, col) in [(0, 0), (10, 37), (24, 24), (47, 5)] {
+        for band in [0, 3, 9, 15] {
+            let (el, dist) = sweep.pixel_horizon(row, col, band).unwrap();
+            let got = gdal_value(&dir.path().join("hz.tif"), band + 1, row, col).unwrap();
+            assert_eq!(
+                got,
+                format!("{}", (el * 100.0).round() as i64),
+                "{row},{col} b{band}"
+            );
+            let got_km: f64 = gdal_value(&dir.path().join("dist.tif"), band + 1, row, col)
+                .unwrap()
+                .parse()
+                .unwrap();
+            if dist.is_nan() {
+                assert!(got_km.is_nan());
+            } else {
+                assert!(
+                    (got_km - dist / 1000.0).abs() <= 1e-3 * dist / 1000.0 + 1e-4,
+                    "{got_km} {dist}"
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn cli_sweep_rejects_bad_input_without_leaving_files() {
+    let dir = tempfile::tempdir().unwrap();
+    for (args, needle) in [
+        (&["--max-step", "0"][..], "max step 0"),
+        (&["--azimuths", "2"][..], "2 azimuths"),
+        (&["--observer-height-m", "-1"][..], "observer height"),
+    ] {
+        let mut all = vec!["horizon-map", "sweep", "--synthetic", "--out", "hz.tif"];
+        all.extend_from_slice(args);
+        let out = crate::util::penumbra(dir.path(), &all);
+        crate::util::assert_clean_error(&out, needle);
+    }
+    assert!(crate::util::files_in(dir.path()).is_empty());
+}
+
+/// A flat DEM on the sphere: away from the edges every horizon is the dip of the geometric
+/// horizon, `−acos(R / (R + h))` (analytic, independent of the per-site scan).
+#[test]
+fn flat_sphere_gives_the_geometric_dip_everywhere() {
+    let h_obs = 2.0;
+    let stack = TerrainStack::new(vec![dem(
+        "flat",
+        120,
+        100.0,
+        -50_000.0,
+        80_000.0,
+        |_, _| 0.0,
+    )]);
+    let params = SweepParams {
+        observer_height_m: h_obs,
+        azimuths: 24,
+        max_step: 5,
+    };
+    let sweep = HorizonSweep::new(&stack, params).unwrap();
+    let r = penumbra::MOON_RADIUS_M;
+    let dip_deg = -(r / (r + h_obs)).acos().to_degrees();
+    let tangent_m = ((r + h_obs).powi(2) - r * r).sqrt();
+    let mut worst: f64 = 0.0;
+    let mut bands = 0;
+    sweep
+        .run(
+            |band| -> Result<(), ()> {
+                bands += 1;
+                for row in 40..80 {
+                    for col in 40..80 {
+                        let i = row * 120 + col;
+                        worst = worst.max((f64::from(band.elevation_deg[i]) - dip_deg).abs());
+                        let d = f64::from(band.distance_m[i]);
+                        assert!((d - tangent_m).abs() < 150.0, "distance {d} vs {tangent_m}");
+                    }
+                }
+                Ok(())
+            },
+            |_| {},
+        )
+        .unwrap();
+    println!("flat sphere: {bands} bands, worst |el - dip| {worst:.2e} deg (dip {dip_deg:.5} deg)");
+    assert_eq!(bands, sweep.directions().len());
+    assert!(worst < 1e-4, "{worst}");
+}
