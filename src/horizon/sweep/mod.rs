@@ -325,9 +325,13 @@ impl<'a> HorizonSweep<'a> {
         let (d_row, d_col) = (-canonical.1 as i64, canonical.0 as i64);
         let key = col as i64 * d_row - row as i64 * d_col;
         let mut scratch = Scratch::default();
-        let (f, b) = self.sweep_line(canonical, key, forward, !forward, &mut scratch);
+        let mut looks = Vec::new();
+        if forward {
+            self.sweep_line(canonical, key, &mut scratch, Some(&mut looks), None);
+        } else {
+            self.sweep_line(canonical, key, &mut scratch, None, Some(&mut looks));
+        }
         let px = (row * grid.cols + col) as u32;
-        let looks = if forward { f } else { b };
         looks
             .iter()
             .find(|l| l.0 == px)
@@ -384,9 +388,13 @@ impl<'a> HorizonSweep<'a> {
                 || (Scratch::default(), Vec::new(), Vec::new()),
                 |(mut scratch, mut f, mut b), i| {
                     let key = k0 + i as i64;
-                    let (lf, lb) = self.sweep_line(canonical, key, forward, backward, &mut scratch);
-                    f.extend_from_slice(&lf);
-                    b.extend_from_slice(&lb);
+                    self.sweep_line(
+                        canonical,
+                        key,
+                        &mut scratch,
+                        forward.then_some(&mut f),
+                        backward.then_some(&mut b),
+                    );
                     (scratch, f, b)
                 },
             )
@@ -401,28 +409,26 @@ impl<'a> HorizonSweep<'a> {
         (f, b)
     }
 
-    /// Sweeps one line (`key = col · d_row − row · d_col`) in one or both directions.
+    /// Sweeps one line (`key = col · d_row − row · d_col`), appending its looks forward and/or
+    /// backward to the given outputs.
     fn sweep_line(
         &self,
         canonical: (i32, i32),
         key: i64,
-        forward: bool,
-        backward: bool,
         scratch: &mut Scratch,
-    ) -> (Vec<Look>, Vec<Look>) {
+        forward: Option<&mut Vec<Look>>,
+        backward: Option<&mut Vec<Look>>,
+    ) {
         let Some(geom) = self.build_line(canonical, key, scratch) else {
-            return (Vec::new(), Vec::new());
+            return;
         };
         let theta_min_rad = 0.5 * self.grid_dem().px_m() / MOON_RADIUS_M;
-        let mut f = Vec::new();
-        let mut b = Vec::new();
-        if forward {
-            self.look(&geom, scratch, theta_min_rad, 1.0, &mut f);
+        if let Some(out) = forward {
+            self.look(&geom, scratch, theta_min_rad, 1.0, out);
         }
-        if backward {
-            self.look(&geom, scratch, theta_min_rad, -1.0, &mut b);
+        if let Some(out) = backward {
+            self.look(&geom, scratch, theta_min_rad, -1.0, out);
         }
-        (f, b)
     }
 
     /// Fills `scratch.samples` (sorted by `t`) and `scratch.observers` for one line; `None` when
