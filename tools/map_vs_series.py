@@ -98,6 +98,11 @@ def main():
     ap.add_argument("--seed", type=int, default=7)
     ap.add_argument("--extra-site", action="append", default=[],
                     help="NAME,LAT,LON: also compare the pixel containing this point")
+    ap.add_argument("--map-arg", action="append", default=[],
+                    help="an extra argument for `penumbra map` (repeat), e.g. --map-arg=--horizons=h.tif")
+    ap.add_argument("--series-limb", default="none",
+                    help="limb darkening of the series (and of the horizons engine's map): none "
+                         "(the per-epoch engines' uniform disc) or eddington")
     ap.add_argument("--workdir")
     args = ap.parse_args()
     work = args.workdir or tempfile.mkdtemp(prefix="map-vs-series-")
@@ -133,11 +138,12 @@ def main():
         lat, lon = lat_lon_of_pixel(gt, row, col)
         sites.append((f"p{k:03d}", row, col, lat, lon))
 
-    t_map = run([args.penumbra, "map", *terrain, *epochs, "--engine", args.engine,
-                 "--backend", "cpu", "--out-dir", os.path.join(work, "map")]).stderr
+    limb = ["--limb-darkening", args.series_limb] if args.engine == "horizons" else []
+    t_map = run([args.penumbra, "map", *terrain, *epochs, "--engine", args.engine, *limb,
+                 *args.map_arg, "--backend", "cpu", "--out-dir", os.path.join(work, "map")]).stderr
     site_args = sum((["--site", f"{n},{lat:.10f},{lon:.10f},2"] for n, _, _, lat, lon in sites), [])
     run([args.penumbra, "series", *terrain, *site_args, *epochs, "--no-plots",
-         "--limb-darkening", "none",
+         "--limb-darkening", args.series_limb,
          "--out-dir", os.path.join(work, "series")])
 
     def band(name):
@@ -148,6 +154,9 @@ def main():
     m_mean = band("sun_illumination_pct.tif") / 100.0
     m_earth = band("earth_visible_pct.tif")
     m_dark = band("longest_dark_h.tif")
+    has_extra = os.path.exists(os.path.join(work, "map", "sun_full_pct.tif"))
+    m_full = band("sun_full_pct.tif") if has_extra else None
+    m_ehid = band("longest_earth_hidden_h.tif") if has_extra else None
     step_h = None
     rows_out = []
     for name, row, col, lat, lon in sites:
@@ -159,17 +168,26 @@ def main():
         fe = np.array([float(r["earth_visible_fraction"]) for r in rd])
         vis = 100.0 * np.mean(fs > 1e-6)
         ev = 100.0 * np.mean(fe > 1e-6)
-        dark, run_len = 0, 0
-        for f_ in fs:
-            run_len = run_len + 1 if f_ <= 1e-6 else 0
-            dark = max(dark, run_len)
+        def longest(hidden):
+            best, run_len = 0, 0
+            for h in hidden:
+                run_len = run_len + 1 if h else 0
+                best = max(best, run_len)
+            return best
+        dark = longest(fs <= 1e-6)
+        ehid = longest(fe <= 1e-6)
+        full = 100.0 * np.mean(fs >= 0.999)
         rows_out.append(dict(site=name, row=int(row), col=int(col), lat=lat, lon=lon,
                              height_m=float(z[row, col]),
                              map_sun_pct=m_vis[row, col], series_sun_pct=vis,
                              map_mean=m_mean[row, col], series_mean=float(np.mean(fs)),
                              map_earth_pct=m_earth[row, col], series_earth_pct=ev,
                              map_dark_h=m_dark[row, col],
-                             series_dark_h=dark * step_h))
+                             series_dark_h=dark * step_h,
+                             map_full_pct=m_full[row, col] if has_extra else float("nan"),
+                             series_full_pct=full,
+                             map_earth_hidden_h=m_ehid[row, col] if has_extra else float("nan"),
+                             series_earth_hidden_h=ehid * step_h))
     d_sun = np.array([r["map_sun_pct"] - r["series_sun_pct"] for r in rows_out])
     d_mean = np.array([r["map_mean"] - r["series_mean"] for r in rows_out])
     d_earth = np.array([r["map_earth_pct"] - r["series_earth_pct"] for r in rows_out])
@@ -193,8 +211,20 @@ def main():
         longest_dark_h_abs_diff_max=float(np.max(np.abs(d_dark))),
         sites_dark_within_max_3h_2pct=int(np.sum(np.abs(d_dark) <= np.maximum(
             3.0, 0.02 * np.array([r["series_dark_h"] for r in rows_out])))),
+        sun_pct_mean_diff=float(np.mean(d_sun)),
+        mean_fraction_mean_diff=float(np.mean(d_mean)),
         workdir=work,
     )
+    if has_extra:
+        d_full = np.array([r["map_full_pct"] - r["series_full_pct"] for r in rows_out])
+        d_ehid = np.array([r["map_earth_hidden_h"] - r["series_earth_hidden_h"] for r in rows_out])
+        summary.update(
+            full_pct_abs_diff_max=float(np.max(np.abs(d_full))),
+            sites_full_pct_within_0_5pp=int(np.sum(np.abs(d_full) <= 0.5)),
+            earth_hidden_h_abs_diff_max=float(np.max(np.abs(d_ehid))),
+            sites_earth_hidden_within_max_3h_2pct=int(np.sum(np.abs(d_ehid) <= np.maximum(
+                3.0, 0.02 * np.array([r["series_earth_hidden_h"] for r in rows_out])))),
+        )
     print(json.dumps(summary, indent=1))
 
 

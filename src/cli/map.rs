@@ -39,6 +39,9 @@ pub enum EngineArg {
     /// Fourier-compressed horizon maps (paper 001): per-cell horizons at 64 azimuths, 16 complex
     /// DFT coefficients in f16, built once; each light is then a cheap evaluation.
     Fourier,
+    /// Epoch ranges only: exact whole-grid horizons (line sweep, every layer; or --horizons
+    /// FILE), then every epoch at every pixel with the pixel's own Sun and Earth directions.
+    Horizons,
     /// The best available: `combined`.
     Auto,
 }
@@ -53,6 +56,7 @@ impl From<EngineArg> for penumbra::map::MapEngineKind {
             EngineArg::Dp => MapEngineKind::Direct(Engine::Dp),
             EngineArg::Combined | EngineArg::Auto => MapEngineKind::Direct(Engine::Combined),
             EngineArg::Fourier => MapEngineKind::Fourier,
+            EngineArg::Horizons => MapEngineKind::Horizons,
         }
     }
 }
@@ -114,6 +118,23 @@ pub struct MapArgs {
     /// backend's own (`pixels` on the CPU, `cells` on the GPU, which has no other).
     #[arg(long, value_enum)]
     pub observers: Option<ObserversArg>,
+    /// `--engine horizons`: read the whole-grid horizons from this GeoTIFF (written by
+    /// `penumbra horizon-map sweep` for the same finest layer and observer height) instead of
+    /// sweeping them in memory.
+    #[arg(long, value_name = "FILE")]
+    pub horizons: Option<PathBuf>,
+    /// `--engine horizons` without --horizons: requested azimuths of the line sweep (uniform in
+    /// grid azimuth; each served by the nearest exact grid direction).
+    #[arg(long, default_value_t = penumbra::horizon::sweep::DEFAULT_SWEEP_AZIMUTHS as u32, value_parser = clap::value_parser!(u32).range(4..=100_000))]
+    pub azimuths: u32,
+    /// `--engine horizons` without --horizons: largest step component (cells) of a sweep
+    /// direction, 1 … 64; the work grows with it, the azimuth gaps near the grid axes shrink.
+    #[arg(long, default_value_t = penumbra::horizon::sweep::DEFAULT_MAX_STEP, value_parser = clap::value_parser!(u32).range(1..=64))]
+    pub max_step: u32,
+    /// `--engine horizons`: limb darkening of the Sun's disc in the mean visible fraction and
+    /// the irradiance (the per-epoch engines use a uniform disc).
+    #[arg(long, value_enum, default_value_t = super::series::LimbLawArg::Eddington)]
+    pub limb_darkening: super::series::LimbLawArg,
     /// Aberration correction: lt+s or none.
     #[arg(long, default_value = "lt+s")]
     pub abcorr: String,
@@ -162,6 +183,14 @@ pub fn run(args: &MapArgs) -> anyhow::Result<()> {
         backend: args.backend.into(),
         gpu_tile_cells: args.gpu_tile_cells,
         observers: args.observers.map(Into::into),
+        horizons: match &args.horizons {
+            Some(path) => penumbra::compute::sweep::HorizonsFrom::File(path.clone()),
+            None => penumbra::compute::sweep::HorizonsFrom::Sweep {
+                azimuths: args.azimuths as usize,
+                max_step: args.max_step,
+            },
+        },
+        limb: args.limb_darkening.into(),
         abcorr: super::abcorr(&args.abcorr)?,
         kernels: args.kernels.source(),
     })

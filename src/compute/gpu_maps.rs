@@ -61,6 +61,7 @@ pub fn sweep_gpu_soft(
         sun_and_earth_count: Some(stats.iter().map(|c| c.sun_and_earth_epochs).collect()),
         below_sphere: None,
         on_dem_grid: false,
+        extra: None,
     })
 }
 

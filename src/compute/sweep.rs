@@ -1,9 +1,255 @@
-//! A map sweep (statistics over epochs) on the resolved backend.
+//! Map statistics over an epoch range on the resolved backend: the per-epoch engines (a shadow
+//! map per epoch, CPU or GPU) or the horizons engine (whole-grid horizons once, then every epoch
+//! per pixel; CPU).
 
+use std::path::PathBuf;
+
+use anyhow::Context as _;
+use hifitime::Epoch;
+
+use crate::ephem::{self, AbCorr, Kernels};
+use crate::horizon::statistics::{
+    EpochBodies, HorizonFile, HorizonRows, InMemoryHorizons, StatisticsEngine, StatisticsParams,
+};
+use crate::horizon::{HorizonSweep, SweepParams};
 use crate::map::{MapEngine, MapEngineKind, ObserverPlacement, SweepStats};
-use crate::model::{EpochLights, MapGrid};
+use crate::model::{EpochLights, MapGrid, VISIBLE_MIN_FRACTION, epoch_lights};
+use crate::series::LimbLaw;
+use crate::terrain::TerrainStack;
 
 use super::ResolvedBackend;
+
+/// Where the horizons engine takes its whole-grid horizons.
+#[derive(Debug, Clone, PartialEq)]
+pub enum HorizonsFrom {
+    /// A horizon GeoTIFF written by `penumbra horizon-map sweep` for the same finest layer and
+    /// observer height.
+    File(PathBuf),
+    /// A line sweep run in memory ([`crate::horizon::sweep`]).
+    Sweep {
+        /// Requested azimuths.
+        azimuths: usize,
+        /// Largest step component of a direction.
+        max_step: u32,
+    },
+}
+
+impl Default for HorizonsFrom {
+    fn default() -> Self {
+        HorizonsFrom::Sweep {
+            azimuths: crate::horizon::sweep::DEFAULT_SWEEP_AZIMUTHS,
+            max_step: crate::horizon::sweep::DEFAULT_MAX_STEP,
+        }
+    }
+}
+
+/// What a map over an epoch range computes, besides its epochs.
+#[derive(Debug, Clone)]
+pub struct RangeMap {
+    /// The engine.
+    pub engine: MapEngineKind,
+    /// Observer height above the ground, metres.
+    pub observer_height_m: f64,
+    /// Where the per-epoch engines' rays start (CPU).
+    pub placement: ObserverPlacement,
+    /// GPU tiles of this many cells per side instead of the automatic choice.
+    pub gpu_tile_cells: Option<u32>,
+    /// The horizons of the horizons engine.
+    pub horizons: HorizonsFrom,
+    /// The Sun's limb darkening in the horizons engine's mean fraction (the per-epoch engines
+    /// use a uniform disc).
+    pub limb: LimbLaw,
+}
+
+/// The statistics of a range, what ran, and the model grid when the arrays are per model cell.
+pub struct RangeResult {
+    /// The statistics.
+    pub stats: SweepStats,
+    /// What ran, for provenance.
+    pub note: String,
+    /// The model grid of model-cell statistics (GPU sweeps), for writing them.
+    pub model: Option<MapGrid>,
+}
+
+/// The statistics of `epochs` (`step_h` hours apart) over `stack` with `map.engine` on
+/// `backend`.
+pub fn range_statistics(
+    backend: &ResolvedBackend,
+    stack: &TerrainStack,
+    map: &RangeMap,
+    kernels: &Kernels,
+    epochs: &[Epoch],
+    abcorr: AbCorr,
+    step_h: f64,
+) -> anyhow::Result<RangeResult> {
+    if map.engine == MapEngineKind::Horizons {
+        return horizon_statistics(backend, stack, map, kernels, epochs, abcorr, step_h);
+    }
+    let grid = MapGrid::new(stack)?;
+    eprintln!(
+        "penumbra: model grid {} x {} at {} m centred on ({:.4}, {:.4}) deg (every layer)",
+        grid.hf.rows, grid.hf.cols, grid.hf.px_m, grid.hf.centre_lat_deg, grid.hf.centre_lon_deg
+    );
+    grid.warn_if_clipped();
+    let lights = epoch_lights(&grid, kernels, epochs, abcorr)?;
+    let progress = crate::output::progress_bar(
+        lights.len(),
+        "{spinner} map sweep [{bar:30}] {pos}/{len} epochs (eta {eta})",
+    );
+    let (stats, note) = map_sweep(
+        backend,
+        &grid,
+        map.engine,
+        map.observer_height_m,
+        map.placement,
+        &lights,
+        step_h,
+        map.gpu_tile_cells,
+        &progress,
+    )?;
+    progress.finish_and_clear();
+    let model = (!stats.on_dem_grid).then_some(grid);
+    Ok(RangeResult { stats, note, model })
+}
+
+/// The horizons engine: whole-grid horizons (from a file or a sweep in memory), then every
+/// epoch per pixel ([`crate::horizon::statistics`]). CPU only.
+fn horizon_statistics(
+    backend: &ResolvedBackend,
+    stack: &TerrainStack,
+    map: &RangeMap,
+    kernels: &Kernels,
+    epochs: &[Epoch],
+    abcorr: AbCorr,
+    step_h: f64,
+) -> anyhow::Result<RangeResult> {
+    let fine = stack.layers.first().context("no DEM layer")?;
+    let engine = StatisticsEngine::new(
+        stack,
+        StatisticsParams {
+            limb: map.limb.law(),
+            visible_min_fraction: f64::from(VISIBLE_MIN_FRACTION),
+            full_min_fraction: crate::illum::stats::SUN_FULL_MIN_FRACTION,
+        },
+    )?;
+    let t0 = std::time::Instant::now();
+    let mut source: Box<dyn HorizonRows> = match &map.horizons {
+        HorizonsFrom::File(path) => {
+            let file = HorizonFile::open(path)?;
+            if file.projection() != fine.projection {
+                anyhow::bail!(
+                    "horizon map {}: its projection is not the finest layer's ({})",
+                    path.display(),
+                    fine.name
+                );
+            }
+            Box::new(file)
+        }
+        HorizonsFrom::Sweep { azimuths, max_step } => {
+            let sweep = HorizonSweep::new(
+                stack,
+                SweepParams {
+                    observer_height_m: map.observer_height_m,
+                    azimuths: *azimuths,
+                    max_step: *max_step,
+                },
+            )?;
+            let progress = crate::output::progress_bar(
+                sweep.directions().len(),
+                "penumbra: horizons [{bar:40}] {pos}/{len} directions, {elapsed} (eta {eta})",
+            );
+            let h = InMemoryHorizons::sweep(&sweep, |done| progress.set_position(done as u64));
+            progress.finish_and_clear();
+            eprintln!(
+                "penumbra: horizons of {} x {} px toward {} directions in {:.1} s ({:.0} MB)",
+                fine.grid.rows,
+                fine.grid.cols,
+                sweep.directions().len(),
+                t0.elapsed().as_secs_f64(),
+                h.bytes() as f64 / 1e6
+            );
+            Box::new(h)
+        }
+    };
+    engine.check_source(source.as_ref())?;
+    let h_file = source.observer_height_m();
+    if (h_file - map.observer_height_m).abs() > 1e-9 * (1.0 + h_file.abs()) {
+        anyhow::bail!(
+            "the horizons were computed for an observer {h_file} m above the ground, the map asks \
+             for {} m (give --observer-height-m {h_file} or recompute the horizons)",
+            map.observer_height_m
+        );
+    }
+    let bodies = epoch_bodies(fine, kernels, epochs, abcorr)?;
+    let t1 = std::time::Instant::now();
+    let progress = crate::output::progress_bar(
+        fine.grid.rows,
+        "penumbra: statistics [{bar:40}] {pos}/{len} rows, {elapsed} (eta {eta})",
+    );
+    let stats = engine.run(source.as_mut(), &bodies, |rows| {
+        progress.set_position(rows as u64)
+    })?;
+    progress.finish_and_clear();
+    let secs = t1.elapsed().as_secs_f64();
+    let cell_epochs = (fine.grid.rows * fine.grid.cols) as f64 * epochs.len() as f64;
+    eprintln!(
+        "penumbra: statistics of {} x {} px over {} epochs in {:.1} s ({:.0} M pixel-epochs/s)",
+        fine.grid.rows,
+        fine.grid.cols,
+        epochs.len(),
+        secs,
+        cell_epochs / secs.max(1e-9) / 1e6
+    );
+    let from = match &map.horizons {
+        HorizonsFrom::File(p) => format!("horizon map {}", p.display()),
+        HorizonsFrom::Sweep { azimuths, max_step } => format!(
+            "line sweep in memory ({azimuths} azimuths requested, max step {max_step})"
+        ),
+    };
+    let cpu_note = match backend {
+        ResolvedBackend::Cpu => "",
+        ResolvedBackend::Gpu(_) => " (the horizons engine has no GPU kernel yet)",
+    };
+    let note = format!(
+        "cpu{cpu_note}: horizons engine ({from}; {} limb darkening; each pixel's own Sun and \
+         Earth directions)",
+        map.limb.name()
+    );
+    Ok(RangeResult {
+        stats: SweepStats::from_horizons(stats, step_h, map.limb.name()),
+        note,
+        model: None,
+    })
+}
+
+/// The Sun and the Earth at every epoch, seen from the centre of `dem` (positions relative to
+/// the Moon's centre; the engine moves them to each pixel).
+pub fn epoch_bodies(
+    dem: &crate::terrain::Dem,
+    kernels: &Kernels,
+    epochs: &[Epoch],
+    abcorr: AbCorr,
+) -> anyhow::Result<Vec<EpochBodies>> {
+    let g = dem.grid;
+    let (cx, cy) = g.xy_from_row_col((g.rows as f64 - 1.0) / 2.0, (g.cols as f64 - 1.0) / 2.0);
+    let (lat, lon) = dem.projection.lat_lon_from_xy(cx, cy);
+    let site = ephem::Site::new(lat, lon, 0.0)?;
+    let sky = ephem::sun_earth_series(kernels, &[site], epochs, abcorr)?;
+    let at = |rel: nalgebra::Vector3<f64>| {
+        let p = site.pos_in_moon_me_km + rel;
+        [p.x, p.y, p.z]
+    };
+    Ok(sky[0]
+        .iter()
+        .map(|v| EpochBodies {
+            sun_in_moon_me_km: at(v.sun.pos_in_moon_me_km),
+            sun_range_km: v.sun.range_km,
+            sun_radius_deg: v.sun.radius_deg,
+            earth_in_moon_me_km: at(v.earth.pos_in_moon_me_km),
+            earth_radius_deg: v.earth.radius_deg,
+        })
+        .collect())
+}
 
 /// The statistics of `lights` (one entry per epoch, `step_h` hours apart) over `grid`, and a
 /// description of what ran for provenance. The CPU runs `engine` with rays from `placement`;

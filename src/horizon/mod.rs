@@ -38,6 +38,7 @@
 
 mod io;
 mod scan;
+pub mod statistics;
 pub mod sweep;
 
 pub use io::{write_csv, write_json};
@@ -113,6 +114,14 @@ pub enum HorizonError {
     SweepUnsupported {
         /// What is unsupported.
         reason: String,
+    },
+    /// A horizon GeoTIFF cannot be used.
+    #[error("horizon map {path}: {detail}")]
+    BadHorizonFile {
+        /// The file.
+        path: String,
+        /// What is wrong.
+        detail: String,
     },
     /// The fast method's tolerance is negative or not finite.
     #[error("fast-method tolerance {tolerance_deg} deg must be a finite number >= 0")]

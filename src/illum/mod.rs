@@ -14,7 +14,9 @@ pub mod irradiance;
 pub mod plot;
 pub mod stats;
 
-pub use disc::{Disc, DiscMethod, HorizonProfile, LimbDarkening, visible_fraction};
+pub use disc::{
+    Disc, DiscMethod, HorizonProfile, LimbDarkening, chord_visible_fraction, visible_fraction,
+};
 
 /// Errors of the illumination subsystem.
 #[derive(Debug, thiserror::Error)]

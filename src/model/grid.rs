@@ -365,29 +365,39 @@ impl MapGrid {
 
     /// Writes an f32 raster on the output grid (NaN = nodata) with provenance metadata.
     pub fn write_f32(&self, path: &Path, values: &[f32], what: &str) -> anyhow::Result<()> {
-        crate::terrain::write_geotiff_f32(
-            path,
-            &self.dem.grid,
-            &self.dem.projection,
-            values,
-            Some(f32::NAN),
-            &metadata(what),
-        )
-        .with_context(|| format!("writing {}", path.display()))
+        write_f32_on(&self.dem, path, values, what)
     }
 
     /// Writes a u8 raster on the output grid (255 = nodata) with provenance metadata.
     pub fn write_u8(&self, path: &Path, values: &[u8], what: &str) -> anyhow::Result<()> {
-        crate::terrain::write_geotiff_u8(
-            path,
-            &self.dem.grid,
-            &self.dem.projection,
-            values,
-            Some(MASK_NODATA),
-            &metadata(what),
-        )
-        .with_context(|| format!("writing {}", path.display()))
+        write_u8_on(&self.dem, path, values, what)
     }
+}
+
+/// Writes an f32 raster on `dem`'s grid (NaN = nodata) with provenance metadata.
+pub fn write_f32_on(dem: &Dem, path: &Path, values: &[f32], what: &str) -> anyhow::Result<()> {
+    crate::terrain::write_geotiff_f32(
+        path,
+        &dem.grid,
+        &dem.projection,
+        values,
+        Some(f32::NAN),
+        &metadata(what),
+    )
+    .with_context(|| format!("writing {}", path.display()))
+}
+
+/// Writes a u8 raster on `dem`'s grid (255 = nodata) with provenance metadata.
+pub fn write_u8_on(dem: &Dem, path: &Path, values: &[u8], what: &str) -> anyhow::Result<()> {
+    crate::terrain::write_geotiff_u8(
+        path,
+        &dem.grid,
+        &dem.projection,
+        values,
+        Some(MASK_NODATA),
+        &metadata(what),
+    )
+    .with_context(|| format!("writing {}", path.display()))
 }
 
 /// The value of the cell nearest to fractional (row, col) among the 4 x 4 cells around it for

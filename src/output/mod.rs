@@ -246,6 +246,18 @@ impl Default for Provenance {
     }
 }
 
+/// A progress bar of `len` steps with `template` (indicatif syntax; drawn on stderr when it is a
+/// terminal).
+pub fn progress_bar(len: usize, template: &str) -> indicatif::ProgressBar {
+    let progress = indicatif::ProgressBar::new(len as u64);
+    progress.set_style(
+        indicatif::ProgressStyle::with_template(template)
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
+            .progress_chars("=> "),
+    );
+    progress
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

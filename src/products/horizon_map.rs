@@ -72,8 +72,7 @@ pub struct HorizonSweepRequest {
     pub distance_out: Option<PathBuf>,
 }
 
-/// Nodata of the int16 horizon bands.
-pub const HORIZON_NODATA_I16: i16 = i16::MIN;
+pub use crate::horizon::statistics::HORIZON_NODATA_I16;
 
 /// Runs the sweep and streams the bands into the GeoTIFF(s) (written atomically).
 pub fn sweep(req: &HorizonSweepRequest) -> anyhow::Result<()> {
@@ -93,7 +92,7 @@ pub fn sweep(req: &HorizonSweepRequest) -> anyhow::Result<()> {
         .iter()
         .map(|d| {
             format!(
-                "grid_az_deg={:.6} step=({},{})",
+                "grid_az_deg={} step=({},{})",
                 d.grid_az_deg, d.dcol, d.dnorth
             )
         })
@@ -104,7 +103,7 @@ pub fn sweep(req: &HorizonSweepRequest) -> anyhow::Result<()> {
     let ms = format!("{}", req.max_step);
     let metadata = [
         ("penumbra_version", version),
-        ("penumbra_product", "horizon elevation (line sweep)"),
+        ("penumbra_product", crate::horizon::statistics::HORIZON_PRODUCT),
         ("units", "centi-degrees above the local horizontal"),
         (
             "azimuth_convention",
@@ -151,13 +150,7 @@ pub fn sweep(req: &HorizonSweepRequest) -> anyhow::Result<()> {
             let words: Vec<u16> = band
                 .elevation_deg
                 .iter()
-                .map(|&e| {
-                    if e.is_nan() {
-                        HORIZON_NODATA_I16 as u16
-                    } else {
-                        (e * 100.0).round().clamp(-9000.0, 9000.0) as i16 as u16
-                    }
-                })
+                .map(|&e| crate::horizon::statistics::horizon_centideg(e) as u16)
                 .collect();
             el_tif.write_band(band.index, &words)?;
             if let Some(t) = dist_tif.as_mut() {

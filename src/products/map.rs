@@ -41,6 +41,10 @@ pub struct MapRequest {
     pub gpu_tile_cells: Option<u32>,
     /// Where the rays start; `None` for the backend's own (pixels on the CPU, cells on the GPU).
     pub observers: Option<ObserverPlacement>,
+    /// Epoch ranges with `--engine horizons`: where the whole-grid horizons come from.
+    pub horizons: crate::compute::sweep::HorizonsFrom,
+    /// Epoch ranges with `--engine horizons`: the Sun's limb darkening in its mean fraction.
+    pub limb: crate::series::LimbLaw,
     /// Aberration correction.
     pub abcorr: AbCorr,
     /// The kernels.
@@ -51,6 +55,14 @@ pub struct MapRequest {
 pub fn run(req: &MapRequest) -> anyhow::Result<()> {
     use crate::map::write_sweep;
     use crate::model::{MapGrid, epoch_lights};
+    if req.engine == MapEngineKind::Horizons
+        && !req.epochs.is_some_and(|e| e.is_range())
+    {
+        anyhow::bail!(
+            "--engine horizons makes statistics over an epoch range (--start/--stop/--step); \
+             for one light use brute, smap, dp, combined or fourier"
+        );
+    }
     let t0 = std::time::Instant::now();
     if !(req.observer_height_m >= 0.0 && req.observer_height_m.is_finite()) {
         anyhow::bail!(
@@ -95,35 +107,28 @@ pub fn run(req: &MapRequest) -> anyhow::Result<()> {
         Some(k)
     };
     let (stack, dem_layers) = req.terrain.load()?;
-    let grid = MapGrid::new(&stack)?;
-    eprintln!(
-        "penumbra: model grid {} x {} at {} m centred on ({:.4}, {:.4}) deg (every layer)",
-        grid.hf.rows, grid.hf.cols, grid.hf.px_m, grid.hf.centre_lat_deg, grid.hf.centre_lon_deg
-    );
-    grid.warn_if_clipped();
 
     if range {
         let (Some(kernels), Some(out_dir)) = (&kernels, &req.out_dir) else {
             anyhow::bail!("an epoch range needs kernels and --out-dir");
         };
         let step_h = req.epochs.map_or(3600.0, |e| e.step_s()) / 3600.0;
-        let lights = epoch_lights(&grid, kernels, &epochs, abcorr)?;
-        let progress = super::progress_bar(
-            lights.len(),
-            "{spinner} map sweep [{bar:30}] {pos}/{len} epochs (eta {eta})",
-        );
-        let (stats, backend_note) = crate::compute::sweep::map_sweep(
+        let result = crate::compute::sweep::range_statistics(
             &backend,
-            &grid,
-            engine_kind,
-            req.observer_height_m,
-            placement,
-            &lights,
+            &stack,
+            &crate::compute::sweep::RangeMap {
+                engine: engine_kind,
+                observer_height_m: req.observer_height_m,
+                placement,
+                gpu_tile_cells: req.gpu_tile_cells,
+                horizons: req.horizons.clone(),
+                limb: req.limb,
+            },
+            kernels,
+            &epochs,
+            abcorr,
             step_h,
-            req.gpu_tile_cells,
-            &progress,
         )?;
-        progress.finish_and_clear();
         std::fs::create_dir_all(out_dir)
             .with_context(|| format!("creating output folder {}", out_dir.display()))?;
         let span = format!(
@@ -132,16 +137,27 @@ pub fn run(req: &MapRequest) -> anyhow::Result<()> {
             format_utc(*epochs.last().unwrap_or(&epochs[0])),
             epochs.len()
         );
-        let files = write_sweep(&grid, &stats, out_dir, &span)?;
+        let files = write_sweep(
+            &stack.layers[0],
+            result.model.as_ref(),
+            &result.stats,
+            out_dir,
+            &span,
+        )?;
         let mut prov = crate::output::Provenance::new();
         prov.kernels = kernels.files.clone();
         prov.dem_layers = dem_layers;
         prov.dem_files = req.terrain.dem_files()?;
+        if let crate::compute::sweep::HorizonsFrom::File(path) = &req.horizons
+            && engine_kind == MapEngineKind::Horizons
+        {
+            prov.dem_files.push(crate::output::InputFile::of(path)?);
+        }
         prov.set_epochs(&epochs);
         prov.outputs = files;
-        prov.backend = backend_note;
-        prov.map_rays_blocked_beyond_dem = stats.below_sphere;
-        if let Some(b) = stats.below_sphere {
+        prov.backend = result.note;
+        prov.map_rays_blocked_beyond_dem = result.stats.below_sphere;
+        if let Some(b) = result.stats.below_sphere {
             b.warn();
         }
         prov.wall_time_s = t0.elapsed().as_secs_f64();
@@ -154,6 +170,13 @@ pub fn run(req: &MapRequest) -> anyhow::Result<()> {
         );
         return Ok(());
     }
+
+    let grid = MapGrid::new(&stack)?;
+    eprintln!(
+        "penumbra: model grid {} x {} at {} m centred on ({:.4}, {:.4}) deg (every layer)",
+        grid.hf.rows, grid.hf.cols, grid.hf.px_m, grid.hf.centre_lat_deg, grid.hf.centre_lon_deg
+    );
+    grid.warn_if_clipped();
 
     // One light.
     let (sun, sun_radius_rad, earth) = match (&kernels, explicit_dir, req.sun_az_el_deg) {

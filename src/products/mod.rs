@@ -207,13 +207,4 @@ pub fn write_output(
     }
 }
 
-/// A progress bar of `len` steps with `template` (indicatif syntax), hidden when `len` is 0.
-pub(crate) fn progress_bar(len: usize, template: &str) -> indicatif::ProgressBar {
-    let progress = indicatif::ProgressBar::new(len as u64);
-    progress.set_style(
-        indicatif::ProgressStyle::with_template(template)
-            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
-            .progress_chars("=> "),
-    );
-    progress
-}
+pub(crate) use crate::output::progress_bar;

@@ -90,9 +90,24 @@ pub struct MapSpec {
     /// Observer height above the ground, metres (default 2).
     #[serde(default = "default_height_above_ground_m")]
     pub observer_height_m: f64,
-    /// Shadow engine: `brute`, `smap`, `dp`, `combined` (default) or `fourier`.
+    /// Shadow engine: `brute`, `smap`, `dp`, `combined` (default), `fourier`, or `horizons`
+    /// (whole-grid horizons once, then every epoch per pixel: docs/horizon.md).
     #[serde(default = "default_engine")]
     pub engine: String,
+    /// `engine = "horizons"`: requested azimuths of the line sweep (default 720).
+    #[serde(default = "default_sweep_azimuths")]
+    pub azimuths: usize,
+    /// `engine = "horizons"`: largest step component of a sweep direction (default 16).
+    #[serde(default = "default_sweep_max_step")]
+    pub max_step: u32,
+    /// `engine = "horizons"`: a horizon GeoTIFF from `penumbra horizon-map sweep` (relative to
+    /// this file) instead of a sweep in memory.
+    #[serde(default)]
+    pub horizons_file: Option<PathBuf>,
+    /// `engine = "horizons"`: the Sun's limb darkening in the mean fraction (`none`,
+    /// `eddington` (default) or `allen550nm`).
+    #[serde(default)]
+    pub limb_darkening: crate::series::LimbLaw,
     /// Where the sweep runs: `cpu`, `gpu` or `auto` (default: the GPU when an adapter exists,
     /// else the CPU with one warning line). The GPU sweep is DP soft shadows whatever `engine`
     /// says (docs/gpu.md).
@@ -111,6 +126,14 @@ fn parse_map_backend(name: &str) -> Option<crate::gpu::Backend> {
 
 fn default_engine() -> String {
     "combined".into()
+}
+
+fn default_sweep_azimuths() -> usize {
+    crate::horizon::sweep::DEFAULT_SWEEP_AZIMUTHS
+}
+
+fn default_sweep_max_step() -> u32 {
+    crate::horizon::sweep::DEFAULT_MAX_STEP
 }
 
 /// The terrain of a scenario.
@@ -247,7 +270,7 @@ impl Scenario {
             && crate::map::MapEngineKind::parse(&m.engine).is_none()
         {
             return Err(invalid(format!(
-                "[map] engine '{}': use brute, smap, dp, combined or fourier",
+                "[map] engine '{}': use brute, smap, dp, combined, fourier or horizons",
                 m.engine
             )));
         }

@@ -126,6 +126,7 @@ pub fn run_file(args: &RunRequest) -> anyhow::Result<()> {
             start,
             stop,
             scenario.abcorr,
+            &base,
             &out_dir,
         )?;
         prov.map_rays_blocked_beyond_dem = below;
@@ -243,7 +244,11 @@ fn load_terrain(
     Ok(stack)
 }
 
-/// Runs a scenario's `[map]`: the sweep statistics over the scenario's span at the map's step.
+/// Runs a scenario's `[map]`: the statistics over the scenario's span at the map's step.
+#[allow(
+    clippy::too_many_arguments,
+    reason = "one call site; the scenario's parts"
+)]
 fn run_map_spec(
     spec: &MapSpec,
     stack: &crate::terrain::TerrainStack,
@@ -251,6 +256,7 @@ fn run_map_spec(
     start: hifitime::Epoch,
     stop: hifitime::Epoch,
     abcorr: AbCorr,
+    base: &Path,
     out_dir: &Path,
 ) -> anyhow::Result<(Vec<String>, Option<crate::output::BelowSphereExits>, String)> {
     let step = ephem::time::parse_step(&spec.step).context("[map] step")?;
@@ -261,23 +267,30 @@ fn run_map_spec(
         .with_context(|| format!("[map] backend '{}'", spec.backend))?;
     let backend = crate::gpu::resolve_backend(requested)
         .with_context(|| format!("[map] backend '{}'", spec.backend))?;
-    let grid = crate::model::MapGrid::new(stack)?;
-    grid.warn_if_clipped();
-    let lights = crate::model::epoch_lights(&grid, kernels, &epochs, abcorr)?;
-    let step_h = step.to_seconds() / 3600.0;
-    let progress = indicatif::ProgressBar::new(lights.len() as u64);
-    let (stats, note) = crate::compute::sweep::map_sweep(
+    let horizons = match &spec.horizons_file {
+        Some(p) => crate::compute::sweep::HorizonsFrom::File(base.join(p)),
+        None => crate::compute::sweep::HorizonsFrom::Sweep {
+            azimuths: spec.azimuths,
+            max_step: spec.max_step,
+        },
+    };
+    let result = crate::compute::sweep::range_statistics(
         &backend,
-        &grid,
-        kind,
-        spec.observer_height_m,
-        crate::map::ObserverPlacement::Pixels,
-        &lights,
-        step_h,
-        None,
-        &progress,
-    )?;
-    progress.finish_and_clear();
+        stack,
+        &crate::compute::sweep::RangeMap {
+            engine: kind,
+            observer_height_m: spec.observer_height_m,
+            placement: crate::map::ObserverPlacement::Pixels,
+            gpu_tile_cells: None,
+            horizons,
+            limb: spec.limb_darkening,
+        },
+        kernels,
+        &epochs,
+        abcorr,
+        step.to_seconds() / 3600.0,
+    )
+    .context("[map]")?;
     let dir = out_dir.join("map");
     std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
     let span = format!(
@@ -287,9 +300,11 @@ fn run_map_spec(
         epochs.len(),
         spec.step
     );
-    let files = crate::map::write_sweep(&grid, &stats, &dir, &span)?;
+    let stats = &result.stats;
+    let files =
+        crate::map::write_sweep(&stack.layers[0], result.model.as_ref(), stats, &dir, &span)?;
     if let Some(b) = stats.below_sphere {
         b.warn();
     }
-    Ok((files, stats.below_sphere, note))
+    Ok((files, stats.below_sphere, result.note))
 }

@@ -43,6 +43,15 @@ impl LimbLaw {
             LimbLaw::Allen550nm => LimbDarkening::ALLEN_550NM,
         }
     }
+
+    /// The name used on the command line and in scenarios.
+    pub fn name(self) -> &'static str {
+        match self {
+            LimbLaw::None => "none",
+            LimbLaw::Eddington => "eddington",
+            LimbLaw::Allen550nm => "allen550nm",
+        }
+    }
 }
 
 /// Which engine computes the per-site visible fractions (`--engine`, scenario `[series] engine`).

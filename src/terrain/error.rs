@@ -90,6 +90,14 @@ pub enum DemError {
         /// East longitude, degrees.
         lon_deg: f64,
     },
+    /// A multi-band file is not laid out as penumbra writes them.
+    #[error("{path}: {detail}: not a penumbra multi-band file (write one with `penumbra horizon-map sweep`)")]
+    NotPenumbraMultiBand {
+        /// The file.
+        path: String,
+        /// What differs.
+        detail: String,
+    },
     /// An argument (grid size, pixel size, data length) is invalid.
     #[error("invalid terrain parameter: {0}")]
     InvalidParameter(String),

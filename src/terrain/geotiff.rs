@@ -745,10 +745,12 @@ fn parse_nodata(s: &str) -> Option<f64> {
 }
 
 mod bands;
+mod bands_read;
 mod gdal_metadata;
 mod write;
 
 pub use bands::{BandSample, MultiBandTiff};
+pub use bands_read::MultiBandTiffReader;
 
 use gdal_metadata::*;
 pub use write::{write_dem, write_geotiff_f32, write_geotiff_u8, write_geotiff_u16};

@@ -12,6 +12,7 @@ mod horizon;
 mod horizon_sweep;
 mod illum;
 mod map;
+mod map_horizons;
 mod render;
 mod render_cpu;
 mod render_gpu;

@@ -273,6 +273,11 @@ impl<'a> HorizonSweep<'a> {
         })
     }
 
+    /// The parameters.
+    pub fn params(&self) -> SweepParams {
+        self.params
+    }
+
     /// The bands, sorted by grid azimuth.
     pub fn directions(&self) -> &[SweepDirection] {
         &self.directions

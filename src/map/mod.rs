@@ -16,16 +16,17 @@
 //!
 //! The grid itself, with every layer, is [`crate::model::MapGrid`]; the CPU|GPU switch of maps
 //! and sweeps is [`crate::compute`]. This module holds the CPU map engines, the CPU sweep and
-//! the writers of a sweep's statistics.
+//! the writers of a sweep's statistics (`write.rs`).
 
-use std::path::Path;
+mod write;
+
+pub use write::write_sweep;
 
 use rayon::prelude::*;
 
-use crate::illum::plot::{MapLegend, write_map_preview};
 use crate::model::{BelowSphereTally, EpochLights, MapGrid, VISIBLE_MIN_FRACTION};
 use crate::output::BelowSphereExits;
-use crate::shadow::{Engine, MASK_NODATA, Observer};
+use crate::shadow::{Engine, Observer};
 use crate::terrain::HeightField;
 
 /// Per-cell statistics of an epoch sweep, on the model grid.
@@ -49,9 +50,56 @@ pub struct SweepStats {
     /// Sun-lit results resting on rays that leave the DEM below the reference sphere (counted
     /// by the CPU sweep; `None` on the GPU).
     pub below_sphere: Option<BelowSphereExits>,
-    /// Whether the arrays are per DEM pixel (the CPU sweep, from the pixels' own observers)
-    /// rather than per model cell (the GPU sweeps).
+    /// Whether the arrays are per DEM pixel (the CPU sweep, from the pixels' own observers, and
+    /// the horizons engine) rather than per model cell (the GPU sweeps).
     pub on_dem_grid: bool,
+    /// Statistics only the horizons engine computes (`None` for the per-epoch engines).
+    pub extra: Option<HorizonExtras>,
+}
+
+/// The statistics the horizons engine adds to a sweep's (per DEM pixel).
+#[derive(Debug, Clone)]
+pub struct HorizonExtras {
+    /// Epochs with the Sun fully visible.
+    pub sun_full_count: Vec<u32>,
+    /// Longest run of consecutive epochs with the Earth entirely hidden.
+    pub longest_earth_hidden_epochs: Vec<u32>,
+    /// Time-mean irradiance on a level surface, W/m².
+    pub irradiance_horizontal_mean_w_m2: Vec<f32>,
+    /// Time-mean irradiance on a vertical panel turned to the Sun's azimuth, W/m².
+    pub irradiance_tracking_mean_w_m2: Vec<f32>,
+    /// Limb-darkening law of the Sun's mean fraction, for the file descriptions.
+    pub limb_law: String,
+}
+
+impl SweepStats {
+    /// A sweep's statistics from the horizons engine's (`step_h` hours apart).
+    pub fn from_horizons(
+        h: crate::horizon::statistics::HorizonStatistics,
+        step_h: f64,
+        limb_law: &str,
+    ) -> Self {
+        let n = h.epochs.max(1) as f64;
+        let mean = |v: &[f64]| v.iter().map(|&x| (x / n) as f32).collect::<Vec<f32>>();
+        SweepStats {
+            epochs: h.epochs,
+            step_h,
+            extra: Some(HorizonExtras {
+                sun_full_count: h.sun_full_count,
+                longest_earth_hidden_epochs: h.longest_earth_hidden_epochs,
+                irradiance_horizontal_mean_w_m2: mean(&h.irradiance_horizontal_sum_w_m2),
+                irradiance_tracking_mean_w_m2: mean(&h.irradiance_tracking_sum_w_m2),
+                limb_law: limb_law.to_string(),
+            }),
+            sun_fraction_sum: h.sun_fraction_sum,
+            sun_visible_count: h.sun_visible_count,
+            longest_dark_epochs: h.longest_dark_epochs,
+            earth_visible_count: h.earth_visible_count,
+            sun_and_earth_count: Some(h.sun_and_earth_count),
+            below_sphere: Some(h.below_sphere),
+            on_dem_grid: true,
+        }
+    }
 }
 
 /// Where a map's rays start.
@@ -80,6 +128,9 @@ pub enum MapEngineKind {
     Direct(Engine),
     /// A Fourier-compressed horizon map built once for the grid ([`crate::shadow::fourier`]).
     Fourier,
+    /// Statistics over an epoch range from exact whole-grid horizons
+    /// ([`crate::horizon::statistics`]); epoch ranges only.
+    Horizons,
 }
 
 impl MapEngineKind {
@@ -91,6 +142,7 @@ impl MapEngineKind {
             "dp" => MapEngineKind::Direct(Engine::Dp),
             "combined" => MapEngineKind::Direct(Engine::Combined),
             "fourier" => MapEngineKind::Fourier,
+            "horizons" => MapEngineKind::Horizons,
             _ => return None,
         })
     }
@@ -123,6 +175,10 @@ impl MapEngine {
                     max_cells,
                 )?))
             }
+            MapEngineKind::Horizons => anyhow::bail!(
+                "--engine horizons makes statistics over an epoch range (--start/--stop/--step); \
+                 for one light use brute, smap, dp, combined or fourier"
+            ),
         })
     }
 
@@ -257,6 +313,7 @@ pub fn sweep(
         sun_and_earth_count: None,
         below_sphere: None,
         on_dem_grid,
+        extra: None,
     };
     let mut sun_and_earth_count = vec![0_u32; n];
     let mut current_dark = vec![0_u32; n];
@@ -315,174 +372,4 @@ pub fn sweep(
     s.sun_and_earth_count = Some(sun_and_earth_count);
     s.below_sphere = on_dem_grid.then(|| below.finish());
     Ok(s)
-}
-
-/// Writes the statistics of a sweep as GeoTIFFs and PNG previews into `out_dir`; returns the file
-/// names.
-pub fn write_sweep(
-    grid: &MapGrid,
-    s: &SweepStats,
-    out_dir: &Path,
-    span: &str,
-) -> anyhow::Result<Vec<String>> {
-    let n_epochs = s.epochs.max(1) as f64;
-    let pct = |count: &[u32]| -> Vec<f32> {
-        count
-            .iter()
-            .map(|&c| (100.0 * f64::from(c) / n_epochs) as f32)
-            .collect()
-    };
-    // Nodata of the arrays' own grid: the DEM's pixels or the model cells (see `on_dem_grid`).
-    let nodata_model: Vec<bool> = if s.on_dem_grid {
-        grid.dem.heights_m.iter().map(|z| z.is_nan()).collect()
-    } else {
-        grid.hf.z_m.iter().map(|z| z.is_nan()).collect()
-    };
-    let mask_nodata = |v: Vec<f32>| -> Vec<f32> {
-        v.into_iter()
-            .zip(&nodata_model)
-            .map(|(x, &nd)| if nd { f32::NAN } else { x })
-            .collect()
-    };
-    let sun_mean_pct = mask_nodata(
-        s.sun_fraction_sum
-            .iter()
-            .map(|&x| (100.0 * x / n_epochs) as f32)
-            .collect(),
-    );
-    let longest_dark_h = mask_nodata(
-        s.longest_dark_epochs
-            .iter()
-            .map(|&k| (f64::from(k) * s.step_h) as f32)
-            .collect(),
-    );
-    let earth_pct = mask_nodata(pct(&s.earth_visible_count));
-    let sun_visible_pct = mask_nodata(pct(&s.sun_visible_count));
-    let both_what = if s.sun_and_earth_count.is_some() {
-        "Sun and Earth both (partly) visible, % of time"
-    } else {
-        "Sun and Earth both visible, % of time: not computed by the GPU sweep (all NaN)"
-    };
-    let both_pct = match &s.sun_and_earth_count {
-        Some(count) => mask_nodata(pct(count)),
-        None => vec![f32::NAN; nodata_model.len()],
-    };
-    let psr: Vec<u8> = s
-        .sun_visible_count
-        .iter()
-        .zip(&nodata_model)
-        .map(|(&c, &nd)| if nd { MASK_NODATA } else { u8::from(c == 0) })
-        .collect();
-
-    let mut files = Vec::new();
-    let (rows, cols) = (grid.dem.grid.rows, grid.dem.grid.cols);
-    let span_h = n_epochs * s.step_h;
-    let continuous: [(&str, &str, Vec<f32>, f64, String); 5] = [
-        (
-            "sun_illumination_pct",
-            "average Sun illumination (time-mean visible fraction of the disc), %",
-            sun_mean_pct,
-            100.0,
-            "% of time (disc-weighted)".into(),
-        ),
-        (
-            "sun_visible_pct",
-            "Sun visible (any part of the disc), % of time",
-            sun_visible_pct,
-            100.0,
-            "% of time".into(),
-        ),
-        (
-            "longest_dark_h",
-            "longest continuous darkness (Sun entirely hidden), hours",
-            longest_dark_h,
-            span_h,
-            "hours".into(),
-        ),
-        (
-            "earth_visible_pct",
-            "Earth visible (any part of the disc), % of time",
-            earth_pct,
-            100.0,
-            "% of time".into(),
-        ),
-        (
-            "sun_and_earth_pct",
-            both_what,
-            both_pct,
-            100.0,
-            "% of time".into(),
-        ),
-    ];
-    for (name, what, model, max, unit) in continuous {
-        let out = if s.on_dem_grid {
-            model
-        } else {
-            grid.to_output_f32(&model)
-        };
-        // Colour bar up to the data's maximum, rounded up to a tenth of the full scale.
-        let data_max = out
-            .iter()
-            .filter(|v| v.is_finite())
-            .fold(0.0_f32, |a, &b| a.max(b));
-        let tenth = max / 10.0;
-        let max = ((f64::from(data_max) / tenth).ceil() * tenth).clamp(tenth, max);
-        let tif = format!("{name}.tif");
-        grid.write_f32(&out_dir.join(&tif), &out, what)?;
-        let png = format!("{name}.png");
-        write_map_preview(
-            &out_dir.join(&png),
-            &format!("{what} — {span}"),
-            &out,
-            rows,
-            cols,
-            &MapLegend::Continuous {
-                min: 0.0,
-                max,
-                unit,
-            },
-        )?;
-        files.extend([tif, png]);
-    }
-    let psr_out = if s.on_dem_grid {
-        psr
-    } else {
-        grid.to_output_u8(&psr)
-    };
-    grid.write_u8(
-        &out_dir.join("psr_mask.tif"),
-        &psr_out,
-        "permanently shadowed over the span: 1 never lit, 0 lit at least once, 255 no data",
-    )?;
-    let psr_f: Vec<f32> = psr_out
-        .iter()
-        .map(|&v| {
-            if v == MASK_NODATA {
-                f32::NAN
-            } else {
-                f32::from(v)
-            }
-        })
-        .collect();
-    write_map_preview(
-        &out_dir.join("psr_mask.png"),
-        &format!("Never lit (PSR over the span) — {span}"),
-        &psr_f,
-        rows,
-        cols,
-        &MapLegend::Categories(vec![
-            (
-                1.0,
-                plotters::style::RGBColor(20, 20, 60),
-                "never lit".into(),
-            ),
-            (
-                0.0,
-                plotters::style::RGBColor(250, 220, 90),
-                "lit at least once".into(),
-            ),
-        ]),
-    )?;
-    files.extend(["psr_mask.tif".to_string(), "psr_mask.png".to_string()]);
-    Ok(files)
 }

@@ -1,0 +1,444 @@
+//! Long-period illumination statistics of every pixel from whole-grid horizons (Mazarico et al.
+//! 2011, Icarus 211: horizon profiles at every pixel, then any geometry), instead of a shadow
+//! map per epoch.
+//!
+//! ```text
+//!  horizons (one band per grid azimuth, from `horizon-map sweep` or a sweep in memory)
+//!      │ a block of rows at a time, every band
+//!      ▼
+//!  per pixel: frame (up, map +x and +y on the sphere), observer radius, horizon h(grid az)
+//!      │ for every epoch in time order (f32, epochs in chunks that stay in cache)
+//!      ▼
+//!  Sun / Earth centre at the pixel → el (above the local horizontal), grid az → h(az) → fraction
+//!      ▼
+//!  mean fraction, % visible, % full, Earth %, both %, longest night, longest Earth-hidden run,
+//!  mean irradiance (horizontal, tracking), PSR, rays the Moon beyond the DEM would block
+//! ```
+//!
+//! **Each pixel's own directions.** The bodies' positions (relative to the Moon's centre in
+//! `MOON_ME`, apparent as seen from the map centre: light time and aberration differ across a
+//! 400 km map by < 1 m of the Earth's position) are placed relative to each pixel's observer, so
+//! the Earth's parallax across the map (0.027° over ±184 km) and the tilt of the local vertical
+//! (up to ±6° of elevation across the 240 m LOLA crop) are exact, not binned.
+//!
+//! **The horizon at the body's azimuth.** Bands are at non-uniform *grid* azimuths (from map +y,
+//! clockwise; [`crate::horizon::sweep`]); the body's grid azimuth is measured directly against the
+//! pixel's map axes on the sphere (the map is conformal), and the horizon is interpolated linearly
+//! between the two neighbouring bands, as the per-site series interpolate theirs.
+//!
+//! **The visible fraction** is the circular segment under the straight line through the horizon
+//! at the disc's two azimuth edges (paper 001 eqs. 6–7, the series' `segment` method),
+//! flux-weighted with the Sun's limb-darkening law (a table of the chord fraction, error < 1e-5);
+//! the Earth's disc is uniform. A disc entirely above the pixel's highest horizon or below its
+//! lowest needs no azimuth.
+//!
+//! **Rays the Moon beyond the DEM would block**: a lit epoch whose Sun centre is below the local
+//! horizontal and whose ray, from where it leaves the outermost layer (along the straight map
+//! line of its grid azimuth), meets the reference sphere, as the per-epoch maps count them.
+
+mod kernel;
+mod lookup;
+mod source;
+
+use rayon::prelude::*;
+
+use kernel::{CellAcc, CellGeom, Epochs, SECTORS, Scratch, Thresholds};
+pub use lookup::{AzimuthLookup, ChordTable};
+pub use source::{
+    HORIZON_NODATA_I16, HORIZON_PRODUCT, HorizonFile, HorizonRows, InMemoryHorizons,
+    horizon_centideg,
+};
+
+use super::HorizonError;
+use crate::illum::LimbDarkening;
+use crate::output::BelowSphereExits;
+use crate::terrain::unit_projector::UnitProjector;
+use crate::terrain::{Dem, TerrainStack};
+use crate::{AU_KM, MOON_RADIUS_M, SOLAR_CONSTANT_W_M2};
+
+/// The bodies at one epoch.
+#[derive(Debug, Clone, Copy)]
+pub struct EpochBodies {
+    /// The Sun's centre relative to the Moon's centre, `MOON_ME`, km (apparent).
+    pub sun_in_moon_me_km: [f64; 3],
+    /// The Sun's distance from the observer, km (irradiance).
+    pub sun_range_km: f64,
+    /// The Sun's angular radius, degrees.
+    pub sun_radius_deg: f64,
+    /// The Earth's centre relative to the Moon's centre, `MOON_ME`, km (apparent).
+    pub earth_in_moon_me_km: [f64; 3],
+    /// The Earth's angular radius, degrees.
+    pub earth_radius_deg: f64,
+}
+
+/// Parameters of the statistics.
+#[derive(Debug, Clone, Copy)]
+pub struct StatisticsParams {
+    /// Limb darkening of the Sun's disc (the Earth's is uniform).
+    pub limb: LimbDarkening,
+    /// A disc is "visible" when more than this fraction is.
+    pub visible_min_fraction: f64,
+    /// The Sun is "fully lit" when at least this fraction is visible.
+    pub full_min_fraction: f64,
+}
+
+/// Per-pixel statistics over the epochs, row-major on the horizons' (finest layer's) grid.
+#[derive(Debug, Clone)]
+pub struct HorizonStatistics {
+    /// Number of epochs.
+    pub epochs: usize,
+    /// Pixels without data (DEM nodata or horizon nodata).
+    pub nodata: Vec<bool>,
+    /// Sum over the epochs of the Sun's visible (flux) fraction.
+    pub sun_fraction_sum: Vec<f64>,
+    /// Epochs with any part of the Sun visible.
+    pub sun_visible_count: Vec<u32>,
+    /// Epochs with the Sun fully visible.
+    pub sun_full_count: Vec<u32>,
+    /// Longest run of consecutive epochs with the Sun entirely hidden.
+    pub longest_dark_epochs: Vec<u32>,
+    /// Epochs with any part of the Earth visible.
+    pub earth_visible_count: Vec<u32>,
+    /// Longest run of consecutive epochs with the Earth entirely hidden.
+    pub longest_earth_hidden_epochs: Vec<u32>,
+    /// Epochs with both (partly) visible.
+    pub sun_and_earth_count: Vec<u32>,
+    /// Sum over the epochs of the irradiance on a level surface, W/m².
+    pub irradiance_horizontal_sum_w_m2: Vec<f64>,
+    /// Sum over the epochs of the irradiance on a vertical panel facing the Sun's azimuth, W/m².
+    pub irradiance_tracking_sum_w_m2: Vec<f64>,
+    /// Lit results resting on rays the Moon beyond the DEM would block.
+    pub below_sphere: BelowSphereExits,
+}
+
+/// Where a ray leaves the outermost layer, for the below-sphere count.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct BeyondDem {
+    x_m: f64,
+    y_m: f64,
+    up: [f64; 3],
+    r0_m: f64,
+}
+
+/// The layers' map extents and the projection, shared by every pixel's [`BeyondDem`].
+struct Edges {
+    extents: Vec<(f64, f64, f64, f64)>,
+    projector: UnitProjector,
+}
+
+impl BeyondDem {
+    /// Whether a ray at `el_deg` (< 0) can meet the reference sphere at all: its closest
+    /// approach to the Moon's centre, `r0 cos(el)`, is inside the sphere (a cheap filter before
+    /// [`BeyondDem::meets_sphere`]).
+    #[inline]
+    fn may_meet_sphere(&self, el_deg: f32) -> bool {
+        self.r0_m * f64::from(el_deg).to_radians().cos() < MOON_RADIUS_M
+    }
+
+    /// Whether a ray at grid azimuth `grid_az_deg` and elevation `el_deg` (< 0), once past the
+    /// outermost layer's edge, meets the reference sphere.
+    fn meets_sphere(&self, edges: &Edges, grid_az_deg: f32, el_deg: f32) -> bool {
+        let (dx, dy) = f64::from(grid_az_deg).to_radians().sin_cos();
+        let mut t_exit = f64::NEG_INFINITY;
+        for &(x0, y0, x1, y1) in &edges.extents {
+            if !(self.x_m >= x0 && self.x_m <= x1 && self.y_m >= y0 && self.y_m <= y1) {
+                continue;
+            }
+            let tx = if dx > 0.0 {
+                (x1 - self.x_m) / dx
+            } else if dx < 0.0 {
+                (x0 - self.x_m) / dx
+            } else {
+                f64::INFINITY
+            };
+            let ty = if dy > 0.0 {
+                (y1 - self.y_m) / dy
+            } else if dy < 0.0 {
+                (y0 - self.y_m) / dy
+            } else {
+                f64::INFINITY
+            };
+            t_exit = t_exit.max(tx.min(ty));
+        }
+        if !t_exit.is_finite() {
+            return false;
+        }
+        let ue = edges
+            .projector
+            .unit_from_xy(self.x_m + t_exit * dx, self.y_m + t_exit * dy);
+        let up = nalgebra::Vector3::from(self.up);
+        let phi = up.cross(&ue).norm().atan2(up.dot(&ue));
+        let el = f64::from(el_deg).to_radians();
+        let (r0, r) = (self.r0_m, MOON_RADIUS_M);
+        let s_star = -r0 * el.sin();
+        let c = (el + phi).cos();
+        let s_e = if c > 0.0 {
+            r0 * phi.sin() / c
+        } else {
+            f64::INFINITY
+        };
+        if s_e >= s_star {
+            s_e.is_finite() && r0 * r0 + 2.0 * r0 * s_e * el.sin() + s_e * s_e < r * r
+        } else {
+            r0 * el.cos() < r
+        }
+    }
+}
+
+/// Cells per parallel task (their horizons stay in L1/L2 while the epochs stream).
+const CELLS_PER_TASK: usize = 16;
+/// Bytes of horizons read per block of rows.
+const BLOCK_BYTES: usize = 128 << 20;
+
+/// The statistics engine over a terrain stack and its whole-grid horizons.
+pub struct StatisticsEngine<'a> {
+    stack: &'a TerrainStack,
+    params: StatisticsParams,
+}
+
+impl<'a> StatisticsEngine<'a> {
+    /// An engine for `stack` (the horizons must be on its finest layer's grid).
+    pub fn new(stack: &'a TerrainStack, params: StatisticsParams) -> Result<Self, HorizonError> {
+        stack.layers.first().ok_or(HorizonError::NoLayers)?;
+        Ok(StatisticsEngine { stack, params })
+    }
+
+    fn fine(&self) -> &'a Dem {
+        &self.stack.layers[0]
+    }
+
+    /// Checks that `source` holds horizons of this stack's finest layer.
+    pub fn check_source(&self, source: &dyn HorizonRows) -> Result<(), HorizonError> {
+        let (a, b) = (source.grid(), self.fine().grid);
+        let close = |x: f64, y: f64| (x - y).abs() <= 1e-6 * (1.0 + x.abs().max(y.abs()));
+        if a.rows != b.rows
+            || a.cols != b.cols
+            || !close(a.x_left_m, b.x_left_m)
+            || !close(a.y_top_m, b.y_top_m)
+            || !close(a.px_x_m, b.px_x_m)
+            || !close(a.px_y_m, b.px_y_m)
+        {
+            return Err(HorizonError::SweepUnsupported {
+                reason: format!(
+                    "the horizons' grid ({} x {} px of {} m from ({}, {}) m) is not the finest \
+                     layer's ({} x {} px of {} m from ({}, {}) m)",
+                    a.rows,
+                    a.cols,
+                    a.px_x_m,
+                    a.x_left_m,
+                    a.y_top_m,
+                    b.rows,
+                    b.cols,
+                    b.px_x_m,
+                    b.x_left_m,
+                    b.y_top_m
+                ),
+            });
+        }
+        if AzimuthLookup::new(source.grid_az_deg()).is_none() {
+            return Err(HorizonError::SweepUnsupported {
+                reason: "the horizons' band azimuths are not strictly increasing in [0, 360)"
+                    .into(),
+            });
+        }
+        Ok(())
+    }
+
+    /// The statistics of every pixel over `epochs` (in time order). `progress` gets the rows
+    /// done.
+    pub fn run(
+        &self,
+        source: &mut dyn HorizonRows,
+        epochs: &[EpochBodies],
+        mut progress: impl FnMut(usize),
+    ) -> Result<HorizonStatistics, HorizonError> {
+        self.check_source(source)?;
+        let fine = self.fine();
+        let g = fine.grid;
+        let n_px = g.rows * g.cols;
+        let lookup = AzimuthLookup::new(source.grid_az_deg()).expect("checked");
+        let n = lookup.n_bands();
+        let h_obs_m = source.observer_height_m();
+        let chord_sun = ChordTable::new(&self.params.limb);
+        let chord_earth = ChordTable::new(&LimbDarkening::UNIFORM);
+        let th = Thresholds {
+            visible_min: self.params.visible_min_fraction as f32,
+            full_min: self.params.full_min_fraction as f32,
+        };
+        let mut soa = Epochs::default();
+        for e in epochs {
+            let scale = AU_KM / e.sun_range_km;
+            for i in 0..3 {
+                soa.sun[i].push(e.sun_in_moon_me_km[i] as f32);
+                soa.earth[i].push(e.earth_in_moon_me_km[i] as f32);
+            }
+            soa.sun_radius_deg.push(e.sun_radius_deg as f32);
+            soa.sun_normal_w_m2
+                .push((SOLAR_CONSTANT_W_M2 * scale * scale) as f32);
+            soa.earth_radius_deg.push(e.earth_radius_deg as f32);
+        }
+        let edges = Edges {
+            extents: self.stack.layers.iter().map(|l| l.grid.bounds_m()).collect(),
+            projector: UnitProjector::new(&fine.projection),
+        };
+
+        let mut out = HorizonStatistics {
+            epochs: epochs.len(),
+            nodata: vec![true; n_px],
+            sun_fraction_sum: vec![0.0; n_px],
+            sun_visible_count: vec![0; n_px],
+            sun_full_count: vec![0; n_px],
+            longest_dark_epochs: vec![0; n_px],
+            earth_visible_count: vec![0; n_px],
+            longest_earth_hidden_epochs: vec![0; n_px],
+            sun_and_earth_count: vec![0; n_px],
+            irradiance_horizontal_sum_w_m2: vec![0.0; n_px],
+            irradiance_tracking_sum_w_m2: vec![0.0; n_px],
+            below_sphere: BelowSphereExits::default(),
+        };
+        let arch = pulp::Arch::new();
+        let rows_per_block = (BLOCK_BYTES / (2 * n * g.cols).max(1)).clamp(1, g.rows);
+        let mut block: Vec<i16> = Vec::new();
+        let mut row0 = 0;
+        while row0 < g.rows {
+            let row1 = (row0 + rows_per_block).min(g.rows);
+            source.read_rows(row0..row1, &mut block)?;
+            let block_px = (row1 - row0) * g.cols;
+            let first_px = row0 * g.cols;
+            let results: Vec<(usize, CellAcc)> = (0..block_px.div_ceil(CELLS_PER_TASK))
+                .into_par_iter()
+                .flat_map_iter(|task| {
+                    let lo = task * CELLS_PER_TASK;
+                    let hi = (lo + CELLS_PER_TASK).min(block_px);
+                    let mut pixels = Vec::with_capacity(hi - lo);
+                    let mut cells = Vec::with_capacity(hi - lo);
+                    let mut horizons = Vec::with_capacity((hi - lo) * (n + 1));
+                    let mut bounds = Vec::with_capacity((hi - lo) * SECTORS);
+                    let mut cell_bounds = Vec::with_capacity(SECTORS);
+                    for i in lo..hi {
+                        let px = first_px + i;
+                        let start = horizons.len();
+                        if let Some(cell) =
+                            self.cell(px, h_obs_m, &block, block_px, i, n, &mut horizons)
+                        {
+                            kernel::sector_bounds(
+                                &horizons[start..],
+                                lookup.band_az_deg(),
+                                &mut cell_bounds,
+                            );
+                            bounds.extend_from_slice(&cell_bounds);
+                            pixels.push(px);
+                            cells.push(cell);
+                        }
+                    }
+                    let mut acc = vec![CellAcc::default(); cells.len()];
+                    let mut scratch = Scratch::default();
+                    let mut j0 = 0;
+                    while j0 < soa.len() {
+                        let j1 = (j0 + kernel::CHUNK).min(soa.len());
+                        // The kernel compiled for the best SIMD level of this CPU (AVX2 + FMA
+                        // where present) by autovectorisation, chosen at run time.
+                        arch.dispatch(kernel::RunCells {
+                            cells: &cells,
+                            horizons: &horizons,
+                            bounds: &bounds,
+                            stride: n + 1,
+                            epochs: &soa,
+                            range: j0..j1,
+                            lookup: &lookup,
+                            chord_sun: &chord_sun,
+                            chord_earth: &chord_earth,
+                            th,
+                            edges: &edges,
+                            scratch: &mut scratch,
+                            acc: &mut acc,
+                        });
+                        j0 = j1;
+                    }
+                    pixels.into_iter().zip(acc)
+                })
+                .collect();
+            for (px, a) in results {
+                out.nodata[px] = false;
+                out.sun_fraction_sum[px] = a.sun_fraction_sum;
+                out.sun_visible_count[px] = a.sun_visible;
+                out.sun_full_count[px] = a.sun_full;
+                out.longest_dark_epochs[px] = a.dark_max;
+                out.earth_visible_count[px] = a.earth_visible;
+                out.longest_earth_hidden_epochs[px] = a.earth_hidden_max;
+                out.sun_and_earth_count[px] = a.sun_and_earth;
+                out.irradiance_horizontal_sum_w_m2[px] = a.irradiance_horizontal_sum;
+                out.irradiance_tracking_sum_w_m2[px] = a.irradiance_tracking_sum;
+                if a.below_sphere > 0 {
+                    out.below_sphere.cells += 1;
+                    out.below_sphere.cell_epochs += u64::from(a.below_sphere);
+                }
+            }
+            progress(row1);
+            row0 = row1;
+        }
+        out.below_sphere.cells_total = out.nodata.iter().filter(|&&nd| !nd).count() as u64;
+        Ok(out)
+    }
+
+    /// The geometry of pixel `px` (index `i` of a block of `block_px` pixels), appending its
+    /// `n + 1` horizon values (deg) to `horizons`; `None` for a pixel without data.
+    #[allow(
+        clippy::too_many_arguments,
+        reason = "a private helper of run's inner loop"
+    )]
+    fn cell(
+        &self,
+        px: usize,
+        h_obs_m: f64,
+        block: &[i16],
+        block_px: usize,
+        i: usize,
+        n: usize,
+        horizons: &mut Vec<f32>,
+    ) -> Option<CellGeom> {
+        let fine = self.fine();
+        let ground_m = f64::from(fine.heights_m[px]);
+        if ground_m.is_nan() {
+            return None;
+        }
+        let values = (0..n).map(|b| block[b * block_px + i]);
+        if values.clone().any(|v| v == HORIZON_NODATA_I16) {
+            return None;
+        }
+        let start = horizons.len();
+        horizons.extend(values.map(|v| f32::from(v) * 0.01));
+        horizons.push(horizons[start]);
+
+        let g = fine.grid;
+        let (row, col) = ((px / g.cols) as f64, (px % g.cols) as f64);
+        let (x, y) = g.xy_from_row_col(row, col);
+        let projector = UnitProjector::new(&fine.projection);
+        let up = projector.unit_from_xy(x, y);
+        let tangent = |d: nalgebra::Vector3<f64>| {
+            let t = d - up * up.dot(&d);
+            t / t.norm()
+        };
+        let eps_m = 1.0;
+        let east = tangent(projector.unit_from_xy(x + eps_m, y) - projector.unit_from_xy(x - eps_m, y));
+        let north =
+            tangent(projector.unit_from_xy(x, y + eps_m) - projector.unit_from_xy(x, y - eps_m));
+        let r0_m = MOON_RADIUS_M + ground_m + h_obs_m;
+        let v32 = |v: nalgebra::Vector3<f64>| [v.x as f32, v.y as f32, v.z as f32];
+        Some(CellGeom {
+            up: v32(up),
+            grid_east: v32(east),
+            grid_north: v32(north),
+            r_obs_km: (r0_m / 1000.0) as f32,
+            beyond: BeyondDem {
+                x_m: x,
+                y_m: y,
+                up: [up.x, up.y, up.z],
+                r0_m,
+            },
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests;

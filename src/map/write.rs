@@ -1,0 +1,240 @@
+//! Writing a sweep's statistics: one GeoTIFF on the DEM's grid and one PNG preview per quantity.
+
+use std::path::Path;
+
+use super::SweepStats;
+use crate::illum::plot::{MapLegend, write_map_preview};
+use crate::model::{MapGrid, write_f32_on, write_u8_on};
+use crate::shadow::MASK_NODATA;
+use crate::terrain::Dem;
+
+/// One continuous output: file stem, description, values on the DEM grid, full scale, unit.
+type Continuous = (&'static str, String, Vec<f32>, f64, String);
+
+/// Writes the statistics of a sweep as GeoTIFFs and PNG previews into `out_dir` on the grid of
+/// `dem` (the finest layer); returns the file names. Statistics per model cell
+/// (`!s.on_dem_grid`, the GPU sweeps) are resampled through `model`, which they need.
+pub fn write_sweep(
+    dem: &Dem,
+    model: Option<&MapGrid>,
+    s: &SweepStats,
+    out_dir: &Path,
+    span: &str,
+) -> anyhow::Result<Vec<String>> {
+    let model = match (s.on_dem_grid, model) {
+        (true, _) => None,
+        (false, Some(m)) => Some(m),
+        (false, None) => anyhow::bail!("model-cell statistics need their model grid to be written"),
+    };
+    let n_epochs = s.epochs.max(1) as f64;
+    let pct = |count: &[u32]| -> Vec<f32> {
+        count
+            .iter()
+            .map(|&c| (100.0 * f64::from(c) / n_epochs) as f32)
+            .collect()
+    };
+    let hours = |count: &[u32]| -> Vec<f32> {
+        count
+            .iter()
+            .map(|&k| (f64::from(k) * s.step_h) as f32)
+            .collect()
+    };
+    // Nodata of the arrays' own grid: the DEM's pixels or the model cells (see `on_dem_grid`).
+    let nodata: Vec<bool> = match model {
+        None => dem.heights_m.iter().map(|z| z.is_nan()).collect(),
+        Some(m) => m.hf.z_m.iter().map(|z| z.is_nan()).collect(),
+    };
+    let mask_nodata = |v: Vec<f32>| -> Vec<f32> {
+        v.into_iter()
+            .zip(&nodata)
+            .map(|(x, &nd)| if nd { f32::NAN } else { x })
+            .collect()
+    };
+    let to_dem = |v: Vec<f32>| -> Vec<f32> {
+        match model {
+            None => v,
+            Some(m) => m.to_output_f32(&v),
+        }
+    };
+    let span_h = n_epochs * s.step_h;
+    let limb = s
+        .extra
+        .as_ref()
+        .map_or("uniform disc".to_string(), |e| {
+            format!("{} limb darkening", e.limb_law)
+        });
+    let mut outputs: Vec<Continuous> = vec![
+        (
+            "sun_illumination_pct",
+            format!(
+                "average Sun illumination (time-mean visible fraction of the disc, {limb}), %"
+            ),
+            s.sun_fraction_sum
+                .iter()
+                .map(|&x| (100.0 * x / n_epochs) as f32)
+                .collect(),
+            100.0,
+            "% of time (disc-weighted)".into(),
+        ),
+        (
+            "sun_visible_pct",
+            "Sun visible (any part of the disc), % of time".into(),
+            pct(&s.sun_visible_count),
+            100.0,
+            "% of time".into(),
+        ),
+        (
+            "longest_dark_h",
+            "longest continuous darkness (Sun entirely hidden), hours".into(),
+            hours(&s.longest_dark_epochs),
+            span_h,
+            "hours".into(),
+        ),
+        (
+            "earth_visible_pct",
+            "Earth visible (any part of the disc), % of time".into(),
+            pct(&s.earth_visible_count),
+            100.0,
+            "% of time".into(),
+        ),
+        match &s.sun_and_earth_count {
+            Some(count) => (
+                "sun_and_earth_pct",
+                "Sun and Earth both (partly) visible, % of time".into(),
+                pct(count),
+                100.0,
+                "% of time".into(),
+            ),
+            None => (
+                "sun_and_earth_pct",
+                "Sun and Earth both visible, % of time: not computed by the GPU sweep (all NaN)"
+                    .into(),
+                vec![f32::NAN; nodata.len()],
+                100.0,
+                "% of time".into(),
+            ),
+        },
+    ];
+    if let Some(e) = &s.extra {
+        let peak = |v: &[f32]| {
+            f64::from(
+                v.iter()
+                    .filter(|x| x.is_finite())
+                    .fold(1.0_f32, |a, &b| a.max(b)),
+            )
+        };
+        outputs.extend([
+            (
+                "sun_full_pct",
+                "Sun fully visible (the whole disc), % of time".into(),
+                pct(&e.sun_full_count),
+                100.0,
+                "% of time".into(),
+            ),
+            (
+                "longest_earth_hidden_h",
+                "longest continuous run with the Earth entirely hidden, hours".into(),
+                hours(&e.longest_earth_hidden_epochs),
+                span_h,
+                "hours".into(),
+            ),
+            (
+                "irradiance_horizontal_w_m2",
+                format!(
+                    "time-mean solar irradiance on a level surface (no terrain reflection, \
+                     {limb}), W/m2"
+                ),
+                e.irradiance_horizontal_mean_w_m2.clone(),
+                peak(&e.irradiance_horizontal_mean_w_m2),
+                "W/m²".into(),
+            ),
+            (
+                "irradiance_tracking_w_m2",
+                format!(
+                    "time-mean solar irradiance on a vertical panel turned to the Sun's azimuth \
+                     (no terrain reflection, {limb}), W/m2"
+                ),
+                e.irradiance_tracking_mean_w_m2.clone(),
+                peak(&e.irradiance_tracking_mean_w_m2),
+                "W/m²".into(),
+            ),
+        ]);
+    }
+
+    let mut files = Vec::new();
+    let (rows, cols) = (dem.grid.rows, dem.grid.cols);
+    for (name, what, values, max, unit) in outputs {
+        let out = to_dem(mask_nodata(values));
+        // Colour bar up to the data's maximum, rounded up to a tenth of the full scale.
+        let data_max = out
+            .iter()
+            .filter(|v| v.is_finite())
+            .fold(0.0_f32, |a, &b| a.max(b));
+        let tenth = max / 10.0;
+        let max = ((f64::from(data_max) / tenth).ceil() * tenth).clamp(tenth, max);
+        let tif = format!("{name}.tif");
+        write_f32_on(dem, &out_dir.join(&tif), &out, &what)?;
+        let png = format!("{name}.png");
+        write_map_preview(
+            &out_dir.join(&png),
+            &format!("{what} — {span}"),
+            &out,
+            rows,
+            cols,
+            &MapLegend::Continuous {
+                min: 0.0,
+                max,
+                unit,
+            },
+        )?;
+        files.extend([tif, png]);
+    }
+
+    let psr: Vec<u8> = s
+        .sun_visible_count
+        .iter()
+        .zip(&nodata)
+        .map(|(&c, &nd)| if nd { MASK_NODATA } else { u8::from(c == 0) })
+        .collect();
+    let psr_out = match model {
+        None => psr,
+        Some(m) => m.to_output_u8(&psr),
+    };
+    write_u8_on(
+        dem,
+        &out_dir.join("psr_mask.tif"),
+        &psr_out,
+        "permanently shadowed over the span: 1 never lit, 0 lit at least once, 255 no data",
+    )?;
+    let psr_f: Vec<f32> = psr_out
+        .iter()
+        .map(|&v| {
+            if v == MASK_NODATA {
+                f32::NAN
+            } else {
+                f32::from(v)
+            }
+        })
+        .collect();
+    write_map_preview(
+        &out_dir.join("psr_mask.png"),
+        &format!("Never lit (PSR over the span) — {span}"),
+        &psr_f,
+        rows,
+        cols,
+        &MapLegend::Categories(vec![
+            (
+                1.0,
+                plotters::style::RGBColor(20, 20, 60),
+                "never lit".into(),
+            ),
+            (
+                0.0,
+                plotters::style::RGBColor(250, 220, 90),
+                "lit at least once".into(),
+            ),
+        ]),
+    )?;
+    files.extend(["psr_mask.tif".to_string(), "psr_mask.png".to_string()]);
+    Ok(files)
+}
