@@ -42,22 +42,26 @@ pub enum EngineArg {
     /// Epoch ranges only: exact whole-grid horizons (line sweep, every layer; or --horizons
     /// FILE), then every epoch at every pixel with the pixel's own Sun and Earth directions.
     Horizons,
-    /// The best available: `combined`.
+    /// One light: `combined`. Epoch ranges: `horizons` from 1,000 epochs on (or with
+    /// --horizons FILE), `combined` below (measured break-even, docs/PERFORMANCE.md); on the GPU
+    /// its DP sweep.
     Auto,
 }
 
-impl From<EngineArg> for penumbra::map::MapEngineKind {
-    fn from(e: EngineArg) -> Self {
+impl EngineArg {
+    /// The engine, or `None` for `auto` (the product chooses).
+    fn kind(self) -> Option<penumbra::map::MapEngineKind> {
         use penumbra::map::MapEngineKind;
         use penumbra::shadow::Engine;
-        match e {
+        Some(match self {
             EngineArg::Brute => MapEngineKind::Direct(Engine::Brute),
             EngineArg::Smap => MapEngineKind::Direct(Engine::Smap),
             EngineArg::Dp => MapEngineKind::Direct(Engine::Dp),
-            EngineArg::Combined | EngineArg::Auto => MapEngineKind::Direct(Engine::Combined),
+            EngineArg::Combined => MapEngineKind::Direct(Engine::Combined),
             EngineArg::Fourier => MapEngineKind::Fourier,
             EngineArg::Horizons => MapEngineKind::Horizons,
-        }
+            EngineArg::Auto => return None,
+        })
     }
 }
 
@@ -165,7 +169,7 @@ pub fn run(args: &MapArgs) -> anyhow::Result<()> {
     penumbra::products::map::run(&MapRequest {
         terrain: args.terrain.source(),
         observer_height_m: args.observer_height_m,
-        engine: args.engine.into(),
+        engine: args.engine.kind(),
         epochs: args.epochs.spec()?,
         sun_dir_in_moon_me: args
             .sun_dir_body

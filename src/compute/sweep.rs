@@ -202,9 +202,9 @@ fn horizon_statistics(
     );
     let from = match &map.horizons {
         HorizonsFrom::File(p) => format!("horizon map {}", p.display()),
-        HorizonsFrom::Sweep { azimuths, max_step } => format!(
-            "line sweep in memory ({azimuths} azimuths requested, max step {max_step})"
-        ),
+        HorizonsFrom::Sweep { azimuths, max_step } => {
+            format!("line sweep in memory ({azimuths} azimuths requested, max step {max_step})")
+        }
     };
     let cpu_note = match backend {
         ResolvedBackend::Cpu => "",

@@ -57,18 +57,13 @@ pub fn write_sweep(
         }
     };
     let span_h = n_epochs * s.step_h;
-    let limb = s
-        .extra
-        .as_ref()
-        .map_or("uniform disc".to_string(), |e| {
-            format!("{} limb darkening", e.limb_law)
-        });
+    let limb = s.extra.as_ref().map_or("uniform disc".to_string(), |e| {
+        format!("{} limb darkening", e.limb_law)
+    });
     let mut outputs: Vec<Continuous> = vec![
         (
             "sun_illumination_pct",
-            format!(
-                "average Sun illumination (time-mean visible fraction of the disc, {limb}), %"
-            ),
+            format!("average Sun illumination (time-mean visible fraction of the disc, {limb}), %"),
             s.sun_fraction_sum
                 .iter()
                 .map(|&x| (100.0 * x / n_epochs) as f32)

@@ -103,7 +103,10 @@ pub fn sweep(req: &HorizonSweepRequest) -> anyhow::Result<()> {
     let ms = format!("{}", req.max_step);
     let metadata = [
         ("penumbra_version", version),
-        ("penumbra_product", crate::horizon::statistics::HORIZON_PRODUCT),
+        (
+            "penumbra_product",
+            crate::horizon::statistics::HORIZON_PRODUCT,
+        ),
         ("units", "centi-degrees above the local horizontal"),
         (
             "azimuth_convention",

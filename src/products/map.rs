@@ -17,8 +17,8 @@ pub struct MapRequest {
     pub terrain: TerrainSource,
     /// Observer height above the ground, metres.
     pub observer_height_m: f64,
-    /// Shadow engine of the CPU maps.
-    pub engine: MapEngineKind,
+    /// Shadow engine of the CPU maps; `None` chooses (see [`auto_engine`]).
+    pub engine: Option<MapEngineKind>,
     /// One epoch (one light) or a range (statistics); `None` with an explicit light.
     pub epochs: Option<EpochSpec>,
     /// An explicit Sun direction in `MOON_ME` (any non-zero length), instead of an epoch.
@@ -55,9 +55,7 @@ pub struct MapRequest {
 pub fn run(req: &MapRequest) -> anyhow::Result<()> {
     use crate::map::write_sweep;
     use crate::model::{MapGrid, epoch_lights};
-    if req.engine == MapEngineKind::Horizons
-        && !req.epochs.is_some_and(|e| e.is_range())
-    {
+    if req.engine == Some(MapEngineKind::Horizons) && !req.epochs.is_some_and(|e| e.is_range()) {
         anyhow::bail!(
             "--engine horizons makes statistics over an epoch range (--start/--stop/--step); \
              for one light use brute, smap, dp, combined or fourier"
@@ -73,7 +71,9 @@ pub fn run(req: &MapRequest) -> anyhow::Result<()> {
     if !(req.sun_radius_deg > 0.0 && req.sun_radius_deg < 10.0) {
         anyhow::bail!("--sun-radius-deg {} must be in (0, 10)", req.sun_radius_deg);
     }
-    let engine_kind = req.engine;
+    let engine_kind = req
+        .engine
+        .unwrap_or(MapEngineKind::Direct(crate::shadow::Engine::Combined));
     let abcorr = req.abcorr;
     let range = req.epochs.is_some_and(|e| e.is_range());
     if range && req.out_dir.is_none() {
@@ -113,6 +113,22 @@ pub fn run(req: &MapRequest) -> anyhow::Result<()> {
             anyhow::bail!("an epoch range needs kernels and --out-dir");
         };
         let step_h = req.epochs.map_or(3600.0, |e| e.step_s()) / 3600.0;
+        let engine_kind = match req.engine {
+            Some(e) => e,
+            None => {
+                let e = auto_engine(&backend, epochs.len(), &req.horizons);
+                eprintln!(
+                    "penumbra: --engine auto: {} for {} epochs",
+                    if e == MapEngineKind::Horizons {
+                        "horizons (whole-grid horizons once, then every epoch per pixel)"
+                    } else {
+                        "combined (a soft-shadow map per epoch)"
+                    },
+                    epochs.len()
+                );
+                e
+            }
+        };
         let result = crate::compute::sweep::range_statistics(
             &backend,
             &stack,
@@ -224,3 +240,33 @@ pub fn run(req: &MapRequest) -> anyhow::Result<()> {
     );
     Ok(())
 }
+
+/// The engine `--engine auto` runs for `n_epochs` epochs of a range on `backend`: the horizons
+/// engine when it is faster, else the per-epoch combined engine (the GPU's DP sweep on a GPU).
+///
+/// Measured on the 2-core VM (`cargo bench --bench statistics`, docs/PERFORMANCE.md): a
+/// whole-grid sweep of 552 directions costs as much as ≈ 750 epochs of per-epoch combined maps
+/// on a single layer and ≈ 2,000 with the LOLA far field, after which each epoch costs the
+/// horizons engine ≈ 35× less; so the horizons engine is chosen from 1,000 epochs on (at once
+/// when the horizons are given as a file).
+pub fn auto_engine(
+    backend: &crate::compute::ResolvedBackend,
+    n_epochs: usize,
+    horizons: &crate::compute::sweep::HorizonsFrom,
+) -> MapEngineKind {
+    use crate::compute::sweep::HorizonsFrom;
+    let combined = MapEngineKind::Direct(crate::shadow::Engine::Combined);
+    if matches!(backend, crate::compute::ResolvedBackend::Gpu(_)) {
+        return combined;
+    }
+    match horizons {
+        HorizonsFrom::File(_) => MapEngineKind::Horizons,
+        HorizonsFrom::Sweep { .. } if n_epochs >= AUTO_HORIZONS_MIN_EPOCHS => {
+            MapEngineKind::Horizons
+        }
+        HorizonsFrom::Sweep { .. } => combined,
+    }
+}
+
+/// Fewest epochs for which `--engine auto` sweeps horizons (see [`auto_engine`]).
+pub const AUTO_HORIZONS_MIN_EPOCHS: usize = 1000;

@@ -91,7 +91,9 @@ pub enum DemError {
         lon_deg: f64,
     },
     /// A multi-band file is not laid out as penumbra writes them.
-    #[error("{path}: {detail}: not a penumbra multi-band file (write one with `penumbra horizon-map sweep`)")]
+    #[error(
+        "{path}: {detail}: not a penumbra multi-band file (write one with `penumbra horizon-map sweep`)"
+    )]
     NotPenumbraMultiBand {
         /// The file.
         path: String,

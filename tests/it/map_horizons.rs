@@ -48,7 +48,9 @@ fn horizons_engine_agrees_with_series_at_pixel_centres() {
     let k = k.to_str().unwrap();
     penumbra_ok(
         dir.path(),
-        &["dem", "synth", "--size", "128", "--px-m", "100", "--seed", "3", "--out", "d.tif"],
+        &[
+            "dem", "synth", "--size", "128", "--px-m", "100", "--seed", "3", "--out", "d.tif",
+        ],
     );
     let epochs = [
         "--start",
@@ -61,7 +63,15 @@ fn horizons_engine_agrees_with_series_at_pixel_centres() {
     penumbra_ok(
         dir.path(),
         &[
-            &["map", "--dem", "d.tif", "--engine", "horizons", "--backend", "cpu"][..],
+            &[
+                "map",
+                "--dem",
+                "d.tif",
+                "--engine",
+                "horizons",
+                "--backend",
+                "cpu",
+            ][..],
             &epochs,
             &["--out-dir", "maps", "--kernels", k],
         ]
@@ -263,7 +273,10 @@ fn flat_sphere_statistics_follow_each_pixels_own_sky() {
     }
     // f32 geometry and the horizons' 0.01° quantisation: 0.0046° on the dip here.
     assert!(worst_mean < 1e-3, "mean fraction off by {worst_mean}");
-    assert!(worst_counts <= 2, "visible counts off by {worst_counts} epochs");
+    assert!(
+        worst_counts <= 2,
+        "visible counts off by {worst_counts} epochs"
+    );
 }
 
 /// Horizons read from a `horizon-map sweep` GeoTIFF give the very same maps as a sweep in
@@ -274,21 +287,54 @@ fn horizons_from_a_file_equal_the_sweep_in_memory_and_bad_files_are_refused() {
     let k = kernels_dir();
     let k = k.to_str().unwrap();
     let d = dir.path();
-    penumbra_ok(d, &["dem", "synth", "--size", "64", "--px-m", "200", "--out", "a.tif"]);
-    penumbra_ok(d, &["dem", "synth", "--size", "60", "--px-m", "200", "--out", "b.tif"]);
     penumbra_ok(
         d,
         &[
-            "horizon-map", "sweep", "--dem", "a.tif", "--azimuths", "90", "--max-step", "6",
-            "--out", "h.tif",
+            "dem", "synth", "--size", "64", "--px-m", "200", "--out", "a.tif",
         ],
     );
-    let epochs = ["--start", "2027-03-01", "--stop", "2027-04-01", "--step", "3h"];
+    penumbra_ok(
+        d,
+        &[
+            "dem", "synth", "--size", "60", "--px-m", "200", "--out", "b.tif",
+        ],
+    );
+    penumbra_ok(
+        d,
+        &[
+            "horizon-map",
+            "sweep",
+            "--dem",
+            "a.tif",
+            "--azimuths",
+            "90",
+            "--max-step",
+            "6",
+            "--out",
+            "h.tif",
+        ],
+    );
+    let epochs = [
+        "--start",
+        "2027-03-01",
+        "--stop",
+        "2027-04-01",
+        "--step",
+        "3h",
+    ];
     let map = |extra: &[&str], out: &str| {
         penumbra(
             d,
             &[
-                &["map", "--dem", "a.tif", "--engine", "horizons", "--backend", "cpu"][..],
+                &[
+                    "map",
+                    "--dem",
+                    "a.tif",
+                    "--engine",
+                    "horizons",
+                    "--backend",
+                    "cpu",
+                ][..],
                 &epochs,
                 extra,
                 &["--out-dir", out, "--kernels", k],
@@ -297,7 +343,11 @@ fn horizons_from_a_file_equal_the_sweep_in_memory_and_bad_files_are_refused() {
         )
     };
     assert!(map(&["--horizons", "h.tif"], "from_file").status.success());
-    assert!(map(&["--azimuths", "90", "--max-step", "6"], "in_memory").status.success());
+    assert!(
+        map(&["--azimuths", "90", "--max-step", "6"], "in_memory")
+            .status
+            .success()
+    );
     for name in [
         "sun_illumination_pct.tif",
         "sun_visible_pct.tif",
@@ -326,22 +376,42 @@ fn horizons_from_a_file_equal_the_sweep_in_memory_and_bad_files_are_refused() {
     let out = penumbra(
         d,
         &[
-            &["map", "--dem", "b.tif", "--engine", "horizons", "--horizons", "h.tif"][..],
+            &[
+                "map",
+                "--dem",
+                "b.tif",
+                "--engine",
+                "horizons",
+                "--horizons",
+                "h.tif",
+            ][..],
             &epochs,
             &["--out-dir", "bad1", "--kernels", k],
         ]
         .concat(),
     );
     assert_clean_error(&out, "not the finest layer");
-    let out = map(&["--horizons", "h.tif", "--observer-height-m", "10"], "bad2");
+    let out = map(
+        &["--horizons", "h.tif", "--observer-height-m", "10"],
+        "bad2",
+    );
     assert_clean_error(&out, "observer 2 m above the ground");
     let out = map(&["--horizons", "a.tif"], "bad3");
     assert_clean_error(&out, "not a penumbra horizon map");
     let out = penumbra(
         d,
         &[
-            "map", "--dem", "a.tif", "--engine", "horizons", "--utc", "2027-03-01", "--out-mask",
-            "m.tif", "--kernels", k,
+            "map",
+            "--dem",
+            "a.tif",
+            "--engine",
+            "horizons",
+            "--utc",
+            "2027-03-01",
+            "--out-mask",
+            "m.tif",
+            "--kernels",
+            k,
         ],
     );
     assert_clean_error(&out, "epoch range");

@@ -57,6 +57,21 @@ pub(super) struct CellGeom {
     pub r_obs_km: f32,
     /// Where the cell's rays leave the outermost layer (the below-sphere count).
     pub beyond: super::BeyondDem,
+    /// Whether the Sun and the Earth are seen at all, always whole, or sometimes cut, by bounds
+    /// over every epoch (so that most crater floors skip the Sun and most far slopes the Earth).
+    pub sun: Reach,
+    pub earth: Reach,
+}
+
+/// What bounds over every epoch say of a body at a cell.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum Reach {
+    /// Entirely below the horizon at every epoch.
+    Never,
+    /// Entirely above the horizon at every epoch.
+    Always,
+    /// Epoch by epoch.
+    Varies,
 }
 
 /// Running statistics of one cell.
@@ -90,6 +105,16 @@ pub(super) struct Seen {
     pub sin_el: [f32; CHUNK],
     pub cos_el: [f32; CHUNK],
     pub fraction: [f32; CHUNK],
+}
+
+impl Default for Scratch {
+    fn default() -> Self {
+        Scratch {
+            sun: Box::default(),
+            earth: Box::default(),
+            partial: Box::new([0; CHUNK]),
+        }
+    }
 }
 
 impl Default for Seen {
@@ -178,7 +203,10 @@ fn geometry(cell: &CellGeom, pos: [&[f32]; 3], out: &mut Seen) {
 }
 
 /// Pass 2: the visible fraction of a disc of `radius_deg` (per epoch) for the directions in
-/// `seen`, above the cell's horizon `h` (`n + 1` band values) with its sector bounds.
+/// `seen`, above the cell's horizon `h` (`n + 1` band values) with its sector bounds. First a
+/// branch-free classification against the sector bounds (a disc entirely above or below the
+/// horizon of its sector is 1 or 0), which lists the other epochs; then the circular segment for
+/// those only.
 #[inline(always)]
 fn fractions(
     h: &[f32],
@@ -187,35 +215,41 @@ fn fractions(
     chord: &ChordTable,
     radius_deg: &[f32],
     seen: &mut Seen,
+    partial: &mut [u16; CHUNK],
 ) {
     let n = radius_deg.len().min(CHUNK);
     let sector_per_deg = SECTORS as f32 / 360.0;
+    let bounds = &bounds[..SECTORS];
+    let mut count = 0;
     for j in 0..n {
         let (el, az, r) = (seen.el_deg[j], seen.az_deg[j], radius_deg[j]);
-        let cos_el = seen.cos_el[j];
         let s = ((az * sector_per_deg) as usize).min(SECTORS - 1);
         let [lo, hi] = bounds[s];
         // Within the sector bounds only while the disc's half-span fits the margin.
-        let fits = r <= SECTOR_MARGIN_DEG * cos_el;
-        seen.fraction[j] = if fits && el - r >= hi {
-            1.0
-        } else if fits && el + r <= lo {
-            0.0
+        let fits = r <= SECTOR_MARGIN_DEG * seen.cos_el[j];
+        let full = fits & (el - r >= hi);
+        let dark = fits & (el + r <= lo);
+        seen.fraction[j] = if full { 1.0 } else { 0.0 };
+        partial[count] = j as u16;
+        count += usize::from(!(full | dark));
+    }
+    for &j in &partial[..count] {
+        let j = usize::from(j);
+        let (el, az, r) = (seen.el_deg[j], seen.az_deg[j], radius_deg[j]);
+        let cos_el = seen.cos_el[j];
+        // Circular segment under the straight line through the horizon at the disc's two
+        // azimuth edges (paper 001 eqs. 6–7), flux-weighted with the limb law.
+        let half_span = if cos_el > 1e-3 {
+            (r / cos_el).min(180.0)
         } else {
-            // Circular segment under the straight line through the horizon at the disc's two
-            // azimuth edges (paper 001 eqs. 6–7), flux-weighted with the limb law.
-            let half_span = if cos_el > 1e-3 {
-                (r / cos_el).min(180.0)
-            } else {
-                180.0
-            };
-            let left = lookup.horizon_deg(h, az - half_span) - el;
-            let right = lookup.horizon_deg(h, az + half_span) - el;
-            let m = 0.5 * (left + right);
-            let k = (right - left) / (2.0 * r);
-            let d = m / (1.0 + k * k).sqrt();
-            chord.fraction(d / r)
+            180.0
         };
+        let left = lookup.horizon_deg(h, az - half_span) - el;
+        let right = lookup.horizon_deg(h, az + half_span) - el;
+        let m = 0.5 * (left + right);
+        let k = (right - left) / (2.0 * r);
+        let d = m / (1.0 + k * k).sqrt();
+        seen.fraction[j] = chord.fraction(d / r);
     }
 }
 
@@ -236,8 +270,9 @@ pub(super) fn sector_bounds(h: &[f32], band_az_deg: &[f32], out: &mut Vec<[f32; 
         };
         let (v0, v1) = (h[k], h[k + 1]);
         let (lo, hi) = (v0.min(v1), v0.max(v1));
-        let first = ((a - SECTOR_MARGIN_DEG) / width).floor() as i64;
-        let last = ((a_next + SECTOR_MARGIN_DEG) / width).floor() as i64;
+        // Band azimuths are in [0, 360): shift by a whole turn so that truncation floors.
+        let first = ((a - SECTOR_MARGIN_DEG + 360.0) / width) as i64 - SECTORS as i64;
+        let last = ((a_next + SECTOR_MARGIN_DEG + 360.0) / width) as i64 - SECTORS as i64;
         for s in first..=last {
             let b = &mut out[s.rem_euclid(SECTORS as i64) as usize];
             b[0] = b[0].min(lo);
@@ -247,10 +282,10 @@ pub(super) fn sector_bounds(h: &[f32], band_az_deg: &[f32], out: &mut Vec<[f32; 
 }
 
 /// Per-thread buffers of a chunk.
-#[derive(Default)]
 pub(super) struct Scratch {
     sun: Box<Seen>,
     earth: Box<Seen>,
+    partial: Box<[u16; CHUNK]>,
 }
 
 /// Runs `cells` (each with its `stride = n + 1` horizon values and [`SECTORS`] bounds) over
@@ -275,15 +310,18 @@ pub(super) fn run_cells(
     scratch: &mut Scratch,
     acc: &mut [CellAcc],
 ) {
-    let Scratch { sun, earth } = scratch;
+    let Scratch {
+        sun,
+        earth,
+        partial,
+    } = scratch;
     fn sl(v: &[Vec<f32>; 3], range: std::ops::Range<usize>) -> [&[f32]; 3] {
-        [
-            &v[0][range.clone()],
-            &v[1][range.clone()],
-            &v[2][range],
-        ]
+        [&v[0][range.clone()], &v[1][range.clone()], &v[2][range]]
     }
-    let (sun_pos, earth_pos) = (sl(&epochs.sun, range.clone()), sl(&epochs.earth, range.clone()));
+    let (sun_pos, earth_pos) = (
+        sl(&epochs.sun, range.clone()),
+        sl(&epochs.earth, range.clone()),
+    );
     let sun_r = &epochs.sun_radius_deg[range.clone()];
     let earth_r = &epochs.earth_radius_deg[range.clone()];
     let sun_w = &epochs.sun_normal_w_m2[range.clone()];
@@ -294,10 +332,23 @@ pub(super) fn run_cells(
         .zip(bounds.chunks_exact(SECTORS))
         .zip(acc.iter_mut())
     {
-        geometry(cell, sun_pos, sun);
-        geometry(cell, earth_pos, earth);
-        fractions(h, b, lookup, chord_sun, sun_r, sun);
-        fractions(h, b, lookup, chord_earth, earth_r, earth);
+        for (reach, pos, radius, chord, seen) in [
+            (cell.sun, sun_pos, sun_r, chord_sun, &mut **sun),
+            (cell.earth, earth_pos, earth_r, chord_earth, &mut **earth),
+        ] {
+            match reach {
+                // The Sun's elevation still feeds the irradiance and the below-sphere count.
+                Reach::Never => seen.fraction[..n].fill(0.0),
+                Reach::Always => {
+                    geometry(cell, pos, seen);
+                    seen.fraction[..n].fill(1.0);
+                }
+                Reach::Varies => {
+                    geometry(cell, pos, seen);
+                    fractions(h, b, lookup, chord, radius, seen, partial);
+                }
+            }
+        }
         let mut s = *a;
         let mut sum = 0.0_f32;
         let (mut irr_h, mut irr_t) = (0.0_f32, 0.0_f32);
@@ -320,7 +371,9 @@ pub(super) fn run_cells(
             if sun_up
                 && sun.el_deg[j] < 0.0
                 && cell.beyond.may_meet_sphere(sun.el_deg[j])
-                && cell.beyond.meets_sphere(edges, sun.az_deg[j], sun.el_deg[j])
+                && cell
+                    .beyond
+                    .meets_sphere(edges, sun.az_deg[j], sun.el_deg[j])
             {
                 s.below_sphere += 1;
             }

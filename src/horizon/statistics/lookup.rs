@@ -3,13 +3,15 @@
 
 use crate::illum::{LimbDarkening, chord_visible_fraction};
 
-/// Bins of the azimuth index (0.044° each: narrower than any two band azimuths are apart, so one
-/// comparison finds the band after the table).
-const INDEX_BINS: usize = 8192;
+/// Fewest bins of the azimuth index (0.044° each); more when two bands are closer than two bins.
+const MIN_INDEX_BINS: usize = 8192;
+/// Most bins of the azimuth index.
+const MAX_INDEX_BINS: usize = 1 << 22;
 
 /// The horizon at any grid azimuth, by linear interpolation between the bands (non-uniform grid
-/// azimuths, sorted, periodic): an index table of [`INDEX_BINS`] bins, then at most a few
-/// comparisons.
+/// azimuths, sorted, periodic): an index table whose bins are narrower than any two bands are
+/// apart, so that one comparison after the table finds the band (branch-free: the lookup
+/// vectorises).
 #[derive(Debug, Clone)]
 pub struct AzimuthLookup {
     band_az_deg: Vec<f32>,
@@ -18,6 +20,8 @@ pub struct AzimuthLookup {
     rel_deg: Vec<f32>,
     inv_width: Vec<f32>,
     index: Vec<u32>,
+    /// Index bins per degree.
+    bins_per_deg: f32,
 }
 
 impl AzimuthLookup {
@@ -38,10 +42,20 @@ impl AzimuthLookup {
             .windows(2)
             .map(|w| 1.0 / (w[1] - w[0]).max(1e-6))
             .collect();
-        let mut index = Vec::with_capacity(INDEX_BINS);
+        let min_gap = rel_deg
+            .windows(2)
+            .map(|w| f64::from(w[1] - w[0]))
+            .fold(f64::INFINITY, f64::min);
+        if min_gap < 720.0 / MAX_INDEX_BINS as f64 {
+            return None;
+        }
+        let bins = ((720.0 / min_gap).ceil() as usize)
+            .next_power_of_two()
+            .clamp(MIN_INDEX_BINS, MAX_INDEX_BINS);
+        let mut index = Vec::with_capacity(bins);
         let mut k = 0_usize;
-        for j in 0..INDEX_BINS {
-            let start = (j as f64 * 360.0 / INDEX_BINS as f64) as f32;
+        for j in 0..bins {
+            let start = (j as f64 * 360.0 / bins as f64) as f32;
             while k + 1 < n && rel_deg[k + 1] <= start {
                 k += 1;
             }
@@ -53,6 +67,7 @@ impl AzimuthLookup {
             rel_deg,
             inv_width,
             index,
+            bins_per_deg: (bins as f64 / 360.0) as f32,
         })
     }
 
@@ -70,22 +85,42 @@ impl AzimuthLookup {
     /// (`n + 1` values: the `n` bands then the first again).
     #[inline(always)]
     pub fn horizon_deg(&self, h: &[f32], az_deg: f32) -> f32 {
-        let mut r = az_deg - self.a0_deg;
-        if !(0.0..360.0).contains(&r) {
-            r -= 360.0 * (r / 360.0).floor();
-            if r >= 360.0 {
-                r = 0.0;
-            }
-        }
-        let j = ((r * (INDEX_BINS as f32 / 360.0)) as usize).min(INDEX_BINS - 1);
-        let mut k = self.index[j] as usize;
-        let n = self.inv_width.len();
-        while k + 1 < n && r >= self.rel_deg[k + 1] {
-            k += 1;
-        }
+        let (k, r) = self.segment(az_deg);
         let w = (r - self.rel_deg[k]) * self.inv_width[k];
         let (a, b) = (h[k], h[k + 1]);
         a + w * (b - a)
+    }
+
+    /// The band segment `k` (from band `k` to band `k + 1`, the last to the first) holding grid
+    /// azimuth `az_deg`, and the azimuth relative to the first band, degrees in [0, 360).
+    #[inline(always)]
+    pub fn segment(&self, az_deg: f32) -> (usize, f32) {
+        let r0 = az_deg - self.a0_deg;
+        let r = r0 - 360.0 * (r0 * (1.0 / 360.0)).floor();
+        let last = self.index.len() as i32 - 1;
+        let j = ((r * self.bins_per_deg) as i32).clamp(0, last) as usize;
+        let k0 = self.index[j] as usize;
+        let n = self.inv_width.len();
+        // The bins are narrower than the bands' gaps: at most one band boundary per bin.
+        let k = (k0 + usize::from(r >= self.rel_deg[k0 + 1])).min(n - 1);
+        (k, r)
+    }
+
+    /// Segments holding grid azimuths from `from_deg` over `width_deg` (≥ 0), in order.
+    pub fn segments_over(&self, from_deg: f32, width_deg: f32) -> impl Iterator<Item = usize> {
+        let n = self.inv_width.len();
+        let (k0, r0) = self.segment(from_deg);
+        let end = r0 + width_deg;
+        let rel = &self.rel_deg;
+        (0..n)
+            .map(move |i| (k0 + i) % n)
+            .enumerate()
+            .take_while(move |&(i, k)| {
+                // Start of segment k, unwrapped past the first lap.
+                let turns = if k < k0 { 360.0 } else { 0.0 };
+                i == 0 || rel[k] + turns <= end
+            })
+            .map(|(_, k)| k)
     }
 }
 
@@ -112,17 +147,11 @@ impl ChordTable {
         ChordTable { values }
     }
 
-    /// The fraction at `x = d / r` (positive: chord above the centre).
+    /// The fraction at `x = d / r` (positive: chord above the centre); branch-free.
     #[inline(always)]
     pub fn fraction(&self, x: f32) -> f32 {
-        if x >= 1.0 {
-            return 0.0;
-        }
-        if x <= -1.0 || x.is_nan() {
-            return if x.is_nan() { 0.0 } else { 1.0 };
-        }
-        let t = (x + 1.0) * (CHORD_BINS as f32 / 2.0);
-        let i = (t as usize).min(CHORD_BINS - 1);
+        let t = (x.clamp(-1.0, 1.0) + 1.0) * (CHORD_BINS as f32 / 2.0);
+        let i = (t as i32).clamp(0, CHORD_BINS as i32 - 1) as usize;
         let f = t - i as f32;
         let (a, b) = (self.values[i], self.values[i + 1]);
         a + f * (b - a)

@@ -118,6 +118,9 @@ pub(crate) struct BeyondDem {
     y_m: f64,
     up: [f64; 3],
     r0_m: f64,
+    /// Elevation of the observer's geometric horizon on the reference sphere, `−acos(R / r0)`
+    /// (0 when the observer is inside the sphere: then every descending ray meets it).
+    dip_deg: f32,
 }
 
 /// The layers' map extents and the projection, shared by every pixel's [`BeyondDem`].
@@ -128,11 +131,12 @@ struct Edges {
 
 impl BeyondDem {
     /// Whether a ray at `el_deg` (< 0) can meet the reference sphere at all: its closest
-    /// approach to the Moon's centre, `r0 cos(el)`, is inside the sphere (a cheap filter before
+    /// approach to the Moon's centre, `r0 cos(el)`, is inside the sphere, i.e. it is below the
+    /// observer's geometric horizon `−acos(R / r0)` (a cheap filter before
     /// [`BeyondDem::meets_sphere`]).
     #[inline]
     fn may_meet_sphere(&self, el_deg: f32) -> bool {
-        self.r0_m * f64::from(el_deg).to_radians().cos() < MOON_RADIUS_M
+        el_deg < self.dip_deg
     }
 
     /// Whether a ray at grid azimuth `grid_az_deg` and elevation `el_deg` (< 0), once past the
@@ -185,6 +189,107 @@ impl BeyondDem {
     }
 }
 
+/// Bounds of a body's path over every epoch, seen from the grid centre: what
+/// [`StatisticsEngine::cell`] needs to tell a cell that never (or always) sees it.
+#[derive(Debug, Clone, Copy)]
+struct BodyBounds {
+    /// The elevation range at the grid centre, degrees.
+    el_lo_deg: f64,
+    el_hi_deg: f64,
+    /// The largest angular radius, degrees.
+    radius_max_deg: f64,
+    /// The mean direction (`MOON_ME` unit vector) and the largest angle of any epoch's
+    /// direction from it, degrees (≥ 90: the body goes all round).
+    mean_dir: nalgebra::Vector3<f64>,
+    spread_deg: f64,
+    /// How much the direction can differ between the grid centre and any cell for the same
+    /// epoch (parallax across the grid), degrees.
+    parallax_deg: f64,
+}
+
+impl BodyBounds {
+    /// The bounds of the body at `positions_km` (relative to the Moon's centre) seen from the
+    /// point `centre_km` with radial `up`, over a grid reaching `reach_m` from it.
+    fn new(
+        positions_km: impl Iterator<Item = ([f64; 3], f64)>,
+        centre_km: nalgebra::Vector3<f64>,
+        up: nalgebra::Vector3<f64>,
+        reach_m: f64,
+    ) -> Self {
+        let mut b = BodyBounds {
+            el_lo_deg: f64::INFINITY,
+            el_hi_deg: f64::NEG_INFINITY,
+            radius_max_deg: 0.0,
+            mean_dir: nalgebra::Vector3::zeros(),
+            spread_deg: 0.0,
+            parallax_deg: 0.0,
+        };
+        let mut dirs = Vec::new();
+        let mut d_min_km = f64::INFINITY;
+        for (p, radius_deg) in positions_km {
+            let v = nalgebra::Vector3::from(p) - centre_km;
+            let u = v / v.norm();
+            let el = u.dot(&up).clamp(-1.0, 1.0).asin().to_degrees();
+            b.el_lo_deg = b.el_lo_deg.min(el);
+            b.el_hi_deg = b.el_hi_deg.max(el);
+            b.radius_max_deg = b.radius_max_deg.max(radius_deg);
+            b.mean_dir += u;
+            d_min_km = d_min_km.min(v.norm());
+            dirs.push(u);
+        }
+        b.mean_dir /= b.mean_dir.norm().max(1e-300);
+        b.spread_deg = dirs
+            .iter()
+            .map(|u| u.dot(&b.mean_dir).clamp(-1.0, 1.0).acos().to_degrees())
+            .fold(0.0, f64::max);
+        // Cells stand up to `reach_m` from the centre and up to ±20 km from the sphere.
+        b.parallax_deg = ((reach_m + 20_000.0) / (1000.0 * d_min_km)).to_degrees() + 1e-3;
+        b
+    }
+
+    /// Whether the body never, always or sometimes clears the horizon `h` (`n + 1` band values
+    /// at `lookup`'s azimuths) of a cell whose radial `up` is `tilt_deg` from the grid centre's, and
+    /// whose grid azimuth of `mean_dir` is `mean_az_deg`.
+    fn reach(
+        &self,
+        h: &[f32],
+        lookup: &AzimuthLookup,
+        tilt_deg: f64,
+        mean_az_deg: f64,
+    ) -> kernel::Reach {
+        // Elevation range at the cell: the tilt of its vertical and the parallax move a
+        // direction's sine of elevation by at most their angle, the elevation by that over cos.
+        let steep = (self.el_lo_deg.abs().max(self.el_hi_deg.abs()) + tilt_deg).min(89.0);
+        let grow = (tilt_deg + self.parallax_deg) / steep.to_radians().cos();
+        let (el_lo, el_hi) = (self.el_lo_deg - grow, self.el_hi_deg + grow);
+        // The azimuths the disc can cover.
+        let half_width =
+            (self.spread_deg + tilt_deg + self.parallax_deg + self.radius_max_deg + 0.1)
+                / (el_hi.abs().max(el_lo.abs()).min(89.0)).to_radians().cos();
+        let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+        let mut take = |k: usize| {
+            lo = lo.min(h[k].min(h[k + 1]));
+            hi = hi.max(h[k].max(h[k + 1]));
+        };
+        if half_width >= 180.0 {
+            (0..lookup.n_bands()).for_each(&mut take);
+        } else {
+            lookup
+                .segments_over((mean_az_deg - half_width) as f32, (2.0 * half_width) as f32)
+                .for_each(&mut take);
+        }
+        // 1e-3° for the kernel's f32 geometry.
+        let r = self.radius_max_deg + 1e-3;
+        if f64::from(lo) >= el_hi + r {
+            kernel::Reach::Never
+        } else if f64::from(hi) <= el_lo - r {
+            kernel::Reach::Always
+        } else {
+            kernel::Reach::Varies
+        }
+    }
+}
+
 /// Cells per parallel task (their horizons stay in L1/L2 while the epochs stream).
 const CELLS_PER_TASK: usize = 16;
 /// Bytes of horizons read per block of rows.
@@ -194,13 +299,20 @@ const BLOCK_BYTES: usize = 128 << 20;
 pub struct StatisticsEngine<'a> {
     stack: &'a TerrainStack,
     params: StatisticsParams,
+    /// Whether cells that never (or always) see a body skip it (off only to test that the
+    /// bounds never change a result).
+    skip_unseen: bool,
 }
 
 impl<'a> StatisticsEngine<'a> {
     /// An engine for `stack` (the horizons must be on its finest layer's grid).
     pub fn new(stack: &'a TerrainStack, params: StatisticsParams) -> Result<Self, HorizonError> {
         stack.layers.first().ok_or(HorizonError::NoLayers)?;
-        Ok(StatisticsEngine { stack, params })
+        Ok(StatisticsEngine {
+            stack,
+            params,
+            skip_unseen: true,
+        })
     }
 
     fn fine(&self) -> &'a Dem {
@@ -277,8 +389,43 @@ impl<'a> StatisticsEngine<'a> {
                 .push((SOLAR_CONSTANT_W_M2 * scale * scale) as f32);
             soa.earth_radius_deg.push(e.earth_radius_deg as f32);
         }
+        // The bodies' paths over every epoch, from the grid centre.
+        let (centre_up, reach_m) = {
+            let projector = UnitProjector::new(&fine.projection);
+            let (cx, cy) =
+                g.xy_from_row_col((g.rows as f64 - 1.0) / 2.0, (g.cols as f64 - 1.0) / 2.0);
+            let (x0, y0, x1, y1) = g.bounds_m();
+            (
+                projector.unit_from_xy(cx, cy),
+                (x1 - x0).hypot(y1 - y0) / 2.0,
+            )
+        };
+        let centre_km = centre_up * (MOON_RADIUS_M / 1000.0);
+        let body_bounds = [
+            BodyBounds::new(
+                epochs
+                    .iter()
+                    .map(|e| (e.sun_in_moon_me_km, e.sun_radius_deg)),
+                centre_km,
+                centre_up,
+                reach_m,
+            ),
+            BodyBounds::new(
+                epochs
+                    .iter()
+                    .map(|e| (e.earth_in_moon_me_km, e.earth_radius_deg)),
+                centre_km,
+                centre_up,
+                reach_m,
+            ),
+        ];
         let edges = Edges {
-            extents: self.stack.layers.iter().map(|l| l.grid.bounds_m()).collect(),
+            extents: self
+                .stack
+                .layers
+                .iter()
+                .map(|l| l.grid.bounds_m())
+                .collect(),
             projector: UnitProjector::new(&fine.projection),
         };
 
@@ -318,9 +465,13 @@ impl<'a> StatisticsEngine<'a> {
                     for i in lo..hi {
                         let px = first_px + i;
                         let start = horizons.len();
-                        if let Some(cell) =
-                            self.cell(px, h_obs_m, &block, block_px, i, n, &mut horizons)
-                        {
+                        if let Some(cell) = self.cell(
+                            px,
+                            h_obs_m,
+                            (&block, block_px, i, n),
+                            &mut horizons,
+                            (&body_bounds, centre_up, &lookup),
+                        ) {
                             kernel::sector_bounds(
                                 &horizons[start..],
                                 lookup.band_az_deg(),
@@ -381,21 +532,17 @@ impl<'a> StatisticsEngine<'a> {
         Ok(out)
     }
 
-    /// The geometry of pixel `px` (index `i` of a block of `block_px` pixels), appending its
-    /// `n + 1` horizon values (deg) to `horizons`; `None` for a pixel without data.
-    #[allow(
-        clippy::too_many_arguments,
-        reason = "a private helper of run's inner loop"
-    )]
+    /// The geometry of pixel `px` (index `i` of a block of `block_px` pixels of `n` bands),
+    /// appending its `n + 1` horizon values (deg) to `horizons`; `None` for a pixel without
+    /// data. `bodies` (bounds of the Sun's and the Earth's paths, the grid centre's radial, the
+    /// band azimuths) tell whether the cell sees each body at all.
     fn cell(
         &self,
         px: usize,
         h_obs_m: f64,
-        block: &[i16],
-        block_px: usize,
-        i: usize,
-        n: usize,
+        (block, block_px, i, n): (&[i16], usize, usize, usize),
         horizons: &mut Vec<f32>,
+        (bodies, centre_up, lookup): (&[BodyBounds; 2], nalgebra::Vector3<f64>, &AzimuthLookup),
     ) -> Option<CellGeom> {
         let fine = self.fine();
         let ground_m = f64::from(fine.heights_m[px]);
@@ -420,21 +567,46 @@ impl<'a> StatisticsEngine<'a> {
             t / t.norm()
         };
         let eps_m = 1.0;
-        let east = tangent(projector.unit_from_xy(x + eps_m, y) - projector.unit_from_xy(x - eps_m, y));
+        let east =
+            tangent(projector.unit_from_xy(x + eps_m, y) - projector.unit_from_xy(x - eps_m, y));
         let north =
             tangent(projector.unit_from_xy(x, y + eps_m) - projector.unit_from_xy(x, y - eps_m));
         let r0_m = MOON_RADIUS_M + ground_m + h_obs_m;
         let v32 = |v: nalgebra::Vector3<f64>| [v.x as f32, v.y as f32, v.z as f32];
+        let h = &horizons[start..];
+        let tilt_deg = up
+            .cross(&centre_up)
+            .norm()
+            .atan2(up.dot(&centre_up))
+            .to_degrees();
+        let reach = |b: &BodyBounds| {
+            if !self.skip_unseen {
+                return kernel::Reach::Varies;
+            }
+            let az = b
+                .mean_dir
+                .dot(&east)
+                .atan2(b.mean_dir.dot(&north))
+                .to_degrees();
+            b.reach(h, lookup, tilt_deg, az.rem_euclid(360.0))
+        };
         Some(CellGeom {
             up: v32(up),
             grid_east: v32(east),
             grid_north: v32(north),
             r_obs_km: (r0_m / 1000.0) as f32,
+            sun: reach(&bodies[0]),
+            earth: reach(&bodies[1]),
             beyond: BeyondDem {
                 x_m: x,
                 y_m: y,
                 up: [up.x, up.y, up.z],
                 r0_m,
+                dip_deg: if r0_m > MOON_RADIUS_M {
+                    -((MOON_RADIUS_M / r0_m).acos().to_degrees() as f32)
+                } else {
+                    0.0
+                },
             },
         })
     }

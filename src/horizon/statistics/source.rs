@@ -124,7 +124,9 @@ impl HorizonFile {
             return Err(bad(format!(
                 "not a penumbra horizon map (write one with `penumbra horizon-map sweep`; its \
                  product is {:?})",
-                reader.metadata_item("penumbra_product").unwrap_or("not recorded")
+                reader
+                    .metadata_item("penumbra_product")
+                    .unwrap_or("not recorded")
             )));
         }
         let observer_height_m = reader

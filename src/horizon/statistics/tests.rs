@@ -1,5 +1,6 @@
 use super::kernel::atan2_deg;
 use super::*;
+use crate::terrain::TerrainStack;
 
 /// A small deterministic generator (xorshift) for test inputs.
 fn rng(seed: u64) -> impl FnMut() -> f64 {
@@ -101,4 +102,95 @@ fn chord_table_matches_the_strip_integral() {
         assert_eq!(table.fraction(1.0), 0.0);
         assert_eq!(table.fraction(-1.0), 1.0);
     }
+}
+
+/// Cells that never (or always) see a body skip it: the bounds must never change a result. On a
+/// rough synthetic DEM (crater floors that never see the Sun, slopes that never see the Earth),
+/// every statistic with the skip equals the one without, bit for bit.
+#[test]
+fn skipping_unseen_bodies_changes_nothing() {
+    use crate::horizon::{HorizonSweep, SweepParams};
+    let dem = crate::terrain::synth::south_polar_dem(&crate::terrain::synth::SynthParams {
+        size_px: 72,
+        px_m: 150.0,
+        seed: 5,
+    })
+    .unwrap();
+    let stack = TerrainStack::new(vec![dem]);
+    let sweep = HorizonSweep::new(
+        &stack,
+        SweepParams {
+            observer_height_m: 2.0,
+            azimuths: 180,
+            max_step: 8,
+        },
+    )
+    .unwrap();
+    let mut horizons = InMemoryHorizons::sweep(&sweep, |_| {});
+    let kernels =
+        crate::ephem::Kernels::load(&crate::ephem::kernels::default_kernel_dir()).unwrap();
+    let epochs = crate::ephem::time::epoch_range(
+        crate::ephem::time::parse_utc("2027-01-01").unwrap(),
+        crate::ephem::time::parse_utc("2027-12-31").unwrap(),
+        hifitime::Duration::from_hours(5.0),
+    )
+    .unwrap();
+    let site = crate::ephem::Site::new(-90.0, 0.0, 0.0).unwrap();
+    let sky =
+        crate::ephem::sun_earth_series(&kernels, &[site], &epochs, Default::default()).unwrap();
+    let at = |rel: nalgebra::Vector3<f64>| {
+        let p = site.pos_in_moon_me_km + rel;
+        [p.x, p.y, p.z]
+    };
+    let bodies: Vec<EpochBodies> = sky[0]
+        .iter()
+        .map(|v| EpochBodies {
+            sun_in_moon_me_km: at(v.sun.pos_in_moon_me_km),
+            sun_range_km: v.sun.range_km,
+            sun_radius_deg: v.sun.radius_deg,
+            earth_in_moon_me_km: at(v.earth.pos_in_moon_me_km),
+            earth_radius_deg: v.earth.radius_deg,
+        })
+        .collect();
+    let params = StatisticsParams {
+        limb: LimbDarkening::EDDINGTON,
+        visible_min_fraction: 1e-6,
+        full_min_fraction: 0.999,
+    };
+    let mut engine = StatisticsEngine::new(&stack, params).unwrap();
+    let with = engine.run(&mut horizons, &bodies, |_| {}).unwrap();
+    engine.skip_unseen = false;
+    let without = engine.run(&mut horizons, &bodies, |_| {}).unwrap();
+    let never_sun = with
+        .sun_visible_count
+        .iter()
+        .zip(&with.nodata)
+        .filter(|(c, nd)| **c == 0 && !**nd)
+        .count();
+    let never_earth = with
+        .earth_visible_count
+        .iter()
+        .zip(&with.nodata)
+        .filter(|(c, nd)| **c == 0 && !**nd)
+        .count();
+    println!("{never_sun} cells never see the Sun, {never_earth} never see the Earth");
+    assert!(
+        never_sun > 50 && never_earth > 50,
+        "the test needs cells that skip"
+    );
+    assert_eq!(with.sun_visible_count, without.sun_visible_count);
+    assert_eq!(with.sun_full_count, without.sun_full_count);
+    assert_eq!(with.earth_visible_count, without.earth_visible_count);
+    assert_eq!(with.sun_and_earth_count, without.sun_and_earth_count);
+    assert_eq!(with.longest_dark_epochs, without.longest_dark_epochs);
+    assert_eq!(
+        with.longest_earth_hidden_epochs,
+        without.longest_earth_hidden_epochs
+    );
+    assert_eq!(with.sun_fraction_sum, without.sun_fraction_sum);
+    assert_eq!(
+        with.irradiance_horizontal_sum_w_m2,
+        without.irradiance_horizontal_sum_w_m2
+    );
+    assert_eq!(with.below_sphere, without.below_sphere);
 }

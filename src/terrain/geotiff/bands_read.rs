@@ -50,14 +50,13 @@ impl MultiBandTiffReader {
             path: name.clone(),
             detail,
         };
-        let mut decoder =
-            Decoder::new(std::io::BufReader::new(file.try_clone().map_err(|source| {
-                DemError::Io {
-                    path: name.clone(),
-                    source,
-                }
-            })?))
-            .map_err(tiff_err)?;
+        let mut decoder = Decoder::new(std::io::BufReader::new(file.try_clone().map_err(
+            |source| DemError::Io {
+                path: name.clone(),
+                source,
+            },
+        )?))
+        .map_err(tiff_err)?;
         let (cols, rows) = decoder.dimensions().map_err(tiff_err)?;
         let (rows, cols) = (rows as usize, cols as usize);
         let n_bands: u16 = decoder
@@ -175,7 +174,10 @@ impl MultiBandTiffReader {
         for item in items {
             match (item.sample.as_deref(), item.role.as_deref()) {
                 (Some(s), Some("description")) => {
-                    if let Some(d) = s.parse::<usize>().ok().and_then(|i| descriptions.get_mut(i))
+                    if let Some(d) = s
+                        .parse::<usize>()
+                        .ok()
+                        .and_then(|i| descriptions.get_mut(i))
                     {
                         *d = item.value;
                     }
@@ -232,10 +234,12 @@ impl MultiBandTiffReader {
             source,
         };
         self.file.seek(SeekFrom::Start(start)).map_err(io)?;
-        self.file.read_exact(&mut bytes).map_err(|source| DemError::Io {
-            path: self.path.display().to_string(),
-            source,
-        })?;
+        self.file
+            .read_exact(&mut bytes)
+            .map_err(|source| DemError::Io {
+                path: self.path.display().to_string(),
+                source,
+            })?;
         out.clear();
         out.extend(
             bytes
