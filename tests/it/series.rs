@@ -223,6 +223,22 @@ fn the_demo_scenario_runs_as_the_readme_says() {
         serde_json::from_str(&std::fs::read_to_string(res.join("run.json")).unwrap()).unwrap();
     assert_eq!(run["epoch_count"], 8760);
     assert!(run["dem_layers"][0].as_str().unwrap().contains("synthetic"));
+    // The hourly maps of the horizons engine.
+    let map = files_in(&res.join("map"));
+    for f in [
+        "sun_illumination_pct.tif",
+        "sun_full_pct.tif",
+        "longest_earth_hidden_h.tif",
+        "irradiance_horizontal_w_m2.tif",
+        "psr_mask.tif",
+    ] {
+        assert!(map.contains(&f.to_string()), "map/{f} missing: {map:?}");
+    }
+    assert!(
+        run["backend"].as_str().unwrap().contains("horizons engine"),
+        "{}",
+        run["backend"]
+    );
     // The demo's camera path ([[render.paths]], 3 frames).
     let render = files_in(&res.join("render"));
     for f in ["descent_0000.png", "descent_0001.png", "descent_0002.png"] {
