@@ -245,7 +245,7 @@ pub fn run(req: &MapRequest) -> anyhow::Result<()> {
 /// engine when it is faster, else the per-epoch combined engine (the GPU's DP sweep on a GPU).
 ///
 /// Measured on the 2-core VM (`cargo bench --bench statistics`, docs/PERFORMANCE.md): a
-/// whole-grid sweep of 552 directions costs as much as ≈ 750 epochs of per-epoch combined maps
+/// whole-grid sweep of 552–600 directions costs as much as ≈ 750 epochs of per-epoch combined maps
 /// on a single layer and ≈ 2,000 with the LOLA far field, after which each epoch costs the
 /// horizons engine ≈ 35× less; so the horizons engine is chosen from 1,000 epochs on (at once
 /// when the horizons are given as a file).
