@@ -20,7 +20,7 @@
 
 mod write;
 
-pub use write::write_sweep;
+pub use write::{PSR_DESCRIPTION, SweepRaster, sweep_rasters, write_sweep};
 
 use rayon::prelude::*;
 

@@ -11,16 +11,33 @@ use crate::terrain::Dem;
 /// One continuous output: file stem, description, values on the DEM grid, full scale, unit.
 type Continuous = (&'static str, String, Vec<f32>, f64, String);
 
-/// Writes the statistics of a sweep as GeoTIFFs and PNG previews into `out_dir` on the grid of
-/// `dem` (the finest layer); returns the file names. Statistics per model cell
-/// (`!s.on_dem_grid`, the GPU sweeps) are resampled through `model`, which they need.
-pub fn write_sweep(
+/// The description (GeoTIFF `content`) of the PSR mask.
+pub const PSR_DESCRIPTION: &str =
+    "permanently shadowed over the span: 1 never lit, 0 lit at least once, 255 no data";
+
+/// One statistic of a sweep as a raster on the DEM's grid.
+#[derive(Debug, Clone)]
+pub struct SweepRaster {
+    /// File stem (`sun_illumination_pct`, …).
+    pub name: &'static str,
+    /// What the values are, with their unit (the GeoTIFF's `content`).
+    pub description: String,
+    /// Row-major values on the DEM's grid (NaN = nodata).
+    pub values: Vec<f32>,
+    /// Full scale of the preview's colour bar.
+    pub full_scale: f64,
+    /// Unit of the preview's colour bar.
+    pub unit: String,
+}
+
+/// The rasters of a sweep's statistics on the grid of `dem` (statistics per model cell,
+/// `!s.on_dem_grid`, are resampled through `model`) and the PSR mask (1 never lit, 0 lit at least
+/// once, 255 nodata): what [`write_sweep`] writes, for callers that want the arrays.
+pub fn sweep_rasters(
     dem: &Dem,
     model: Option<&MapGrid>,
     s: &SweepStats,
-    out_dir: &Path,
-    span: &str,
-) -> anyhow::Result<Vec<String>> {
+) -> anyhow::Result<(Vec<SweepRaster>, Vec<u8>)> {
     let model = match (s.on_dem_grid, model) {
         (true, _) => None,
         (false, Some(m)) => Some(m),
@@ -156,35 +173,18 @@ pub fn write_sweep(
         ]);
     }
 
-    let mut files = Vec::new();
-    let (rows, cols) = (dem.grid.rows, dem.grid.cols);
-    for (name, what, values, max, unit) in outputs {
-        let out = to_dem(mask_nodata(values));
-        // Colour bar up to the data's maximum, rounded up to a tenth of the full scale.
-        let data_max = out
-            .iter()
-            .filter(|v| v.is_finite())
-            .fold(0.0_f32, |a, &b| a.max(b));
-        let tenth = max / 10.0;
-        let max = ((f64::from(data_max) / tenth).ceil() * tenth).clamp(tenth, max);
-        let tif = format!("{name}.tif");
-        write_f32_on(dem, &out_dir.join(&tif), &out, &what)?;
-        let png = format!("{name}.png");
-        write_map_preview(
-            &out_dir.join(&png),
-            &format!("{what} — {span}"),
-            &out,
-            rows,
-            cols,
-            &MapLegend::Continuous {
-                min: 0.0,
-                max,
+    let rasters: Vec<SweepRaster> = outputs
+        .into_iter()
+        .map(
+            |(name, description, values, full_scale, unit)| SweepRaster {
+                name,
+                description,
+                values: to_dem(mask_nodata(values)),
+                full_scale,
                 unit,
             },
-        )?;
-        files.extend([tif, png]);
-    }
-
+        )
+        .collect();
     let psr: Vec<u8> = s
         .sun_visible_count
         .iter()
@@ -195,11 +195,53 @@ pub fn write_sweep(
         None => psr,
         Some(m) => m.to_output_u8(&psr),
     };
+    Ok((rasters, psr_out))
+}
+
+/// Writes the statistics of a sweep as GeoTIFFs and PNG previews into `out_dir` on the grid of
+/// `dem` (the finest layer); returns the file names. Statistics per model cell
+/// (`!s.on_dem_grid`, the GPU sweeps) are resampled through `model`, which they need.
+pub fn write_sweep(
+    dem: &Dem,
+    model: Option<&MapGrid>,
+    s: &SweepStats,
+    out_dir: &Path,
+    span: &str,
+) -> anyhow::Result<Vec<String>> {
+    let (rasters, psr_out) = sweep_rasters(dem, model, s)?;
+    let mut files = Vec::new();
+    let (rows, cols) = (dem.grid.rows, dem.grid.cols);
+    for r in rasters {
+        let out = r.values;
+        // Colour bar up to the data's maximum, rounded up to a tenth of the full scale.
+        let data_max = out
+            .iter()
+            .filter(|v| v.is_finite())
+            .fold(0.0_f32, |a, &b| a.max(b));
+        let tenth = r.full_scale / 10.0;
+        let max = ((f64::from(data_max) / tenth).ceil() * tenth).clamp(tenth, r.full_scale);
+        let tif = format!("{}.tif", r.name);
+        write_f32_on(dem, &out_dir.join(&tif), &out, &r.description)?;
+        let png = format!("{}.png", r.name);
+        write_map_preview(
+            &out_dir.join(&png),
+            &format!("{} — {span}", r.description),
+            &out,
+            rows,
+            cols,
+            &MapLegend::Continuous {
+                min: 0.0,
+                max,
+                unit: r.unit,
+            },
+        )?;
+        files.extend([tif, png]);
+    }
     write_u8_on(
         dem,
         &out_dir.join("psr_mask.tif"),
         &psr_out,
-        "permanently shadowed over the span: 1 never lit, 0 lit at least once, 255 no data",
+        PSR_DESCRIPTION,
     )?;
     let psr_f: Vec<f32> = psr_out
         .iter()
