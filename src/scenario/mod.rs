@@ -16,7 +16,7 @@ use serde::{Deserialize, Serialize};
 use crate::ephem::AbCorr;
 
 mod render;
-mod run;
+pub mod run;
 
 pub use render::{KeyframeSpec, PathSpec, RenderSpec, ViewSpec};
 pub use run::{RunRequest, run_file};

@@ -334,7 +334,10 @@ pub struct SeriesRow {
     pub earth_fraction: f64,
 }
 
-fn write_row(w: &mut dyn Write, epoch: Epoch, r: &SeriesRow) -> std::io::Result<()> {
+/// The values of a `series.csv` row after its `utc`, in the header's order
+/// ([`SERIES_CSV_HEADER`]): the Sun's az, el, horizon, fraction and three irradiances, the Earth's
+/// az, el, horizon and fraction.
+pub fn row_values(r: &SeriesRow) -> [f64; 11] {
     let normal = illum::irradiance::normal_irradiance_w_m2(r.sun.range_km, r.sun_fraction);
     let horizontal =
         illum::irradiance::horizontal_irradiance_w_m2(r.sun.range_km, r.sun.el_deg, r.sun_fraction);
@@ -343,10 +346,7 @@ fn write_row(w: &mut dyn Write, epoch: Epoch, r: &SeriesRow) -> std::io::Result<
         r.sun.el_deg,
         r.sun_fraction,
     );
-    writeln!(
-        w,
-        "{},{:.6},{:.6},{:.6},{:.6},{:.3},{:.3},{:.3},{:.6},{:.6},{:.6},{:.6}",
-        format_utc(epoch),
+    [
         r.sun.az_deg,
         r.sun.el_deg,
         r.sun_horizon_el_deg,
@@ -357,7 +357,27 @@ fn write_row(w: &mut dyn Write, epoch: Epoch, r: &SeriesRow) -> std::io::Result<
         r.earth.az_deg,
         r.earth.el_deg,
         r.earth_horizon_el_deg,
-        r.earth_fraction
+        r.earth_fraction,
+    ]
+}
+
+fn write_row(w: &mut dyn Write, epoch: Epoch, r: &SeriesRow) -> std::io::Result<()> {
+    let v = row_values(r);
+    writeln!(
+        w,
+        "{},{:.6},{:.6},{:.6},{:.6},{:.3},{:.3},{:.3},{:.6},{:.6},{:.6},{:.6}",
+        format_utc(epoch),
+        v[0],
+        v[1],
+        v[2],
+        v[3],
+        v[4],
+        v[5],
+        v[6],
+        v[7],
+        v[8],
+        v[9],
+        v[10]
     )
 }
 
