@@ -1,0 +1,104 @@
+"""Type stubs of penumbra's Rust extension module (see ``penumbra/__init__.py``)."""
+
+from os import PathLike
+from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple, Union
+
+import numpy as np
+import numpy.typing as npt
+
+__version__: str
+
+Times = Union[str, Sequence[Any], npt.NDArray[np.datetime64]]
+Path = Union[str, PathLike[str]]
+GeoTransform = Tuple[float, float, float, float, float, float]
+Progress = Callable[[int, int], Any]
+
+class PenumbraError(ValueError):
+    """A bad argument or input: the message is the command line's one error line."""
+
+class Terrain:
+    """DEM layers (the finest with data wins at each point) or the synthetic DEM."""
+
+    @staticmethod
+    def open(paths: Sequence[Path]) -> Terrain: ...
+    @staticmethod
+    def synthetic(size_px: int = 400, px_m: float = 100.0, seed: int = 1) -> Terrain: ...
+    @property
+    def layers(self) -> List[str]: ...
+    @property
+    def shape(self) -> Tuple[int, int]: ...
+    @property
+    def transform(self) -> GeoTransform: ...
+    @property
+    def crs_wkt(self) -> str: ...
+    @property
+    def crs_proj(self) -> str: ...
+    def heights_m(self) -> npt.NDArray[np.float32]: ...
+    def height_m(self, lat_deg: Any, lon_deg: Any) -> Any: ...
+
+def time_range(start: str, stop: str, step: str) -> npt.NDArray[np.datetime64]: ...
+def ephem(
+    sites: Sequence[Tuple[float, float, float]],
+    times: Times,
+    kernels: Optional[Path] = None,
+    abcorr: str = "lt+s",
+) -> Dict[str, npt.NDArray[Any]]: ...
+def horizon(
+    terrain: Terrain,
+    lat_deg: float,
+    lon_deg: float,
+    observer_height_m: float = 2.0,
+    az_step_deg: float = 0.25,
+    method: str = "fast",
+) -> Dict[str, Any]: ...
+def series(
+    terrain: Terrain,
+    sites: Sequence[Tuple[str, float, float, float]],
+    times: Times,
+    kernels: Optional[Path] = None,
+    abcorr: str = "lt+s",
+    limb_darkening: str = "eddington",
+    disc_method: str = "exact",
+    az_step_deg: float = 0.25,
+    horizon_method: str = "fast",
+    progress: Optional[Progress] = None,
+) -> Tuple[Dict[str, npt.NDArray[Any]], Dict[str, Any]]: ...
+def map_statistics(
+    terrain: Terrain,
+    times: Times,
+    engine: str = "auto",
+    observer_height_m: float = 2.0,
+    kernels: Optional[Path] = None,
+    abcorr: str = "lt+s",
+    horizons: Optional[Path] = None,
+    azimuths: int = 720,
+    max_step: int = 16,
+    limb_darkening: str = "eddington",
+) -> Dict[str, Any]: ...
+def write_geotiff(
+    path: Path, array: npt.NDArray[Any], terrain: Terrain, description: str
+) -> None: ...
+def render(
+    terrain: Terrain,
+    utc: str,
+    lat_deg: float,
+    lon_deg: float,
+    camera: str = "site",
+    height_m: float = 2.0,
+    look_az_deg: float = 0.0,
+    look_el_deg: float = 0.0,
+    altitude_km: Optional[float] = None,
+    target_lat_deg: Optional[float] = None,
+    target_lon_deg: Optional[float] = None,
+    fov_deg: float = 60.0,
+    width: int = 640,
+    height: int = 400,
+    brdf: str = "hapke",
+    exposure: Optional[float] = None,
+    kernels: Optional[Path] = None,
+    abcorr: str = "lt+s",
+    backend: str = "auto",
+) -> Tuple[npt.NDArray[np.uint8], npt.NDArray[np.float32]]: ...
+def run_scenario(
+    path: Path, out_dir: Optional[Path] = None, kernels: Optional[Path] = None
+) -> None: ...

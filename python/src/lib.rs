@@ -1,0 +1,933 @@
+//! `penumbra._penumbra`: the Python module of penumbra, re-exported by the `penumbra` package.
+//!
+//! A thin binding: every number comes from the Rust library (`penumbra`), the same functions the
+//! command line calls. Long calls release the GIL (`Python::allow_threads`) around the Rust work
+//! and run in chunks between which they report progress to an optional callback and check for
+//! Ctrl-C (`KeyboardInterrupt`). Bad arguments raise `penumbra.PenumbraError` (a `ValueError`)
+//! with the command line's one-line message.
+
+use std::path::PathBuf;
+use std::sync::Arc;
+
+use hifitime::Epoch;
+use numpy::ndarray::Array2;
+use numpy::{IntoPyArray, PyReadonlyArray1};
+use penumbra::ephem::{self as eph, AbCorr, Kernels};
+use penumbra::terrain::TerrainStack;
+use pyo3::create_exception;
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList};
+
+create_exception!(
+    penumbra,
+    PenumbraError,
+    PyValueError,
+    "A bad argument or input: the message is the command line's one error line."
+);
+
+/// The one-line error of the command line, as a Python exception.
+fn py_err(e: anyhow::Error) -> PyErr {
+    PenumbraError::new_err(penumbra::products::one_line(&e))
+}
+
+fn bad(msg: impl Into<String>) -> PyErr {
+    PenumbraError::new_err(msg.into())
+}
+
+// --- time ---------------------------------------------------------------------------------------
+
+/// Days since 1970-01-01 of a proleptic Gregorian date (H. Hinnant's `days_from_civil`).
+fn days_from_civil(y: i64, m: i64, d: i64) -> i64 {
+    let y = if m <= 2 { y - 1 } else { y };
+    let era = y.div_euclid(400);
+    let yoe = y - era * 400;
+    let doy = (153 * (m + if m > 2 { -3 } else { 9 }) + 2) / 5 + d - 1;
+    let doe = yoe * 365 + yoe / 4 - yoe / 100 + doy;
+    era * 146_097 + doe - 719_468
+}
+
+/// The proleptic Gregorian date of `days` since 1970-01-01 (`civil_from_days`).
+fn civil_from_days(days: i64) -> (i64, i64, i64) {
+    let z = days + 719_468;
+    let era = z.div_euclid(146_097);
+    let doe = z - era * 146_097;
+    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let d = doy - (153 * mp + 2) / 5 + 1;
+    let m = if mp < 10 { mp + 3 } else { mp - 9 };
+    (yoe + era * 400 + i64::from(m <= 2), m, d)
+}
+
+const NS_PER_DAY: i64 = 86_400_000_000_000;
+
+/// A numpy `datetime64[ns]` value (UTC wall clock, no leap seconds) as an epoch: the same epoch
+/// as the command line's parse of the same date and time.
+fn epoch_from_unix_ns(ns: i64) -> PyResult<Epoch> {
+    if ns == i64::MIN {
+        return Err(bad("NaT (not a time) among the times"));
+    }
+    let (days, rem) = (ns.div_euclid(NS_PER_DAY), ns.rem_euclid(NS_PER_DAY));
+    let (y, m, d) = civil_from_days(days);
+    let (h, rem) = (rem / 3_600_000_000_000, rem % 3_600_000_000_000);
+    let (mi, rem) = (rem / 60_000_000_000, rem % 60_000_000_000);
+    let (s, nanos) = (rem / 1_000_000_000, rem % 1_000_000_000);
+    let year = i32::try_from(y).map_err(|_| bad(format!("year {y} is out of range")))?;
+    Epoch::maybe_from_gregorian_utc(
+        year,
+        m as u8,
+        d as u8,
+        h as u8,
+        mi as u8,
+        s as u8,
+        nanos as u32,
+    )
+    .map_err(|e| bad(format!("time {y:04}-{m:02}-{d:02}: {e}")))
+}
+
+/// An epoch as numpy `datetime64[ns]` (UTC wall clock; a leap second reads as the next day's
+/// first second, as numpy has none).
+fn epoch_to_unix_ns(epoch: Epoch) -> i64 {
+    let (y, mo, d, h, mi, s, ns) = epoch.to_gregorian_utc();
+    days_from_civil(i64::from(y), i64::from(mo), i64::from(d)) * NS_PER_DAY
+        + i64::from(h) * 3_600_000_000_000
+        + i64::from(mi) * 60_000_000_000
+        + i64::from(s) * 1_000_000_000
+        + i64::from(ns)
+}
+
+/// Epochs from `times`: one ISO string, a sequence of ISO strings (or of anything whose `str()`
+/// is one: `datetime`, `numpy.datetime64`), or a numpy `datetime64` array.
+fn epochs_from(times: &Bound<'_, PyAny>) -> PyResult<Vec<Epoch>> {
+    if let Ok(text) = times.extract::<String>() {
+        return Ok(vec![
+            eph::time::parse_utc(&text).map_err(|e| bad(e.to_string()))?,
+        ]);
+    }
+    if let Ok(dtype) = times.getattr("dtype") {
+        let kind: String = dtype.getattr("kind")?.extract()?;
+        if kind == "M" {
+            let ns = times
+                .call_method1("astype", ("datetime64[ns]",))?
+                .call_method1("astype", ("int64",))?
+                .call_method0("ravel")?;
+            let ns: PyReadonlyArray1<'_, i64> = ns.extract()?;
+            return ns
+                .as_slice()?
+                .iter()
+                .map(|&n| epoch_from_unix_ns(n))
+                .collect();
+        }
+    }
+    let mut out = Vec::new();
+    for item in times
+        .try_iter()
+        .map_err(|_| bad("times: give an ISO string, a list of them or a numpy datetime64 array"))?
+    {
+        let text: String = item?.str()?.extract()?;
+        out.push(eph::time::parse_utc(&text).map_err(|e| bad(e.to_string()))?);
+    }
+    if out.is_empty() {
+        return Err(bad("times: no epoch given"));
+    }
+    Ok(out)
+}
+
+/// Epochs as a numpy `datetime64[ns]` array.
+fn datetime64<'py>(py: Python<'py>, epochs: &[Epoch]) -> PyResult<Bound<'py, PyAny>> {
+    let ns: Vec<i64> = epochs.iter().map(|&e| epoch_to_unix_ns(e)).collect();
+    ns.into_pyarray(py)
+        .call_method1("astype", ("datetime64[ns]",))
+}
+
+/// `time_range(start, stop, step)`: the epochs `start`, `start + step`, … up to `stop`
+/// (inclusive on the grid), as the command line's `--start --stop --step`, as `datetime64[ns]`.
+#[pyfunction]
+fn time_range<'py>(
+    py: Python<'py>,
+    start: &str,
+    stop: &str,
+    step: &str,
+) -> PyResult<Bound<'py, PyAny>> {
+    let spec = penumbra::products::EpochSpec::parse(None, Some(start), Some(stop), Some(step))
+        .map_err(py_err)?
+        .ok_or_else(|| bad("time_range needs start, stop and step"))?;
+    let epochs = spec.epochs().map_err(py_err)?;
+    datetime64(py, &epochs)
+}
+
+/// The step of evenly spaced epochs, seconds (`None` when they are not evenly spaced).
+fn uniform_step_s(epochs: &[Epoch]) -> Option<f64> {
+    if epochs.len() < 2 {
+        return Some(3600.0);
+    }
+    let step = (epochs[1] - epochs[0]).to_seconds();
+    (step > 0.0
+        && epochs
+            .windows(2)
+            .all(|w| ((w[1] - w[0]).to_seconds() - step).abs() <= 1e-6))
+    .then_some(step)
+}
+
+// --- kernels, progress ----------------------------------------------------------------------------
+
+fn load_kernels(kernels: Option<PathBuf>) -> PyResult<Kernels> {
+    penumbra::products::KernelSource { dir: kernels }
+        .load()
+        .map_err(py_err)
+}
+
+fn abcorr(text: &str) -> PyResult<AbCorr> {
+    AbCorr::parse(text).map_err(|e| bad(e.to_string()))
+}
+
+/// Reports `done` of `total` to the optional callback and raises `KeyboardInterrupt` on Ctrl-C
+/// (called with the GIL, between chunks of work).
+fn checkpoint(
+    py: Python<'_>,
+    progress: Option<&Bound<'_, PyAny>>,
+    done: usize,
+    total: usize,
+) -> PyResult<()> {
+    py.check_signals()?;
+    if let Some(cb) = progress {
+        cb.call1((done, total))?;
+    }
+    Ok(())
+}
+
+// --- terrain --------------------------------------------------------------------------------------
+
+/// A terrain: DEM layers (the finest with data wins at each point) or the synthetic DEM.
+#[pyclass(module = "penumbra", frozen)]
+struct Terrain {
+    stack: Arc<TerrainStack>,
+    source: penumbra::products::TerrainSource,
+    layers: Vec<String>,
+}
+
+#[pymethods]
+impl Terrain {
+    /// `Terrain.open(paths)`: DEM GeoTIFF layers, any order (sorted finest first).
+    #[staticmethod]
+    fn open(py: Python<'_>, paths: Vec<PathBuf>) -> PyResult<Self> {
+        if paths.is_empty() {
+            return Err(bad("Terrain.open: give at least one DEM file"));
+        }
+        let source = penumbra::products::TerrainSource::Dems(paths);
+        let (stack, layers) = py.allow_threads(|| source.load()).map_err(py_err)?;
+        Ok(Terrain {
+            stack: Arc::new(stack),
+            source,
+            layers,
+        })
+    }
+
+    /// `Terrain.synthetic(size_px=400, px_m=100.0, seed=1)`: penumbra's seeded synthetic
+    /// south-polar DEM (the command line's `--synthetic`).
+    #[staticmethod]
+    #[pyo3(signature = (size_px = 400, px_m = 100.0, seed = 1))]
+    fn synthetic(py: Python<'_>, size_px: usize, px_m: f64, seed: u64) -> PyResult<Self> {
+        let source =
+            penumbra::products::TerrainSource::Synthetic(penumbra::terrain::synth::SynthParams {
+                size_px,
+                px_m,
+                seed,
+            });
+        let (stack, layers) = py.allow_threads(|| source.load()).map_err(py_err)?;
+        Ok(Terrain {
+            stack: Arc::new(stack),
+            source,
+            layers,
+        })
+    }
+
+    /// The layers, finest first (file paths, or a description of the synthetic DEM).
+    #[getter]
+    fn layers(&self) -> Vec<String> {
+        self.layers.clone()
+    }
+
+    /// `(rows, cols)` of the finest layer: the grid of maps.
+    #[getter]
+    fn shape(&self) -> (usize, usize) {
+        let g = self.stack.layers[0].grid;
+        (g.rows, g.cols)
+    }
+
+    /// The finest layer's GDAL geotransform `(x_left_m, px_x_m, 0, y_top_m, 0, -px_y_m)`
+    /// (rasterio: `Affine.from_gdal(*t)`).
+    #[getter]
+    fn transform(&self) -> (f64, f64, f64, f64, f64, f64) {
+        geotransform(&self.stack.layers[0].grid)
+    }
+
+    /// The finest layer's CRS as WKT (a PROJ string is `crs_proj`).
+    #[getter]
+    fn crs_wkt(&self) -> String {
+        wkt_of(&self.stack.layers[0].projection)
+    }
+
+    /// The finest layer's CRS as a PROJ string.
+    #[getter]
+    fn crs_proj(&self) -> String {
+        self.stack.layers[0].projection.proj_string()
+    }
+
+    /// The finest layer's heights, metres above the 1737.4 km sphere (NaN = nodata), shape
+    /// `(rows, cols)`, float32.
+    fn heights_m<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let d = &self.stack.layers[0];
+        let a = Array2::from_shape_vec((d.grid.rows, d.grid.cols), d.heights_m.clone())
+            .map_err(|e| bad(e.to_string()))?;
+        Ok(a.into_pyarray(py).into_any())
+    }
+
+    /// `height_m(lat_deg, lon_deg)`: the ground height (m above the sphere) from the finest layer
+    /// with data there; NaN outside every layer. Scalars, or arrays of equal length.
+    fn height_m<'py>(
+        &self,
+        py: Python<'py>,
+        lat_deg: &Bound<'py, PyAny>,
+        lon_deg: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let at = |lat: f64, lon: f64| {
+            self.stack
+                .height_at_lat_lon_m(lat, lon)
+                .map_or(f64::NAN, |(h, _)| h)
+        };
+        if let (Ok(lat), Ok(lon)) = (lat_deg.extract::<f64>(), lon_deg.extract::<f64>()) {
+            return Ok(at(lat, lon).into_pyobject(py)?.into_any());
+        }
+        let lat: Vec<f64> = lat_deg.extract()?;
+        let lon: Vec<f64> = lon_deg.extract()?;
+        if lat.len() != lon.len() {
+            return Err(bad(format!(
+                "height_m: {} latitudes but {} longitudes",
+                lat.len(),
+                lon.len()
+            )));
+        }
+        let h: Vec<f64> = lat.iter().zip(&lon).map(|(&a, &b)| at(a, b)).collect();
+        Ok(h.into_pyarray(py).into_any())
+    }
+
+    fn __repr__(&self) -> String {
+        let (r, c) = self.shape();
+        format!(
+            "Terrain({} layer(s), finest {r} x {c} px: {})",
+            self.layers.len(),
+            self.layers[0]
+        )
+    }
+}
+
+fn geotransform(g: &penumbra::terrain::GridGeometry) -> (f64, f64, f64, f64, f64, f64) {
+    (g.x_left_m, g.px_x_m, 0.0, g.y_top_m, 0.0, -g.px_y_m)
+}
+
+/// A WKT1 description of the map projection on the lunar sphere (rasterio / GDAL read it).
+fn wkt_of(p: &penumbra::terrain::Projection) -> String {
+    use penumbra::terrain::Projection;
+    let r = p.radius_m();
+    let geog = format!(
+        "GEOGCS[\"Moon sphere\",DATUM[\"Moon\",SPHEROID[\"Moon\",{r},0]],PRIMEM[\"Reference meridian\",0],UNIT[\"degree\",0.0174532925199433]]"
+    );
+    match *p {
+        Projection::PolarStereographic {
+            south,
+            lon0_deg,
+            k0,
+            ..
+        } => format!(
+            "PROJCS[\"{} polar stereographic on the lunar sphere\",{geog},PROJECTION[\"Polar_Stereographic\"],PARAMETER[\"latitude_of_origin\",{}],PARAMETER[\"central_meridian\",{lon0_deg}],PARAMETER[\"scale_factor\",{k0}],PARAMETER[\"false_easting\",0],PARAMETER[\"false_northing\",0],UNIT[\"metre\",1]]",
+            if south { "South" } else { "North" },
+            if south { -90.0 } else { 90.0 }
+        ),
+        Projection::Equirectangular {
+            lon0_deg,
+            lat_ts_deg,
+            ..
+        } => format!(
+            "PROJCS[\"Equirectangular on the lunar sphere\",{geog},PROJECTION[\"Equirectangular\"],PARAMETER[\"standard_parallel_1\",{lat_ts_deg}],PARAMETER[\"central_meridian\",{lon0_deg}],PARAMETER[\"false_easting\",0],PARAMETER[\"false_northing\",0],UNIT[\"metre\",1]]"
+        ),
+    }
+}
+
+// --- ephemeris --------------------------------------------------------------------------------------
+
+/// `ephem(sites, times, kernels=None, abcorr="lt+s")`: the Sun and the Earth seen from each site
+/// (`(lat_deg, lon_deg, height_m)`, height above the 1737.4 km sphere) at each time; a dict of
+/// float64 arrays of shape `(len(sites), len(times))` (`sun_az_deg`, `sun_el_deg`,
+/// `sun_range_km`, `sun_radius_deg`, the same for `earth_`) and `utc` (datetime64[ns]).
+#[pyfunction]
+#[pyo3(signature = (sites, times, kernels = None, abcorr = "lt+s"))]
+fn ephem<'py>(
+    py: Python<'py>,
+    sites: Vec<(f64, f64, f64)>,
+    times: &Bound<'py, PyAny>,
+    kernels: Option<PathBuf>,
+    abcorr: &str,
+) -> PyResult<Bound<'py, PyDict>> {
+    let epochs = epochs_from(times)?;
+    let ab = self::abcorr(abcorr)?;
+    if sites.is_empty() {
+        return Err(bad(
+            "ephem: give at least one site (lat_deg, lon_deg, height_m)",
+        ));
+    }
+    let sites: Vec<eph::Site> = sites
+        .iter()
+        .map(|&(lat, lon, h)| eph::Site::new(lat, lon, h).map_err(|e| bad(e.to_string())))
+        .collect::<PyResult<_>>()?;
+    let kernels = load_kernels(kernels)?;
+    let sky = py
+        .allow_threads(|| eph::sun_earth_series(&kernels, &sites, &epochs, ab))
+        .map_err(|e| py_err(e.into()))?;
+    let out = PyDict::new(py);
+    let (n, m) = (sites.len(), epochs.len());
+    let field = |f: &dyn Fn(&eph::topo::SunEarth) -> f64| -> PyResult<Bound<'py, PyAny>> {
+        let v: Vec<f64> = sky.iter().flat_map(|row| row.iter().map(f)).collect();
+        let a = Array2::from_shape_vec((n, m), v).map_err(|e| bad(e.to_string()))?;
+        Ok(a.into_pyarray(py).into_any())
+    };
+    out.set_item("sun_az_deg", field(&|v| v.sun.az_deg)?)?;
+    out.set_item("sun_el_deg", field(&|v| v.sun.el_deg)?)?;
+    out.set_item("sun_range_km", field(&|v| v.sun.range_km)?)?;
+    out.set_item("sun_radius_deg", field(&|v| v.sun.radius_deg)?)?;
+    out.set_item("earth_az_deg", field(&|v| v.earth.az_deg)?)?;
+    out.set_item("earth_el_deg", field(&|v| v.earth.el_deg)?)?;
+    out.set_item("earth_range_km", field(&|v| v.earth.range_km)?)?;
+    out.set_item("earth_radius_deg", field(&|v| v.earth.radius_deg)?)?;
+    out.set_item("utc", datetime64(py, &epochs)?)?;
+    Ok(out)
+}
+
+// --- horizon ----------------------------------------------------------------------------------------
+
+/// `horizon(terrain, lat_deg, lon_deg, observer_height_m=2.0, az_step_deg=0.25, method="fast")`:
+/// the site's horizon over every layer (the command line's `penumbra horizon`): a dict with
+/// `az_deg`, `elevation_deg`, `distance_m` (float64 arrays), `ground_height_m`,
+/// `min_distance_m`.
+#[pyfunction]
+#[pyo3(signature = (terrain, lat_deg, lon_deg, observer_height_m = 2.0, az_step_deg = 0.25, method = "fast"))]
+fn horizon<'py>(
+    py: Python<'py>,
+    terrain: &Terrain,
+    lat_deg: f64,
+    lon_deg: f64,
+    observer_height_m: f64,
+    az_step_deg: f64,
+    method: &str,
+) -> PyResult<Bound<'py, PyDict>> {
+    let method = match method {
+        "fast" => penumbra::horizon::HorizonMethod::Fast,
+        "exact" => penumbra::horizon::HorizonMethod::Exact,
+        other => return Err(bad(format!("method '{other}': use fast or exact"))),
+    };
+    let params = penumbra::horizon::HorizonParams {
+        observer_height_m,
+        az_step_deg,
+        method,
+        ..Default::default()
+    };
+    let stack = Arc::clone(&terrain.stack);
+    let h = py
+        .allow_threads(|| {
+            penumbra::horizon::HorizonEngine::new(&stack).horizon(lat_deg, lon_deg, &params)
+        })
+        .map_err(|e| py_err(e.into()))?;
+    let out = PyDict::new(py);
+    out.set_item("az_deg", h.az_deg.into_pyarray(py))?;
+    out.set_item("elevation_deg", h.elevation_deg.into_pyarray(py))?;
+    out.set_item("distance_m", h.distance_m.into_pyarray(py))?;
+    out.set_item("ground_height_m", h.ground_height_m)?;
+    out.set_item("min_distance_m", h.min_distance_m)?;
+    Ok(out)
+}
+
+// --- series -----------------------------------------------------------------------------------------
+
+/// The columns of a series table, in order (the CLI's `series.csv` after `site` and `utc`).
+const SERIES_COLUMNS: [&str; 11] = [
+    "sun_az_deg",
+    "sun_el_deg",
+    "sun_horizon_el_deg",
+    "sun_visible_fraction",
+    "sun_irradiance_normal_w_m2",
+    "sun_irradiance_horizontal_w_m2",
+    "sun_irradiance_vertical_tracking_w_m2",
+    "earth_az_deg",
+    "earth_el_deg",
+    "earth_horizon_el_deg",
+    "earth_visible_fraction",
+];
+
+/// One site's columns.
+struct SiteColumns {
+    columns: Vec<Vec<f64>>,
+    sun: Vec<f64>,
+    earth: Vec<f64>,
+}
+
+/// `series(terrain, sites, times, …)`: hourly (or any) Sun and Earth visibility of named sites
+/// (`(name, lat_deg, lon_deg, height_above_ground_m)`), as `penumbra series` computes it. Returns
+/// `(table, stats)`: `table` a dict of equal-length columns (`site`: str, `utc`:
+/// datetime64[ns], then the float64 columns of `series.csv`), one row per site and epoch;
+/// `stats` the dict of the CLI's `stats.json` (needs evenly spaced times).
+#[pyfunction]
+#[pyo3(signature = (terrain, sites, times, kernels = None, abcorr = "lt+s", limb_darkening = "eddington", disc_method = "exact", az_step_deg = 0.25, horizon_method = "fast", progress = None))]
+#[allow(clippy::too_many_arguments, reason = "a Python function with keywords")]
+fn series<'py>(
+    py: Python<'py>,
+    terrain: &Terrain,
+    sites: Vec<(String, f64, f64, f64)>,
+    times: &Bound<'py, PyAny>,
+    kernels: Option<PathBuf>,
+    abcorr: &str,
+    limb_darkening: &str,
+    disc_method: &str,
+    az_step_deg: f64,
+    horizon_method: &str,
+    progress: Option<Bound<'py, PyAny>>,
+) -> PyResult<(Bound<'py, PyDict>, Bound<'py, PyAny>)> {
+    use penumbra::series::{self as ser, SeriesConfig, SeriesSite};
+    let epochs = epochs_from(times)?;
+    let step_s = uniform_step_s(&epochs)
+        .ok_or_else(|| bad("series: the times must be evenly spaced (use time_range)"))?;
+    let mut config = SeriesConfig {
+        abcorr: self::abcorr(abcorr)?,
+        az_step_deg,
+        write_csv: true,
+        plots: false,
+        ..SeriesConfig::default()
+    };
+    config.limb_darkening = match limb_darkening {
+        "none" => ser::LimbLaw::None,
+        "eddington" => ser::LimbLaw::Eddington,
+        "allen550nm" => ser::LimbLaw::Allen550nm,
+        o => {
+            return Err(bad(format!(
+                "limb_darkening '{o}': use none, eddington or allen550nm"
+            )));
+        }
+    };
+    config.disc_method = match disc_method {
+        "exact" => penumbra::illum::DiscMethod::Exact,
+        "segment" => penumbra::illum::DiscMethod::Segment,
+        "middle-value" => penumbra::illum::DiscMethod::MiddleValue,
+        o => {
+            return Err(bad(format!(
+                "disc_method '{o}': use exact, segment or middle-value"
+            )));
+        }
+    };
+    config.horizon_method = match horizon_method {
+        "fast" => penumbra::horizon::HorizonMethod::Fast,
+        "exact" => penumbra::horizon::HorizonMethod::Exact,
+        o => return Err(bad(format!("horizon_method '{o}': use fast or exact"))),
+    };
+    let specs: Vec<SeriesSite> = sites
+        .into_iter()
+        .map(
+            |(name, lat_deg, lon_deg, height_above_ground_m)| SeriesSite {
+                name,
+                lat_deg,
+                lon_deg,
+                height_above_ground_m,
+            },
+        )
+        .collect();
+    if specs.is_empty() {
+        return Err(bad(
+            "series: give at least one site (name, lat_deg, lon_deg, height_m)",
+        ));
+    }
+    ser::validate_sites(&specs).map_err(py_err)?;
+    let kernels = load_kernels(kernels)?;
+    let stack = Arc::clone(&terrain.stack);
+
+    // Horizons and the shared ephemeris, then the sites in chunks (progress, Ctrl-C between).
+    let (horizons, table) = py
+        .allow_threads(|| -> anyhow::Result<_> {
+            let horizons = ser::site_horizons(&stack, &specs, &config)?;
+            let table = eph::moon_geometry_table(&kernels, &epochs)?;
+            Ok((horizons, table))
+        })
+        .map_err(py_err)?;
+    let chunk = rayon::current_num_threads().max(1) * 2;
+    let mut results: Vec<SiteColumns> = Vec::with_capacity(specs.len());
+    checkpoint(py, progress.as_ref(), 0, specs.len())?;
+    for (specs_chunk, horizons_chunk) in specs.chunks(chunk).zip(horizons.chunks(chunk)) {
+        let part = py
+            .allow_threads(|| {
+                use rayon::prelude::*;
+                specs_chunk
+                    .par_iter()
+                    .zip(horizons_chunk)
+                    .map(|(spec, horizon)| site_columns(&table, spec, horizon, &config))
+                    .collect::<anyhow::Result<Vec<_>>>()
+            })
+            .map_err(py_err)?;
+        results.extend(part);
+        checkpoint(py, progress.as_ref(), results.len(), specs.len())?;
+    }
+
+    // The long table.
+    let n_rows = specs.len() * epochs.len();
+    let out = PyDict::new(py);
+    let names: Vec<&str> = specs
+        .iter()
+        .flat_map(|s| std::iter::repeat_n(s.name.as_str(), epochs.len()))
+        .collect();
+    let np = py.import("numpy")?;
+    out.set_item(
+        "site",
+        np.call_method1("array", (PyList::new(py, names)?,))?,
+    )?;
+    let utc_one: Vec<i64> = epochs.iter().map(|&e| epoch_to_unix_ns(e)).collect();
+    let utc: Vec<i64> = (0..specs.len())
+        .flat_map(|_| utc_one.iter().copied())
+        .collect();
+    out.set_item(
+        "utc",
+        utc.into_pyarray(py)
+            .call_method1("astype", ("datetime64[ns]",))?,
+    )?;
+    for (c, name) in SERIES_COLUMNS.iter().enumerate() {
+        let mut col = Vec::with_capacity(n_rows);
+        for r in &results {
+            col.extend_from_slice(&r.columns[c]);
+        }
+        out.set_item(*name, col.into_pyarray(py))?;
+    }
+
+    // Statistics, as stats.json.
+    let series_list: Vec<penumbra::illum::stats::SiteSeries<'_>> = specs
+        .iter()
+        .zip(&results)
+        .map(|(s, r)| penumbra::illum::stats::SiteSeries {
+            site: &s.name,
+            start_utc: epochs[0],
+            step_s,
+            sun_fraction: &r.sun,
+            earth_fraction: &r.earth,
+        })
+        .collect();
+    let stats = penumbra::illum::stats::StatsFile::from_series(&series_list)
+        .map_err(|e| py_err(e.into()))?;
+    let json = serde_json::to_string(&stats).map_err(|e| bad(e.to_string()))?;
+    let stats = py.import("json")?.call_method1("loads", (json,))?;
+    Ok((out, stats))
+}
+
+/// One site's rows, as `series.csv` has them.
+fn site_columns(
+    table: &[eph::topo::MoonGeometry],
+    spec: &penumbra::series::SeriesSite,
+    horizon: &penumbra::horizon::Horizon,
+    config: &penumbra::series::SeriesConfig,
+) -> anyhow::Result<SiteColumns> {
+    let site = eph::Site::new(
+        spec.lat_deg,
+        spec.lon_deg,
+        horizon.ground_height_m + spec.height_above_ground_m,
+    )?;
+    let mut columns = vec![Vec::with_capacity(table.len()); SERIES_COLUMNS.len()];
+    let (sun, earth) = penumbra::series::site_fractions(
+        table,
+        &site,
+        horizon,
+        config,
+        |_| true,
+        |_, r| {
+            for (c, v) in columns.iter_mut().zip(penumbra::series::row_values(r)) {
+                c.push(v);
+            }
+            Ok(())
+        },
+    )?;
+    Ok(SiteColumns {
+        columns,
+        sun,
+        earth,
+    })
+}
+
+// --- maps -------------------------------------------------------------------------------------------
+
+/// `map_statistics(terrain, times, engine="auto", …)`: illumination statistics of every pixel of
+/// the finest layer over evenly spaced `times` (the CLI's `penumbra map --start --stop --step`,
+/// CPU). Returns a dict: one float32 array `(rows, cols)` per statistic (the CLI's file stems:
+/// `sun_illumination_pct`, `sun_visible_pct`, `longest_dark_h`, `earth_visible_pct`,
+/// `sun_and_earth_pct`, and with the horizons engine `sun_full_pct`, `longest_earth_hidden_h`,
+/// `irradiance_horizontal_w_m2`, `irradiance_tracking_w_m2`), `psr_mask` (uint8), and
+/// `transform`, `crs_wkt`, `descriptions`, `engine`.
+#[pyfunction]
+#[pyo3(signature = (terrain, times, engine = "auto", observer_height_m = 2.0, kernels = None, abcorr = "lt+s", horizons = None, azimuths = 720, max_step = 16, limb_darkening = "eddington"))]
+#[allow(clippy::too_many_arguments, reason = "a Python function with keywords")]
+fn map_statistics<'py>(
+    py: Python<'py>,
+    terrain: &Terrain,
+    times: &Bound<'py, PyAny>,
+    engine: &str,
+    observer_height_m: f64,
+    kernels: Option<PathBuf>,
+    abcorr: &str,
+    horizons: Option<PathBuf>,
+    azimuths: usize,
+    max_step: u32,
+    limb_darkening: &str,
+) -> PyResult<Bound<'py, PyDict>> {
+    use penumbra::compute::sweep::{HorizonsFrom, RangeMap, range_statistics};
+    use penumbra::map::MapEngineKind;
+    let epochs = epochs_from(times)?;
+    if epochs.len() < 2 {
+        return Err(bad("map_statistics: give at least two evenly spaced times"));
+    }
+    let step_s = uniform_step_s(&epochs)
+        .ok_or_else(|| bad("map_statistics: the times must be evenly spaced (use time_range)"))?;
+    let horizons = match horizons {
+        Some(p) => HorizonsFrom::File(p),
+        None => HorizonsFrom::Sweep { azimuths, max_step },
+    };
+    let backend = penumbra::compute::ResolvedBackend::Cpu;
+    let kind = match engine {
+        "auto" => penumbra::products::map::auto_engine(&backend, epochs.len(), &horizons),
+        other => MapEngineKind::parse(other).ok_or_else(|| {
+            bad(format!(
+                "engine '{other}': use auto, brute, smap, dp, combined, fourier or horizons"
+            ))
+        })?,
+    };
+    let limb = match limb_darkening {
+        "none" => penumbra::series::LimbLaw::None,
+        "eddington" => penumbra::series::LimbLaw::Eddington,
+        "allen550nm" => penumbra::series::LimbLaw::Allen550nm,
+        o => {
+            return Err(bad(format!(
+                "limb_darkening '{o}': use none, eddington or allen550nm"
+            )));
+        }
+    };
+    if !(observer_height_m.is_finite() && observer_height_m >= 0.0) {
+        return Err(bad(format!(
+            "observer_height_m {observer_height_m} must be a finite number >= 0"
+        )));
+    }
+    let ab = self::abcorr(abcorr)?;
+    let kernels = load_kernels(kernels)?;
+    let stack = Arc::clone(&terrain.stack);
+    let (rasters, psr, note) = py
+        .allow_threads(|| -> anyhow::Result<_> {
+            let result = range_statistics(
+                &backend,
+                &stack,
+                &RangeMap {
+                    engine: kind,
+                    observer_height_m,
+                    placement: penumbra::map::ObserverPlacement::Pixels,
+                    gpu_tile_cells: None,
+                    horizons,
+                    limb,
+                },
+                &kernels,
+                &epochs,
+                ab,
+                step_s / 3600.0,
+            )?;
+            let (rasters, psr) = penumbra::map::sweep_rasters(
+                &stack.layers[0],
+                result.model.as_ref(),
+                &result.stats,
+            )?;
+            Ok((rasters, psr, result.note))
+        })
+        .map_err(py_err)?;
+    let g = stack.layers[0].grid;
+    let out = PyDict::new(py);
+    let descriptions = PyDict::new(py);
+    for r in rasters {
+        let a =
+            Array2::from_shape_vec((g.rows, g.cols), r.values).map_err(|e| bad(e.to_string()))?;
+        out.set_item(r.name, a.into_pyarray(py))?;
+        descriptions.set_item(r.name, r.description)?;
+    }
+    let a = Array2::from_shape_vec((g.rows, g.cols), psr).map_err(|e| bad(e.to_string()))?;
+    out.set_item("psr_mask", a.into_pyarray(py))?;
+    descriptions.set_item("psr_mask", penumbra::map::PSR_DESCRIPTION)?;
+    out.set_item("descriptions", descriptions)?;
+    out.set_item("transform", geotransform(&g))?;
+    out.set_item("crs_wkt", wkt_of(&stack.layers[0].projection))?;
+    out.set_item("engine", note)?;
+    out.set_item("epochs", epochs.len())?;
+    Ok(out)
+}
+
+/// `write_geotiff(path, array, terrain, description)`: writes a `(rows, cols)` float32 (NaN =
+/// nodata) or uint8 (255 = nodata) array on the terrain's finest grid as the CLI writes its maps
+/// (same georeferencing, metadata and layout; atomically).
+#[pyfunction]
+fn write_geotiff(
+    py: Python<'_>,
+    path: PathBuf,
+    array: &Bound<'_, PyAny>,
+    terrain: &Terrain,
+    description: &str,
+) -> PyResult<()> {
+    let dem = &terrain.stack.layers[0];
+    let (rows, cols) = (dem.grid.rows, dem.grid.cols);
+    let shape: (usize, usize) = array.getattr("shape")?.extract()?;
+    if shape != (rows, cols) {
+        return Err(bad(format!(
+            "write_geotiff: array of shape {shape:?} on a {rows} x {cols} grid"
+        )));
+    }
+    let kind: String = array.getattr("dtype")?.getattr("kind")?.extract()?;
+    let flat = array.call_method0("ravel")?;
+    if kind == "u" {
+        let v: Vec<u8> = flat.call_method1("astype", ("uint8",))?.extract()?;
+        py.allow_threads(|| penumbra::model::write_u8_on(dem, &path, &v, description))
+            .map_err(py_err)
+    } else {
+        let v: Vec<f32> = flat.call_method1("astype", ("float32",))?.extract()?;
+        py.allow_threads(|| penumbra::model::write_f32_on(dem, &path, &v, description))
+            .map_err(py_err)
+    }
+}
+
+// --- render -----------------------------------------------------------------------------------------
+
+/// `render(terrain, utc, lat_deg, lon_deg, camera="site", …)`: a frame of the terrain at one
+/// epoch, as `penumbra render` draws it (the same code, through a temporary file): `(image,
+/// radiance)`, `image` an `(height, width, 3)` uint8 array (the PNG), `radiance` an
+/// `(height, width)` float32 array of terrain radiance, W m⁻² sr⁻¹ (NaN = sky). Site camera:
+/// `height_m` above the ground, `look_az_deg`, `look_el_deg`; orbit camera: `altitude_km` above
+/// the sphere, looking at (`target_lat_deg`, `target_lon_deg`).
+#[pyfunction]
+#[pyo3(signature = (terrain, utc, lat_deg, lon_deg, camera = "site", height_m = 2.0, look_az_deg = 0.0, look_el_deg = 0.0, altitude_km = None, target_lat_deg = None, target_lon_deg = None, fov_deg = 60.0, width = 640, height = 400, brdf = "hapke", exposure = None, kernels = None, abcorr = "lt+s", backend = "auto"))]
+#[allow(clippy::too_many_arguments, reason = "a Python function with keywords")]
+fn render<'py>(
+    py: Python<'py>,
+    terrain: &Terrain,
+    utc: &str,
+    lat_deg: f64,
+    lon_deg: f64,
+    camera: &str,
+    height_m: f64,
+    look_az_deg: f64,
+    look_el_deg: f64,
+    altitude_km: Option<f64>,
+    target_lat_deg: Option<f64>,
+    target_lon_deg: Option<f64>,
+    fov_deg: f64,
+    width: u32,
+    height: u32,
+    brdf: &str,
+    exposure: Option<f64>,
+    kernels: Option<PathBuf>,
+    abcorr: &str,
+    backend: &str,
+) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
+    use penumbra::products::render::{BrdfChoice, CameraKind, CameraSpec, RenderOptions};
+    let kind = match camera {
+        "site" => CameraKind::Site,
+        "orbit" => CameraKind::Orbit,
+        o => return Err(bad(format!("camera '{o}': use site or orbit"))),
+    };
+    let brdf = match brdf {
+        "hapke" => BrdfChoice::Hapke,
+        "lambert" => BrdfChoice::Lambert,
+        o => return Err(bad(format!("brdf '{o}': use hapke or lambert"))),
+    };
+    let backend: penumbra::gpu::Backend = backend
+        .parse()
+        .map_err(|_| bad(format!("backend '{backend}': use cpu, gpu or auto")))?;
+    let epoch = eph::time::parse_utc(utc).map_err(|e| bad(e.to_string()))?;
+    let dir = tempfile::tempdir().map_err(|e| bad(e.to_string()))?;
+    let (png, tif) = (dir.path().join("frame.png"), dir.path().join("frame.tif"));
+    let opts = RenderOptions {
+        terrain: terrain.source.clone(),
+        width,
+        height,
+        brdf,
+        albedo: None,
+        exposure,
+        out: png.clone(),
+        out_radiance: Some(tif.clone()),
+        abcorr: self::abcorr(abcorr)?,
+        backend,
+        kernels: penumbra::products::KernelSource { dir: kernels },
+    };
+    let spec = CameraSpec {
+        kind,
+        lat_deg,
+        lon_deg,
+        height_m,
+        look_az_deg,
+        look_el_deg,
+        altitude_km,
+        target_lat_deg,
+        target_lon_deg,
+        fov_deg,
+    };
+    let (rgb, radiance) = py
+        .allow_threads(|| -> anyhow::Result<_> {
+            let pose = spec.pose()?;
+            penumbra::products::render::render_frames(&opts, &[(epoch, pose)])?;
+            let rgb = image::open(&png)?.to_rgb8().into_raw();
+            let mut dec = tiff::decoder::Decoder::new(std::fs::File::open(&tif)?)?;
+            let radiance = match dec.read_image()? {
+                tiff::decoder::DecodingResult::F32(v) => v,
+                _ => anyhow::bail!("the radiance TIFF is not float32"),
+            };
+            Ok((rgb, radiance))
+        })
+        .map_err(py_err)?;
+    let (h, w) = (height as usize, width as usize);
+    let rgb =
+        numpy::ndarray::Array3::from_shape_vec((h, w, 3), rgb).map_err(|e| bad(e.to_string()))?;
+    let radiance = Array2::from_shape_vec((h, w), radiance).map_err(|e| bad(e.to_string()))?;
+    Ok((
+        rgb.into_pyarray(py).into_any(),
+        radiance.into_pyarray(py).into_any(),
+    ))
+}
+
+// --- scenarios --------------------------------------------------------------------------------------
+
+/// `run_scenario(path, out_dir=None, kernels=None)`: runs a scenario file as `penumbra run`.
+#[pyfunction]
+#[pyo3(signature = (path, out_dir = None, kernels = None))]
+fn run_scenario(
+    py: Python<'_>,
+    path: PathBuf,
+    out_dir: Option<PathBuf>,
+    kernels: Option<PathBuf>,
+) -> PyResult<()> {
+    let req = penumbra::scenario::run::RunRequest {
+        scenario: path,
+        out_dir,
+        kernels,
+    };
+    py.allow_threads(|| penumbra::scenario::run::run_file(&req))
+        .map_err(py_err)
+}
+
+/// The module.
+#[pymodule]
+fn _penumbra(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add("PenumbraError", m.py().get_type::<PenumbraError>())?;
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    m.add_class::<Terrain>()?;
+    m.add_function(wrap_pyfunction!(time_range, m)?)?;
+    m.add_function(wrap_pyfunction!(ephem, m)?)?;
+    m.add_function(wrap_pyfunction!(horizon, m)?)?;
+    m.add_function(wrap_pyfunction!(series, m)?)?;
+    m.add_function(wrap_pyfunction!(map_statistics, m)?)?;
+    m.add_function(wrap_pyfunction!(write_geotiff, m)?)?;
+    m.add_function(wrap_pyfunction!(render, m)?)?;
+    m.add_function(wrap_pyfunction!(run_scenario, m)?)?;
+    Ok(())
+}

@@ -1,0 +1,43 @@
+"""Shared fixtures: the repository, the CLI binary (to compare against), the shared LOLA data."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+LOLA = ROOT.parent / "shared" / "data" / "lola-south-pole-moondao"
+
+
+@pytest.fixture(scope="session")
+def root() -> Path:
+    return ROOT
+
+
+@pytest.fixture(scope="session")
+def cli() -> Path:
+    """The command line built from the same sources (`cargo build --release`)."""
+    exe = Path(os.environ.get("PENUMBRA_CLI", ROOT / "target" / "release" / "penumbra"))
+    if not exe.is_file():
+        pytest.skip(f"the penumbra binary {exe} is absent (cargo build --release)")
+    return exe
+
+
+def run_cli(cli: Path, cwd: Path, *args: str) -> subprocess.CompletedProcess:
+    env = dict(os.environ)
+    env.pop("PENUMBRA_KERNELS", None)
+    env.setdefault("XDG_RUNTIME_DIR", "/tmp")
+    r = subprocess.run([str(cli), *args], cwd=cwd, capture_output=True, text=True, env=env)
+    assert r.returncode == 0, f"penumbra {' '.join(args)} failed: {r.stderr}"
+    return r
+
+
+@pytest.fixture(scope="session")
+def lola() -> Path:
+    crop = LOLA / "ldem75s_crop_240m_pm184km.tif"
+    if not crop.is_file():
+        pytest.skip(f"shared LOLA data absent: {crop}")
+    return LOLA
