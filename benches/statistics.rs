@@ -40,7 +40,7 @@ fn bench_statistics(c: &mut Criterion) {
         },
     )
     .unwrap();
-    let mut horizons = InMemoryHorizons::sweep(&sweep, |_| {});
+    let mut horizons = InMemoryHorizons::sweep(&sweep, |_| true).unwrap();
     let kernels =
         penumbra::ephem::Kernels::load(&penumbra::ephem::kernels::default_kernel_dir()).unwrap();
     let epochs = penumbra::ephem::time::epoch_range(
@@ -65,7 +65,7 @@ fn bench_statistics(c: &mut Criterion) {
     group.bench_function("horizons_engine", |b| {
         b.iter(|| {
             engine
-                .run(&mut horizons, &bodies, |_| {})
+                .run(&mut horizons, &bodies, |_| true)
                 .unwrap()
                 .sun_visible_count[N * N / 2]
         })

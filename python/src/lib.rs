@@ -663,9 +663,11 @@ fn site_columns(
 /// `sun_illumination_pct`, `sun_visible_pct`, `longest_dark_h`, `earth_visible_pct`,
 /// `sun_and_earth_pct`, and with the horizons engine `sun_full_pct`, `longest_earth_hidden_h`,
 /// `irradiance_horizontal_w_m2`, `irradiance_tracking_w_m2`), `psr_mask` (uint8), and
-/// `transform`, `crs_wkt`, `descriptions`, `engine`.
+/// `transform`, `crs_wkt`, `descriptions`, `engine`. With the horizons engine `progress(done,
+/// total)` hears the sweep's directions, then the statistics' rows, and Ctrl-C stops the run
+/// between them.
 #[pyfunction]
-#[pyo3(signature = (terrain, times, engine = "auto", observer_height_m = 2.0, kernels = None, abcorr = "lt+s", horizons = None, azimuths = 720, max_step = 16, limb_darkening = "eddington"))]
+#[pyo3(signature = (terrain, times, engine = "auto", observer_height_m = 2.0, kernels = None, abcorr = "lt+s", horizons = None, azimuths = 720, max_step = 16, limb_darkening = "eddington", progress = None))]
 #[allow(clippy::too_many_arguments, reason = "a Python function with keywords")]
 fn map_statistics<'py>(
     py: Python<'py>,
@@ -679,6 +681,7 @@ fn map_statistics<'py>(
     azimuths: usize,
     max_step: u32,
     limb_darkening: &str,
+    progress: Option<Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     use penumbra::compute::sweep::{HorizonsFrom, RangeMap, range_statistics};
     use penumbra::map::MapEngineKind;
@@ -719,32 +722,46 @@ fn map_statistics<'py>(
     let ab = self::abcorr(abcorr)?;
     let kernels = load_kernels(kernels)?;
     let stack = Arc::clone(&terrain.stack);
-    let (rasters, psr, note) = py
-        .allow_threads(|| -> anyhow::Result<_> {
-            let result = range_statistics(
-                &backend,
-                &stack,
-                &RangeMap {
-                    engine: kind,
-                    observer_height_m,
-                    placement: penumbra::map::ObserverPlacement::Pixels,
-                    gpu_tile_cells: None,
-                    horizons,
-                    limb,
-                },
-                &kernels,
-                &epochs,
-                ab,
-                step_s / 3600.0,
-            )?;
-            let (rasters, psr) = penumbra::map::sweep_rasters(
-                &stack.layers[0],
-                result.model.as_ref(),
-                &result.stats,
-            )?;
-            Ok((rasters, psr, result.note))
+    // Progress and Ctrl-C from inside the Rust run: the GIL is taken back for each report.
+    let callback: Option<Py<PyAny>> = progress.map(Bound::unbind);
+    let mut stopped: Option<PyErr> = None;
+    let mut report = |done: usize, total: usize| -> bool {
+        Python::with_gil(|py| {
+            match checkpoint(py, callback.as_ref().map(|c| c.bind(py)), done, total) {
+                Ok(()) => true,
+                Err(e) => {
+                    stopped = Some(e);
+                    false
+                }
+            }
         })
-        .map_err(py_err)?;
+    };
+    let result = py.allow_threads(|| -> anyhow::Result<_> {
+        let result = range_statistics(
+            &backend,
+            &stack,
+            &RangeMap {
+                engine: kind,
+                observer_height_m,
+                placement: penumbra::map::ObserverPlacement::Pixels,
+                gpu_tile_cells: None,
+                horizons,
+                limb,
+            },
+            &kernels,
+            &epochs,
+            ab,
+            step_s / 3600.0,
+            &mut report,
+        )?;
+        let (rasters, psr) =
+            penumbra::map::sweep_rasters(&stack.layers[0], result.model.as_ref(), &result.stats)?;
+        Ok((rasters, psr, result.note))
+    });
+    let (rasters, psr, note) = match (result, stopped) {
+        (_, Some(e)) => return Err(e),
+        (r, None) => r.map_err(py_err)?,
+    };
     let g = stack.layers[0].grid;
     let out = PyDict::new(py);
     let descriptions = PyDict::new(py);
@@ -762,6 +779,121 @@ fn map_statistics<'py>(
     out.set_item("crs_wkt", wkt_of(&stack.layers[0].projection))?;
     out.set_item("engine", note)?;
     out.set_item("epochs", epochs.len())?;
+    Ok(out)
+}
+
+/// `map_light(terrain, utc=None, sun_az_deg=None, sun_el_deg=None, …)`: one light over the
+/// finest layer's pixels, as `penumbra map --utc` or `--sun-az-deg/--sun-el-deg` computes it (CPU,
+/// rays from each pixel's own surface point): a dict with `sun_fraction` (float32, NaN = nodata),
+/// `sun_mask` (uint8: 1 lit, 0 shadow, 255 nodata), with `utc` also `earth_fraction`, and
+/// `transform`, `crs_wkt`, `descriptions`. Give `utc`, or `sun_az_deg` and `sun_el_deg` (at the
+/// map centre) with `sun_radius_deg`.
+#[pyfunction]
+#[pyo3(signature = (terrain, utc = None, sun_az_deg = None, sun_el_deg = None, sun_radius_deg = 0.2666, engine = "combined", observer_height_m = 2.0, kernels = None, abcorr = "lt+s"))]
+#[allow(clippy::too_many_arguments, reason = "a Python function with keywords")]
+fn map_light<'py>(
+    py: Python<'py>,
+    terrain: &Terrain,
+    utc: Option<&str>,
+    sun_az_deg: Option<f64>,
+    sun_el_deg: Option<f64>,
+    sun_radius_deg: f64,
+    engine: &str,
+    observer_height_m: f64,
+    kernels: Option<PathBuf>,
+    abcorr: &str,
+) -> PyResult<Bound<'py, PyDict>> {
+    use penumbra::map::{MapEngineKind, ObserverPlacement};
+    use penumbra::products::map as pm;
+    let kind = match engine {
+        "horizons" => {
+            return Err(bad(
+                "engine 'horizons' makes statistics over an epoch range: use map_statistics",
+            ));
+        }
+        "auto" => MapEngineKind::Direct(penumbra::shadow::Engine::Combined),
+        other => MapEngineKind::parse(other).ok_or_else(|| {
+            bad(format!(
+                "engine '{other}': use brute, smap, dp, combined or fourier"
+            ))
+        })?,
+    };
+    if !(observer_height_m.is_finite() && observer_height_m >= 0.0) {
+        return Err(bad(format!(
+            "observer_height_m {observer_height_m} must be a finite number >= 0"
+        )));
+    }
+    if !(sun_radius_deg > 0.0 && sun_radius_deg < 10.0) {
+        return Err(bad(format!(
+            "sun_radius_deg {sun_radius_deg} must be in (0, 10)"
+        )));
+    }
+    let light = match (utc, sun_az_deg, sun_el_deg) {
+        (Some(t), None, None) => Some(eph::time::parse_utc(t).map_err(|e| bad(e.to_string()))?),
+        (None, Some(_), Some(_)) => None,
+        _ => {
+            return Err(bad(
+                "give the light: utc, or sun_az_deg and sun_el_deg (not both)",
+            ));
+        }
+    };
+    let ab = self::abcorr(abcorr)?;
+    let kernels = match light {
+        Some(_) => Some(load_kernels(kernels)?),
+        None => None,
+    };
+    let stack = Arc::clone(&terrain.stack);
+    let (sun_f, mask, earth_f) = py
+        .allow_threads(|| -> anyhow::Result<_> {
+            let grid = penumbra::model::MapGrid::new(&stack)?;
+            let (sun, radius, earth) = match (light, &kernels) {
+                (Some(epoch), Some(k)) => {
+                    let l = penumbra::model::epoch_lights(&grid, k, &[epoch], ab)?[0];
+                    (l.sun, l.sun_radius_rad, Some((l.earth, l.earth_radius_rad)))
+                }
+                _ => (
+                    grid.light_from_az_el_deg(
+                        sun_az_deg.unwrap_or_default(),
+                        sun_el_deg.unwrap_or_default(),
+                    ),
+                    sun_radius_deg.to_radians(),
+                    None,
+                ),
+            };
+            let maps = penumbra::compute::one_light::OneLightMaps::new(
+                &penumbra::compute::ResolvedBackend::Cpu,
+                &grid,
+                kind,
+                observer_height_m,
+                ObserverPlacement::Pixels,
+                None,
+            )?;
+            let f = maps.fraction(sun, radius)?;
+            let m = maps.mask(sun)?;
+            let e = match earth {
+                Some((dir, r)) => Some(maps.fraction(dir, r)?),
+                None => None,
+            };
+            Ok((f, m, e))
+        })
+        .map_err(py_err)?;
+    let g = stack.layers[0].grid;
+    let out = PyDict::new(py);
+    let descriptions = PyDict::new(py);
+    let grid2 =
+        |v: Vec<f32>| Array2::from_shape_vec((g.rows, g.cols), v).map_err(|e| bad(e.to_string()));
+    out.set_item("sun_fraction", grid2(sun_f)?.into_pyarray(py))?;
+    descriptions.set_item("sun_fraction", pm::SUN_FRACTION_DESCRIPTION)?;
+    let m = Array2::from_shape_vec((g.rows, g.cols), mask).map_err(|e| bad(e.to_string()))?;
+    out.set_item("sun_mask", m.into_pyarray(py))?;
+    descriptions.set_item("sun_mask", pm::SUN_MASK_DESCRIPTION)?;
+    if let Some(e) = earth_f {
+        out.set_item("earth_fraction", grid2(e)?.into_pyarray(py))?;
+        descriptions.set_item("earth_fraction", pm::EARTH_FRACTION_DESCRIPTION)?;
+    }
+    out.set_item("descriptions", descriptions)?;
+    out.set_item("transform", geotransform(&g))?;
+    out.set_item("crs_wkt", wkt_of(&stack.layers[0].projection))?;
     Ok(out)
 }
 
@@ -926,6 +1058,7 @@ fn _penumbra(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(horizon, m)?)?;
     m.add_function(wrap_pyfunction!(series, m)?)?;
     m.add_function(wrap_pyfunction!(map_statistics, m)?)?;
+    m.add_function(wrap_pyfunction!(map_light, m)?)?;
     m.add_function(wrap_pyfunction!(write_geotiff, m)?)?;
     m.add_function(wrap_pyfunction!(render, m)?)?;
     m.add_function(wrap_pyfunction!(run_scenario, m)?)?;

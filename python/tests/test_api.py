@@ -105,6 +105,10 @@ def test_series_table_and_stats(terrain: penumbra.Terrain) -> None:
         (lambda t: penumbra.map_statistics(t, "2027-01-01"), "at least two"),
         (lambda t: penumbra.map_statistics(t, penumbra.time_range("2027-01-01", "2027-01-02", "6h"), engine="horizons", horizons="/nonexistent.tif"), "nonexistent"),
         (lambda t: penumbra.map_statistics(t, penumbra.time_range("2027-01-01", "2027-01-02", "6h"), observer_height_m=float("nan")), "observer_height_m"),
+        (lambda t: penumbra.map_light(t), "give the light"),
+        (lambda t: penumbra.map_light(t, utc="2027-01-01", sun_az_deg=10.0, sun_el_deg=1.0), "give the light"),
+        (lambda t: penumbra.map_light(t, sun_az_deg=10.0, sun_el_deg=1.0, engine="horizons"), "map_statistics"),
+        (lambda t: penumbra.map_light(t, sun_az_deg=10.0, sun_el_deg=1.0, sun_radius_deg=0.0), "sun_radius_deg"),
         (lambda t: penumbra.Terrain.open([]), "at least one"),
         (lambda t: penumbra.Terrain.open(["/nonexistent.tif"]), "nonexistent"),
         (lambda t: penumbra.Terrain.synthetic(size_px=0), "synthetic"),
@@ -170,3 +174,28 @@ def test_progress_errors_and_ctrl_c_stop_a_series(terrain: penumbra.Terrain) -> 
         for _ in range(200):  # until the interrupt lands inside (or between) calls
             penumbra.series(terrain, sites, t)
     timer.cancel()
+
+
+def test_map_statistics_progress_and_stop(terrain: penumbra.Terrain) -> None:
+    times = penumbra.time_range("2027-01-01", "2027-01-15", "6h")
+    seen = []
+    penumbra.map_statistics(terrain, times, engine="horizons", azimuths=32, max_step=3,
+                            progress=lambda d, n: seen.append((d, n)))
+    # The sweep's directions (0 .. n), then the statistics' rows (.. 300 of 300).
+    assert seen[-1] == (300, 300) and seen[0][1] != 300
+    assert any(n != 300 for _, n in seen)
+
+    def stop(done: int, total: int) -> None:
+        if done > 0:
+            raise RuntimeError("enough")
+
+    with pytest.raises(RuntimeError, match="enough"):
+        penumbra.map_statistics(terrain, times, engine="horizons", azimuths=32, max_step=3,
+                                progress=stop)
+
+
+def test_map_light_from_a_direction(terrain: penumbra.Terrain) -> None:
+    m = penumbra.map_light(terrain, sun_az_deg=135.0, sun_el_deg=1.5)
+    assert set(m) >= {"sun_fraction", "sun_mask", "transform", "crs_wkt", "descriptions"}
+    assert "earth_fraction" not in m
+    assert m["sun_fraction"].shape == terrain.shape

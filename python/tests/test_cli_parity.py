@@ -130,3 +130,19 @@ def test_render_equals_the_cli_png(cli: Path, tmp_path: Path) -> None:
     image = pytest.importorskip("PIL.Image")
     cli_img = np.asarray(image.open(tmp_path / "f.png").convert("RGB"))
     assert np.array_equal(cli_img, img)
+
+
+def test_map_light_equals_the_cli_geotiffs_byte_for_byte(cli: Path, tmp_path: Path) -> None:
+    run_cli(cli, tmp_path, "dem", "synth", "--size", "100", "--px-m", "150", "--seed", "2",
+            "--out", "d.tif")
+    run_cli(cli, tmp_path, "map", "--dem", "d.tif", "--utc", "2027-02-05T00:00", "--backend",
+            "cpu", "--out-fraction", "f.tif", "--out-mask", "m.tif", "--out-earth-fraction", "e.tif")
+    t = penumbra.Terrain.open([tmp_path / "d.tif"])
+    m = penumbra.map_light(t, utc="2027-02-05T00:00")
+    for name, cli_file in (("sun_fraction", "f.tif"), ("sun_mask", "m.tif"), ("earth_fraction", "e.tif")):
+        out = tmp_path / f"py_{name}.tif"
+        penumbra.write_geotiff(out, m[name], t, m["descriptions"][name])
+        assert out.read_bytes() == (tmp_path / cli_file).read_bytes(), name
+    assert m["sun_mask"].dtype == np.uint8 and m["sun_fraction"].dtype == np.float32
+    lit = m["sun_mask"] == 1
+    assert lit.any() and np.all(m["sun_fraction"][lit] > 0.0)

@@ -71,8 +71,17 @@ pub struct RangeResult {
     pub model: Option<MapGrid>,
 }
 
+/// A caller's progress report: `(done, total)` of the current stage (the horizons engine: the
+/// sweep's directions, then the rows of the statistics); returning `false` stops the run with an
+/// "interrupted" error. The per-epoch engines report nothing yet.
+pub type Report<'a> = &'a mut (dyn FnMut(usize, usize) -> bool + Send);
+
 /// The statistics of `epochs` (`step_h` hours apart) over `stack` with `map.engine` on
-/// `backend`.
+/// `backend`; `report` hears the progress (see [`Report`]).
+#[allow(
+    clippy::too_many_arguments,
+    reason = "the request's parts; two call sites"
+)]
 pub fn range_statistics(
     backend: &ResolvedBackend,
     stack: &TerrainStack,
@@ -81,9 +90,10 @@ pub fn range_statistics(
     epochs: &[Epoch],
     abcorr: AbCorr,
     step_h: f64,
+    report: Report<'_>,
 ) -> anyhow::Result<RangeResult> {
     if map.engine == MapEngineKind::Horizons {
-        return horizon_statistics(backend, stack, map, kernels, epochs, abcorr, step_h);
+        return horizon_statistics(backend, stack, map, kernels, epochs, abcorr, step_h, report);
     }
     let grid = MapGrid::new(stack)?;
     eprintln!(
@@ -114,6 +124,7 @@ pub fn range_statistics(
 
 /// The horizons engine: whole-grid horizons (from a file or a sweep in memory), then every
 /// epoch per pixel ([`crate::horizon::statistics`]). CPU only.
+#[allow(clippy::too_many_arguments, reason = "range_statistics' arguments")]
 fn horizon_statistics(
     backend: &ResolvedBackend,
     stack: &TerrainStack,
@@ -122,6 +133,7 @@ fn horizon_statistics(
     epochs: &[Epoch],
     abcorr: AbCorr,
     step_h: f64,
+    report: Report<'_>,
 ) -> anyhow::Result<RangeResult> {
     let fine = stack.layers.first().context("no DEM layer")?;
     let engine = StatisticsEngine::new(
@@ -158,7 +170,11 @@ fn horizon_statistics(
                 sweep.directions().len(),
                 "penumbra: horizons [{bar:40}] {pos}/{len} directions, {elapsed} (eta {eta})",
             );
-            let h = InMemoryHorizons::sweep(&sweep, |done| progress.set_position(done as u64));
+            let total = sweep.directions().len();
+            let h = InMemoryHorizons::sweep(&sweep, |done| {
+                progress.set_position(done as u64);
+                report(done, total)
+            })?;
             progress.finish_and_clear();
             eprintln!(
                 "penumbra: horizons of {} x {} px toward {} directions in {:.1} s ({:.0} MB)",
@@ -186,8 +202,10 @@ fn horizon_statistics(
         fine.grid.rows,
         "penumbra: statistics [{bar:40}] {pos}/{len} rows, {elapsed} (eta {eta})",
     );
+    let rows_total = fine.grid.rows;
     let stats = engine.run(source.as_mut(), &bodies, |rows| {
-        progress.set_position(rows as u64)
+        progress.set_position(rows as u64);
+        report(rows, rows_total)
     })?;
     progress.finish_and_clear();
     let secs = t1.elapsed().as_secs_f64();

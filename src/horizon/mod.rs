@@ -115,6 +115,15 @@ pub enum HorizonError {
         /// What is unsupported.
         reason: String,
     },
+    /// Whole-grid horizons that do not belong to this terrain (grid, azimuths).
+    #[error("the horizons do not fit this terrain: {reason}")]
+    HorizonsMismatch {
+        /// What differs.
+        reason: String,
+    },
+    /// The caller's progress callback asked to stop.
+    #[error("interrupted")]
+    Interrupted,
     /// A horizon GeoTIFF cannot be used.
     #[error("horizon map {path}: {detail}")]
     BadHorizonFile {

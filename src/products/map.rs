@@ -97,7 +97,13 @@ pub fn run(req: &MapRequest) -> anyhow::Result<()> {
     // Resolve after the argument checks (bad input is one error line, with no backend warning)
     // and before any heavy work, so that a missing adapter is one error line (or one warning
     // line with `auto`).
-    let backend = crate::compute::resolve(req.backend)?;
+    // The horizons engine is CPU-only: no adapter probe (and no `auto` warning) for it.
+    let backend =
+        if req.engine == Some(MapEngineKind::Horizons) && req.backend != crate::gpu::Backend::Gpu {
+            crate::compute::ResolvedBackend::Cpu
+        } else {
+            crate::compute::resolve(req.backend)?
+        };
     let placement = crate::compute::one_light::placement(&backend, req.observers)?;
     let kernels = if epochs.is_empty() {
         None
@@ -144,6 +150,7 @@ pub fn run(req: &MapRequest) -> anyhow::Result<()> {
             &epochs,
             abcorr,
             step_h,
+            &mut |_, _| true,
         )?;
         std::fs::create_dir_all(out_dir)
             .with_context(|| format!("creating output folder {}", out_dir.display()))?;
@@ -224,15 +231,15 @@ pub fn run(req: &MapRequest) -> anyhow::Result<()> {
         let f = maps.fraction(sun, sun_radius_rad)?;
         grid.below_sphere_exits(maps.pixel_observers(), sun, &f)?
             .warn();
-        grid.write_f32(path, &f, "visible fraction of the Sun's disc")?;
+        grid.write_f32(path, &f, SUN_FRACTION_DESCRIPTION)?;
     }
     if let Some(path) = &req.out_mask {
         let m = maps.mask(sun)?;
-        grid.write_u8(path, &m, "Sun disc centre: 1 lit, 0 shadow, 255 no data")?;
+        grid.write_u8(path, &m, SUN_MASK_DESCRIPTION)?;
     }
     if let (Some(path), Some((dir, radius))) = (&req.out_earth_fraction, earth) {
         let f = maps.fraction(dir, radius)?;
-        grid.write_f32(path, &f, "visible fraction of the Earth's disc")?;
+        grid.write_f32(path, &f, EARTH_FRACTION_DESCRIPTION)?;
     }
     eprintln!(
         "penumbra: map written ({:.1} s)",
@@ -240,6 +247,13 @@ pub fn run(req: &MapRequest) -> anyhow::Result<()> {
     );
     Ok(())
 }
+
+/// The GeoTIFF `content` of a one-light Sun fraction map.
+pub const SUN_FRACTION_DESCRIPTION: &str = "visible fraction of the Sun's disc";
+/// The GeoTIFF `content` of a one-light hard mask.
+pub const SUN_MASK_DESCRIPTION: &str = "Sun disc centre: 1 lit, 0 shadow, 255 no data";
+/// The GeoTIFF `content` of a one-epoch Earth fraction map.
+pub const EARTH_FRACTION_DESCRIPTION: &str = "visible fraction of the Earth's disc";
 
 /// The engine `--engine auto` runs for `n_epochs` epochs of a range on `backend`: the horizons
 /// engine when it is faster, else the per-epoch combined engine (the GPU's DP sweep on a GPU).

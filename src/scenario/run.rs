@@ -265,8 +265,14 @@ fn run_map_spec(
         .with_context(|| format!("[map] engine '{}'", spec.engine))?;
     let requested = parse_map_backend(&spec.backend)
         .with_context(|| format!("[map] backend '{}'", spec.backend))?;
-    let backend = crate::gpu::resolve_backend(requested)
-        .with_context(|| format!("[map] backend '{}'", spec.backend))?;
+    // The horizons engine is CPU-only: no adapter probe (and no `auto` warning) for it.
+    let backend =
+        if kind == crate::map::MapEngineKind::Horizons && requested != crate::gpu::Backend::Gpu {
+            crate::gpu::ResolvedBackend::Cpu
+        } else {
+            crate::gpu::resolve_backend(requested)
+                .with_context(|| format!("[map] backend '{}'", spec.backend))?
+        };
     let horizons = match &spec.horizons_file {
         Some(p) => crate::compute::sweep::HorizonsFrom::File(base.join(p)),
         None => crate::compute::sweep::HorizonsFrom::Sweep {
@@ -289,6 +295,7 @@ fn run_map_spec(
         &epochs,
         abcorr,
         step.to_seconds() / 3600.0,
+        &mut |_, _| true,
     )
     .context("[map]")?;
     let dir = out_dir.join("map");

@@ -207,7 +207,7 @@ fn flat_sphere_statistics_follow_each_pixels_own_sky() {
         },
     )
     .unwrap();
-    let mut horizons = InMemoryHorizons::sweep(&sweep, |_| {});
+    let mut horizons = InMemoryHorizons::sweep(&sweep, |_| true).unwrap();
     let kernels = penumbra::ephem::Kernels::load(&kernels_dir()).unwrap();
     let epochs = penumbra::ephem::time::epoch_range(
         penumbra::ephem::time::parse_utc("2027-01-01").unwrap(),
@@ -226,7 +226,7 @@ fn flat_sphere_statistics_follow_each_pixels_own_sky() {
         },
     )
     .unwrap();
-    let stats = engine.run(&mut horizons, &bodies, |_| {}).unwrap();
+    let stats = engine.run(&mut horizons, &bodies, |_| true).unwrap();
     let r = penumbra::MOON_RADIUS_M;
     let dip_deg = -(r / (r + h_obs)).acos().to_degrees();
     let mut worst_mean = 0.0_f64;

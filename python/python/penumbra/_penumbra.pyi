@@ -75,6 +75,17 @@ def map_statistics(
     max_step: int = 16,
     limb_darkening: str = "eddington",
 ) -> Dict[str, Any]: ...
+def map_light(
+    terrain: Terrain,
+    utc: Optional[str] = None,
+    sun_az_deg: Optional[float] = None,
+    sun_el_deg: Optional[float] = None,
+    sun_radius_deg: float = 0.2666,
+    engine: str = "combined",
+    observer_height_m: float = 2.0,
+    kernels: Optional[Path] = None,
+    abcorr: str = "lt+s",
+) -> Dict[str, Any]: ...
 def write_geotiff(
     path: Path, array: npt.NDArray[Any], terrain: Terrain, description: str
 ) -> None: ...

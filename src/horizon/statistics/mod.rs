@@ -330,9 +330,9 @@ impl<'a> StatisticsEngine<'a> {
             || !close(a.px_x_m, b.px_x_m)
             || !close(a.px_y_m, b.px_y_m)
         {
-            return Err(HorizonError::SweepUnsupported {
+            return Err(HorizonError::HorizonsMismatch {
                 reason: format!(
-                    "the horizons' grid ({} x {} px of {} m from ({}, {}) m) is not the finest \
+                    "their grid ({} x {} px of {} m from ({}, {}) m) is not the finest \
                      layer's ({} x {} px of {} m from ({}, {}) m)",
                     a.rows,
                     a.cols,
@@ -348,21 +348,21 @@ impl<'a> StatisticsEngine<'a> {
             });
         }
         if AzimuthLookup::new(source.grid_az_deg()).is_none() {
-            return Err(HorizonError::SweepUnsupported {
-                reason: "the horizons' band azimuths are not strictly increasing in [0, 360)"
-                    .into(),
+            return Err(HorizonError::HorizonsMismatch {
+                reason: "their band azimuths are not strictly increasing in [0, 360)".into(),
             });
         }
         Ok(())
     }
 
     /// The statistics of every pixel over `epochs` (in time order). `progress` gets the rows
-    /// done.
+    /// done after each block of rows; when it returns `false` the run stops with
+    /// [`HorizonError::Interrupted`].
     pub fn run(
         &self,
         source: &mut dyn HorizonRows,
         epochs: &[EpochBodies],
-        mut progress: impl FnMut(usize),
+        mut progress: impl FnMut(usize) -> bool,
     ) -> Result<HorizonStatistics, HorizonError> {
         self.check_source(source)?;
         let fine = self.fine();
@@ -525,7 +525,9 @@ impl<'a> StatisticsEngine<'a> {
                     out.below_sphere.cell_epochs += u64::from(a.below_sphere);
                 }
             }
-            progress(row1);
+            if !progress(row1) {
+                return Err(HorizonError::Interrupted);
+            }
             row0 = row1;
         }
         out.below_sphere.cells_total = out.nodata.iter().filter(|&&nd| !nd).count() as u64;

@@ -45,28 +45,37 @@ pub struct InMemoryHorizons {
 
 impl InMemoryHorizons {
     /// Runs `sweep` and keeps its bands, quantised as in the horizon GeoTIFF (so a statistics
-    /// map from memory and one from the file are identical). `progress` gets the bands done.
-    pub fn sweep(sweep: &HorizonSweep<'_>, progress: impl FnMut(usize)) -> Self {
+    /// map from memory and one from the file are identical). `progress` gets the bands done;
+    /// when it returns `false` the sweep stops with [`HorizonError::Interrupted`].
+    pub fn sweep(
+        sweep: &HorizonSweep<'_>,
+        mut progress: impl FnMut(usize) -> bool,
+    ) -> Result<Self, HorizonError> {
         let dirs = sweep.directions();
         let mut bands = vec![Vec::new(); dirs.len()];
-        let result: Result<(), std::convert::Infallible> = sweep.run(
+        let mut done = 0;
+        sweep.run(
             |band| {
                 bands[band.index] = band
                     .elevation_deg
                     .iter()
                     .map(|&e| horizon_centideg(e))
                     .collect();
-                Ok(())
+                done += 1;
+                if progress(done) {
+                    Ok(())
+                } else {
+                    Err(HorizonError::Interrupted)
+                }
             },
-            progress,
-        );
-        let Ok(()) = result;
-        InMemoryHorizons {
+            |_| {},
+        )?;
+        Ok(InMemoryHorizons {
             grid: sweep.grid_dem().grid,
             grid_az_deg: dirs.iter().map(|d| d.grid_az_deg).collect(),
             observer_height_m: sweep.params().observer_height_m,
             bands,
-        }
+        })
     }
 
     /// Memory held, bytes.

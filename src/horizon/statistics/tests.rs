@@ -126,7 +126,7 @@ fn skipping_unseen_bodies_changes_nothing() {
         },
     )
     .unwrap();
-    let mut horizons = InMemoryHorizons::sweep(&sweep, |_| {});
+    let mut horizons = InMemoryHorizons::sweep(&sweep, |_| true).unwrap();
     let kernels =
         crate::ephem::Kernels::load(&crate::ephem::kernels::default_kernel_dir()).unwrap();
     let epochs = crate::ephem::time::epoch_range(
@@ -158,9 +158,9 @@ fn skipping_unseen_bodies_changes_nothing() {
         full_min_fraction: 0.999,
     };
     let mut engine = StatisticsEngine::new(&stack, params).unwrap();
-    let with = engine.run(&mut horizons, &bodies, |_| {}).unwrap();
+    let with = engine.run(&mut horizons, &bodies, |_| true).unwrap();
     engine.skip_unseen = false;
-    let without = engine.run(&mut horizons, &bodies, |_| {}).unwrap();
+    let without = engine.run(&mut horizons, &bodies, |_| true).unwrap();
     let never_sun = with
         .sun_visible_count
         .iter()
