@@ -337,6 +337,24 @@ fn visible_fraction_exact(
     (total / norm).clamp(0.0, 1.0)
 }
 
+/// Visible fraction of a **uniform** disc of radius `r` above a horizon polyline given directly:
+/// `points` are `(u, g)` with `u` across the disc from `−r` to `r` (increasing) and `g` the
+/// horizon minus the centre's elevation, in the same unit as `r`. The exact strip integral of
+/// [`DiscMethod::Exact`] (closed forms), for callers whose horizon samples are not uniform in
+/// azimuth (the whole-grid statistics' bands).
+pub fn polyline_visible_fraction_uniform(points: &[(f64, f64)], r: f64) -> f64 {
+    if !(r > 0.0 && r.is_finite()) || points.len() < 2 {
+        return f64::NAN;
+    }
+    let mut total = 0.0;
+    for w in points.windows(2) {
+        if w[1].0 > w[0].0 {
+            total += line_piece(r, w[0], w[1], &LimbDarkening::UNIFORM, 0);
+        }
+    }
+    (total / (std::f64::consts::PI * r * r)).clamp(0.0, 1.0)
+}
+
 /// Integral over `u ∈ [p0.0, p1.0]` of the (weighted) visible strip length under the horizon
 /// line through `p0` and `p1`, split where the line crosses the rim `u² + y² = r²`.
 fn line_piece(

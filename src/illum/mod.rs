@@ -15,7 +15,8 @@ pub mod plot;
 pub mod stats;
 
 pub use disc::{
-    Disc, DiscMethod, HorizonProfile, LimbDarkening, chord_visible_fraction, visible_fraction,
+    Disc, DiscMethod, HorizonProfile, LimbDarkening, chord_visible_fraction,
+    polyline_visible_fraction_uniform, visible_fraction,
 };
 
 /// Errors of the illumination subsystem.

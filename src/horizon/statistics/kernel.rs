@@ -16,14 +16,18 @@
 )]
 
 use super::lookup::{AzimuthLookup, ChordTable};
+use crate::illum::polyline_visible_fraction_uniform;
 
 /// Epochs per chunk (the chunk's arrays stay in L1 while a task's cells run over it).
 pub(super) const CHUNK: usize = 512;
-/// Azimuth sectors of the per-cell horizon bounds.
-pub(super) const SECTORS: usize = 64;
-/// Largest disc half-span in azimuth the sector bounds cover, degrees (each sector's bounds take
-/// in the horizon this far beyond its edges).
-pub(super) const SECTOR_MARGIN_DEG: f32 = 2.5;
+/// Azimuth sectors of the per-cell horizon bounds (one set per body).
+pub(super) const SECTORS: usize = 128;
+/// Largest half-span in azimuth of the Sun's disc the Sun's sector bounds cover, degrees (each
+/// sector's bounds take in the horizon this far beyond its edges): `0.272° / cos(el)` up to 39°
+/// of elevation.
+pub(super) const SUN_MARGIN_DEG: f32 = 0.35;
+/// The same for the Earth's disc: `0.95–1.0° / cos(el)` up to 20° of elevation.
+pub(super) const EARTH_MARGIN_DEG: f32 = 1.1;
 
 /// The epochs in the kernel's units, one array per quantity: body centres relative to the Moon's
 /// centre in `MOON_ME`, km; angular radii, degrees; the Sun's normal irradiance (whole disc),
@@ -208,11 +212,14 @@ fn geometry(cell: &CellGeom, pos: [&[f32]; 3], out: &mut Seen) {
 /// horizon of its sector is 1 or 0), which lists the other epochs; then the circular segment for
 /// those only.
 #[inline(always)]
+#[allow(clippy::too_many_arguments, reason = "the kernel's inputs")]
 fn fractions(
     h: &[f32],
     bounds: &[[f32; 2]],
+    margin_deg: f32,
     lookup: &AzimuthLookup,
     chord: &ChordTable,
+    exact_uniform: bool,
     radius_deg: &[f32],
     seen: &mut Seen,
     partial: &mut [u16; CHUNK],
@@ -226,7 +233,7 @@ fn fractions(
         let s = ((az * sector_per_deg) as usize).min(SECTORS - 1);
         let [lo, hi] = bounds[s];
         // Within the sector bounds only while the disc's half-span fits the margin.
-        let fits = r <= SECTOR_MARGIN_DEG * seen.cos_el[j];
+        let fits = r <= margin_deg * seen.cos_el[j];
         let full = fits & (el - r >= hi);
         let dark = fits & (el + r <= lo);
         seen.fraction[j] = if full { 1.0 } else { 0.0 };
@@ -237,13 +244,17 @@ fn fractions(
         let j = usize::from(j);
         let (el, az, r) = (seen.el_deg[j], seen.az_deg[j], radius_deg[j]);
         let cos_el = seen.cos_el[j];
-        // Circular segment under the straight line through the horizon at the disc's two
-        // azimuth edges (paper 001 eqs. 6–7), flux-weighted with the limb law.
         let half_span = if cos_el > 1e-3 {
             (r / cos_el).min(180.0)
         } else {
             180.0
         };
+        if exact_uniform && half_span < 90.0 {
+            seen.fraction[j] = polyline_fraction(h, lookup, el, az, r, half_span, chord);
+            continue;
+        }
+        // Circular segment under the straight line through the horizon at the disc's two
+        // azimuth edges (paper 001 eqs. 6–7), flux-weighted with the limb law.
         let left = lookup.horizon_deg(h, az - half_span) - el;
         let right = lookup.horizon_deg(h, az + half_span) - el;
         let m = 0.5 * (left + right);
@@ -253,11 +264,107 @@ fn fractions(
     }
 }
 
-/// The horizon bounds of each azimuth sector of a cell (with [`SECTOR_MARGIN_DEG`] on both
-/// sides) from its `n + 1` band values at `lookup`'s azimuths.
-pub(super) fn sector_bounds(h: &[f32], band_az_deg: &[f32], out: &mut Vec<[f32; 2]>) {
-    out.clear();
-    out.resize(SECTORS, [f32::INFINITY, f32::NEG_INFINITY]);
+/// The visible fraction of a uniform disc (centre `el`, `az`, radius `r`, half-span in azimuth
+/// `half_span`, degrees) above the horizon polyline itself: the disc's two edges and every band
+/// inside its span, integrated exactly ([`polyline_visible_fraction_uniform`]; the segment's
+/// straight chord would miss a notch of the horizon inside a wide disc such as the Earth's).
+pub(super) fn polyline_fraction(
+    h: &[f32],
+    lookup: &AzimuthLookup,
+    el: f32,
+    az: f32,
+    r: f32,
+    half_span: f32,
+    chord: &ChordTable,
+) -> f32 {
+    const MAX_POINTS: usize = 64;
+    let from = az - half_span;
+    let left = lookup.horizon_deg(h, from) - el;
+    let right = lookup.horizon_deg(h, az + half_span) - el;
+    // The circular segment under the chord through the polyline's ends.
+    let slope = (right - left) / (2.0 * r);
+    let m = 0.5 * (left + right);
+    let segment = chord.fraction(m / (1.0 + slope * slope).sqrt() / r);
+    // The bands strictly inside the span, as (u, g).
+    let mut points = [(0.0_f32, 0.0_f32); MAX_POINTS];
+    let mut n = 0;
+    let band_az = lookup.band_az_deg();
+    let nb = band_az.len();
+    let (k0, _) = lookup.segment(from);
+    let u_per_deg = r / half_span;
+    let mut k = (k0 + 1) % nb;
+    while n < MAX_POINTS {
+        let mut d = band_az[k] - from;
+        if d < 0.0 {
+            d += 360.0;
+        }
+        if d >= 2.0 * half_span || k == k0 {
+            break;
+        }
+        points[n] = (-r + d * u_per_deg, h[k] - el);
+        n += 1;
+        k = (k + 1) % nb;
+    }
+    // Within 1 % of the radius of the chord, the segment is the polyline's fraction.
+    let off_chord = points[..n]
+        .iter()
+        .map(|&(u, g)| (g - (left + slope * (u + r))).abs())
+        .fold(0.0_f32, f32::max);
+    if off_chord <= 0.01 * r {
+        return segment;
+    }
+    // Does the polyline leave any of the disc above it (and any below)? On each piece `g = a +
+    // b u` the top arc minus `g` and `g` plus the bottom arc are concave, with their maxima at
+    // `u = ∓ b r / √(1 + b²)` (clamped to the piece): a disc wholly hidden or wholly visible is
+    // told exactly, without the integral.
+    let mut some_visible = false;
+    let mut some_hidden = false;
+    let mut prev = (-r, left);
+    for &(u, g) in points[..n].iter().chain(std::iter::once(&(r, right))) {
+        if u > prev.0 {
+            let b = (g - prev.1) / (u - prev.0);
+            let a = prev.1 - b * prev.0;
+            let q = (1.0 + b * b).sqrt();
+            let arc = |x: f32| (r * r - x * x).max(0.0).sqrt();
+            let ut = (-b * r / q).clamp(prev.0, u);
+            some_visible |= arc(ut) - (a + b * ut) > 0.0;
+            let ub = (b * r / q).clamp(prev.0, u);
+            some_hidden |= a + b * ub + arc(ub) > 0.0;
+        }
+        prev = (u, g);
+    }
+    if !some_visible {
+        return 0.0;
+    }
+    if !some_hidden {
+        return 1.0;
+    }
+    // Partly visible: the segment in mid-range (a bend of the horizon changes the fraction by a
+    // little there), the exact integral near 0 and 1, where the thresholds are.
+    if (0.02..=0.98).contains(&segment) {
+        return segment;
+    }
+    let mut poly = [(0.0_f64, 0.0_f64); MAX_POINTS + 2];
+    let r64 = f64::from(r);
+    poly[0] = (-r64, f64::from(left));
+    for (p, &(u, g)) in poly[1..].iter_mut().zip(&points[..n]) {
+        *p = (f64::from(u), f64::from(g));
+    }
+    poly[n + 1] = (r64, f64::from(right));
+    polyline_visible_fraction_uniform(&poly[..n + 2], r64) as f32
+}
+
+/// Appends to `out` the horizon bounds of each of the [`SECTORS`] azimuth sectors of a cell (with
+/// `margin_deg` on both sides) from its `n + 1` band values at `lookup`'s azimuths.
+pub(super) fn sector_bounds(
+    h: &[f32],
+    band_az_deg: &[f32],
+    margin_deg: f32,
+    out: &mut Vec<[f32; 2]>,
+) {
+    let base = out.len();
+    out.resize(base + SECTORS, [f32::INFINITY, f32::NEG_INFINITY]);
+    let out = &mut out[base..];
     let width = 360.0 / SECTORS as f32;
     let n = band_az_deg.len();
     for (k, &a) in band_az_deg.iter().enumerate() {
@@ -271,8 +378,8 @@ pub(super) fn sector_bounds(h: &[f32], band_az_deg: &[f32], out: &mut Vec<[f32; 
         let (v0, v1) = (h[k], h[k + 1]);
         let (lo, hi) = (v0.min(v1), v0.max(v1));
         // Band azimuths are in [0, 360): shift by a whole turn so that truncation floors.
-        let first = ((a - SECTOR_MARGIN_DEG + 360.0) / width) as i64 - SECTORS as i64;
-        let last = ((a_next + SECTOR_MARGIN_DEG + 360.0) / width) as i64 - SECTORS as i64;
+        let first = ((a - margin_deg + 360.0) / width) as i64 - SECTORS as i64;
+        let last = ((a_next + margin_deg + 360.0) / width) as i64 - SECTORS as i64;
         for s in first..=last {
             let b = &mut out[s.rem_euclid(SECTORS as i64) as usize];
             b[0] = b[0].min(lo);
@@ -288,7 +395,8 @@ pub(super) struct Scratch {
     partial: Box<[u16; CHUNK]>,
 }
 
-/// Runs `cells` (each with its `stride = n + 1` horizon values and [`SECTORS`] bounds) over
+/// Runs `cells` (each with its `stride = n + 1` horizon values and 2 × [`SECTORS`] bounds, the
+/// Sun's then the Earth's) over
 /// epochs `range` (in time order), updating `acc`.
 #[allow(
     clippy::too_many_arguments,
@@ -329,12 +437,31 @@ pub(super) fn run_cells(
     for (((cell, h), b), a) in cells
         .iter()
         .zip(horizons.chunks_exact(stride))
-        .zip(bounds.chunks_exact(SECTORS))
+        .zip(bounds.chunks_exact(2 * SECTORS))
         .zip(acc.iter_mut())
     {
-        for (reach, pos, radius, chord, seen) in [
-            (cell.sun, sun_pos, sun_r, chord_sun, &mut **sun),
-            (cell.earth, earth_pos, earth_r, chord_earth, &mut **earth),
+        // The Earth's disc is uniform and wide (1.9°): its partial epochs get the exact strip
+        // integral over the horizon polyline; the Sun's (limb-darkened, 0.53°) the segment.
+        let (b_sun, b_earth) = b.split_at(SECTORS);
+        for (reach, pos, radius, chord, exact, (b, margin), seen) in [
+            (
+                cell.sun,
+                sun_pos,
+                sun_r,
+                chord_sun,
+                false,
+                (b_sun, SUN_MARGIN_DEG),
+                &mut **sun,
+            ),
+            (
+                cell.earth,
+                earth_pos,
+                earth_r,
+                chord_earth,
+                true,
+                (b_earth, EARTH_MARGIN_DEG),
+                &mut **earth,
+            ),
         ] {
             match reach {
                 // The Sun's elevation still feeds the irradiance and the below-sphere count.
@@ -345,7 +472,7 @@ pub(super) fn run_cells(
                 }
                 Reach::Varies => {
                     geometry(cell, pos, seen);
-                    fractions(h, b, lookup, chord, radius, seen, partial);
+                    fractions(h, b, margin, lookup, chord, exact, radius, seen, partial);
                 }
             }
         }

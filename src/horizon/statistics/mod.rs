@@ -460,8 +460,7 @@ impl<'a> StatisticsEngine<'a> {
                     let mut pixels = Vec::with_capacity(hi - lo);
                     let mut cells = Vec::with_capacity(hi - lo);
                     let mut horizons = Vec::with_capacity((hi - lo) * (n + 1));
-                    let mut bounds = Vec::with_capacity((hi - lo) * SECTORS);
-                    let mut cell_bounds = Vec::with_capacity(SECTORS);
+                    let mut bounds = Vec::with_capacity((hi - lo) * 2 * SECTORS);
                     for i in lo..hi {
                         let px = first_px + i;
                         let start = horizons.len();
@@ -472,12 +471,14 @@ impl<'a> StatisticsEngine<'a> {
                             &mut horizons,
                             (&body_bounds, centre_up, &lookup),
                         ) {
-                            kernel::sector_bounds(
-                                &horizons[start..],
-                                lookup.band_az_deg(),
-                                &mut cell_bounds,
-                            );
-                            bounds.extend_from_slice(&cell_bounds);
+                            for margin in [kernel::SUN_MARGIN_DEG, kernel::EARTH_MARGIN_DEG] {
+                                kernel::sector_bounds(
+                                    &horizons[start..],
+                                    lookup.band_az_deg(),
+                                    margin,
+                                    &mut bounds,
+                                );
+                            }
                             pixels.push(px);
                             cells.push(cell);
                         }
