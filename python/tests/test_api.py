@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import _thread
+from pathlib import Path
 import threading
 import time
 
@@ -44,6 +45,28 @@ def test_ephem_shapes_and_dtypes() -> None:
     assert np.all(np.abs(e["sun_el_deg"]) < 8)
     assert np.all((e["sun_radius_deg"] > 0.26) & (e["sun_radius_deg"] < 0.28))
     assert e["utc"].shape == (49,)
+
+
+def test_ephem_from_a_meta_kernel(tmp_path: Path) -> None:
+    """A SPICE meta-kernel (.tm) gives the same numbers as the folder it lists."""
+    kdir = Path(__file__).resolve().parents[2] / "kernels"
+    names = sorted(p.name for p in kdir.iterdir() if p.suffix != ".md")
+    listed = "\n".join(f"  '$K/{n}'" for n in names)
+    mk = tmp_path / "set.tm"
+    mk.write_text(
+        "KPL/MK\n\\begindata\n"
+        f"PATH_VALUES = ( '{kdir}' )\nPATH_SYMBOLS = ( 'K' )\n"
+        f"KERNELS_TO_LOAD = (\n{listed}\n)\n\\begintext\n"
+    )
+    t = penumbra.time_range("2027-01-01", "2027-01-02", "5h")
+    a = penumbra.ephem([(-89.45, -137.3, 0.0)], t, kernels=mk)
+    b = penumbra.ephem([(-89.45, -137.3, 0.0)], t, kernels=kdir)
+    for k in ("sun_az_deg", "sun_el_deg", "earth_range_km"):
+        assert np.array_equal(a[k], b[k]), k
+    bad = tmp_path / "bad.tm"
+    bad.write_text("\\begindata\nKERNELS_TO_LOAD = ( 'nowhere.bsp' )\n")
+    with pytest.raises(ValueError, match="nowhere.bsp"):
+        penumbra.ephem([(-89.45, -137.3, 0.0)], t, kernels=bad)
 
 
 def test_terrain(terrain: penumbra.Terrain) -> None:

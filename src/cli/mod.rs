@@ -87,9 +87,9 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
 /// Where the SPICE kernels come from.
 #[derive(Debug, Clone, Args)]
 pub struct KernelArgs {
-    /// Folder of SPICE kernels (.bsp, .bpc, .tf, .tls). Default: $PENUMBRA_KERNELS, ./kernels,
-    /// then the kernels/ folder of the source tree.
-    #[arg(long, value_name = "DIR")]
+    /// Folder of SPICE kernels (.bsp, .bpc, .tf, .tls), or a SPICE meta-kernel (.tm) listing
+    /// them. Default: $PENUMBRA_KERNELS, ./kernels, then the kernels/ folder of the source tree.
+    #[arg(long, value_name = "DIR|TM")]
     pub kernels: Option<PathBuf>,
 }
 

@@ -5,6 +5,9 @@
 //! (`.tls`; penumbra uses hifitime's built-in table, which equals `naif0012.tls`, and checks that
 //! the folder's file agrees with it).
 //!
+//! A SPICE meta-kernel (`.tm`) may stand in for the folder: its `KERNELS_TO_LOAD` files are
+//! loaded in order (see [`super::metakernel`]).
+//!
 //! Where the folder comes from, first match wins: `--kernels DIR`, the `PENUMBRA_KERNELS`
 //! environment variable, `./kernels` in the working directory, then the `kernels/` folder of the
 //! source tree the binary was built from.
@@ -59,10 +62,14 @@ pub struct KernelFile {
 pub struct Kernels {
     /// The anise almanac holding the SPKs, BPCs and frame parameters.
     pub almanac: Almanac,
-    /// The folder the kernels came from.
+    /// The folder the kernels came from (a meta-kernel's folder for a meta-kernel).
     pub dir: PathBuf,
+    /// The meta-kernel that listed the files, if the set came from one.
+    pub meta_kernel: Option<PathBuf>,
     /// The files that were loaded.
     pub files: Vec<KernelFile>,
+    /// Files of the set that penumbra does not use (text PCKs, DSKs, name-only frame kernels...).
+    pub skipped: Vec<SkippedKernel>,
     /// First and last epoch at which the Sun, the Earth, the Moon and the `MOON_ME` frame are all
     /// available (light-time margin included).
     pub coverage: (Epoch, Epoch),
@@ -97,9 +104,24 @@ fn guarded<T>(path: &Path, f: impl FnOnce() -> Result<T, String>) -> Result<T, E
 }
 
 impl Kernels {
-    /// Loads every kernel in `dir` and checks that the set covers the Sun, the Earth, the Moon and
-    /// `MOON_ME`.
-    pub fn load(dir: &Path) -> Result<Self, EphemError> {
+    /// Loads a kernel set: every kernel in a folder, or the files a SPICE meta-kernel (`.tm`, see
+    /// [`super::metakernel`]) lists, in its order. Checks that the set covers the Sun, the Earth,
+    /// the Moon and `MOON_ME`.
+    pub fn load(source: &Path) -> Result<Self, EphemError> {
+        let meta = std::fs::metadata(source).map_err(|e| EphemError::KernelDir {
+            path: source.display().to_string(),
+            why: e.to_string(),
+        })?;
+        if meta.is_file() {
+            return Self::load_meta_kernel(source, meta.len());
+        }
+        if !meta.is_dir() {
+            return Err(EphemError::KernelDir {
+                path: source.display().to_string(),
+                why: "neither a folder nor a meta-kernel file".into(),
+            });
+        }
+        let dir = source;
         let entries = std::fs::read_dir(dir).map_err(|e| EphemError::KernelDir {
             path: dir.display().to_string(),
             why: e.to_string(),
@@ -109,61 +131,7 @@ impl Kernels {
             .filter(|p| p.is_file())
             .collect();
         paths.sort();
-
-        let mut almanac = Almanac::default();
-        let mut files = Vec::new();
-        let mut have_fk = false;
-        for path in paths {
-            let ext = path
-                .extension()
-                .and_then(|e| e.to_str())
-                .map(str::to_ascii_lowercase)
-                .unwrap_or_default();
-            let kind = match ext.as_str() {
-                "bsp" => "spk",
-                "bpc" => "bpc",
-                "tf" => "fk",
-                "tls" => "lsk",
-                _ => continue,
-            };
-            let bytes = std::fs::read(&path).map_err(|e| load_failed(&path, e))?;
-            match kind {
-                "spk" => {
-                    let spk = guarded(&path, || SPK::parse(&bytes[..]).map_err(|e| e.to_string()))?;
-                    almanac = almanac.with_spk(spk);
-                }
-                "bpc" => {
-                    let bpc = guarded(&path, || BPC::parse(&bytes[..]).map_err(|e| e.to_string()))?;
-                    almanac = almanac.with_bpc(bpc);
-                }
-                "fk" => {
-                    let text = String::from_utf8_lossy(&bytes);
-                    // moon_assoc_*.tf only associate names with frames: nothing to convert.
-                    if !text.contains("TKFRAME_") {
-                        continue;
-                    }
-                    let ep = guarded(&path, || {
-                        anise::naif::kpl::parser::convert_fk(&path, false)
-                            .map_err(|e| e.to_string())
-                    })?;
-                    if have_fk {
-                        return Err(load_failed(
-                            &path,
-                            "only one text frame kernel with TKFRAME definitions is supported",
-                        ));
-                    }
-                    have_fk = true;
-                    almanac = almanac.with_euler_parameters(ep);
-                }
-                _ => check_leap_seconds(&path, &bytes)?,
-            }
-            files.push(KernelFile {
-                size_bytes: bytes.len() as u64,
-                sha256: sha256_hex(&bytes),
-                path,
-                kind,
-            });
-        }
+        let (almanac, files, skipped) = load_files(&paths, false)?;
         if files.is_empty() {
             return Err(EphemError::KernelDir {
                 path: dir.display().to_string(),
@@ -174,11 +142,73 @@ impl Kernels {
         Ok(Kernels {
             almanac,
             dir: dir.to_path_buf(),
+            meta_kernel: None,
             files,
+            skipped,
             coverage,
         })
     }
 
+    fn load_meta_kernel(path: &Path, size_bytes: u64) -> Result<Self, EphemError> {
+        let ext = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase)
+            .unwrap_or_default();
+        if matches!(ext.as_str(), "bsp" | "bpc" | "tf" | "tls" | "tpc" | "bds") {
+            return Err(load_failed(
+                path,
+                "is one kernel, not a set: pass its folder or a meta-kernel (.tm) listing the set",
+            ));
+        }
+        if size_bytes > super::metakernel::MAX_META_KERNEL_BYTES {
+            return Err(load_failed(
+                path,
+                format!(
+                    "{size_bytes} bytes is too large for a meta-kernel (at most {} B); pass a kernel folder instead",
+                    super::metakernel::MAX_META_KERNEL_BYTES
+                ),
+            ));
+        }
+        let bytes = std::fs::read(path).map_err(|e| load_failed(path, e))?;
+        let text = String::from_utf8(bytes).map_err(|_| {
+            load_failed(
+                path,
+                "not a text file (a meta-kernel is text; pass a kernel folder or a .tm file)",
+            )
+        })?;
+        let names =
+            super::metakernel::kernels_to_load(&text).map_err(|why| load_failed(path, why))?;
+        let mut paths = Vec::with_capacity(names.len());
+        for name in names {
+            let resolved = super::metakernel::resolve(&name, path);
+            if !resolved.is_file() {
+                return Err(load_failed(
+                    path,
+                    format!(
+                        "lists '{name}', which is not a file (relative names are tried against the working directory, then the meta-kernel's folder)"
+                    ),
+                ));
+            }
+            paths.push(resolved);
+        }
+        let (almanac, files, skipped) = load_files(&paths, true)?;
+        let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+        let coverage = coverage(&almanac, path)?;
+        Ok(Kernels {
+            almanac,
+            dir,
+            meta_kernel: Some(path.to_path_buf()),
+            files,
+            skipped,
+            coverage,
+        })
+    }
+
+    /// Where the set came from, for reports: the meta-kernel or the folder.
+    pub fn source(&self) -> &Path {
+        self.meta_kernel.as_deref().unwrap_or(&self.dir)
+    }
     /// Errors unless `epoch` lies within the kernels' coverage.
     pub fn check_epoch(&self, epoch: Epoch) -> Result<(), EphemError> {
         if epoch < self.coverage.0 || epoch > self.coverage.1 {
@@ -190,6 +220,91 @@ impl Kernels {
         }
         Ok(())
     }
+}
+
+/// A file of the set that was not loaded, and why.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct SkippedKernel {
+    /// The file.
+    pub path: PathBuf,
+    /// Why penumbra does not use it.
+    pub why: String,
+}
+
+/// Loads `paths` in order into one almanac. Files with other extensions are ignored in a folder
+/// and reported as skipped when a meta-kernel lists them (`listed`).
+fn load_files(
+    paths: &[PathBuf],
+    listed: bool,
+) -> Result<(Almanac, Vec<KernelFile>, Vec<SkippedKernel>), EphemError> {
+    let mut skipped = Vec::new();
+    let mut almanac = Almanac::default();
+    let mut files = Vec::new();
+    let mut have_fk = false;
+    for path in paths {
+        let path = path.clone();
+        let ext = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase)
+            .unwrap_or_default();
+        let kind = match ext.as_str() {
+            "bsp" => "spk",
+            "bpc" => "bpc",
+            "tf" => "fk",
+            "tls" => "lsk",
+            _ if listed => {
+                skipped.push(SkippedKernel {
+                    path: path.clone(),
+                    why: "penumbra reads only .bsp, .bpc, .tf and .tls kernels".into(),
+                });
+                continue;
+            }
+            _ => continue,
+        };
+        let bytes = std::fs::read(&path).map_err(|e| load_failed(&path, e))?;
+        match kind {
+            "spk" => {
+                let spk = guarded(&path, || SPK::parse(&bytes[..]).map_err(|e| e.to_string()))?;
+                almanac = almanac.with_spk(spk);
+            }
+            "bpc" => {
+                let bpc = guarded(&path, || BPC::parse(&bytes[..]).map_err(|e| e.to_string()))?;
+                almanac = almanac.with_bpc(bpc);
+            }
+            "fk" => {
+                let text = String::from_utf8_lossy(&bytes);
+                // moon_assoc_*.tf only associate names with frames: nothing to convert.
+                if !text.contains("TKFRAME_") {
+                    skipped.push(SkippedKernel {
+                        path: path.clone(),
+                        why: "a frame kernel without TKFRAME definitions (name associations only)"
+                            .into(),
+                    });
+                    continue;
+                }
+                let ep = guarded(&path, || {
+                    anise::naif::kpl::parser::convert_fk(&path, false).map_err(|e| e.to_string())
+                })?;
+                if have_fk {
+                    return Err(load_failed(
+                        &path,
+                        "only one text frame kernel with TKFRAME definitions is supported",
+                    ));
+                }
+                have_fk = true;
+                almanac = almanac.with_euler_parameters(ep);
+            }
+            _ => check_leap_seconds(&path, &bytes)?,
+        }
+        files.push(KernelFile {
+            size_bytes: bytes.len() as u64,
+            sha256: sha256_hex(&bytes),
+            path,
+            kind,
+        });
+    }
+    Ok((almanac, files, skipped))
 }
 
 fn sha256_hex(bytes: &[u8]) -> String {

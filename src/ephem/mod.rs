@@ -6,6 +6,7 @@
 //! - [`topo`]: the SPICE-exact topocentric computation (light time + stellar aberration).
 
 pub mod kernels;
+pub mod metakernel;
 pub mod time;
 pub mod topo;
 

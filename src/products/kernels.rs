@@ -10,7 +10,10 @@ use crate::ephem::{self, time::format_utc};
 pub fn report(source: &KernelSource) -> anyhow::Result<String> {
     let kernels = source.load()?;
     let mut out = String::new();
-    writeln!(out, "kernel folder: {}", kernels.dir.display())?;
+    match &kernels.meta_kernel {
+        Some(mk) => writeln!(out, "meta-kernel: {}", mk.display())?,
+        None => writeln!(out, "kernel folder: {}", kernels.dir.display())?,
+    }
     for f in &kernels.files {
         writeln!(
             out,
@@ -20,6 +23,9 @@ pub fn report(source: &KernelSource) -> anyhow::Result<String> {
             &f.sha256[..16],
             f.path.display()
         )?;
+    }
+    for f in &kernels.skipped {
+        writeln!(out, "  skipped {}: {}", f.path.display(), f.why)?;
     }
     writeln!(out, "bodies (SPK, NAIF id: span TDB):")?;
     let mut domains: Vec<_> = kernels

@@ -84,11 +84,11 @@ pub fn synthetic_stack(params: &SynthParams) -> anyhow::Result<(TerrainStack, St
     Ok((TerrainStack::new(vec![dem]), what))
 }
 
-/// Where the SPICE kernels come from: a folder, or the default search
+/// Where the SPICE kernels come from: a folder or a meta-kernel (`.tm`), or the default search
 /// ([`crate::ephem::kernels::default_kernel_dir`]: `$PENUMBRA_KERNELS`, `./kernels`, the source tree's).
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
 pub struct KernelSource {
-    /// The kernel folder; `None` for the default search.
+    /// The kernel folder or meta-kernel; `None` for the default search.
     pub dir: Option<PathBuf>,
 }
 

@@ -462,3 +462,100 @@ fn sub_solar_and_sub_earth_points_match_spice() {
     }
     assert!(n >= 20);
 }
+
+/// A SPICE meta-kernel stands in for the folder: the same files give the same numbers, whether it
+/// names them through a path symbol or relative to its own folder; files penumbra does not read are
+/// listed as skipped; a missing file is a clean error naming it.
+#[test]
+fn meta_kernels_load_the_same_set_as_the_folder() {
+    let dir = tempfile::tempdir().unwrap();
+    let k = kernels_dir();
+    let names: Vec<String> = std::fs::read_dir(&k)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| !n.ends_with(".md"))
+        .collect();
+    let quoted = |prefix: &str| {
+        names
+            .iter()
+            .map(|n| format!("'{prefix}{n}'"))
+            .collect::<Vec<_>>()
+            .join(",\n    ")
+    };
+    // Through a path symbol, with an absolute value; a continued string for one file.
+    let symbolic = dir.path().join("abs.tm");
+    std::fs::write(
+        &symbolic,
+        format!(
+            "KPL/MK\nThe shipped set.\n\\begindata\nPATH_VALUES = ( '{}' )\nPATH_SYMBOLS = ( 'K' )\n\
+             KERNELS_TO_LOAD = ( '$K/naif+'\n    '0012.tls'\n    {} )\n\\begintext\n",
+            k.display(),
+            quoted("$K/").replace("'$K/naif0012.tls',", "")
+        ),
+    )
+    .unwrap();
+    // Relative names beside the meta-kernel, read from another working directory.
+    let beside = dir.path().join("beside");
+    std::fs::create_dir(&beside).unwrap();
+    for n in &names {
+        std::fs::copy(k.join(n), beside.join(n)).unwrap();
+    }
+    let relative = beside.join("set.tm");
+    std::fs::write(
+        &relative,
+        format!("\\begindata\nKERNELS_TO_LOAD = ( {} )\n", quoted("")),
+    )
+    .unwrap();
+    let ephem = |kernels: &std::path::Path| {
+        let out = penumbra_ok(
+            dir.path(),
+            &[
+                "ephem",
+                "--lat-deg",
+                "-89.45",
+                "--lon-deg",
+                "-137.3",
+                "--start",
+                "2024-01-01",
+                "--stop",
+                "2024-01-03",
+                "--step",
+                "7h",
+                "--kernels",
+                kernels.to_str().unwrap(),
+            ],
+        );
+        String::from_utf8(out.stdout).unwrap()
+    };
+    let from_folder = ephem(&k);
+    assert!(from_folder.lines().count() > 5, "{from_folder}");
+    assert_eq!(ephem(&symbolic), from_folder);
+    assert_eq!(ephem(&relative), from_folder);
+
+    let out = penumbra_ok(
+        dir.path(),
+        &["kernels", "--kernels", symbolic.to_str().unwrap()],
+    );
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert!(text.contains("meta-kernel: "), "{text}");
+    assert!(
+        text.contains("skipped") && text.contains("moon_assoc_me.tf"),
+        "{text}"
+    );
+
+    let missing = dir.path().join("missing.tm");
+    std::fs::write(
+        &missing,
+        "\\begindata\nKERNELS_TO_LOAD = ( 'nowhere/de440.bsp' )\n",
+    )
+    .unwrap();
+    let out = penumbra(
+        dir.path(),
+        &["kernels", "--kernels", missing.to_str().unwrap()],
+    );
+    assert_clean_error(&out, "nowhere/de440.bsp");
+    // A kernel file is not a meta-kernel.
+    let bsp = k.join("de440_moon_2000_2025.bsp");
+    let out = penumbra(dir.path(), &["kernels", "--kernels", bsp.to_str().unwrap()]);
+    assert_clean_error(&out, "meta-kernel");
+}

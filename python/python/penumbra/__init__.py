@@ -1,7 +1,8 @@
 """penumbra: sunlight and earthlight at the lunar poles (Python bindings of the Rust library).
 
 Every number comes from the Rust library, the same code as the ``penumbra`` command line:
-SPICE-exact ephemerides (the shipped kernels by default), LOLA terrain with near and far-field
+SPICE-exact ephemerides (the shipped kernels by default; ``kernels=`` takes a kernel folder or a
+SPICE meta-kernel ``.tm``), LOLA terrain with near and far-field
 layers, horizons, per-site series and statistics, whole-grid map statistics.
 
 >>> import penumbra
