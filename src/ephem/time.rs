@@ -73,7 +73,7 @@ pub fn parse_utc(text: &str) -> Result<Epoch, EphemError> {
         return Err(bad("a field is out of range"));
     }
     let year = i32::try_from(year).map_err(|_| bad("year out of range"))?;
-    Epoch::maybe_from_gregorian_utc(
+    let epoch = Epoch::maybe_from_gregorian_utc(
         year,
         month as u8,
         day as u8,
@@ -82,12 +82,70 @@ pub fn parse_utc(text: &str) -> Result<Epoch, EphemError> {
         second as u8,
         nanos,
     )
-    .map_err(|e| bad(&e.to_string()))
+    .map_err(|e| bad(&e.to_string()))?;
+    if second == 60 {
+        // hifitime accepts a real leap second (and refuses others) but puts it on 23:59:59;
+        // the leap second is the SI second after 23:59:59.
+        let before = Epoch::maybe_from_gregorian_utc(
+            year,
+            month as u8,
+            day as u8,
+            hour as u8,
+            minute as u8,
+            59,
+            nanos,
+        )
+        .map_err(|e| bad(&e.to_string()))?;
+        return Ok(before.to_time_scale(hifitime::TimeScale::TAI) + Unit::Second * 1);
+    }
+    Ok(epoch)
+}
+
+/// The UTC calendar fields of `epoch`, with a leap second written as second 60. hifitime's own
+/// conversion is one second off around a leap second for epochs not stored in UTC, and has no
+/// second 60, so the last two seconds of a day are placed here from TAI seconds.
+fn leap_aware_gregorian(epoch: Epoch) -> (i32, u8, u8, u8, u8, u8, u32) {
+    let g = epoch.to_gregorian_utc();
+    let (_, _, _, h, mi, s, _) = g;
+    let near_day_end = h == 23 && mi == 59 && s >= 58;
+    let near_day_start = h == 0 && mi == 0 && s == 0;
+    if !(near_day_end || near_day_start) {
+        return g;
+    }
+    let tai = |e: Epoch| e.to_time_scale(hifitime::TimeScale::TAI).to_tai_seconds();
+    let x = tai(epoch);
+    // The day whose end may hold a leap second: this one, or the previous one at 00:00:00.
+    let day_end = |e: Epoch| {
+        let (y, mo, d, ..) = e.to_gregorian_utc();
+        Epoch::maybe_from_gregorian_utc(y, mo, d, 23, 59, 59, 0).ok()
+    };
+    let candidate = if near_day_end {
+        day_end(epoch)
+    } else {
+        day_end(epoch - Unit::Second * 2)
+    };
+    let Some(last) = candidate else {
+        return g;
+    };
+    let midnight = last + Unit::Second * 1; // UTC-scale arithmetic: the next day's 00:00:00
+    let (t_last, t_mid) = (tai(last), tai(midnight));
+    if x < t_last || x >= t_mid {
+        return g;
+    }
+    let (ly, lmo, ld, ..) = last.to_gregorian_utc();
+    let into = x - t_last;
+    let (sec, frac) = if into < 1.0 {
+        (59, into)
+    } else {
+        (60, into - 1.0)
+    };
+    let ns = ((frac * 1e9).round() as u32).min(999_999_999);
+    (ly, lmo, ld, 23, 59, sec, ns)
 }
 
 /// Formats an epoch as ISO 8601 UTC, `YYYY-MM-DDTHH:MM:SS` (with `.fff` when not whole seconds).
 pub fn format_utc(epoch: Epoch) -> String {
-    let (y, mo, d, h, mi, s, ns) = epoch.to_gregorian_utc();
+    let (y, mo, d, h, mi, s, ns) = leap_aware_gregorian(epoch);
     if ns == 0 {
         format!("{y:04}-{mo:02}-{d:02}T{h:02}:{mi:02}:{s:02}")
     } else {
@@ -225,6 +283,45 @@ mod tests {
                 parse_step("1h").unwrap()
             )
             .is_err()
+        );
+    }
+}
+
+#[cfg(test)]
+mod leap_second_tests {
+    use super::*;
+
+    #[test]
+    fn a_leap_second_is_its_own_instant() {
+        let before = parse_utc("2016-12-31T23:59:59").unwrap();
+        let leap = parse_utc("2016-12-31T23:59:60").unwrap();
+        let after = parse_utc("2017-01-01T00:00:00").unwrap();
+        let tai = |e: Epoch| e.to_time_scale(hifitime::TimeScale::TAI).to_tai_seconds();
+        assert!((tai(leap) - tai(before) - 1.0).abs() < 1e-9, "{leap:?}");
+        assert!((tai(after) - tai(leap) - 1.0).abs() < 1e-9);
+        assert_eq!(format_utc(leap), "2016-12-31T23:59:60");
+        assert_eq!(format_utc(before), "2016-12-31T23:59:59");
+        assert_eq!(format_utc(after), "2017-01-01T00:00:00");
+        assert_eq!(
+            format_utc(parse_utc("2016-12-31T23:59:60.25").unwrap()),
+            "2016-12-31T23:59:60.250"
+        );
+        let tai_leap = leap.to_time_scale(hifitime::TimeScale::TAI);
+        assert_eq!(
+            format_utc(tai_leap - Unit::Second * 1),
+            "2016-12-31T23:59:59"
+        );
+        assert_eq!(
+            format_utc(tai_leap + Unit::Second * 1),
+            "2017-01-01T00:00:00"
+        );
+        assert_eq!(
+            format_utc(parse_utc("2016-06-30T23:59:59").unwrap()),
+            "2016-06-30T23:59:59"
+        );
+        assert!(
+            parse_utc("2016-12-30T23:59:60").is_err(),
+            "not a leap second"
         );
     }
 }

@@ -199,12 +199,12 @@ impl Site {
         }
         if !lon_deg.is_finite() || !(-360.0..=360.0).contains(&lon_deg) {
             return Err(EphemError::BadSite(format!(
-                "longitude {lon_deg} deg is outside [-360, 360]"
+                "longitude {lon_deg:.6e} deg is outside [-360, 360]"
             )));
         }
         if !height_m.is_finite() || height_m.abs() > 100_000.0 {
             return Err(EphemError::BadSite(format!(
-                "height {height_m} m is not within ±100 km of the reference sphere"
+                "height {height_m:.6e} m is not within ±100 km of the reference sphere"
             )));
         }
         Ok(Site {

@@ -6,6 +6,8 @@
 use std::io::Write;
 use std::path::Path;
 
+pub mod guard;
+
 /// Errors of the output subsystem.
 #[derive(Debug, thiserror::Error)]
 pub enum OutputError {
@@ -31,6 +33,10 @@ pub enum OutputError {
 
 /// Writes a file atomically: `fill` writes into a temporary file in the same folder, which is
 /// renamed onto `path` only if `fill` succeeds. On error the temporary file is removed.
+///
+/// Only a regular file is replaced: a folder, FIFO or device at `path` is an error (as root, a
+/// rename would turn `/dev/full` into a regular file). A symlink is followed: its target is
+/// replaced and the link stays. `-` writes to standard output instead.
 pub fn write_atomic<E>(
     path: &Path,
     fill: impl FnOnce(&mut dyn Write) -> Result<(), E>,
@@ -42,6 +48,11 @@ where
         path: path.display().to_string(),
         source,
     };
+    if path.as_os_str() == "-" {
+        let mut out = std::io::BufWriter::new(std::io::stdout().lock());
+        fill(&mut out)?;
+        return out.flush().map_err(|e| io_err(e).into());
+    }
     let mut tmp = temp_file_beside(path).map_err(io_err)?;
     {
         let mut buf = std::io::BufWriter::new(tmp.as_file_mut());
@@ -55,6 +66,10 @@ where
 /// A temporary file (`.penumbra-*.tmp`) in the folder of `path`, removed when dropped: where an
 /// output is built before [`persist_temp`] renames it into place.
 pub fn temp_file_beside(path: &Path) -> std::io::Result<tempfile::NamedTempFile> {
+    let path = guard::resolve_symlink(path);
+    if let Some(why) = guard::target_problem(&path) {
+        return Err(std::io::Error::other(why));
+    }
     let dir = match path.parent() {
         Some(p) if !p.as_os_str().is_empty() => p,
         _ => Path::new("."),
@@ -74,7 +89,15 @@ pub fn persist_temp(tmp: tempfile::NamedTempFile, path: &Path) -> std::io::Resul
         tmp.as_file()
             .set_permissions(std::fs::Permissions::from_mode(0o644))?;
     }
-    tmp.persist(path).map_err(|e| e.error)?;
+    let path = guard::resolve_symlink(path);
+    if let Ok(meta) = std::fs::metadata(&path)
+        && !meta.is_file()
+    {
+        return Err(std::io::Error::other(
+            "not a regular file; penumbra replaces only regular files",
+        ));
+    }
+    tmp.persist(&path).map_err(|e| e.error)?;
     Ok(())
 }
 

@@ -86,6 +86,36 @@ pub fn run(req: &MapRequest) -> anyhow::Result<()> {
     {
         anyhow::bail!("nothing to write: give --out-fraction, --out-mask or --out-earth-fraction");
     }
+    if !range && req.epochs.is_none() && req.out_earth_fraction.is_some() {
+        anyhow::bail!(
+            "--out-earth-fraction needs an epoch (--utc): an explicit Sun direction gives no Earth"
+        );
+    }
+    if let Some((az, el)) = req.sun_az_el_deg
+        && !(az.is_finite() && (-90.0..=90.0).contains(&el))
+    {
+        anyhow::bail!(
+            "--sun-az-deg {az} / --sun-el-deg {el}: the azimuth must be finite and the elevation within -90 .. 90 deg"
+        );
+    }
+    if let Some(d) = req.sun_dir_in_moon_me
+        && !(d.iter().all(|v| v.is_finite()) && d.norm() > 0.0)
+    {
+        anyhow::bail!("--sun-dir-body {d:?}: must be a finite, non-zero vector");
+    }
+    let outputs: Vec<(&str, &std::path::Path)> = [
+        ("--out-fraction", &req.out_fraction),
+        ("--out-mask", &req.out_mask),
+        ("--out-earth-fraction", &req.out_earth_fraction),
+    ]
+    .into_iter()
+    .filter_map(|(flag, p)| p.as_deref().map(|p| (flag, p)))
+    .collect();
+    for (flag, path) in &outputs {
+        crate::output::guard::check_output_target(flag, path, outputs.len() == 1)
+            .map_err(anyhow::Error::msg)?;
+    }
+    crate::output::guard::check_distinct_outputs(&outputs).map_err(anyhow::Error::msg)?;
     let explicit_dir = req.sun_dir_in_moon_me;
     if !range && explicit_dir.is_none() && req.sun_az_el_deg.is_none() && req.epochs.is_none() {
         anyhow::bail!("give the light: --utc T, --sun-dir-body X,Y,Z or --sun-az-deg/--sun-el-deg");

@@ -186,7 +186,22 @@ impl EpochSpec {
 
 /// Formats an error chain on one line (`outer: inner: root cause`), as the binary prints it.
 pub fn one_line(err: &anyhow::Error) -> String {
-    format!("{err:#}").replace('\n', " ")
+    // The context chain, each cause once: error types that print their source in their own
+    // message (`reading DEM x: <io error>`) would otherwise show it twice.
+    let mut out = err.to_string();
+    let mut last = out.clone();
+    for cause in err.chain().skip(1) {
+        let text = cause.to_string();
+        if let Some(rest) = text.strip_prefix(last.as_str()) {
+            // `writing x` then `writing x: why`: only the new part.
+            out.push_str(rest);
+        } else if !out.contains(&text) {
+            out.push_str(": ");
+            out.push_str(&text);
+        }
+        last = text;
+    }
+    out.replace('\n', " ")
 }
 
 /// Writes to `out` atomically (temporary file, then rename), or to stdout.

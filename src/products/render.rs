@@ -85,6 +85,53 @@ impl CameraSpec {
 
     /// The camera pose (an orbit camera needs `altitude_km`).
     pub fn pose(&self) -> anyhow::Result<CameraPose> {
+        let lat_ok = |v: f64| (-90.0..=90.0).contains(&v);
+        let lon_ok = |v: f64| v.is_finite() && v.abs() <= 360.0;
+        if !lat_ok(self.lat_deg) || !lon_ok(self.lon_deg) {
+            anyhow::bail!(
+                "camera at latitude {} / longitude {} deg: latitude must lie in -90 .. 90, longitude in -360 .. 360",
+                self.lat_deg,
+                self.lon_deg
+            );
+        }
+        if !(self.fov_deg > 0.0 && self.fov_deg < 180.0) {
+            anyhow::bail!("--fov-deg {} must lie in (0, 180)", self.fov_deg);
+        }
+        match self.kind {
+            CameraKind::Site => {
+                // Below the ground is refused where the ground is known (place_camera).
+                if !(self.height_m.is_finite() && self.height_m <= MAX_CAMERA_HEIGHT_M) {
+                    anyhow::bail!(
+                        "camera height {} m above the ground must be finite and at most {MAX_CAMERA_HEIGHT_M} m",
+                        self.height_m
+                    );
+                }
+                if !self.look_az_deg.is_finite() || !(-90.0..=90.0).contains(&self.look_el_deg) {
+                    anyhow::bail!(
+                        "view azimuth {} / elevation {} deg: the azimuth must be finite, the elevation within -90 .. 90",
+                        self.look_az_deg,
+                        self.look_el_deg
+                    );
+                }
+            }
+            CameraKind::Orbit => {
+                if let Some(alt) = self.altitude_km
+                    && !(alt.is_finite() && alt <= MAX_CAMERA_ALTITUDE_KM)
+                {
+                    // Inside the terrain is refused where the terrain is known (place_camera).
+                    anyhow::bail!(
+                        "--altitude-km {alt} must be finite and at most {MAX_CAMERA_ALTITUDE_KM} km"
+                    );
+                }
+                if !self.target_lat_deg.is_none_or(lat_ok)
+                    || !self.target_lon_deg.is_none_or(lon_ok)
+                {
+                    anyhow::bail!(
+                        "target latitude/longitude out of range (-90 .. 90 / -360 .. 360 deg)"
+                    );
+                }
+            }
+        }
         Ok(match self.kind {
             CameraKind::Site => CameraPose::Site {
                 lat_deg: self.lat_deg,
@@ -137,6 +184,73 @@ pub struct RenderOptions {
     /// The kernels.
     pub kernels: KernelSource,
 }
+
+/// Highest site camera above the ground, metres.
+pub const MAX_CAMERA_HEIGHT_M: f64 = 100_000.0;
+/// Highest orbit camera above the 1737.4 km sphere, kilometres (the Earth is ≈ 384,000 km away).
+pub const MAX_CAMERA_ALTITUDE_KM: f64 = 400_000.0;
+
+/// The image options of a render, checked by [`check_look`] without touching any file.
+#[derive(Debug, Clone, Copy)]
+pub struct RenderLook {
+    /// Image width, pixels.
+    pub width: u32,
+    /// Image height, pixels.
+    pub height: u32,
+    /// Surface BRDF.
+    pub brdf: BrdfChoice,
+    /// Lambert albedo.
+    pub albedo: Option<f64>,
+    /// Exposure.
+    pub exposure: Option<f64>,
+}
+
+impl RenderOptions {
+    /// The image options.
+    pub fn look(&self) -> RenderLook {
+        RenderLook {
+            width: self.width,
+            height: self.height,
+            brdf: self.brdf,
+            albedo: self.albedo,
+            exposure: self.exposure,
+        }
+    }
+}
+
+/// Checks image options and the frame count of a render; the BRDF they choose.
+pub fn check_look(look: &RenderLook, n_frames: usize) -> anyhow::Result<crate::render::Brdf> {
+    use crate::render::{Brdf, HapkeParams};
+    crate::render::check_size(look.width, look.height)?;
+    if n_frames > MAX_FRAMES {
+        anyhow::bail!(
+            "{} frames asked for; at most {MAX_FRAMES} per run (use a coarser --step or split the range)",
+            n_frames
+        );
+    }
+    if let Some(e) = look.exposure
+        && !(e > 0.0 && e.is_finite())
+    {
+        anyhow::bail!("--exposure {e} must be a finite number > 0");
+    }
+    let brdf = match (look.brdf, look.albedo) {
+        (BrdfChoice::Hapke, None) => Brdf::Hapke(HapkeParams::MOON_643NM),
+        (BrdfChoice::Hapke, Some(_)) => {
+            anyhow::bail!("--albedo applies to --brdf lambert only")
+        }
+        (BrdfChoice::Lambert, a) => {
+            let albedo = a.unwrap_or(crate::render::DEFAULT_ALBEDO);
+            if !(0.0..=1.0).contains(&albedo) {
+                anyhow::bail!("--albedo {albedo} must be in [0, 1]");
+            }
+            Brdf::Lambert { albedo }
+        }
+    };
+    Ok(brdf)
+}
+
+/// Most frames one render run makes.
+pub const MAX_FRAMES: usize = 10_000;
 
 /// The frames of one camera at `epochs`.
 pub fn camera_frames(
@@ -394,30 +508,22 @@ pub fn render_frames(
     opts: &RenderOptions,
     frames: &[(Epoch, crate::render::path::CameraPose)],
 ) -> anyhow::Result<RenderRun> {
-    use crate::render::{Brdf, HapkeParams, Lights};
+    use crate::render::Lights;
     let t0 = std::time::Instant::now();
-    crate::render::check_size(opts.width, opts.height)?;
     if frames.is_empty() {
         anyhow::bail!("no frames to render");
     }
-    if let Some(e) = opts.exposure
-        && !(e > 0.0 && e.is_finite())
-    {
-        anyhow::bail!("--exposure {e} must be a finite number > 0");
+    let brdf = check_look(&opts.look(), frames.len())?;
+    let prov_path = provenance_path(&opts.out);
+    let mut outputs: Vec<(&str, &Path)> = vec![("--out", &opts.out)];
+    if let Some(r) = &opts.out_radiance {
+        outputs.push(("--out-radiance", r));
     }
-    let brdf = match (opts.brdf, opts.albedo) {
-        (BrdfChoice::Hapke, None) => Brdf::Hapke(HapkeParams::MOON_643NM),
-        (BrdfChoice::Hapke, Some(_)) => {
-            anyhow::bail!("--albedo applies to --brdf lambert only")
-        }
-        (BrdfChoice::Lambert, a) => {
-            let albedo = a.unwrap_or(crate::render::DEFAULT_ALBEDO);
-            if !(0.0..=1.0).contains(&albedo) {
-                anyhow::bail!("--albedo {albedo} must be in [0, 1]");
-            }
-            Brdf::Lambert { albedo }
-        }
-    };
+    for (flag, path) in &outputs {
+        crate::output::guard::check_output_target(flag, path, false).map_err(anyhow::Error::msg)?;
+    }
+    outputs.push(("the provenance file", &prov_path));
+    crate::output::guard::check_distinct_outputs(&outputs).map_err(anyhow::Error::msg)?;
     let abcorr = opts.abcorr;
     let (stack, dem_layers) = opts.terrain.load()?;
     let mut grid = crate::model::MapGrid::new(&stack)?;

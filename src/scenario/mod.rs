@@ -189,17 +189,42 @@ pub struct SiteSpec {
     pub ground_height_m: Option<f64>,
 }
 
+/// Checks that an output name from a scenario stays inside its folder: relative, no `..`, no
+/// folder part that is empty, and the expected extension.
+fn confined_name(name: &str, ext: &str) -> anyhow::Result<()> {
+    let p = Path::new(name);
+    let plain = !name.is_empty()
+        && p.is_relative()
+        && p.components()
+            .all(|c| matches!(c, std::path::Component::Normal(_)));
+    if !plain {
+        anyhow::bail!(
+            "output name '{name}' must be a relative file name inside the output folder (no '..', no absolute path)"
+        );
+    }
+    if !p.extension().is_some_and(|e| e.eq_ignore_ascii_case(ext)) {
+        anyhow::bail!("output name '{name}' must end in .{ext}");
+    }
+    Ok(())
+}
+
 fn default_height_above_ground_m() -> f64 {
     crate::DEFAULT_OBSERVER_HEIGHT_M
 }
 
+/// Largest scenario file read, bytes.
+pub const MAX_SCENARIO_BYTES: u64 = 4 << 20;
+
 impl Scenario {
     /// Reads and validates a scenario file.
     pub fn load(path: &Path) -> Result<Self, ScenarioError> {
-        let text = std::fs::read_to_string(path).map_err(|source| ScenarioError::Read {
-            path: path.display().to_string(),
-            source,
-        })?;
+        let text =
+            crate::output::guard::read_small_text(path, MAX_SCENARIO_BYTES).map_err(|source| {
+                ScenarioError::Read {
+                    path: path.display().to_string(),
+                    source,
+                }
+            })?;
         let scenario: Scenario = toml::from_str(&text).map_err(|e| ScenarioError::Parse {
             path: path.display().to_string(),
             why: e
@@ -285,6 +310,8 @@ impl Scenario {
         if self.series.is_some() && self.terrain.is_none() {
             return Err(invalid("[series] needs [terrain]".into()));
         }
+        self.preflight(path)
+            .map_err(|e| invalid(crate::products::one_line(&e)))?;
         // Camera paths are checked before anything runs, so a bad one writes no file.
         for p in self.render.iter().flat_map(|r| &r.paths) {
             p.frames().map_err(|e| {
@@ -294,6 +321,116 @@ impl Scenario {
                     format!("{e:#}").replace('\n', " ")
                 ))
             })?;
+        }
+        Ok(())
+    }
+
+    /// Everything that can be checked before a stage runs, so that a bad scenario writes no file:
+    /// the output folder, the epochs of every table, site bounds, the map's parameters and
+    /// horizons file, every camera and image option, and output names that stay inside the
+    /// output folder and do not collide.
+    fn preflight(&self, path: &Path) -> anyhow::Result<()> {
+        use anyhow::Context as _;
+        if let Some(dir) = &self.output_dir
+            && dir.as_os_str().is_empty()
+        {
+            anyhow::bail!("output_dir is empty");
+        }
+        let start = crate::ephem::time::parse_utc(&self.time.start).context("[time] start")?;
+        let stop = crate::ephem::time::parse_utc(&self.time.stop).context("[time] stop")?;
+        let step = crate::ephem::time::parse_step(&self.time.step).context("[time] step")?;
+        crate::ephem::time::epoch_range(start, stop, step).context("[time]")?;
+        for s in &self.sites {
+            crate::ephem::Site::new(s.lat_deg, s.lon_deg, s.ground_height_m.unwrap_or(0.0))
+                .with_context(|| format!("site '{}'", s.name))?;
+            if !(s.height_above_ground_m.is_finite() && s.height_above_ground_m <= 100_000.0) {
+                anyhow::bail!(
+                    "site '{}': height_above_ground_m {} must lie in 0 .. 100000 m",
+                    s.name,
+                    s.height_above_ground_m
+                );
+            }
+        }
+        if let Some(t) = &self.terrain
+            && let Some(synth) = t.synthetic
+            && !(synth.size_px >= 16
+                && synth.size_px <= 16_384
+                && (0.01..=100_000.0).contains(&synth.px_m))
+        {
+            anyhow::bail!(
+                "[terrain] synthetic: size_px {} must lie in 16 .. 16384 and px_m {} in 0.01 .. 100000",
+                synth.size_px,
+                synth.px_m
+            );
+        }
+        if let Some(cfg) = &self.series {
+            crate::horizon::azimuth_count(cfg.az_step_deg).context("[series] az_step_deg")?;
+        }
+        if let Some(m) = &self.map {
+            let map_step = crate::ephem::time::parse_step(&m.step).context("[map] step")?;
+            crate::ephem::time::epoch_range(start, stop, map_step).context("[map]")?;
+            if !(m.observer_height_m.is_finite()
+                && (0.0..=100_000.0).contains(&m.observer_height_m))
+            {
+                anyhow::bail!(
+                    "[map] observer_height_m {} must lie in 0 .. 100000 m",
+                    m.observer_height_m
+                );
+            }
+            if !(4..=100_000).contains(&m.azimuths) || !(1..=64).contains(&m.max_step) {
+                anyhow::bail!(
+                    "[map] azimuths {} must lie in 4 .. 100000 and max_step {} in 1 .. 64",
+                    m.azimuths,
+                    m.max_step
+                );
+            }
+            if let Some(h) = &m.horizons_file {
+                let file = Self::base_dir(path).join(h);
+                crate::output::guard::check_regular(&file)
+                    .with_context(|| format!("[map] horizons_file {}", file.display()))?;
+            }
+        }
+        if let Some(r) = &self.render {
+            let mut names: Vec<(String, PathBuf)> = Vec::new();
+            let views = r
+                .views
+                .iter()
+                .map(|v| (v.clone(), None))
+                .chain(r.paths.iter().map(|p| (p.as_view(), Some(p))));
+            for (view, path_spec) in views {
+                let what = if path_spec.is_some() {
+                    "[[render.paths]]"
+                } else {
+                    "[[render.views]]"
+                };
+                let context = || format!("{what} '{}'", view.out);
+                confined_name(&view.out, "png").with_context(context)?;
+                names.push((format!("{what} out"), PathBuf::from(&view.out)));
+                names.push((
+                    format!("{what} provenance"),
+                    crate::products::render::provenance_path(Path::new(&view.out)),
+                ));
+                if let Some(r) = &view.out_radiance {
+                    confined_name(r, "tif").with_context(context)?;
+                    names.push((format!("{what} out_radiance"), PathBuf::from(r)));
+                }
+                let frames = match path_spec {
+                    None => view
+                        .epochs()
+                        .and_then(|e| crate::products::render::camera_frames(&view.camera(), &e)),
+                    Some(p) => p.frames(),
+                }
+                .with_context(context)?;
+                crate::products::render::check_look(&view.render_look(), frames.len())
+                    .with_context(context)?;
+            }
+            let as_flags: Vec<(&str, &Path)> = names
+                .iter()
+                .map(|(flag, p)| (flag.as_str(), p.as_path()))
+                .collect();
+            crate::output::guard::check_distinct_outputs(&as_flags)
+                .map_err(anyhow::Error::msg)
+                .context("[render]")?;
         }
         Ok(())
     }

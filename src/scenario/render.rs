@@ -248,6 +248,17 @@ impl ViewSpec {
 
     /// The image, BRDF and output options of this view, with the scenario's terrain, kernels
     /// and aberration correction; outputs under `render_dir`.
+    pub(super) fn render_look(&self) -> crate::products::render::RenderLook {
+        use crate::products::render as r;
+        r::RenderLook {
+            width: self.width.unwrap_or(r::DEFAULT_WIDTH_PX),
+            height: self.height.unwrap_or(r::DEFAULT_HEIGHT_PX),
+            brdf: self.brdf.unwrap_or_default(),
+            albedo: self.albedo,
+            exposure: self.exposure,
+        }
+    }
+
     pub(super) fn render_options(
         &self,
         terrain: crate::products::TerrainSource,

@@ -177,6 +177,9 @@ impl HorizonMapMeta {
 }
 
 /// Checks the build parameters.
+/// Most azimuths sampled per cell (0.05° apart).
+pub const MAX_AZIMUTHS: usize = 7200;
+
 fn check_params(
     n_azimuths: usize,
     n_coeffs: usize,
@@ -186,6 +189,12 @@ fn check_params(
         return Err(ShadowError::InvalidParameter {
             name: "n_coeffs",
             reason: "must be at least 1",
+        });
+    }
+    if n_azimuths > MAX_AZIMUTHS {
+        return Err(ShadowError::InvalidParameter {
+            name: "n_azimuths",
+            reason: "must be at most 7200 (0.05 deg apart)",
         });
     }
     if n_azimuths < 2 * n_coeffs {
@@ -361,6 +370,11 @@ impl HorizonMap {
     ) -> Result<Self, ShadowError> {
         check_observer_height(observer_height_m)?;
         check_params(n_azimuths, n_coeffs, max_distance_cells)?;
+        crate::output::guard::check_budget(
+            "the horizon map",
+            hf.rows as u128 * hf.cols as u128 * 4 * n_coeffs as u128,
+        )
+        .map_err(ShadowError::Budget)?;
         let dirs = azimuth_dirs(n_azimuths);
         let z_max = max_height_m(hf);
         let per_cell = 2 * n_coeffs;
@@ -533,7 +547,7 @@ impl HorizonMap {
             path: name.clone(),
             detail: d,
         };
-        let file = std::fs::File::open(path).map_err(|e| err(&e))?;
+        let file = crate::output::guard::open_regular(path).map_err(|e| err(&e))?;
         let mut dec = Decoder::new(BufReader::new(file)).map_err(|e| err(&e))?;
         let json = dec
             .find_tag(Tag::ImageDescription)
@@ -546,8 +560,31 @@ impl HorizonMap {
         if meta.format != FORMAT_NAME {
             return Err(fmt(format!("format is '{}'", meta.format)));
         }
+        check_params(
+            meta.n_azimuths,
+            meta.n_coeffs,
+            meta.max_distance_cells.max(1),
+        )
+        .map_err(|e| fmt(format!("metadata: {e}")))?;
+        if meta.rows == 0 || meta.cols == 0 {
+            return Err(fmt(format!(
+                "metadata: {} x {} cells",
+                meta.cols, meta.rows
+            )));
+        }
         let per = 2 * meta.n_coeffs;
-        let n_cells = meta.rows * meta.cols;
+        let n_cells = meta.rows as u128 * meta.cols as u128;
+        // Pages are stored uncompressed: the file must hold every f16 value it declares.
+        let file_len = std::fs::metadata(path).map_err(|e| err(&e))?.len();
+        if n_cells * per as u128 * 2 > u128::from(file_len) {
+            return Err(fmt(format!(
+                "metadata declares {} x {} cells x {per} values, more than the file's {file_len} bytes hold",
+                meta.cols, meta.rows
+            )));
+        }
+        crate::output::guard::check_budget("the horizon map", n_cells * per as u128 * 2)
+            .map_err(fmt)?;
+        let n_cells = n_cells as usize;
         let mut coeffs = vec![f16::NAN; n_cells * per];
         for page in 0..per {
             if page > 0 {

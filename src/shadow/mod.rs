@@ -67,6 +67,9 @@ pub const MASK_NODATA: u8 = 255;
 /// Errors of the shadow engines.
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum ShadowError {
+    /// A result would exceed the memory budget.
+    #[error("{0}")]
+    Budget(String),
     /// The light direction is zero, not finite, or otherwise unusable.
     #[error("invalid light direction {light:?}: {reason}")]
     InvalidLight {

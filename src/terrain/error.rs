@@ -76,6 +76,15 @@ pub enum DemError {
         /// What the GeoKeys say.
         detail: String,
     },
+    /// The file's content is refused: sizes it declares beyond the file or the memory budget,
+    /// heights that are not heights above the lunar sphere (infinite, radii, out of bounds).
+    #[error("reading DEM {path}: {detail}")]
+    Rejected {
+        /// The file.
+        path: String,
+        /// What is wrong.
+        detail: String,
+    },
     /// Every pixel is nodata.
     #[error("reading DEM {path}: every pixel is nodata")]
     AllNodata {

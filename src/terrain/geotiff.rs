@@ -105,7 +105,7 @@ pub fn read_geotiff(path: &Path) -> Result<Dem> {
 /// (empty when there is none).
 pub fn read_geotiff_with_metadata(path: &Path) -> Result<(Dem, Vec<(String, String)>)> {
     let name = path.display().to_string();
-    let file = std::fs::File::open(path).map_err(|source| DemError::Io {
+    let file = crate::output::guard::open_regular(path).map_err(|source| DemError::Io {
         path: name.clone(),
         source,
     })?;
@@ -114,10 +114,16 @@ pub fn read_geotiff_with_metadata(path: &Path) -> Result<(Dem, Vec<(String, Stri
 
 /// Reads a single-band GeoTIFF from any seekable reader; `name` labels the DEM and the errors.
 pub fn read_geotiff_from<R: Read + Seek>(
-    reader: R,
+    mut reader: R,
     name: &str,
 ) -> Result<(Dem, Vec<(String, String)>)> {
     let tiff_err = |e: TiffError| map_tiff_error(name, e);
+    let io_err = |source| DemError::Io {
+        path: name.into(),
+        source,
+    };
+    let file_len = reader.seek(std::io::SeekFrom::End(0)).map_err(io_err)?;
+    reader.rewind().map_err(io_err)?;
     let mut decoder = Decoder::new(reader).map_err(tiff_err)?;
 
     // --- sample layout -------------------------------------------------------------------------
@@ -202,6 +208,13 @@ pub fn read_geotiff_from<R: Read + Seek>(
         (crs.false_easting_m, crs.false_northing_m),
     )
     .map_err(geo_err)?;
+    Dem::check_georeferencing(&grid, &crs.projection).map_err(geo_err)?;
+    check_declared_size(&mut decoder, &grid, kind, file_len).map_err(|detail| {
+        DemError::Rejected {
+            path: name.into(),
+            detail,
+        }
+    })?;
 
     // --- nodata and scale/offset ---------------------------------------------------------------
     let nodata = find_ascii(&mut decoder, Tag::Unknown(TAG_GDAL_NODATA))
@@ -221,6 +234,11 @@ pub fn read_geotiff_from<R: Read + Seek>(
     };
     let scale = band_item("SCALE").unwrap_or(1.0);
     let offset = band_item("OFFSET").unwrap_or(0.0);
+    if !(scale.is_finite() && scale != 0.0 && scale.abs() <= 1e6 && offset.is_finite()) {
+        return Err(geo_err(format!(
+            "GDAL SCALE {scale} / OFFSET {offset} (the scale must be finite, non-zero and at most 1e6 in size, the offset finite)"
+        )));
+    }
 
     // --- pixels, chunk by chunk into the output buffer ----------------------------------------
     let (rows, cols) = (grid.rows, grid.cols);
@@ -299,6 +317,12 @@ pub fn read_geotiff_from<R: Read + Seek>(
     if heights_m.iter().all(|h| h.is_nan()) {
         return Err(DemError::AllNodata { path: name.into() });
     }
+    if let Some(h) = heights_m.iter().find(|h| h.is_infinite()) {
+        return Err(DemError::Rejected {
+            path: name.into(),
+            detail: format!("holds an infinite value ({h})"),
+        });
+    }
     let items = metadata
         .into_iter()
         .filter(|item| item.sample.is_none() && item.role.is_none())
@@ -313,6 +337,62 @@ pub fn read_geotiff_from<R: Read + Seek>(
         },
         items,
     ))
+}
+
+/// Largest ratio of decoded to stored pixel bytes accepted for compressed data (LZW reaches
+/// ≈ 2,700:1 on constant data, Deflate ≈ 1,030:1).
+const MAX_COMPRESSION_RATIO: u128 = 4096;
+
+/// Checks what the header declares before the pixel buffer is allocated: the decoded size within
+/// the memory budget, the chunks inside the file, and enough stored bytes for the pixels they
+/// claim to hold (a 4 KiB file cannot hold 10¹⁰ pixels).
+fn check_declared_size<R: Read + Seek>(
+    decoder: &mut Decoder<R>,
+    grid: &GridGeometry,
+    kind: SampleKind,
+    file_len: u64,
+) -> std::result::Result<(), String> {
+    let cells = grid.rows as u128 * grid.cols as u128;
+    crate::output::guard::check_budget(
+        &format!("the {} x {} pixel grid", grid.cols, grid.rows),
+        cells * 4,
+    )?;
+    let counts_tag = match decoder.get_chunk_type() {
+        ChunkType::Strip => Tag::StripByteCounts,
+        ChunkType::Tile => Tag::TileByteCounts,
+    };
+    let counts = decoder
+        .get_tag_u64_vec(counts_tag)
+        .map_err(|e| format!("no chunk byte counts: {e}"))?;
+    let stored: u128 = counts.iter().map(|&c| u128::from(c)).sum();
+    if stored > u128::from(file_len) {
+        return Err(format!(
+            "the header declares {stored} bytes of pixel data but the file has {file_len} bytes (truncated?)"
+        ));
+    }
+    let bytes_per_sample: u128 = match kind {
+        SampleKind::F32 => 4,
+        SampleKind::I16 | SampleKind::U16 => 2,
+        SampleKind::U8 => 1,
+    };
+    let decoded = cells * bytes_per_sample;
+    let compression: u16 = decoder
+        .find_tag_unsigned(Tag::Compression)
+        .ok()
+        .flatten()
+        .unwrap_or(1);
+    let ratio = if compression == 1 {
+        1
+    } else {
+        MAX_COMPRESSION_RATIO
+    };
+    if decoded > stored * ratio {
+        return Err(format!(
+            "the header declares {} x {} pixels ({decoded} bytes) but the file stores only {stored} bytes of pixel data",
+            grid.cols, grid.rows
+        ));
+    }
+    Ok(())
 }
 
 /// The sample types penumbra reads.

@@ -243,7 +243,128 @@ pub struct Dem {
     pub name: String,
 }
 
+/// Physical bounds a DEM must meet (checked by [`Dem::check`] on every DEM read).
+pub mod bounds {
+    /// Smallest pixel size accepted, metres.
+    pub const MIN_PIXEL_M: f64 = 0.01;
+    /// Largest pixel size accepted, metres (a whole-Moon grid at 0.5° is ≈ 15 km).
+    pub const MAX_PIXEL_M: f64 = 100_000.0;
+    /// Largest map coordinate of a grid edge, metres (two lunar radii: beyond the equator of a
+    /// polar stereographic map, or half the circumference of an equirectangular one).
+    pub const MAX_MAP_COORD_M: f64 = 2.0 * 1_737_400.0 * 2.0;
+    /// Largest |height| accepted, metres above the reference sphere (the Moon's relief spans
+    /// −9.1 km .. +10.8 km about 1737.4 km).
+    pub const MAX_ABS_HEIGHT_M: f64 = 50_000.0;
+}
+
 impl Dem {
+    /// Checks the DEM against physical bounds ([`bounds`]): at least 2 × 2 cells, finite
+    /// georeferencing with pixel sizes from 1 cm to 100 km, a grid within two lunar diameters of
+    /// the projection's origin, a projection with a finite central meridian, a positive scale
+    /// factor and a lunar radius, and finite heights within ±50 km of the sphere. Heights near
+    /// 1.737e6 m are radii from the Moon's centre (a PDS label's OFFSET applied), not heights.
+    pub fn check(&self) -> Result<(), String> {
+        Self::check_georeferencing(&self.grid, &self.projection)?;
+        Self::check_heights(&self.heights_m)
+    }
+
+    /// The georeferencing part of [`Dem::check`] (before any pixel is read).
+    pub fn check_georeferencing(g: &GridGeometry, projection: &Projection) -> Result<(), String> {
+        use bounds::*;
+        if g.rows < 2 || g.cols < 2 {
+            return Err(format!(
+                "{} x {} pixels: a DEM needs at least 2 x 2 pixels",
+                g.cols, g.rows
+            ));
+        }
+        for (what, px) in [("x", g.px_x_m), ("y", g.px_y_m)] {
+            if !(MIN_PIXEL_M..=MAX_PIXEL_M).contains(&px) {
+                return Err(format!(
+                    "pixel size along {what} is {px} m (must lie in {MIN_PIXEL_M} .. {MAX_PIXEL_M} m)"
+                ));
+            }
+        }
+        let x_right = g.x_left_m + g.cols as f64 * g.px_x_m;
+        let y_bottom = g.y_top_m - g.rows as f64 * g.px_y_m;
+        for (what, v) in [
+            ("left edge x", g.x_left_m),
+            ("right edge x", x_right),
+            ("top edge y", g.y_top_m),
+            ("bottom edge y", y_bottom),
+        ] {
+            if !(v.is_finite() && v.abs() <= MAX_MAP_COORD_M) {
+                return Err(format!(
+                    "the grid's {what} is {v} m (must be finite and within ±{MAX_MAP_COORD_M} m of the projection's origin)"
+                ));
+            }
+        }
+        let (lon0, radius, extra) = match *projection {
+            Projection::PolarStereographic {
+                lon0_deg,
+                k0,
+                radius_m,
+                ..
+            } => (lon0_deg, radius_m, ("scale factor", k0, 1e-3..=10.0)),
+            Projection::Equirectangular {
+                lon0_deg,
+                lat_ts_deg,
+                radius_m,
+            } => (
+                lon0_deg,
+                radius_m,
+                ("latitude of true scale", lat_ts_deg, -89.0..=89.0),
+            ),
+        };
+        if !(lon0.is_finite() && lon0.abs() <= 360.0) {
+            return Err(format!(
+                "central meridian {lon0} deg (must lie in -360 .. 360)"
+            ));
+        }
+        if !(1_700_000.0..=1_780_000.0).contains(&radius) {
+            return Err(format!(
+                "sphere radius {radius} m is not the Moon's (1.70e6 .. 1.78e6 m)"
+            ));
+        }
+        let (what, v, range) = extra;
+        if !range.contains(&v) {
+            return Err(format!(
+                "{what} {v} (must lie in {} .. {})",
+                range.start(),
+                range.end()
+            ));
+        }
+        Ok(())
+    }
+
+    /// The heights part of [`Dem::check`].
+    pub fn check_heights(heights_m: &[f32]) -> Result<(), String> {
+        use bounds::*;
+        let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+        for &h in heights_m {
+            if h.is_infinite() {
+                return Err(format!("holds an infinite height ({h})"));
+            }
+            if !h.is_nan() {
+                lo = lo.min(h);
+                hi = hi.max(h);
+            }
+        }
+        if lo.is_finite() && lo > 1_000_000.0 {
+            return Err(format!(
+                "heights {lo:.0} .. {hi:.0} m are radii from the Moon's centre, not heights above the \
+                 1737.4 km sphere (a PDS label's OFFSET was applied): subtract 1737400 m, e.g. \
+                 gdal_translate -a_offset 0 on the label, or gdal_calc.py --calc=\"A-1737400\""
+            ));
+        }
+        if f64::from(lo) < -MAX_ABS_HEIGHT_M || f64::from(hi) > MAX_ABS_HEIGHT_M {
+            return Err(format!(
+                "heights {lo} .. {hi} m exceed ±{MAX_ABS_HEIGHT_M} m above the 1737.4 km sphere \
+                 (the Moon's relief spans -9.1 .. +10.8 km): wrong units, scale or offset?"
+            ));
+        }
+        Ok(())
+    }
+
     /// Height of cell (row, col), or `None` outside the grid or in a hole.
     pub fn cell_height_m(&self, row: isize, col: isize) -> Option<f32> {
         if row < 0 || col < 0 {

@@ -27,10 +27,16 @@ pub use heightfield::{CellWindow, HeightField};
 pub use info::DemInfo;
 pub use model_space::{ModelFrame, ModelGridSpec, ResampleStats, resample_to_model_space};
 
-/// Loads a DEM file. GeoTIFF is the only format read today (PDS3 `.IMG` + `.LBL` is not
-/// supported yet).
+/// Loads a DEM file and checks it against physical bounds ([`Dem::check`]: georeferencing,
+/// heights above the 1737.4 km sphere). GeoTIFF is the only format read today (PDS3 `.IMG` +
+/// `.LBL` is not supported yet).
 pub fn load_dem(path: &Path) -> error::Result<Dem> {
-    read_geotiff(path)
+    let dem = read_geotiff(path)?;
+    dem.check().map_err(|detail| DemError::Rejected {
+        path: path.display().to_string(),
+        detail,
+    })?;
+    Ok(dem)
 }
 
 impl TerrainStack {
