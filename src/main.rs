@@ -9,18 +9,51 @@ use clap::Parser as _;
 
 mod cli;
 
+/// On SIGINT/SIGTERM: remove the temporary files and locks of the run, say so on one line, exit
+/// 130/143 (128 + signal). Finished outputs stay (each was renamed into place whole).
+fn handle_signals() {
+    use signal_hook::consts::{SIGINT, SIGTERM};
+    let Ok(mut signals) = signal_hook::iterator::Signals::new([SIGINT, SIGTERM]) else {
+        return;
+    };
+    std::thread::spawn(move || {
+        if let Some(sig) = signals.forever().next() {
+            let removed = penumbra::output::cleanup::remove_registered();
+            let name = if sig == SIGINT { "SIGINT" } else { "SIGTERM" };
+            eprintln!(
+                "penumbra: interrupted by {name}; {removed} temporary file(s) removed, finished outputs kept"
+            );
+            std::process::exit(128 + sig);
+        }
+    });
+}
+
 fn main() -> ExitCode {
+    handle_signals();
     let args = match cli::Cli::try_parse() {
         Ok(args) => args,
         Err(err) => {
-            // clap prints help/version to stdout (exit 0) and usage errors to stderr.
-            let is_error = err.use_stderr();
-            err.print().ok();
-            return if is_error {
-                ExitCode::from(2)
-            } else {
-                ExitCode::SUCCESS
-            };
+            // clap prints help/version to stdout (exit 0).
+            if !err.use_stderr() {
+                err.print().ok();
+                return ExitCode::SUCCESS;
+            }
+            if err.kind() == clap::error::ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand {
+                err.print().ok();
+                return ExitCode::from(2);
+            }
+            // Usage errors on one line, like every other error: the message up to "Usage:".
+            let text = err.render().to_string();
+            let first = text
+                .lines()
+                .take_while(|l| !l.starts_with("Usage:"))
+                .map(str::trim)
+                .filter(|l| !l.is_empty())
+                .collect::<Vec<_>>()
+                .join(" ");
+            let first = first.trim_start_matches("error: ");
+            eprintln!("penumbra: error: {first} (see --help)");
+            return ExitCode::from(2);
         }
     };
     match cli::run(args) {

@@ -6,6 +6,7 @@
 use std::io::Write;
 use std::path::Path;
 
+pub mod cleanup;
 pub mod guard;
 
 /// Errors of the output subsystem.
@@ -74,10 +75,12 @@ pub fn temp_file_beside(path: &Path) -> std::io::Result<tempfile::NamedTempFile>
         Some(p) if !p.as_os_str().is_empty() => p,
         _ => Path::new("."),
     };
-    tempfile::Builder::new()
+    let tmp = tempfile::Builder::new()
         .prefix(".penumbra-")
         .suffix(".tmp")
-        .tempfile_in(dir)
+        .tempfile_in(dir)?;
+    cleanup::register(tmp.path());
+    Ok(tmp)
 }
 
 /// Renames a finished temporary file onto `path` with the usual 0644 permissions (temporary
@@ -97,7 +100,10 @@ pub fn persist_temp(tmp: tempfile::NamedTempFile, path: &Path) -> std::io::Resul
             "not a regular file; penumbra replaces only regular files",
         ));
     }
-    tmp.persist(&path).map_err(|e| e.error)?;
+    let tmp_path = tmp.path().to_path_buf();
+    let result = tmp.persist(&path).map_err(|e| e.error);
+    cleanup::forget(&tmp_path);
+    result?;
     Ok(())
 }
 

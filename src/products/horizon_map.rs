@@ -26,6 +26,8 @@ pub struct HorizonMapBuildRequest {
 
 /// Builds the horizon map and writes it as a multi-page TIFF (atomically).
 pub fn build(req: &HorizonMapBuildRequest) -> anyhow::Result<()> {
+    crate::output::guard::check_output_target("--out", &req.out, false)
+        .map_err(anyhow::Error::msg)?;
     let (stack, _) = req.terrain.load()?;
     let grid = crate::model::MapGrid::new(&stack)?;
     let hf = &grid.hf;
@@ -76,6 +78,14 @@ pub use crate::horizon::statistics::HORIZON_NODATA_I16;
 
 /// Runs the sweep and streams the bands into the GeoTIFF(s) (written atomically).
 pub fn sweep(req: &HorizonSweepRequest) -> anyhow::Result<()> {
+    let mut outputs: Vec<(&str, &std::path::Path)> = vec![("--out", &req.out)];
+    if let Some(d) = &req.distance_out {
+        outputs.push(("--distance-out", d));
+    }
+    for (flag, path) in &outputs {
+        crate::output::guard::check_output_target(flag, path, false).map_err(anyhow::Error::msg)?;
+    }
+    crate::output::guard::check_distinct_outputs(&outputs).map_err(anyhow::Error::msg)?;
     use crate::horizon::{HorizonSweep, SweepParams};
     use crate::terrain::geotiff::{BandSample, MultiBandTiff};
 

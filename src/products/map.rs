@@ -3,8 +3,6 @@
 
 use std::path::PathBuf;
 
-use anyhow::Context as _;
-
 use super::{EpochSpec, KernelSource, TerrainSource};
 use crate::ephem::{self, AbCorr, time::format_utc};
 use crate::gpu::Backend;
@@ -62,9 +60,9 @@ pub fn run(req: &MapRequest) -> anyhow::Result<()> {
         );
     }
     let t0 = std::time::Instant::now();
-    if !(req.observer_height_m >= 0.0 && req.observer_height_m.is_finite()) {
+    if !(req.observer_height_m >= 0.0 && req.observer_height_m <= 100_000.0) {
         anyhow::bail!(
-            "--observer-height-m {} must be a finite number >= 0",
+            "--observer-height-m {} must lie in 0 .. 100000 m",
             req.observer_height_m
         );
     }
@@ -99,9 +97,9 @@ pub fn run(req: &MapRequest) -> anyhow::Result<()> {
         );
     }
     if let Some(d) = req.sun_dir_in_moon_me
-        && !(d.iter().all(|v| v.is_finite()) && d.norm() > 0.0)
+        && !(d.norm().is_finite() && d.norm() > 0.0)
     {
-        anyhow::bail!("--sun-dir-body {d:?}: must be a finite, non-zero vector");
+        anyhow::bail!("--sun-dir-body {d:?}: must be a non-zero vector of finite length");
     }
     let outputs: Vec<(&str, &std::path::Path)> = [
         ("--out-fraction", &req.out_fraction),
@@ -124,6 +122,8 @@ pub fn run(req: &MapRequest) -> anyhow::Result<()> {
         Some(spec) => spec.epochs()?,
         None => Vec::new(),
     };
+    // The terrain is an input: its errors come before any adapter probe.
+    let (stack, dem_layers) = req.terrain.load()?;
     // Resolve after the argument checks (bad input is one error line, with no backend warning)
     // and before any heavy work, so that a missing adapter is one error line (or one warning
     // line with `auto`).
@@ -142,12 +142,13 @@ pub fn run(req: &MapRequest) -> anyhow::Result<()> {
         ephem::moon_geometry_table(&k, &[epochs[0], *epochs.last().unwrap_or(&epochs[0])])?;
         Some(k)
     };
-    let (stack, dem_layers) = req.terrain.load()?;
 
     if range {
         let (Some(kernels), Some(out_dir)) = (&kernels, &req.out_dir) else {
             anyhow::bail!("an epoch range needs kernels and --out-dir");
         };
+        let _lock = crate::output::cleanup::RunLock::begin(out_dir, "run.json")
+            .map_err(anyhow::Error::msg)?;
         let step_h = req.epochs.map_or(3600.0, |e| e.step_s()) / 3600.0;
         let engine_kind = match req.engine {
             Some(e) => e,
@@ -182,8 +183,6 @@ pub fn run(req: &MapRequest) -> anyhow::Result<()> {
             step_h,
             &mut |_, _| true,
         )?;
-        std::fs::create_dir_all(out_dir)
-            .with_context(|| format!("creating output folder {}", out_dir.display()))?;
         let span = format!(
             "{} .. {} UTC, {} epochs",
             format_utc(epochs[0]),

@@ -33,6 +33,8 @@ pub fn run(req: &SeriesRequest) -> anyhow::Result<()> {
     let step_s = req.epochs.step_s();
     let (stack, dem_layers) = req.terrain.load()?;
     let kernels = req.kernels.load()?;
+    let _lock = crate::output::cleanup::RunLock::begin(&req.out_dir, "run.json")
+        .map_err(anyhow::Error::msg)?;
     let run = series::run_series(
         &kernels,
         &stack,

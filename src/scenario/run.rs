@@ -52,6 +52,8 @@ pub fn run_file(args: &RunRequest) -> anyhow::Result<()> {
     // What ran where ("series: …; map: …; render: …"), for run.json's `backend`.
     let mut backends: Vec<String> = Vec::new();
 
+    let _lock =
+        crate::output::cleanup::RunLock::begin(&out_dir, "run.json").map_err(anyhow::Error::msg)?;
     let stack = match &scenario.terrain {
         None => None,
         Some(t) => Some(load_terrain(t, &base, &out_dir, &mut prov)?),

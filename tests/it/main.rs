@@ -13,6 +13,7 @@ mod horizon_sweep;
 mod illum;
 mod map;
 mod map_horizons;
+mod reliability;
 mod render;
 mod render_cpu;
 mod render_gpu;
