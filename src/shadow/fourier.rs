@@ -600,6 +600,12 @@ impl HorizonMap {
             let DecodingResult::U16(v) = dec.read_image().map_err(|e| err(&e))? else {
                 return Err(fmt(format!("page {page} is not 16-bit")));
             };
+            if v.len() != n_cells {
+                return Err(fmt(format!(
+                    "page {page} holds {} values for {n_cells} cells (one 16-bit sample per cell expected)",
+                    v.len()
+                )));
+            }
             for (cell, bits) in v.into_iter().enumerate() {
                 coeffs[cell * per + page] = f16::from_bits(bits);
             }

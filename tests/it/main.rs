@@ -3,6 +3,7 @@
 mod blocking;
 mod ephem;
 mod fourier;
+mod fuzz;
 mod gpu;
 mod gpu_dp;
 mod gpu_fourier;

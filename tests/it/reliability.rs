@@ -720,7 +720,14 @@ fn table(dems: &[(PathBuf, &'static str)], good_dem: &Path, k: &Path) -> Vec<Cas
         cases.push(case(&args, ""));
     }
     for dir in ["--sun-dir-body"] {
-        for v in ["0,0,0", "nan,0,1", "inf,0,0", "1,2", "a,b,c", "1e308,1e308,1e308"] {
+        for v in [
+            "0,0,0",
+            "nan,0,1",
+            "inf,0,0",
+            "1,2",
+            "a,b,c",
+            "1e308,1e308,1e308",
+        ] {
             let mut args = one_light.to_vec();
             args.extend([dir, v]);
             cases.push(case(&args, ""));
@@ -785,15 +792,21 @@ fn bad_scenarios(dir: &Path, good_dem: &Path, k: &Path) -> Vec<Case> {
         (format!("{head}{time}"), "sites"),
         (format!("{head}{site}"), "time"),
         (
-            format!("{head}[time]\nstart = \"2025-13-01\"\nstop = \"2025-01-02\"\nstep = \"6h\"\n{site}"),
+            format!(
+                "{head}[time]\nstart = \"2025-13-01\"\nstop = \"2025-01-02\"\nstep = \"6h\"\n{site}"
+            ),
             "start",
         ),
         (
-            format!("{head}[time]\nstart = \"2025-01-01\"\nstop = \"2025-01-02\"\nstep = \"0h\"\n{site}"),
+            format!(
+                "{head}[time]\nstart = \"2025-01-01\"\nstop = \"2025-01-02\"\nstep = \"0h\"\n{site}"
+            ),
             "step",
         ),
         (
-            format!("{head}[time]\nstart = \"2025-01-03\"\nstop = \"2025-01-02\"\nstep = \"6h\"\n{site}"),
+            format!(
+                "{head}[time]\nstart = \"2025-01-03\"\nstop = \"2025-01-02\"\nstep = \"6h\"\n{site}"
+            ),
             "before",
         ),
         (
@@ -805,11 +818,16 @@ fn bad_scenarios(dir: &Path, good_dem: &Path, k: &Path) -> Vec<Case> {
             "latitude",
         ),
         (
-            format!("{head}{time}[[sites]]\nname = \"a\"\nlat_deg = -89.0\nlon_deg = 0.0\nheight_above_ground_m = 1e308\n"),
+            format!(
+                "{head}{time}[[sites]]\nname = \"a\"\nlat_deg = -89.0\nlon_deg = 0.0\nheight_above_ground_m = 1e308\n"
+            ),
             "height",
         ),
         (format!("{head}{time}{site}{site}"), "twice"),
-        (format!("{head}{time}{site}[map]\nstep = \"1d\"\n"), "terrain"),
+        (
+            format!("{head}{time}{site}[map]\nstep = \"1d\"\n"),
+            "terrain",
+        ),
         (
             format!("{head}{time}{site}{terrain}[map]\nstep = \"1d\"\nengine = \"magic\"\n"),
             "engine",
@@ -823,33 +841,106 @@ fn bad_scenarios(dir: &Path, good_dem: &Path, k: &Path) -> Vec<Case> {
             "observer_height_m",
         ),
         (
-            format!("{head}{time}{site}{terrain}[map]\nstep = \"1d\"\nengine = \"horizons\"\nazimuths = 2\n"),
+            format!(
+                "{head}{time}{site}{terrain}[map]\nstep = \"1d\"\nengine = \"horizons\"\nazimuths = 2\n"
+            ),
             "azimuths",
         ),
         (
-            format!("{head}{time}{site}{terrain}[map]\nstep = \"1d\"\nhorizons_file = \"nowhere.tif\"\n"),
+            format!(
+                "{head}{time}{site}{terrain}[map]\nstep = \"1d\"\nhorizons_file = \"nowhere.tif\"\n"
+            ),
             "horizons_file",
         ),
         (
             format!("{head}{time}{site}{terrain}[series]\naz_step_deg = 7.0\n"),
             "az_step_deg",
         ),
-        (format!("{head}{time}{site}{terrain}{}", view("")).replace("out = \"v.png\"", "out = \"../../x.png\""), "output name"),
-        (format!("{head}{time}{site}{terrain}{}", view("")).replace("out = \"v.png\"", "out = \"/tmp/x.png\""), "output name"),
-        (format!("{head}{time}{site}{terrain}{}", view("")).replace("out = \"v.png\"", "out = \"\""), "output name"),
-        (format!("{head}{time}{site}{terrain}{}", view("")).replace("out = \"v.png\"", "out = \"v.txt\""), ".png"),
-        (format!("{head}{time}{site}{terrain}{}", view("out_radiance = \"../r.tif\"")), "output name"),
-        (format!("{head}{time}{site}{terrain}{}{}", view(""), view("").replace("[render]\n", "")), "same file"),
-        (format!("{head}{time}{site}{terrain}{}", view("width = 0")), "size"),
-        (format!("{head}{time}{site}{terrain}{}", view("fov_deg = 190.0")), "fov"),
-        (format!("{head}{time}{site}{terrain}{}", view("exposure = -1.0")), "exposure"),
-        (format!("{head}{time}{site}{terrain}{}", view("albedo = 0.3")), "albedo"),
-        (format!("{head}{time}{site}{terrain}{}", view("utc = \"x\"").replace("utc = \"2025-01-01\"\n", "")), ""),
-        (format!("{head}{time}{site}{terrain}{}", view("height_m = 1e308")), "height"),
-        (format!("{head}{time}{site}[terrain]\nsynthetic = {{ size_px = 1, px_m = 100.0, seed = 1 }}\n"), "size_px"),
-        (format!("{head}{time}{site}[terrain]\nsynthetic = {{ size_px = 64, px_m = 1e300, seed = 1 }}\n"), "px_m"),
-        (format!("{head}{time}{site}[terrain]\nlayers = [\"{}\"]\n", dir.join("missing.tif").display()), "missing.tif"),
-        (format!("name = \"t\"\noutput_dir = \"\"\n{time}{site}"), "output_dir"),
+        (
+            format!("{head}{time}{site}{terrain}{}", view(""))
+                .replace("out = \"v.png\"", "out = \"../../x.png\""),
+            "output name",
+        ),
+        (
+            format!("{head}{time}{site}{terrain}{}", view(""))
+                .replace("out = \"v.png\"", "out = \"/tmp/x.png\""),
+            "output name",
+        ),
+        (
+            format!("{head}{time}{site}{terrain}{}", view(""))
+                .replace("out = \"v.png\"", "out = \"\""),
+            "output name",
+        ),
+        (
+            format!("{head}{time}{site}{terrain}{}", view(""))
+                .replace("out = \"v.png\"", "out = \"v.txt\""),
+            ".png",
+        ),
+        (
+            format!(
+                "{head}{time}{site}{terrain}{}",
+                view("out_radiance = \"../r.tif\"")
+            ),
+            "output name",
+        ),
+        (
+            format!(
+                "{head}{time}{site}{terrain}{}{}",
+                view(""),
+                view("").replace("[render]\n", "")
+            ),
+            "same file",
+        ),
+        (
+            format!("{head}{time}{site}{terrain}{}", view("width = 0")),
+            "size",
+        ),
+        (
+            format!("{head}{time}{site}{terrain}{}", view("fov_deg = 190.0")),
+            "fov",
+        ),
+        (
+            format!("{head}{time}{site}{terrain}{}", view("exposure = -1.0")),
+            "exposure",
+        ),
+        (
+            format!("{head}{time}{site}{terrain}{}", view("albedo = 0.3")),
+            "albedo",
+        ),
+        (
+            format!(
+                "{head}{time}{site}{terrain}{}",
+                view("utc = \"x\"").replace("utc = \"2025-01-01\"\n", "")
+            ),
+            "",
+        ),
+        (
+            format!("{head}{time}{site}{terrain}{}", view("height_m = 1e308")),
+            "height",
+        ),
+        (
+            format!(
+                "{head}{time}{site}[terrain]\nsynthetic = {{ size_px = 1, px_m = 100.0, seed = 1 }}\n"
+            ),
+            "size_px",
+        ),
+        (
+            format!(
+                "{head}{time}{site}[terrain]\nsynthetic = {{ size_px = 64, px_m = 1e300, seed = 1 }}\n"
+            ),
+            "px_m",
+        ),
+        (
+            format!(
+                "{head}{time}{site}[terrain]\nlayers = [\"{}\"]\n",
+                dir.join("missing.tif").display()
+            ),
+            "missing.tif",
+        ),
+        (
+            format!("name = \"t\"\noutput_dir = \"\"\n{time}{site}"),
+            "output_dir",
+        ),
         (format!("{head}{time}{site}bogus = 1\n"), "bogus"),
         ("not = [toml".to_string(), ""),
     ];
