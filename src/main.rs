@@ -28,7 +28,22 @@ fn handle_signals() {
     });
 }
 
+/// Without `XDG_RUNTIME_DIR` (cron, Docker, Slurm) every GPU probe made Mesa's Vulkan WSI print
+/// "error: XDG_RUNTIME_DIR is invalid or not set" 2–4 times on a successful run. Pointing it at
+/// the temporary folder silences that (no display is ever opened).
+#[expect(
+    unsafe_code,
+    reason = "std::env::set_var is unsafe since edition 2024; no other thread exists yet"
+)]
+fn quiet_headless_vulkan() {
+    if std::env::var_os("XDG_RUNTIME_DIR").is_none_or(|v| v.is_empty()) {
+        // SAFETY: called first thing in `main`, before any other thread exists.
+        unsafe { std::env::set_var("XDG_RUNTIME_DIR", std::env::temp_dir()) };
+    }
+}
+
 fn main() -> ExitCode {
+    quiet_headless_vulkan();
     handle_signals();
     let args = match cli::Cli::try_parse() {
         Ok(args) => args,

@@ -1136,3 +1136,17 @@ fn sigterm_leaves_no_temporary_file() {
         "{left:?}"
     );
 }
+
+/// Without XDG_RUNTIME_DIR (cron, Docker, Slurm), a GPU probe prints no Mesa/Wayland noise.
+#[test]
+fn no_xdg_runtime_dir_noise_without_a_session() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_penumbra"))
+        .current_dir(dir.path())
+        .env_remove("XDG_RUNTIME_DIR")
+        .args(["gpu-info", "--backend", "auto"])
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!stderr.contains("XDG_RUNTIME_DIR"), "{stderr}");
+}
