@@ -1150,3 +1150,191 @@ fn no_xdg_runtime_dir_noise_without_a_session() {
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!stderr.contains("XDG_RUNTIME_DIR"), "{stderr}");
 }
+
+/// Property (proptest): any combination of flags and values, good or bad, either succeeds or
+/// exits 2 with one `penumbra: error:` line, never panics and never runs away (each run is on a
+/// 40² DEM over at most two days, so a success is quick). `PENUMBRA_CLI_CASES` sets the count.
+#[test]
+fn any_argument_combination_succeeds_or_exits_2_with_one_line() {
+    use proptest::prelude::*;
+    use proptest::test_runner::{Config, TestRunner};
+    let inputs = tempfile::tempdir().unwrap();
+    let dem = inputs.path().join("d.tif");
+    penumbra_ok(
+        inputs.path(),
+        &[
+            "dem",
+            "synth",
+            "--size",
+            "40",
+            "--px-m",
+            "100",
+            "--seed",
+            "1",
+            "--out",
+            dem.to_str().unwrap(),
+        ],
+    );
+    let k = kernels_dir();
+    let (dem, k) = (
+        dem.to_str().unwrap().to_string(),
+        k.to_str().unwrap().to_string(),
+    );
+    let commands: Vec<Vec<String>> = [
+        vec!["ephem"],
+        vec!["horizon"],
+        vec!["series", "--no-plots"],
+        vec!["map"],
+        vec![
+            "render",
+            "--width",
+            "32",
+            "--height",
+            "24",
+            "--backend",
+            "cpu",
+        ],
+        vec!["horizon-map", "sweep", "--azimuths", "8", "--max-step", "2"],
+        vec!["dem", "info"],
+        vec!["kernels"],
+    ]
+    .into_iter()
+    .map(|v| v.into_iter().map(String::from).collect())
+    .collect();
+    let flags: Vec<(&str, Vec<String>)> = vec![
+        (
+            "--dem",
+            vec![dem.clone(), "/dev/null".into(), "x.tif".into()],
+        ),
+        ("--kernels", vec![k.clone(), "/nope".into()]),
+        (
+            "--lat-deg",
+            ["-89.9", "-89.5", "-91", "nan", "0"]
+                .map(String::from)
+                .to_vec(),
+        ),
+        (
+            "--lon-deg",
+            ["0", "45", "1e9", "inf"].map(String::from).to_vec(),
+        ),
+        (
+            "--utc",
+            [
+                "2025-01-01",
+                "2025-13-01",
+                "2016-12-31T23:59:60",
+                "2199-01-01",
+            ]
+            .map(String::from)
+            .to_vec(),
+        ),
+        ("--start", ["2025-01-01", "x"].map(String::from).to_vec()),
+        (
+            "--stop",
+            ["2025-01-02", "2024-12-31"].map(String::from).to_vec(),
+        ),
+        ("--step", ["12h", "0h", "1x"].map(String::from).to_vec()),
+        (
+            "--site",
+            ["a,-89.9,0,2", "b,-91,0,2", "a b,-89.9,0,2"]
+                .map(String::from)
+                .to_vec(),
+        ),
+        (
+            "--observer-height-m",
+            ["2", "-1", "1e308"].map(String::from).to_vec(),
+        ),
+        (
+            "--height-m",
+            ["2", "1e308", "nan"].map(String::from).to_vec(),
+        ),
+        ("--sun-az-deg", ["10", "nan"].map(String::from).to_vec()),
+        ("--sun-el-deg", ["2", "91"].map(String::from).to_vec()),
+        (
+            "--engine",
+            ["smap", "dp", "horizons", "bogus", "horizon"]
+                .map(String::from)
+                .to_vec(),
+        ),
+        (
+            "--out-mask",
+            ["m.tif", "/dev/null", "o.tif"].map(String::from).to_vec(),
+        ),
+        (
+            "--out-fraction",
+            ["f.tif", "o.tif"].map(String::from).to_vec(),
+        ),
+        ("--out-dir", ["o", "/dev/null"].map(String::from).to_vec()),
+        (
+            "--out",
+            ["o.tif", "o.png", "o.csv", "-"].map(String::from).to_vec(),
+        ),
+        ("--az-step-deg", ["1", "7", "0"].map(String::from).to_vec()),
+        ("--backend", ["cpu", "bogus"].map(String::from).to_vec()),
+        (
+            "--format",
+            ["csv", "json", "xml"].map(String::from).to_vec(),
+        ),
+        ("--bogus", vec![]),
+    ];
+    let n_flags = flags.len();
+    let strategy = (
+        0..commands.len(),
+        prop::collection::vec((0..n_flags, 0usize..8), 0..8),
+        any::<bool>(),
+    );
+    let cases: u32 = std::env::var("PENUMBRA_CLI_CASES")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(300);
+    let mut runner = TestRunner::new(Config {
+        cases,
+        failure_persistence: None,
+        ..Config::default()
+    });
+    let runs = tempfile::tempdir().unwrap();
+    let counter = std::sync::atomic::AtomicUsize::new(0);
+    let successes = std::sync::atomic::AtomicUsize::new(0);
+    let result = runner.run(&strategy, |(cmd, picks, with_site)| {
+        let mut args: Vec<String> = commands[cmd].clone();
+        if with_site && (args[0] == "dem") {
+            args.push(dem.clone());
+        }
+        for (f, v) in picks {
+            let (flag, values) = &flags[f];
+            args.push(flag.to_string());
+            if !values.is_empty() {
+                args.push(values[v % values.len()].clone());
+            }
+        }
+        let i = counter.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        let cwd = runs.path().join(format!("p{i}"));
+        std::fs::create_dir(&cwd).unwrap();
+        let refs: Vec<&str> = args.iter().map(String::as_str).collect();
+        let out = penumbra(&cwd, &refs);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        prop_assert!(!stderr.contains("panicked"), "{args:?}: {stderr}");
+        match out.status.code() {
+            Some(0) => {
+                successes.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+            }
+            Some(2) => {
+                let errors: Vec<&str> = stderr
+                    .lines()
+                    .filter(|l| l.starts_with("penumbra: error:") || l.starts_with("error"))
+                    .collect();
+                prop_assert_eq!(errors.len(), 1, "{:?}: {}", args, stderr);
+            }
+            other => prop_assert!(false, "{args:?}: exit {other:?}: {stderr}"),
+        }
+        Ok(())
+    });
+    println!(
+        "{} argument combinations, {} succeeded",
+        counter.load(std::sync::atomic::Ordering::Relaxed),
+        successes.load(std::sync::atomic::Ordering::Relaxed)
+    );
+    if let Err(e) = result {
+        panic!("{e}");
+    }
+}
