@@ -74,6 +74,14 @@ fn main() -> ExitCode {
     match cli::run(args) {
         Ok(()) => ExitCode::SUCCESS,
         Err(err) => {
+            // `penumbra ephem … | head`: the reader left; not an error (ripgrep does the same).
+            let broken_pipe = err.chain().any(|e| {
+                e.downcast_ref::<std::io::Error>()
+                    .is_some_and(|io| io.kind() == std::io::ErrorKind::BrokenPipe)
+            });
+            if broken_pipe {
+                return ExitCode::SUCCESS;
+            }
             eprintln!("penumbra: error: {}", penumbra::products::one_line(&err));
             ExitCode::from(2)
         }

@@ -1338,3 +1338,47 @@ fn any_argument_combination_succeeds_or_exits_2_with_one_line() {
         panic!("{e}");
     }
 }
+
+/// `penumbra ephem … | head -1`: the reader leaving is not an error (exit 0, nothing on
+/// stderr); `--out -` is standard output, not a file named `-`.
+#[cfg(unix)]
+#[test]
+fn a_closed_pipe_is_not_an_error_and_dash_is_stdout() {
+    use std::io::{BufRead as _, BufReader};
+    let dir = tempfile::tempdir().unwrap();
+    let k = kernels_dir();
+    let mut child = Command::new(env!("CARGO_BIN_EXE_penumbra"))
+        .current_dir(dir.path())
+        .args([
+            "ephem",
+            "--lat-deg",
+            "-89",
+            "--lon-deg",
+            "0",
+            "--start",
+            "2025-01-01",
+            "--stop",
+            "2025-03-01",
+            "--step",
+            "1m",
+            "--out",
+            "-",
+            "--kernels",
+        ])
+        .arg(&k)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut first = String::new();
+    BufReader::new(child.stdout.take().unwrap())
+        .read_line(&mut first)
+        .unwrap();
+    // The reader is dropped here: the pipe closes with ~85,000 rows still to write.
+    assert!(first.starts_with("utc,sun_az_deg"), "{first}");
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(0), "{stderr}");
+    assert!(stderr.trim().is_empty(), "{stderr}");
+    assert!(files_in(dir.path()).is_empty(), "a file named '-'?");
+}
