@@ -753,6 +753,7 @@ fn map_statistics<'py>(
             ab,
             step_s / 3600.0,
             &mut report,
+            &mut penumbra::horizon::statistics::NoStore,
         )?;
         let (rasters, psr) =
             penumbra::map::sweep_rasters(&stack.layers[0], result.model.as_ref(), &result.stats)?;
@@ -1029,19 +1030,22 @@ fn render<'py>(
 
 // --- scenarios --------------------------------------------------------------------------------------
 
-/// `run_scenario(path, out_dir=None, kernels=None)`: runs a scenario file as `penumbra run`.
+/// `run_scenario(path, out_dir=None, kernels=None, resume=False)`: runs a scenario file as
+/// `penumbra run` (`resume=True`: `--resume`, carrying on an unfinished run in the folder).
 #[pyfunction]
-#[pyo3(signature = (path, out_dir = None, kernels = None))]
+#[pyo3(signature = (path, out_dir = None, kernels = None, resume = false))]
 fn run_scenario(
     py: Python<'_>,
     path: PathBuf,
     out_dir: Option<PathBuf>,
     kernels: Option<PathBuf>,
+    resume: bool,
 ) -> PyResult<()> {
     let req = penumbra::scenario::run::RunRequest {
         scenario: path,
         out_dir,
         kernels,
+        resume,
     };
     py.allow_threads(|| penumbra::scenario::run::run_file(&req))
         .map_err(py_err)

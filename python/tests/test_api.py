@@ -222,3 +222,41 @@ def test_map_light_from_a_direction(terrain: penumbra.Terrain) -> None:
     assert set(m) >= {"sun_fraction", "sun_mask", "transform", "crs_wkt", "descriptions"}
     assert "earth_fraction" not in m
     assert m["sun_fraction"].shape == terrain.shape
+
+
+def test_run_scenario_resumes_a_killed_cli_run(tmp_path: Path, cli: Path) -> None:
+    """A `penumbra run` killed part-way (test hook: exit after 5 checkpoints) is finished by
+    `run_scenario(..., resume=True)`: the same bytes as an uninterrupted CLI run."""
+    import os
+    import subprocess
+
+    kdir = Path(__file__).resolve().parents[2] / "kernels"
+    (tmp_path / "s.toml").write_text(
+        f'name = "r"\nkernels = "{kdir}"\n'
+        '[time]\nstart = "2025-01-01"\nstop = "2025-01-15"\nstep = "12h"\n'
+        "[terrain]\nsynthetic = { size_px = 64, px_m = 250.0, seed = 2 }\n"
+        '[series]\nplots = false\n[map]\nstep = "12h"\nengine = "horizons"\nazimuths = 90\n'
+        '[[sites]]\nname = "a"\nlat_deg = -89.8\nlon_deg = 0.0\n'
+    )
+    env = dict(os.environ, PENUMBRA_TEST_EXIT_AFTER_CHECKPOINTS="5")
+    env.pop("PENUMBRA_KERNELS", None)
+    run = [str(cli), "run", "s.toml", "--out-dir"]
+    killed = subprocess.run([*run, "killed"], cwd=tmp_path, env=env, capture_output=True)
+    assert killed.returncode == 137, killed.stderr
+    assert not (tmp_path / "killed" / "run.json").exists()
+    env.pop("PENUMBRA_TEST_EXIT_AFTER_CHECKPOINTS")
+    whole = subprocess.run([*run, "whole"], cwd=tmp_path, env=env, capture_output=True)
+    assert whole.returncode == 0, whole.stderr
+    penumbra.run_scenario(tmp_path / "s.toml", out_dir=tmp_path / "killed", resume=True)
+    files = sorted(
+        p.relative_to(tmp_path / "whole")
+        for p in (tmp_path / "whole").rglob("*")
+        if p.is_file() and p.name != "run.json"
+    )
+    assert files and files == sorted(
+        p.relative_to(tmp_path / "killed")
+        for p in (tmp_path / "killed").rglob("*")
+        if p.is_file() and p.name != "run.json"
+    )
+    for f in files:
+        assert (tmp_path / "whole" / f).read_bytes() == (tmp_path / "killed" / f).read_bytes(), f

@@ -105,6 +105,11 @@ pub struct MapArgs {
     /// Epoch range: output folder for the statistics GeoTIFFs and PNG previews.
     #[arg(long, value_name = "DIR", requires = "start")]
     pub out_dir: Option<PathBuf>,
+    /// Epoch range: carry on an unfinished (killed) map in `--out-dir` with the same arguments:
+    /// the horizons engine keeps finished blocks of rows, and the maps are the same bytes as an
+    /// uninterrupted run's.
+    #[arg(long, requires = "out_dir")]
+    pub resume: bool,
     /// Compute backend: `gpu` (DP max-mipmap soft shadows of the discs for sweeps and one-light
     /// maps whatever `--engine` says, except `fourier` one-light maps: horizon map built and
     /// evaluated on the GPU), `cpu` (the engine of `--engine`) or `auto` (the GPU when a hardware
@@ -184,6 +189,7 @@ pub fn run(args: &MapArgs) -> anyhow::Result<()> {
         out_mask: args.out_mask.clone(),
         out_earth_fraction: args.out_earth_fraction.clone(),
         out_dir: args.out_dir.clone(),
+        resume: args.resume,
         backend: args.backend.into(),
         gpu_tile_cells: args.gpu_tile_cells,
         observers: args.observers.map(Into::into),

@@ -18,6 +18,11 @@ pub struct RunArgs {
     /// Kernels (overrides the scenario's `kernels`).
     #[command(flatten)]
     pub kernels: KernelArgs,
+    /// Carry on an unfinished (killed) run in the output folder: its finished parts (stages,
+    /// blocks of map rows, rendered frames) are kept and the outputs are the same bytes as an
+    /// uninterrupted run's. Refused if that run had other inputs or parameters.
+    #[arg(long)]
+    pub resume: bool,
 }
 
 /// Runs `penumbra run`.
@@ -26,5 +31,6 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         scenario: args.scenario.clone(),
         out_dir: args.out_dir.clone(),
         kernels: args.kernels.kernels.clone(),
+        resume: args.resume,
     })
 }

@@ -9,7 +9,8 @@ use hifitime::Epoch;
 
 use crate::ephem::{self, AbCorr, Kernels};
 use crate::horizon::statistics::{
-    EpochBodies, HorizonFile, HorizonRows, InMemoryHorizons, StatisticsEngine, StatisticsParams,
+    BlockStore, EpochBodies, HorizonFile, HorizonRows, InMemoryHorizons, StatisticsEngine,
+    StatisticsParams,
 };
 use crate::horizon::{HorizonSweep, SweepParams};
 use crate::map::{MapEngine, MapEngineKind, ObserverPlacement, SweepStats};
@@ -77,7 +78,9 @@ pub struct RangeResult {
 pub type Report<'a> = &'a mut (dyn FnMut(usize, usize) -> bool + Send);
 
 /// The statistics of `epochs` (`step_h` hours apart) over `stack` with `map.engine` on
-/// `backend`; `report` hears the progress (see [`Report`]).
+/// `backend`; `report` hears the progress (see [`Report`]). The horizons engine takes finished
+/// blocks of rows from `store` and gives it those it computes (a resumable run); the per-epoch
+/// engines do not use it.
 #[allow(
     clippy::too_many_arguments,
     reason = "the request's parts; two call sites"
@@ -91,9 +94,12 @@ pub fn range_statistics(
     abcorr: AbCorr,
     step_h: f64,
     report: Report<'_>,
+    store: &mut dyn BlockStore,
 ) -> anyhow::Result<RangeResult> {
     if map.engine == MapEngineKind::Horizons {
-        return horizon_statistics(backend, stack, map, kernels, epochs, abcorr, step_h, report);
+        return horizon_statistics(
+            backend, stack, map, kernels, epochs, abcorr, step_h, report, store,
+        );
     }
     let grid = MapGrid::new(stack)?;
     eprintln!(
@@ -134,6 +140,7 @@ fn horizon_statistics(
     abcorr: AbCorr,
     step_h: f64,
     report: Report<'_>,
+    store: &mut dyn BlockStore,
 ) -> anyhow::Result<RangeResult> {
     let fine = stack.layers.first().context("no DEM layer")?;
     let engine = StatisticsEngine::new(
@@ -203,7 +210,7 @@ fn horizon_statistics(
         "penumbra: statistics [{bar:40}] {pos}/{len} rows, {elapsed} (eta {eta})",
     );
     let rows_total = fine.grid.rows;
-    let stats = engine.run(source.as_mut(), &bodies, |rows| {
+    let stats = engine.run_with_store(source.as_mut(), &bodies, store, |rows| {
         progress.set_position(rows as u64);
         report(rows, rows_total)
     })?;

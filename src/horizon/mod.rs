@@ -124,6 +124,9 @@ pub enum HorizonError {
     /// The caller's progress callback asked to stop.
     #[error("interrupted")]
     Interrupted,
+    /// Keeping a finished block for a resumed run failed.
+    #[error("checkpoint: {0}")]
+    Checkpoint(String),
     /// A horizon GeoTIFF cannot be used.
     #[error("horizon map {path}: {detail}")]
     BadHorizonFile {

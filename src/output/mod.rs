@@ -6,6 +6,7 @@
 use std::io::Write;
 use std::path::Path;
 
+pub mod checkpoint;
 pub mod cleanup;
 pub mod guard;
 
@@ -200,7 +201,7 @@ impl InputFile {
 }
 
 /// How many map results rest on a ray that left the DEM below the reference sphere.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub struct BelowSphereExits {
     /// Output cells with at least one such lit result.
     pub cells: u64,

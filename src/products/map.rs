@@ -33,6 +33,9 @@ pub struct MapRequest {
     pub out_earth_fraction: Option<PathBuf>,
     /// Epoch range: the folder of the statistics maps.
     pub out_dir: Option<PathBuf>,
+    /// Epoch range: carry on an unfinished run in `out_dir` (the horizons engine keeps finished
+    /// blocks of rows).
+    pub resume: bool,
     /// Compute backend.
     pub backend: Backend,
     /// GPU tiles of this many cells per side (≥ 2) instead of the automatic choice.
@@ -149,6 +152,16 @@ pub fn run(req: &MapRequest) -> anyhow::Result<()> {
         };
         let _lock = crate::output::cleanup::RunLock::begin(out_dir, "run.json")
             .map_err(anyhow::Error::msg)?;
+        let mut dem_files = req.terrain.dem_files()?;
+        let (mut cp, note) = crate::output::checkpoint::Checkpoint::open(
+            out_dir,
+            &range_fingerprint(req, &kernels.files, &dem_files)?,
+            req.resume,
+        )
+        .map_err(anyhow::Error::msg)?;
+        if let Some(note) = note {
+            eprintln!("{note}");
+        }
         let step_h = req.epochs.map_or(3600.0, |e| e.step_s()) / 3600.0;
         let engine_kind = match req.engine {
             Some(e) => e,
@@ -182,6 +195,7 @@ pub fn run(req: &MapRequest) -> anyhow::Result<()> {
             abcorr,
             step_h,
             &mut |_, _| true,
+            &mut cp,
         )?;
         let span = format!(
             "{} .. {} UTC, {} epochs",
@@ -199,12 +213,12 @@ pub fn run(req: &MapRequest) -> anyhow::Result<()> {
         let mut prov = crate::output::Provenance::new();
         prov.kernels = kernels.files.clone();
         prov.dem_layers = dem_layers;
-        prov.dem_files = req.terrain.dem_files()?;
         if let crate::compute::sweep::HorizonsFrom::File(path) = &req.horizons
             && engine_kind == MapEngineKind::Horizons
         {
-            prov.dem_files.push(crate::output::InputFile::of(path)?);
+            dem_files.push(crate::output::InputFile::of(path)?);
         }
+        prov.dem_files = dem_files;
         prov.set_epochs(&epochs);
         prov.outputs = files;
         prov.backend = result.note;
@@ -214,6 +228,7 @@ pub fn run(req: &MapRequest) -> anyhow::Result<()> {
         }
         prov.wall_time_s = t0.elapsed().as_secs_f64();
         prov.write(&out_dir.join("run.json"))?;
+        cp.finish();
         eprintln!(
             "penumbra: map statistics over {} epochs -> {} ({:.1} s)",
             epochs.len(),
@@ -313,3 +328,33 @@ pub fn auto_engine(
 
 /// Fewest epochs for which `--engine auto` sweeps horizons (see [`auto_engine`]).
 pub const AUTO_HORIZONS_MIN_EPOCHS: usize = 1000;
+
+/// The fingerprint of a map over an epoch range (what `--resume` checks): penumbra's build, the
+/// request (but `--resume`), the kernels' and DEMs' sha256 and a horizons file's size and time.
+fn range_fingerprint(
+    req: &MapRequest,
+    kernels: &[crate::ephem::kernels::KernelFile],
+    dems: &[crate::output::InputFile],
+) -> anyhow::Result<String> {
+    let request = format!(
+        "{:?}",
+        MapRequest {
+            resume: false,
+            ..req.clone()
+        }
+    );
+    let horizons = match &req.horizons {
+        crate::compute::sweep::HorizonsFrom::File(p) => crate::output::checkpoint::file_stamp(p)
+            .map_err(|e| anyhow::anyhow!("--horizons {}: {e}", p.display()))?,
+        crate::compute::sweep::HorizonsFrom::Sweep { .. } => String::new(),
+    };
+    let prov = crate::output::Provenance::new();
+    Ok(crate::output::checkpoint::fingerprint(&[
+        prov.penumbra_version.as_bytes(),
+        prov.git_commit.as_bytes(),
+        request.as_bytes(),
+        serde_json::to_string(kernels)?.as_bytes(),
+        serde_json::to_string(dems)?.as_bytes(),
+        horizons.as_bytes(),
+    ]))
+}

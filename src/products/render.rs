@@ -508,6 +508,36 @@ pub fn render_frames(
     opts: &RenderOptions,
     frames: &[(Epoch, crate::render::path::CameraPose)],
 ) -> anyhow::Result<RenderRun> {
+    render_frames_kept(opts, frames, &mut NoFrameStore)
+}
+
+/// Frames of a sequence that a resumable run has already rendered (each frame depends on its own
+/// epoch and pose only, so a frame rendered by a killed run is the frame a whole run renders).
+pub trait FrameStore {
+    /// The files of frame `k`, when it is already rendered (and still intact).
+    fn done(&mut self, k: usize) -> Option<Vec<PathBuf>>;
+    /// Frame `k` has been rendered into `files`.
+    fn finished(&mut self, k: usize, files: &[PathBuf]) -> anyhow::Result<()>;
+}
+
+/// A store that keeps nothing.
+pub struct NoFrameStore;
+
+impl FrameStore for NoFrameStore {
+    fn done(&mut self, _k: usize) -> Option<Vec<PathBuf>> {
+        None
+    }
+    fn finished(&mut self, _k: usize, _files: &[PathBuf]) -> anyhow::Result<()> {
+        Ok(())
+    }
+}
+
+/// [`render_frames`], skipping the frames `store` has and telling it each frame rendered.
+pub fn render_frames_kept(
+    opts: &RenderOptions,
+    frames: &[(Epoch, crate::render::path::CameraPose)],
+    store: &mut dyn FrameStore,
+) -> anyhow::Result<RenderRun> {
     use crate::render::Lights;
     let t0 = std::time::Instant::now();
     if frames.is_empty() {
@@ -558,6 +588,11 @@ pub fn render_frames(
     }
     let mut files = Vec::new();
     for (k, ((epoch, l), placed)) in epochs.iter().zip(&lights_all).zip(&placed).enumerate() {
+        if let Some(kept) = store.done(k) {
+            progress.inc(1);
+            files.extend(kept);
+            continue;
+        }
         let lights = Lights {
             sun: l.sun,
             sun_radius_rad: l.sun_radius_rad,
@@ -566,6 +601,7 @@ pub fn render_frames(
         };
         let (written, sun_el_deg) =
             render_one_frame(&job, placed, *epoch, lights, many.then_some(k))?;
+        store.finished(k, &written)?;
         progress.inc(1);
         if let (false, Some(out)) = (many, written.last()) {
             eprintln!(

@@ -7,6 +7,7 @@ use anyhow::Context as _;
 
 use super::{MapSpec, PathSpec, Scenario, TerrainSpec, ViewSpec, parse_map_backend};
 use crate::ephem::{self, AbCorr, Site};
+use crate::output::checkpoint::Checkpoint;
 
 /// What `penumbra run` runs: a scenario file and the overrides of the command line.
 #[derive(Debug, Clone)]
@@ -17,6 +18,8 @@ pub struct RunRequest {
     pub out_dir: Option<PathBuf>,
     /// Overrides the scenario's kernel folder.
     pub kernels: Option<PathBuf>,
+    /// Carries on an unfinished run in the output folder (its finished parts are kept).
+    pub resume: bool,
 }
 
 /// Runs a scenario file (`penumbra run`).
@@ -60,8 +63,24 @@ pub fn run_file(args: &RunRequest) -> anyhow::Result<()> {
     };
     std::fs::create_dir_all(&out_dir)
         .with_context(|| format!("creating output folder {}", out_dir.display()))?;
+    let fingerprint = run_fingerprint(&scenario, &prov, &base)?;
+    let (mut cp, note) =
+        Checkpoint::open(&out_dir, &fingerprint, args.resume).map_err(anyhow::Error::msg)?;
+    if let Some(note) = note {
+        eprintln!("{note}");
+    }
 
     match (&stack, &scenario.series) {
+        (Some(_), Some(config)) if cp.is_done("series") => {
+            let (files, note) = cp.part("series").expect("done");
+            prov.outputs.extend(files);
+            prov.series_engine = Some(config.engine.name().into());
+            backends.push(format!("series: {note}"));
+            prov.series_backend = Some(note.to_string());
+        }
+        (None, _) | (_, None) if cp.is_done("ephem") => {
+            prov.outputs.extend(cp.part("ephem").expect("done").0);
+        }
         (Some(stack), Some(config)) => {
             let sites: Vec<crate::series::SeriesSite> = scenario
                 .sites
@@ -85,6 +104,8 @@ pub fn run_file(args: &RunRequest) -> anyhow::Result<()> {
                 },
                 &out_dir,
             )?;
+            cp.mark_done("series", &run.files, &run.backend)
+                .map_err(anyhow::Error::msg)?;
             prov.outputs.extend(run.files);
             prov.series_engine = Some(config.engine.name().into());
             backends.push(format!("series: {}", run.backend));
@@ -107,6 +128,7 @@ pub fn run_file(args: &RunRequest) -> anyhow::Result<()> {
                 })
                 .collect::<anyhow::Result<_>>()?;
             let series = ephem::sun_earth_series(&kernels, &sites, &epochs, scenario.abcorr)?;
+            let first = prov.outputs.len();
             for (spec, rows) in scenario.sites.iter().zip(&series) {
                 let name = format!("{}_ephem.csv", spec.name);
                 crate::products::write_output(Some(&out_dir.join(&name)), |w| {
@@ -118,22 +140,41 @@ pub fn run_file(args: &RunRequest) -> anyhow::Result<()> {
                 })?;
                 prov.outputs.push(name);
             }
+            cp.mark_done("ephem", &prov.outputs[first..], "")
+                .map_err(anyhow::Error::msg)?;
         }
     }
     if let (Some(stack), Some(spec)) = (&stack, &scenario.map) {
-        let (files, below, map_backend) = run_map_spec(
-            spec,
-            stack,
-            &kernels,
-            start,
-            stop,
-            scenario.abcorr,
-            &base,
-            &out_dir,
-        )?;
+        let (files, below, map_backend) = match cp.part("map") {
+            Some((files, note)) if cp.is_done("map") => {
+                let (below, backend): (Option<crate::output::BelowSphereExits>, String) =
+                    serde_json::from_str(note).context("the checkpoint of [map]")?;
+                (files, below, backend)
+            }
+            _ => {
+                let (files, below, map_backend) = run_map_spec(
+                    spec,
+                    stack,
+                    &kernels,
+                    start,
+                    stop,
+                    scenario.abcorr,
+                    &base,
+                    &out_dir,
+                    &mut cp,
+                )?;
+                let files: Vec<String> = files.into_iter().map(|f| format!("map/{f}")).collect();
+                cp.mark_done(
+                    "map",
+                    &files,
+                    &serde_json::to_string(&(below, &map_backend))?,
+                )
+                .map_err(anyhow::Error::msg)?;
+                (files, below, map_backend)
+            }
+        };
         prov.map_rays_blocked_beyond_dem = below;
-        prov.outputs
-            .extend(files.into_iter().map(|f| format!("map/{f}")));
+        prov.outputs.extend(files);
         backends.push(format!("map: {map_backend}"));
     }
     if let Some(spec) = &scenario.render {
@@ -157,7 +198,15 @@ pub fn run_file(args: &RunRequest) -> anyhow::Result<()> {
             .map(|v| (v.clone(), None))
             .chain(spec.paths.iter().map(|p| (p.as_view(), Some(p))))
             .collect();
-        for (view, path_spec) in &paths {
+        for (i, (view, path_spec)) in paths.iter().enumerate() {
+            let key = format!("render {i}");
+            if let Some((files, backend)) = cp.part(&key).filter(|_| cp.is_done(&key)) {
+                if !render_backends.iter().any(|b| b == backend) {
+                    render_backends.push(backend.to_string());
+                }
+                prov.outputs.extend(files);
+                continue;
+            }
             let what = if path_spec.is_some() {
                 "[[render.paths]]"
             } else {
@@ -177,16 +226,25 @@ pub fn run_file(args: &RunRequest) -> anyhow::Result<()> {
                 }),
                 Some(p) => p.frames(),
             }
-            .and_then(|frames| crate::products::render::render_frames(&options, &frames))
+            .and_then(|frames| {
+                crate::products::render::render_frames_kept(
+                    &options,
+                    &frames,
+                    &mut Frames {
+                        cp: &mut cp,
+                        out_dir: &out_dir,
+                        view: i,
+                    },
+                )
+            })
             .with_context(|| format!("{what} '{}'", view.out))?;
+            let files: Vec<String> = run.files.iter().map(|f| relative(f, &out_dir)).collect();
+            cp.mark_done(&key, &files, &run.backend)
+                .map_err(anyhow::Error::msg)?;
             if !render_backends.contains(&run.backend) {
                 render_backends.push(run.backend);
             }
-            prov.outputs.extend(
-                run.files
-                    .iter()
-                    .map(|f| f.strip_prefix(&out_dir).unwrap_or(f).display().to_string()),
-            );
+            prov.outputs.extend(files);
         }
         if !render_backends.is_empty() {
             backends.push(format!("render: {}", render_backends.join(", ")));
@@ -197,6 +255,11 @@ pub fn run_file(args: &RunRequest) -> anyhow::Result<()> {
     }
     prov.wall_time_s = t0.elapsed().as_secs_f64();
     prov.write(&out_dir.join("run.json"))?;
+    let kept = cp.resumed_parts();
+    cp.finish();
+    if kept > 0 {
+        eprintln!("penumbra: resumed: {kept} finished part(s) of the earlier run kept");
+    }
     eprintln!(
         "penumbra: {} file(s) and run.json written to {} ({} sites, {} epochs, {:.1} s)",
         prov.outputs.len(),
@@ -206,6 +269,58 @@ pub fn run_file(args: &RunRequest) -> anyhow::Result<()> {
         prov.wall_time_s
     );
     Ok(())
+}
+
+/// A path relative to the run folder, as run.json and the checkpoints name it.
+fn relative(f: &Path, out_dir: &Path) -> String {
+    f.strip_prefix(out_dir).unwrap_or(f).display().to_string()
+}
+
+/// The fingerprint of everything that decides a run's outputs: penumbra's build, the scenario as
+/// parsed, the kernels' and DEMs' sha256 and a `[map]` horizons file's size and modification time
+/// (not hashed: it can be gigabytes).
+fn run_fingerprint(
+    scenario: &Scenario,
+    prov: &crate::output::Provenance,
+    base: &Path,
+) -> anyhow::Result<String> {
+    let horizons = match scenario.map.as_ref().and_then(|m| m.horizons_file.as_ref()) {
+        Some(p) => crate::output::checkpoint::file_stamp(&base.join(p))
+            .with_context(|| format!("[map] horizons_file {}", p.display()))?,
+        None => String::new(),
+    };
+    Ok(crate::output::checkpoint::fingerprint(&[
+        prov.penumbra_version.as_bytes(),
+        prov.git_commit.as_bytes(),
+        serde_json::to_string(scenario)?.as_bytes(),
+        serde_json::to_string(&prov.kernels)?.as_bytes(),
+        serde_json::to_string(&prov.dem_files)?.as_bytes(),
+        serde_json::to_string(&prov.dem_layers)?.as_bytes(),
+        horizons.as_bytes(),
+    ]))
+}
+
+/// A render sequence's finished frames, kept as checkpoints.
+struct Frames<'a> {
+    cp: &'a mut Checkpoint,
+    out_dir: &'a Path,
+    view: usize,
+}
+
+impl crate::products::render::FrameStore for Frames<'_> {
+    fn done(&mut self, k: usize) -> Option<Vec<PathBuf>> {
+        let key = format!("render {} frame {k}", self.view);
+        let (files, _) = self.cp.part(&key)?;
+        self.cp
+            .is_done(&key)
+            .then(|| files.iter().map(|f| self.out_dir.join(f)).collect())
+    }
+    fn finished(&mut self, k: usize, files: &[PathBuf]) -> anyhow::Result<()> {
+        let files: Vec<String> = files.iter().map(|f| relative(f, self.out_dir)).collect();
+        self.cp
+            .mark_done(&format!("render {} frame {k}", self.view), &files, "")
+            .map_err(anyhow::Error::msg)
+    }
 }
 
 /// Loads a scenario's terrain; the synthetic DEM is also written to the output folder.
@@ -260,6 +375,7 @@ fn run_map_spec(
     abcorr: AbCorr,
     base: &Path,
     out_dir: &Path,
+    store: &mut dyn crate::horizon::statistics::BlockStore,
 ) -> anyhow::Result<(Vec<String>, Option<crate::output::BelowSphereExits>, String)> {
     let step = ephem::time::parse_step(&spec.step).context("[map] step")?;
     let epochs = ephem::time::epoch_range(start, stop, step)?;
@@ -298,6 +414,7 @@ fn run_map_spec(
         abcorr,
         step.to_seconds() / 3600.0,
         &mut |_, _| true,
+        store,
     )
     .context("[map]")?;
     let dir = out_dir.join("map");

@@ -19,6 +19,7 @@ mod render;
 mod render_cpu;
 mod render_gpu;
 mod render_path;
+mod resume;
 mod series;
 mod series_engines;
 mod shadow;

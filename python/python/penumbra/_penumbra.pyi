@@ -111,5 +111,8 @@ def render(
     backend: str = "auto",
 ) -> Tuple[npt.NDArray[np.uint8], npt.NDArray[np.float32]]: ...
 def run_scenario(
-    path: Path, out_dir: Optional[Path] = None, kernels: Optional[Path] = None
+    path: Path,
+    out_dir: Optional[Path] = None,
+    kernels: Optional[Path] = None,
+    resume: bool = False,
 ) -> None: ...

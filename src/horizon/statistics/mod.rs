@@ -36,12 +36,14 @@
 //! horizontal and whose ray, from where it leaves the outermost layer (along the straight map
 //! line of its grid azimuth), meets the reference sphere, as the per-epoch maps count them.
 
+mod blocks;
 mod kernel;
 mod lookup;
 mod source;
 
 use rayon::prelude::*;
 
+pub use blocks::{BlockStore, NoStore};
 use kernel::{CellAcc, CellGeom, Epochs, SECTORS, Scratch, Thresholds};
 pub use lookup::{AzimuthLookup, ChordTable};
 pub use source::{
@@ -294,6 +296,8 @@ impl BodyBounds {
 const CELLS_PER_TASK: usize = 16;
 /// Bytes of horizons read per block of rows.
 const BLOCK_BYTES: usize = 128 << 20;
+/// The fewest blocks of rows a grid is split into (the units a killed run keeps).
+const MIN_BLOCKS: usize = 16;
 
 /// The statistics engine over a terrain stack and its whole-grid horizons.
 pub struct StatisticsEngine<'a> {
@@ -362,6 +366,19 @@ impl<'a> StatisticsEngine<'a> {
         &self,
         source: &mut dyn HorizonRows,
         epochs: &[EpochBodies],
+        progress: impl FnMut(usize) -> bool,
+    ) -> Result<HorizonStatistics, HorizonError> {
+        self.run_with_store(source, epochs, &mut NoStore, progress)
+    }
+
+    /// [`Self::run`], taking finished blocks of rows from `store` and giving it every block it
+    /// computes (a resumed run gives the same bytes as an uninterrupted one: each pixel's
+    /// statistics depend on its own horizon and the epochs only).
+    pub fn run_with_store(
+        &self,
+        source: &mut dyn HorizonRows,
+        epochs: &[EpochBodies],
+        store: &mut dyn BlockStore,
         mut progress: impl FnMut(usize) -> bool,
     ) -> Result<HorizonStatistics, HorizonError> {
         self.check_source(source)?;
@@ -429,29 +446,28 @@ impl<'a> StatisticsEngine<'a> {
             projector: UnitProjector::new(&fine.projection),
         };
 
-        let mut out = HorizonStatistics {
-            epochs: epochs.len(),
-            nodata: vec![true; n_px],
-            sun_fraction_sum: vec![0.0; n_px],
-            sun_visible_count: vec![0; n_px],
-            sun_full_count: vec![0; n_px],
-            longest_dark_epochs: vec![0; n_px],
-            earth_visible_count: vec![0; n_px],
-            longest_earth_hidden_epochs: vec![0; n_px],
-            sun_and_earth_count: vec![0; n_px],
-            irradiance_horizontal_sum_w_m2: vec![0.0; n_px],
-            irradiance_tracking_sum_w_m2: vec![0.0; n_px],
-            below_sphere: BelowSphereExits::default(),
-        };
+        let mut out = HorizonStatistics::empty(n_px, epochs.len());
         let arch = pulp::Arch::new();
-        let rows_per_block = (BLOCK_BYTES / (2 * n * g.cols).max(1)).clamp(1, g.rows);
+        // At least MIN_BLOCKS blocks: the units a killed run keeps.
+        let rows_per_block = (BLOCK_BYTES / (2 * n * g.cols).max(1))
+            .min(g.rows.div_ceil(MIN_BLOCKS))
+            .clamp(1, g.rows);
         let mut block: Vec<i16> = Vec::new();
         let mut row0 = 0;
         while row0 < g.rows {
             let row1 = (row0 + rows_per_block).min(g.rows);
-            source.read_rows(row0..row1, &mut block)?;
             let block_px = (row1 - row0) * g.cols;
             let first_px = row0 * g.cols;
+            if let Some(bytes) = store.load(row0..row1)
+                && out.place_block_bytes(first_px, block_px, &bytes)
+            {
+                if !progress(row1) {
+                    return Err(HorizonError::Interrupted);
+                }
+                row0 = row1;
+                continue;
+            }
+            source.read_rows(row0..row1, &mut block)?;
             let results: Vec<(usize, CellAcc)> = (0..block_px.div_ceil(CELLS_PER_TASK))
                 .into_par_iter()
                 .flat_map_iter(|task| {
@@ -510,6 +526,7 @@ impl<'a> StatisticsEngine<'a> {
                     pixels.into_iter().zip(acc)
                 })
                 .collect();
+            let mut below = (0u64, 0u64);
             for (px, a) in results {
                 out.nodata[px] = false;
                 out.sun_fraction_sum[px] = a.sun_fraction_sum;
@@ -522,10 +539,15 @@ impl<'a> StatisticsEngine<'a> {
                 out.irradiance_horizontal_sum_w_m2[px] = a.irradiance_horizontal_sum;
                 out.irradiance_tracking_sum_w_m2[px] = a.irradiance_tracking_sum;
                 if a.below_sphere > 0 {
-                    out.below_sphere.cells += 1;
-                    out.below_sphere.cell_epochs += u64::from(a.below_sphere);
+                    below.0 += 1;
+                    below.1 += u64::from(a.below_sphere);
                 }
             }
+            out.below_sphere.cells += below.0;
+            out.below_sphere.cell_epochs += below.1;
+            store
+                .store(row0..row1, &out.block_bytes(first_px, block_px, below))
+                .map_err(HorizonError::Checkpoint)?;
             if !progress(row1) {
                 return Err(HorizonError::Interrupted);
             }

@@ -159,6 +159,7 @@ fn skipping_unseen_bodies_changes_nothing() {
     };
     let mut engine = StatisticsEngine::new(&stack, params).unwrap();
     let with = engine.run(&mut horizons, &bodies, |_| true).unwrap();
+    stored_blocks_are_taken_back(&engine, &mut horizons, &bodies, &with);
     engine.skip_unseen = false;
     let without = engine.run(&mut horizons, &bodies, |_| true).unwrap();
     let never_sun = with
@@ -257,4 +258,60 @@ fn polyline_fraction_matches_the_exact_strip_integral() {
     );
     assert!(whole_off * 1000 <= cases as usize, "{whole_off}");
     assert!(mean < 5e-3, "{mean}");
+}
+
+/// A store that keeps every block.
+#[derive(Default)]
+struct Keep(std::collections::BTreeMap<(usize, usize), Vec<u8>>);
+
+impl BlockStore for Keep {
+    fn load(&mut self, rows: std::ops::Range<usize>) -> Option<Vec<u8>> {
+        self.0.get(&(rows.start, rows.end)).cloned()
+    }
+    fn store(&mut self, rows: std::ops::Range<usize>, bytes: &[u8]) -> Result<(), String> {
+        self.0.insert((rows.start, rows.end), bytes.to_vec());
+        Ok(())
+    }
+}
+
+/// Blocks given to a store are the run's bytes; a run given stored blocks takes them instead of
+/// computing (a doctored block shows through), and computes what is missing.
+fn stored_blocks_are_taken_back(
+    engine: &StatisticsEngine<'_>,
+    horizons: &mut dyn HorizonRows,
+    bodies: &[EpochBodies],
+    whole: &HorizonStatistics,
+) {
+    let mut keep = Keep::default();
+    let first = engine
+        .run_with_store(horizons, bodies, &mut keep, |_| true)
+        .unwrap();
+    assert!(keep.0.len() >= 2, "{} blocks", keep.0.len());
+    assert_eq!(first.sun_fraction_sum, whole.sun_fraction_sum);
+    // Doctor the first block's first pixel count; drop the last block.
+    let (&(r0, r1), _) = keep.0.iter().next().unwrap();
+    let last = *keep.0.keys().last().unwrap();
+    keep.0.remove(&last);
+    let cols = whole.nodata.len() / engine.fine().grid.rows;
+    let mut doctored = HorizonStatistics::empty(whole.nodata.len(), whole.epochs);
+    assert!(doctored.place_block_bytes(r0 * cols, (r1 - r0) * cols, &keep.0[&(r0, r1)]));
+    doctored.sun_visible_count[0] = 123_456;
+    keep.0.insert(
+        (r0, r1),
+        doctored.block_bytes(r0 * cols, (r1 - r0) * cols, (0, 0)),
+    );
+    let again = engine
+        .run_with_store(horizons, bodies, &mut keep, |_| true)
+        .unwrap();
+    assert_eq!(again.sun_visible_count[0], 123_456);
+    assert_eq!(again.sun_visible_count[1..], whole.sun_visible_count[1..]);
+    assert_eq!(again.longest_dark_epochs, whole.longest_dark_epochs);
+    assert_eq!(
+        again.irradiance_tracking_sum_w_m2,
+        whole.irradiance_tracking_sum_w_m2
+    );
+    assert!(
+        keep.0.contains_key(&last),
+        "the missing block was computed and stored"
+    );
 }
