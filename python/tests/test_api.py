@@ -260,3 +260,29 @@ def test_run_scenario_resumes_a_killed_cli_run(tmp_path: Path, cli: Path) -> Non
     )
     for f in files:
         assert (tmp_path / "whole" / f).read_bytes() == (tmp_path / "killed" / f).read_bytes(), f
+
+
+@pytest.mark.parametrize(
+    "text",
+    [
+        "2024-02-01T12:01:09.184 TDB",
+        "2024-02-01T12:01:09.184 ET",
+        "2024 FEB 01 12:00:00",
+        "2024-032T12:00:00",
+        "2024-02-01T14:00:00+02:00",
+    ],
+)
+def test_time_inputs_match_spice_str2et(text: str) -> None:
+    """Epoch strings in the forms SPICE users type give the UTC instant SPICE's str2et gives
+    (within 20 microseconds: hifitime's and SPICE's TDB - TT series differ by less)."""
+    spice = pytest.importorskip("spiceypy")
+    kdir = Path(__file__).resolve().parents[2] / "kernels"
+    spice.furnsh(str(kdir / "naif0012.tls"))
+    try:
+        # str2et knows no UTC offsets: give it the same instant in UTC.
+        spice_text = "2024-02-01T12:00:00" if text.endswith("+02:00") else text
+        want = np.datetime64(spice.et2utc(spice.str2et(spice_text), "ISOC", 6), "ns")
+    finally:
+        spice.kclear()
+    got = penumbra.time_range(text, text, "1h")[0]
+    assert abs((got - want) / np.timedelta64(1, "ns")) < 20_000, (got, want)

@@ -38,7 +38,8 @@ def test_series_equals_the_cli(cli: Path, tmp_path: Path) -> None:
         assert len(rows) == n
         for col in rows[0]:
             if col == "utc":
-                got = [str(t)[:19] for t in table["utc"][i * n:(i + 1) * n]]
+                # The CSV writes ISO 8601 UTC with the zone (Z); the table holds datetime64 UTC.
+                got = [str(t)[:19] + "Z" for t in table["utc"][i * n:(i + 1) * n]]
                 assert got == [r["utc"] for r in rows]
                 continue
             want = np.array([float(r[col]) for r in rows])

@@ -23,6 +23,12 @@ mod series;
 #[derive(Debug, Parser)]
 #[command(name = "penumbra", version, about, long_about = None)]
 pub struct Cli {
+    /// Say nothing on stderr but warnings and errors (no progress bars, no summary lines).
+    #[arg(short, long, global = true, conflicts_with = "verbose")]
+    pub quiet: bool,
+    /// Also print details (kernel and terrain files used, checkpoints kept).
+    #[arg(short, long, global = true)]
+    pub verbose: bool,
     /// The subcommand to run.
     #[command(subcommand)]
     pub command: Command,
@@ -63,10 +69,29 @@ pub enum Command {
         #[command(subcommand)]
         command: horizon_map::HorizonMapCommand,
     },
+    /// Print a shell completion script, e.g. `penumbra completions bash >
+    /// ~/.local/share/bash-completion/completions/penumbra`.
+    Completions {
+        /// The shell.
+        #[arg(value_enum)]
+        shell: clap_complete::Shell,
+    },
+    /// Print the man page (roff) on stdout, or write one page per command into a folder
+    /// (`penumbra.1`, `penumbra-map.1`, …).
+    Man {
+        /// Write the pages into this folder instead.
+        #[arg(long, value_name = "DIR")]
+        out_dir: Option<PathBuf>,
+    },
 }
 
 /// Runs one parsed command line.
 pub fn run(cli: Cli) -> anyhow::Result<()> {
+    penumbra::output::set_verbosity(match (cli.quiet, cli.verbose) {
+        (true, _) => 0,
+        (false, false) => 1,
+        (false, true) => 2,
+    });
     match cli.command {
         Command::Ephem(args) => ephem::run(&args),
         Command::Kernels(args) => {
@@ -81,7 +106,42 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::GpuInfo(args) => gpu_info::run(&args),
         Command::Render(args) => render::run(&args),
         Command::HorizonMap { command } => horizon_map::run(command),
+        Command::Completions { shell } => {
+            use clap::CommandFactory as _;
+            let mut out = Vec::new();
+            clap_complete::generate(shell, &mut Cli::command(), "penumbra", &mut out);
+            std::io::Write::write_all(&mut std::io::stdout().lock(), &out)?;
+            Ok(())
+        }
+        Command::Man { out_dir } => man(out_dir.as_deref()),
     }
+}
+
+/// `penumbra man`: the page on stdout, or every command's page into `out_dir`.
+fn man(out_dir: Option<&std::path::Path>) -> anyhow::Result<()> {
+    use clap::CommandFactory as _;
+    let cmd = Cli::command();
+    let Some(dir) = out_dir else {
+        let mut out = Vec::new();
+        clap_mangen::Man::new(cmd).render(&mut out)?;
+        std::io::Write::write_all(&mut std::io::stdout().lock(), &out)?;
+        return Ok(());
+    };
+    std::fs::create_dir_all(dir)?;
+    let mut pages = vec![("penumbra".to_string(), cmd.clone())];
+    for sub in cmd.get_subcommands() {
+        let name = format!("penumbra-{}", sub.get_name());
+        pages.push((name, sub.clone()));
+    }
+    for (name, page) in pages {
+        let path = dir.join(format!("{name}.1"));
+        penumbra::output::write_atomic(&path, |w| -> anyhow::Result<()> {
+            clap_mangen::Man::new(page).title(name.clone()).render(w)?;
+            Ok(())
+        })?;
+    }
+    penumbra::note!("penumbra: man pages written to {}", dir.display());
+    Ok(())
 }
 
 /// Where the SPICE kernels come from.

@@ -102,9 +102,13 @@ pub fn range_statistics(
         );
     }
     let grid = MapGrid::new(stack)?;
-    eprintln!(
+    crate::note!(
         "penumbra: model grid {} x {} at {} m centred on ({:.4}, {:.4}) deg (every layer)",
-        grid.hf.rows, grid.hf.cols, grid.hf.px_m, grid.hf.centre_lat_deg, grid.hf.centre_lon_deg
+        grid.hf.rows,
+        grid.hf.cols,
+        grid.hf.px_m,
+        grid.hf.centre_lat_deg,
+        grid.hf.centre_lon_deg
     );
     grid.warn_if_clipped();
     let lights = epoch_lights(&grid, kernels, epochs, abcorr)?;
@@ -183,7 +187,7 @@ fn horizon_statistics(
                 report(done, total)
             })?;
             progress.finish_and_clear();
-            eprintln!(
+            crate::note!(
                 "penumbra: horizons of {} x {} px toward {} directions in {:.1} s ({:.0} MB)",
                 fine.grid.rows,
                 fine.grid.cols,
@@ -217,7 +221,7 @@ fn horizon_statistics(
     progress.finish_and_clear();
     let secs = t1.elapsed().as_secs_f64();
     let cell_epochs = (fine.grid.rows * fine.grid.cols) as f64 * epochs.len() as f64;
-    eprintln!(
+    crate::note!(
         "penumbra: statistics of {} x {} px over {} epochs in {:.1} s ({:.0} M pixel-epochs/s)",
         fine.grid.rows,
         fine.grid.cols,

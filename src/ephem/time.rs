@@ -3,26 +3,158 @@
 //! Epoch strings given by users are **UTC** (not TDB: reading a UTC string as TDB moves the Sun by
 //! about 35 arcsec, since TDB − UTC ≈ 69 s and the Sun moves 0.5 arcsec/s across the lunar sky).
 //! Accepted forms: `YYYY-MM-DD`, `YYYY-MM-DDTHH:MM`, `YYYY-MM-DDTHH:MM:SS[.fff]`, a space instead of
-//! the `T`, and an optional trailing `Z` or ` UTC`. Leap seconds come from hifitime's table, which
-//! equals NAIF's `naif0012.tls`.
+//! the `T`, and an optional trailing `Z` or ` UTC`; day-of-year dates (`2024-032T12:00`); SPICE's
+//! month names (`2024 FEB 01 12:00:00`, `2024-FEB-01`); a UTC offset (`2024-02-01T14:00+02:00`);
+//! another time scale by name (`2024-02-01T12:01:09.184 TDB`, `ET` = `TDB`, `TT`, `TAI`). Case does
+//! not matter. Leap seconds (`23:59:60` on a real one) come from hifitime's table, which equals
+//! NAIF's `naif0012.tls`. Outputs write UTC as ISO 8601 with `Z` ([`format_iso`]).
 
-use hifitime::{Duration, Epoch, Unit};
+use hifitime::{Duration, Epoch, TimeScale, Unit};
 
 use super::EphemError;
 
-/// Parses a UTC epoch string (see the module docs for the accepted forms).
+/// Parses an epoch string (see the module docs for the accepted forms): UTC unless it ends in a
+/// time scale (`TDB`, `ET`, `TT`, `TAI`) or carries a UTC offset (`+02:00`).
 pub fn parse_utc(text: &str) -> Result<Epoch, EphemError> {
     let bad = |why: &str| EphemError::BadEpoch {
         text: text.to_string(),
         why: why.to_string(),
     };
-    let mut s = text.trim();
-    for suffix in [" UTC", "UTC", "Z"] {
+    let upper = text.trim().to_ascii_uppercase();
+    let mut s = upper.as_str();
+    let mut scale = TimeScale::UTC;
+    for (suffix, sc) in [
+        (" UTC", TimeScale::UTC),
+        ("UTC", TimeScale::UTC),
+        ("Z", TimeScale::UTC),
+        (" TDB", TimeScale::TDB),
+        (" ET", TimeScale::TDB),
+        (" TT", TimeScale::TT),
+        (" TAI", TimeScale::TAI),
+    ] {
         if let Some(stripped) = s.strip_suffix(suffix) {
             s = stripped.trim_end();
+            scale = sc;
             break;
         }
     }
+    let normalised = normalise_date(s).map_err(|why| bad(&why))?;
+    let (s, offset_s) = split_offset(&normalised).map_err(|why| bad(&why))?;
+    if offset_s != 0 && scale != TimeScale::UTC {
+        return Err(bad("give either a UTC offset or a time scale, not both"));
+    }
+    let epoch = parse_calendar(s, scale, &bad)?;
+    Ok(epoch - Unit::Second * f64::from(offset_s))
+}
+
+/// The three-letter month names SPICE writes (`2024 JAN 01`).
+const MONTHS: [&str; 12] = [
+    "JAN", "FEB", "MAR", "APR", "MAY", "JUN", "JUL", "AUG", "SEP", "OCT", "NOV", "DEC",
+];
+
+/// Rewrites a SPICE-style date (`2024 JAN 01 12:00`, `2024-JAN-01`, `JAN 01 2024` is not taken)
+/// or a day-of-year date (`2024-032T12:00`, `2024-032`) as `YYYY-MM-DD…` (uppercase input).
+fn normalise_date(s: &str) -> Result<String, String> {
+    let b = s.as_bytes();
+    let year_first = b.len() >= 5 && b[..4].iter().all(u8::is_ascii_digit);
+    if !year_first {
+        return Ok(s.to_string());
+    }
+    let year = &s[..4];
+    let rest = &s[5..];
+    // Month name: YYYY[ -]MON[THNAME][ -]DD[ rest]
+    if matches!(b[4], b' ' | b'-')
+        && rest.len() >= 3
+        && rest.as_bytes()[..3].iter().all(u8::is_ascii_alphabetic)
+    {
+        let name_len = rest.bytes().take_while(u8::is_ascii_alphabetic).count();
+        let name = &rest[..name_len];
+        let month = MONTHS
+            .iter()
+            .position(|m| name.starts_with(m))
+            .ok_or_else(|| format!("unknown month '{name}'"))?;
+        let after = rest[name_len..].trim_start_matches([' ', '-']);
+        let day_len = after.bytes().take_while(u8::is_ascii_digit).count();
+        if day_len == 0 || day_len > 2 {
+            return Err("expected a day after the month".into());
+        }
+        let tail = after[day_len..].trim_start_matches(',');
+        return Ok(format!(
+            "{year}-{:02}-{:0>2}{tail}",
+            month + 1,
+            &after[..day_len]
+        ));
+    }
+    // Day of year: YYYY-DDD followed by nothing, 'T' or ' '.
+    let doy_len = rest.bytes().take_while(u8::is_ascii_digit).count();
+    if b[4] == b'-' && doy_len == 3 && !rest[3..].starts_with('-') {
+        let doy: u32 = rest[..3].parse().map_err(|_| "bad day of year")?;
+        let y: i32 = year.parse().map_err(|_| "bad year")?;
+        let leap = (y % 4 == 0 && y % 100 != 0) || y % 400 == 0;
+        let lengths = [
+            31,
+            if leap { 29 } else { 28 },
+            31,
+            30,
+            31,
+            30,
+            31,
+            31,
+            30,
+            31,
+            30,
+            31,
+        ];
+        if doy == 0 || doy > lengths.iter().sum::<u32>() {
+            return Err(format!("day of year {doy} is out of range"));
+        }
+        let (mut month, mut day) = (0, doy);
+        while day > lengths[month] {
+            day -= lengths[month];
+            month += 1;
+        }
+        return Ok(format!("{year}-{:02}-{day:02}{}", month + 1, &rest[3..]));
+    }
+    Ok(s.to_string())
+}
+
+/// Splits a trailing UTC offset (`+02:00`, `-0530`, `+02`) off the time of day: the text without
+/// it and the offset in seconds.
+fn split_offset(s: &str) -> Result<(&str, i32), String> {
+    let Some(t) = s.find(['T', ' ']) else {
+        return Ok((s, 0));
+    };
+    let clock = &s[t + 1..];
+    let Some(i) = clock.rfind(['+', '-']) else {
+        return Ok((s, 0));
+    };
+    let off = &clock[i + 1..];
+    let digits: String = off.chars().filter(|c| *c != ':').collect();
+    if digits.is_empty()
+        || !digits.bytes().all(|c| c.is_ascii_digit())
+        || !matches!(digits.len(), 2 | 4)
+    {
+        return Err(format!("UTC offset '{}' is not ±HH:MM", &clock[i..]));
+    }
+    let h: i32 = digits[..2].parse().map_err(|_| "bad offset")?;
+    let m: i32 = if digits.len() == 4 {
+        digits[2..].parse().map_err(|_| "bad offset")?
+    } else {
+        0
+    };
+    if h > 14 || m > 59 {
+        return Err(format!("UTC offset '{}' is out of range", &clock[i..]));
+    }
+    let sign = if clock.as_bytes()[i] == b'-' { -1 } else { 1 };
+    Ok((s[..t + 1 + i].trim_end(), sign * (h * 3600 + m * 60)))
+}
+
+/// Parses `YYYY-MM-DD[(T| )HH:MM[:SS[.f]]]` in `scale`.
+fn parse_calendar(
+    s: &str,
+    scale: TimeScale,
+    bad: &dyn Fn(&str) -> EphemError,
+) -> Result<Epoch, EphemError> {
     let (date, clock) = match s.find(['T', ' ']) {
         Some(i) => (&s[..i], &s[i + 1..]),
         None => (s, ""),
@@ -73,6 +205,22 @@ pub fn parse_utc(text: &str) -> Result<Epoch, EphemError> {
         return Err(bad("a field is out of range"));
     }
     let year = i32::try_from(year).map_err(|_| bad("year out of range"))?;
+    if scale != TimeScale::UTC {
+        if second == 60 {
+            return Err(bad("second 60 exists in UTC only"));
+        }
+        return Epoch::maybe_from_gregorian(
+            year,
+            month as u8,
+            day as u8,
+            hour as u8,
+            minute as u8,
+            second as u8,
+            nanos,
+            scale,
+        )
+        .map_err(|e| bad(&e.to_string()));
+    }
     let epoch = Epoch::maybe_from_gregorian_utc(
         year,
         month as u8,
@@ -154,6 +302,12 @@ pub fn format_utc(epoch: Epoch) -> String {
             ns / 1_000_000
         )
     }
+}
+
+/// Formats an epoch as ISO 8601 UTC with the zone, `YYYY-MM-DDTHH:MM:SS[.fff]Z`: what every
+/// output file writes.
+pub fn format_iso(epoch: Epoch) -> String {
+    format!("{}Z", format_utc(epoch))
 }
 
 /// Parses a time step such as `30s`, `10m`, `1h`, `6h`, `1d` (a positive number followed by one of
@@ -243,6 +397,49 @@ mod tests {
         let tdb_as_if_utc = Epoch::from_gregorian(2024, 1, 3, 0, 0, 0, 0, hifitime::TimeScale::TDB);
         let diff_s = (e - tdb_as_if_utc).to_seconds();
         assert!((diff_s - 69.184).abs() < 0.002, "TDB - UTC = {diff_s} s");
+    }
+
+    #[test]
+    fn parses_the_forms_spice_users_type() {
+        let a = parse_utc("2024-02-01T12:00:00").unwrap();
+        for s in [
+            "2024-032T12:00",
+            "2024-032 12:00:00Z",
+            "2024 FEB 01 12:00:00",
+            "2024-feb-01 12:00",
+            "2024 FEBRUARY 1 12:00 UTC",
+            "2024-02-01T14:00+02:00",
+            "2024-02-01T07:30:00-0430",
+            "2024-02-01t12:00z",
+        ] {
+            assert_eq!(parse_utc(s).unwrap(), a, "{s}");
+        }
+        // Day 366 of a leap year; TDB = UTC + 32.184 s + 37 s (leap seconds of 2024) ± 1.7 ms.
+        assert_eq!(
+            parse_utc("2024-366").unwrap(),
+            parse_utc("2024-12-31").unwrap()
+        );
+        let tdb = parse_utc("2024-02-01T12:01:09.184 TDB").unwrap();
+        assert!(
+            (tdb - a).to_seconds().abs() < 2e-3,
+            "{}",
+            (tdb - a).to_seconds()
+        );
+        assert_eq!(tdb, parse_utc("2024-02-01T12:01:09.184 ET").unwrap());
+        let tt = parse_utc("2024-02-01T12:01:09.184 TT").unwrap();
+        assert!((tt - a).to_seconds().abs() < 1e-6);
+        assert_eq!(format_iso(a), "2024-02-01T12:00:00Z");
+        for s in [
+            "2023-366",
+            "2024-000",
+            "2024 FOO 01",
+            "2024-02-01T12:00+25:00",
+            "2024-02-01T12:00+02:00 TDB",
+            "2016-12-31T23:59:60 TDB",
+            "2024-02-01T12:00+2",
+        ] {
+            assert!(parse_utc(s).is_err(), "{s} should not parse");
+        }
     }
 
     #[test]

@@ -16,7 +16,7 @@ use plotters::prelude::*;
 
 use super::IllumError;
 use super::disc::HorizonProfile;
-use super::stats::format_utc;
+use crate::ephem::time::format_iso;
 
 /// Default plot size in pixels (width, height).
 pub const DEFAULT_SIZE_PX: (u32, u32) = (1200, 600);
@@ -153,7 +153,7 @@ pub fn render_fraction_plot_png(
             .configure_mesh()
             .x_desc(format!(
                 "time since {} ({unit_name})",
-                format_utc(series.start_utc)
+                format_iso(series.start_utc)
             ))
             .y_desc("visible fraction of the disc")
             .y_labels(13)

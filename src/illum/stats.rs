@@ -110,11 +110,6 @@ fn longest_run(n: usize, pred: impl Fn(usize) -> bool) -> Option<Run> {
     best
 }
 
-/// Formats an epoch as ISO 8601 UTC, `YYYY-MM-DDTHH:MM:SSZ` (milliseconds added when non-zero).
-pub fn format_utc(epoch: Epoch) -> String {
-    format!("{}Z", crate::ephem::time::format_utc(epoch))
-}
-
 /// Percentage of samples in `0..n` for which `pred` holds.
 fn pct(n: usize, pred: impl Fn(usize) -> bool) -> f64 {
     let count = (0..n).filter(|&k| pred(k)).count();
@@ -128,8 +123,10 @@ fn window(series: &SiteSeries<'_>, run: Option<Run>) -> (f64, Option<String>, Op
             let hours = r.len as f64 * series.step_s / 3600.0;
             (
                 hours,
-                Some(format_utc(series.epoch_at(r.first))),
-                Some(format_utc(series.epoch_at(r.first + r.len))),
+                Some(crate::ephem::time::format_iso(series.epoch_at(r.first))),
+                Some(crate::ephem::time::format_iso(
+                    series.epoch_at(r.first + r.len),
+                )),
             )
         }
         None => (0.0, None, None),
@@ -217,8 +214,8 @@ pub fn site_stats(series: &SiteSeries<'_>) -> Result<SiteStats, IllumError> {
     let sun_visible_pct = pct(n, sun_vis);
     Ok(SiteStats {
         site: series.site.to_string(),
-        start_utc: format_utc(series.start_utc),
-        end_utc: format_utc(series.epoch_at(n)),
+        start_utc: crate::ephem::time::format_iso(series.start_utc),
+        end_utc: crate::ephem::time::format_iso(series.epoch_at(n)),
         step_s: series.step_s,
         samples: n,
         span_h,

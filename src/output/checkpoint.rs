@@ -224,6 +224,16 @@ impl Checkpoint {
     }
 }
 
+impl Drop for Checkpoint {
+    /// A run that fails before finishing any part leaves no checkpoint folder (nothing to resume,
+    /// and a bad input leaves no file); one with finished parts keeps them for `--resume`.
+    fn drop(&mut self) {
+        if self.journal.done.is_empty() {
+            let _ = std::fs::remove_dir_all(&self.dir);
+        }
+    }
+}
+
 /// Writes `bytes` to `path` atomically.
 fn write_file(path: &Path, bytes: &[u8]) -> Result<(), String> {
     super::write_atomic(path, |w| {

@@ -7,6 +7,40 @@ use std::io::Write;
 use std::path::Path;
 
 pub mod checkpoint;
+
+/// How much penumbra says on stderr: 0 errors and warnings only (`--quiet`), 1 also what it did
+/// (the default), 2 also details (`--verbose`).
+static VERBOSITY: std::sync::atomic::AtomicU8 = std::sync::atomic::AtomicU8::new(1);
+
+/// Sets the verbosity (see [`verbosity`]).
+pub fn set_verbosity(level: u8) {
+    VERBOSITY.store(level, std::sync::atomic::Ordering::Relaxed);
+}
+
+/// 0 errors and warnings only, 1 also what was done (default), 2 also details.
+pub fn verbosity() -> u8 {
+    VERBOSITY.load(std::sync::atomic::Ordering::Relaxed)
+}
+
+/// An informational line on stderr (what was done), silenced by `--quiet`.
+#[macro_export]
+macro_rules! note {
+    ($($arg:tt)*) => {
+        if $crate::output::verbosity() >= 1 {
+            eprintln!($($arg)*);
+        }
+    };
+}
+
+/// A detail line on stderr, shown with `--verbose` only.
+#[macro_export]
+macro_rules! detail {
+    ($($arg:tt)*) => {
+        if $crate::output::verbosity() >= 2 {
+            eprintln!($($arg)*);
+        }
+    };
+}
 pub mod cleanup;
 pub mod guard;
 
@@ -251,10 +285,10 @@ impl Provenance {
 
     /// Records the epoch range (first, last, count; UTC).
     pub fn set_epochs(&mut self, epochs: &[hifitime::Epoch]) {
-        use crate::ephem::time::format_utc;
+        use crate::ephem::time::format_iso;
         if let (Some(first), Some(last)) = (epochs.first(), epochs.last()) {
-            self.epoch_start_utc = format_utc(*first);
-            self.epoch_stop_utc = format_utc(*last);
+            self.epoch_start_utc = format_iso(*first);
+            self.epoch_stop_utc = format_iso(*last);
         }
         self.epoch_count = epochs.len();
     }
@@ -280,6 +314,9 @@ impl Default for Provenance {
 /// terminal).
 pub fn progress_bar(len: usize, template: &str) -> indicatif::ProgressBar {
     let progress = indicatif::ProgressBar::new(len as u64);
+    if verbosity() == 0 {
+        progress.set_draw_target(indicatif::ProgressDrawTarget::hidden());
+    }
     progress.set_style(
         indicatif::ProgressStyle::with_template(template)
             .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())

@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use hifitime::Epoch;
 
 use super::{EpochSpec, KernelSource, write_output};
-use crate::ephem::{self, AbCorr, Site, SunEarth, time::format_utc};
+use crate::ephem::{self, AbCorr, Site, SunEarth, time::format_iso};
 
 /// Output formats of a table.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -43,7 +43,7 @@ pub fn write_ephem_row(w: &mut dyn Write, epoch: Epoch, v: &SunEarth) -> std::io
     writeln!(
         w,
         "{},{:.9},{:.9},{:.6},{:.9},{:.9},{:.9},{:.6},{:.9}",
-        format_utc(epoch),
+        format_iso(epoch),
         v.sun.az_deg,
         v.sun.el_deg,
         v.sun.range_km,
@@ -93,7 +93,7 @@ pub fn run(req: &EphemRequest) -> anyhow::Result<()> {
                     "abcorr": abcorr.spice_name(),
                     "frame": "MOON_ME",
                     "epochs": epochs.iter().zip(rows).zip(&sub_points).map(|((e, v), (ss, se))| serde_json::json!({
-                        "utc": format_utc(*e),
+                        "utc": format_iso(*e),
                         "sun": v.sun,
                         "earth": v.earth,
                         "subsolar_point": ss,

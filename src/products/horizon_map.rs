@@ -43,7 +43,7 @@ pub fn build(req: &HorizonMapBuildRequest) -> anyhow::Result<()> {
     let t0 = std::time::Instant::now();
     let map = crate::compute::horizons::horizon_map(&backend, hf, &params)?;
     map.write_tiff(&req.out)?;
-    eprintln!(
+    crate::note!(
         "penumbra: horizon map {} x {} ({} azimuths, {} coefficients) on {} in {:.1} s -> {}",
         hf.rows,
         hf.cols,
@@ -185,7 +185,7 @@ pub fn sweep(req: &HorizonSweepRequest) -> anyhow::Result<()> {
     }
     let secs = t0.elapsed().as_secs_f64();
     let pixel_az = (dem.grid.rows * dem.grid.cols * dirs.len()) as f64;
-    eprintln!(
+    crate::note!(
         "penumbra: horizons {} x {} x {} directions (requested {}, max step {}, largest miss {:.2} deg) in {:.1} s ({:.2} M pixel-azimuths/s) -> {}",
         dem.grid.rows,
         dem.grid.cols,

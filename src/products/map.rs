@@ -4,7 +4,7 @@
 use std::path::PathBuf;
 
 use super::{EpochSpec, KernelSource, TerrainSource};
-use crate::ephem::{self, AbCorr, time::format_utc};
+use crate::ephem::{self, AbCorr};
 use crate::gpu::Backend;
 use crate::map::{MapEngineKind, ObserverPlacement};
 
@@ -160,14 +160,14 @@ pub fn run(req: &MapRequest) -> anyhow::Result<()> {
         )
         .map_err(anyhow::Error::msg)?;
         if let Some(note) = note {
-            eprintln!("{note}");
+            crate::note!("{note}");
         }
         let step_h = req.epochs.map_or(3600.0, |e| e.step_s()) / 3600.0;
         let engine_kind = match req.engine {
             Some(e) => e,
             None => {
                 let e = auto_engine(&backend, epochs.len(), &req.horizons);
-                eprintln!(
+                crate::note!(
                     "penumbra: --engine auto: {} for {} epochs",
                     if e == MapEngineKind::Horizons {
                         "horizons (whole-grid horizons once, then every epoch per pixel)"
@@ -198,9 +198,9 @@ pub fn run(req: &MapRequest) -> anyhow::Result<()> {
             &mut cp,
         )?;
         let span = format!(
-            "{} .. {} UTC, {} epochs",
-            format_utc(epochs[0]),
-            format_utc(*epochs.last().unwrap_or(&epochs[0])),
+            "{} .. {}, {} epochs",
+            crate::ephem::time::format_iso(epochs[0]),
+            crate::ephem::time::format_iso(*epochs.last().unwrap_or(&epochs[0])),
             epochs.len()
         );
         let files = write_sweep(
@@ -229,7 +229,7 @@ pub fn run(req: &MapRequest) -> anyhow::Result<()> {
         prov.wall_time_s = t0.elapsed().as_secs_f64();
         prov.write(&out_dir.join("run.json"))?;
         cp.finish();
-        eprintln!(
+        crate::note!(
             "penumbra: map statistics over {} epochs -> {} ({:.1} s)",
             epochs.len(),
             out_dir.display(),
@@ -239,9 +239,13 @@ pub fn run(req: &MapRequest) -> anyhow::Result<()> {
     }
 
     let grid = MapGrid::new(&stack)?;
-    eprintln!(
+    crate::note!(
         "penumbra: model grid {} x {} at {} m centred on ({:.4}, {:.4}) deg (every layer)",
-        grid.hf.rows, grid.hf.cols, grid.hf.px_m, grid.hf.centre_lat_deg, grid.hf.centre_lon_deg
+        grid.hf.rows,
+        grid.hf.cols,
+        grid.hf.px_m,
+        grid.hf.centre_lat_deg,
+        grid.hf.centre_lon_deg
     );
     grid.warn_if_clipped();
 
@@ -285,7 +289,7 @@ pub fn run(req: &MapRequest) -> anyhow::Result<()> {
         let f = maps.fraction(dir, radius)?;
         grid.write_f32(path, &f, EARTH_FRACTION_DESCRIPTION)?;
     }
-    eprintln!(
+    crate::note!(
         "penumbra: map written ({:.1} s)",
         t0.elapsed().as_secs_f64()
     );

@@ -45,11 +45,42 @@ impl TerrainSource {
                 let (stack, what) = synthetic_stack(params)?;
                 Ok((stack, vec![what]))
             }
-            TerrainSource::Dems(paths) => Ok((
-                load_stack(paths)?,
-                paths.iter().map(|p| p.display().to_string()).collect(),
-            )),
+            TerrainSource::Dems(paths) => {
+                let stack = load_stack(paths)?;
+                detail_terrain(&stack);
+                Ok((
+                    stack,
+                    paths.iter().map(|p| p.display().to_string()).collect(),
+                ))
+            }
         }
+    }
+}
+
+/// `--verbose`: the terrain layers read.
+pub fn detail_terrain(stack: &TerrainStack) {
+    for (i, l) in stack.layers.iter().enumerate() {
+        crate::detail!(
+            "penumbra: terrain layer {i}: {} ({} x {} px at {} m)",
+            l.name,
+            l.grid.rows,
+            l.grid.cols,
+            l.grid.px_x_m
+        );
+    }
+}
+
+/// `--verbose`: the kernel files loaded.
+pub fn detail_kernels(kernels: &Kernels) {
+    crate::detail!("penumbra: kernels from {}", kernels.source().display());
+    for f in &kernels.files {
+        crate::detail!(
+            "penumbra:   {} ({}, {} bytes, sha256 {})",
+            f.path.display(),
+            f.kind,
+            f.size_bytes,
+            f.sha256
+        );
     }
 }
 
@@ -102,7 +133,9 @@ impl KernelSource {
 
     /// Loads the kernels.
     pub fn load(&self) -> anyhow::Result<Kernels> {
-        Kernels::load(&self.dir()).context("loading SPICE kernels")
+        let kernels = Kernels::load(&self.dir()).context("loading SPICE kernels")?;
+        detail_kernels(&kernels);
+        Ok(kernels)
     }
 }
 

@@ -458,7 +458,7 @@ fn render_one_frame(
             "Software",
             format!("penumbra {}", env!("CARGO_PKG_VERSION")),
         ),
-        ("penumbra:epoch_utc", format_utc(epoch)),
+        ("penumbra:epoch_utc", crate::ephem::time::format_iso(epoch)),
         ("penumbra:sun_elevation_deg", format!("{sun_el_deg:.4}")),
         ("penumbra:camera", placed.what.clone()),
         ("penumbra:brdf", format!("{:?}", job.brdf)),
@@ -604,7 +604,7 @@ pub fn render_frames_kept(
         store.finished(k, &written)?;
         progress.inc(1);
         if let (false, Some(out)) = (many, written.last()) {
-            eprintln!(
+            crate::note!(
                 "penumbra: rendered {} x {} px at {} (Sun elevation {sun_el_deg:.3} deg) to {} in {:.2} s",
                 opts.width,
                 opts.height,
@@ -617,7 +617,7 @@ pub fn render_frames_kept(
     }
     progress.finish_and_clear();
     if many {
-        eprintln!(
+        crate::note!(
             "penumbra: rendered {} frames of {} x {} px to {} ... {} in {:.2} s",
             frames.len(),
             opts.width,

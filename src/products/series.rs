@@ -54,7 +54,7 @@ pub fn run(req: &SeriesRequest) -> anyhow::Result<()> {
     prov.series_backend = Some(run.backend);
     prov.wall_time_s = t0.elapsed().as_secs_f64();
     prov.write(&req.out_dir.join("run.json"))?;
-    eprintln!(
+    crate::note!(
         "penumbra: {} site(s) x {} epochs -> {} ({:.1} s)",
         req.sites.len(),
         epochs.len(),

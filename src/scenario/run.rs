@@ -44,6 +44,7 @@ pub fn run_file(args: &RunRequest) -> anyhow::Result<()> {
     let step = ephem::time::parse_step(&scenario.time.step).context("[time] step")?;
     let epochs = ephem::time::epoch_range(start, stop, step)?;
     let kernels = ephem::Kernels::load(&kernel_dir).context("loading SPICE kernels")?;
+    crate::products::detail_kernels(&kernels);
     // Fail on coverage before loading terrain or writing anything.
     ephem::moon_geometry_table(&kernels, &[epochs[0], *epochs.last().unwrap_or(&epochs[0])])?;
 
@@ -67,7 +68,7 @@ pub fn run_file(args: &RunRequest) -> anyhow::Result<()> {
     let (mut cp, note) =
         Checkpoint::open(&out_dir, &fingerprint, args.resume).map_err(anyhow::Error::msg)?;
     if let Some(note) = note {
-        eprintln!("{note}");
+        crate::note!("{note}");
     }
 
     match (&stack, &scenario.series) {
@@ -258,9 +259,9 @@ pub fn run_file(args: &RunRequest) -> anyhow::Result<()> {
     let kept = cp.resumed_parts();
     cp.finish();
     if kept > 0 {
-        eprintln!("penumbra: resumed: {kept} finished part(s) of the earlier run kept");
+        crate::note!("penumbra: resumed: {kept} finished part(s) of the earlier run kept");
     }
-    eprintln!(
+    crate::note!(
         "penumbra: {} file(s) and run.json written to {} ({} sites, {} epochs, {:.1} s)",
         prov.outputs.len(),
         out_dir.display(),
@@ -354,6 +355,7 @@ fn load_terrain(
     let paths: Vec<PathBuf> = spec.layers.iter().map(|p| base.join(p)).collect();
     prov.dem_layers = paths.iter().map(|p| p.display().to_string()).collect();
     let stack = crate::terrain::TerrainStack::load(&paths)?;
+    crate::products::detail_terrain(&stack);
     prov.dem_files = paths
         .iter()
         .map(|p| crate::output::InputFile::of(p))
@@ -420,9 +422,9 @@ fn run_map_spec(
     let dir = out_dir.join("map");
     std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
     let span = format!(
-        "{} .. {} UTC, {} epochs every {}",
-        ephem::time::format_utc(epochs[0]),
-        ephem::time::format_utc(*epochs.last().unwrap_or(&epochs[0])),
+        "{} .. {}, {} epochs every {}",
+        ephem::time::format_iso(epochs[0]),
+        ephem::time::format_iso(*epochs.last().unwrap_or(&epochs[0])),
         epochs.len(),
         spec.step
     );

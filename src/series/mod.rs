@@ -24,7 +24,7 @@ use anyhow::Context as _;
 use hifitime::Epoch;
 use rayon::prelude::*;
 
-use crate::ephem::{self, Kernels, MoonGeometry, Site, time::format_utc};
+use crate::ephem::{self, Kernels, MoonGeometry, Site, time::format_iso};
 use crate::horizon::{self, Horizon, HorizonParams};
 use crate::illum::stats::{SiteSeries, StatsFile};
 use crate::illum::{self, Disc, HorizonProfile, LimbDarkening};
@@ -366,7 +366,7 @@ fn write_row(w: &mut dyn Write, epoch: Epoch, r: &SeriesRow) -> std::io::Result<
     writeln!(
         w,
         "{},{:.6},{:.6},{:.6},{:.6},{:.3},{:.3},{:.3},{:.6},{:.6},{:.6},{:.6}",
-        format_utc(epoch),
+        format_iso(epoch),
         v[0],
         v[1],
         v[2],
@@ -469,13 +469,9 @@ pub fn run_series(
     std::fs::create_dir_all(out_dir)
         .with_context(|| format!("creating output folder {}", out_dir.display()))?;
 
-    let progress = indicatif::ProgressBar::new((sites.len() * epochs.len()) as u64);
-    progress.set_style(
-        indicatif::ProgressStyle::with_template(
-            "{spinner} series [{bar:30}] {percent}% ({pos}/{len} site-epochs, eta {eta})",
-        )
-        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
-        .progress_chars("=> "),
+    let progress = crate::output::progress_bar(
+        sites.len() * epochs.len(),
+        "{spinner} series [{bar:30}] {percent}% ({pos}/{len} site-epochs, eta {eta})",
     );
     let outcomes: Vec<SiteOutcome> = sites
         .par_iter()

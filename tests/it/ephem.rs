@@ -187,7 +187,7 @@ fn ephem_cli_prints_the_documented_csv() {
     );
     let row: Vec<&str> = lines.next().unwrap().split(',').collect();
     assert_eq!(row.len(), 9);
-    assert_eq!(row[0], "2024-01-03T00:00:00");
+    assert_eq!(row[0], "2024-01-03T00:00:00Z");
     for angle in [row[1], row[2], row[4], row[5], row[6], row[8]] {
         let decimals = angle.split('.').nth(1).unwrap().len();
         assert!(decimals >= 9, "{angle} has {decimals} decimals");
@@ -223,7 +223,7 @@ fn ephem_range_to_file_and_json() {
     let doc: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.path().join("e.json")).unwrap()).unwrap();
     assert_eq!(doc["epochs"].as_array().unwrap().len(), 5);
-    assert_eq!(doc["epochs"][4]["utc"], "2024-01-02T00:00:00");
+    assert_eq!(doc["epochs"][4]["utc"], "2024-01-02T00:00:00Z");
     assert_eq!(files_in(dir.path()), vec!["e.json".to_string()]);
 }
 

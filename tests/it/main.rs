@@ -1,6 +1,7 @@
 //! penumbra's integration tests: one binary, one module per area (anise/ripgrep layout).
 
 mod blocking;
+mod cli;
 mod ephem;
 mod fourier;
 mod fuzz;

@@ -160,7 +160,7 @@ fn cli_renders_a_png() {
     assert_eq!(img.dimensions(), (64, 48));
     assert_eq!(
         png_text(&bytes, "penumbra:epoch_utc").as_deref(),
-        Some("2027-02-05T00:00:00")
+        Some("2027-02-05T00:00:00Z")
     );
     let sun_el_deg: f64 = png_text(&bytes, "penumbra:sun_elevation_deg")
         .expect("tEXt Sun elevation")

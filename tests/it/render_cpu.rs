@@ -406,11 +406,11 @@ fn cli_epoch_range_writes_numbered_frames_and_radiance() {
     written.retain(|n| n != "seq.run.json");
     assert_eq!(listed, written);
     assert_eq!(prov["epoch_count"], 3);
-    assert_eq!(prov["epoch_start_utc"], "2027-01-20T00:00:00");
+    assert_eq!(prov["epoch_start_utc"], "2027-01-20T00:00:00Z");
     for (k, want_utc) in [
-        "2027-01-20T00:00:00",
-        "2027-01-20T06:00:00",
-        "2027-01-20T12:00:00",
+        "2027-01-20T00:00:00Z",
+        "2027-01-20T06:00:00Z",
+        "2027-01-20T12:00:00Z",
     ]
     .iter()
     .enumerate()
@@ -627,7 +627,7 @@ height = 12
     assert_eq!((img.width(), img.height()), (24, 16));
     let bytes = std::fs::read(rdir.join("seq_0001.png")).unwrap();
     let utc = crate::util::png_text(&bytes, "penumbra:epoch_utc");
-    assert_eq!(utc.as_deref(), Some("2027-01-20T06:00:00"));
+    assert_eq!(utc.as_deref(), Some("2027-01-20T06:00:00Z"));
 
     let dir = tempfile::tempdir().unwrap();
     let bad = "[[render.views]]\nout = \"x.png\"\nlat_deg = -89.6\nlon_deg = 0.0\nfrobnicate = 1\nutc = \"2027-01-20\"\n";

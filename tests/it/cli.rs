@@ -1,0 +1,224 @@
+//! Command-line habits: completions, man pages, `-q`/`-v`, ISO 8601 times with `Z` in every
+//! output, the epoch forms SPICE users type.
+
+use crate::util::{assert_clean_error, kernels_dir, penumbra, penumbra_ok};
+
+fn stdout(o: &std::process::Output) -> String {
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+fn stderr(o: &std::process::Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+#[test]
+fn completions_and_man_pages_cover_every_command() {
+    let dir = tempfile::tempdir().unwrap();
+    for shell in ["bash", "zsh", "fish", "elvish", "powershell"] {
+        let o = penumbra_ok(dir.path(), &["completions", shell]);
+        let text = stdout(&o);
+        for word in ["horizon-map", "resume", "kernels", "quiet"] {
+            assert!(text.contains(word), "{shell}: {word} missing");
+        }
+    }
+    assert_clean_error(
+        &penumbra(dir.path(), &["completions", "tcsh"]),
+        "invalid value",
+    );
+    let o = penumbra_ok(dir.path(), &["man"]);
+    let page = stdout(&o);
+    assert!(
+        page.contains(".TH penumbra 1"),
+        "{}",
+        &page[..200.min(page.len())]
+    );
+    assert!(page.contains("horizon\\-map"));
+    penumbra_ok(dir.path(), &["man", "--out-dir", "man"]);
+    let pages = crate::util::files_in(&dir.path().join("man"));
+    for cmd in [
+        "penumbra.1",
+        "penumbra-map.1",
+        "penumbra-run.1",
+        "penumbra-series.1",
+        "penumbra-render.1",
+    ] {
+        assert!(pages.contains(&cmd.to_string()), "{cmd} missing: {pages:?}");
+    }
+    let map_page = std::fs::read_to_string(dir.path().join("man/penumbra-map.1")).unwrap();
+    assert!(map_page.contains("\\-\\-resume"), "map page lacks --resume");
+}
+
+#[test]
+fn quiet_silences_progress_and_summaries_and_verbose_adds_details() {
+    let dir = tempfile::tempdir().unwrap();
+    let k = kernels_dir();
+    let series = |flag: Option<&str>, out: &str| {
+        let mut args: Vec<&str> = flag.into_iter().collect();
+        args.extend([
+            "series",
+            "--synthetic",
+            "--site",
+            "a,-89.9,0,2",
+            "--start",
+            "2025-01-01",
+            "--stop",
+            "2025-01-02",
+            "--step",
+            "6h",
+            "--no-plots",
+            "--kernels",
+            k.to_str().unwrap(),
+            "--out-dir",
+            out,
+        ]);
+        penumbra_ok(dir.path(), &args)
+    };
+    let normal = stderr(&series(None, "n"));
+    assert!(
+        normal.contains("penumbra: 1 site(s) x 5 epochs"),
+        "{normal}"
+    );
+    let quiet = stderr(&series(Some("-q"), "q"));
+    assert!(quiet.is_empty(), "--quiet said: {quiet}");
+    let verbose = stderr(&series(Some("--verbose"), "v"));
+    assert!(verbose.contains("penumbra: kernels from"), "{verbose}");
+    assert!(verbose.contains("sha256"), "{verbose}");
+    // The same files whatever the verbosity.
+    for f in ["a/series.csv", "stats.json"] {
+        assert_eq!(
+            std::fs::read(dir.path().join("n").join(f)).unwrap(),
+            std::fs::read(dir.path().join("q").join(f)).unwrap(),
+            "{f}"
+        );
+    }
+    assert_clean_error(
+        &penumbra(dir.path(), &["-q", "-v", "kernels"]),
+        "cannot be used with",
+    );
+}
+
+#[test]
+fn every_output_writes_utc_with_z() {
+    let dir = tempfile::tempdir().unwrap();
+    let k = kernels_dir();
+    let o = penumbra_ok(
+        dir.path(),
+        &[
+            "ephem",
+            "--lat-deg",
+            "-89.9",
+            "--lon-deg",
+            "0",
+            "--start",
+            "2025-01-01",
+            "--stop",
+            "2025-01-01T02:00",
+            "--step",
+            "1h",
+            "--kernels",
+            k.to_str().unwrap(),
+        ],
+    );
+    let csv = stdout(&o);
+    let rows: Vec<&str> = csv.lines().skip(1).collect();
+    assert_eq!(rows.len(), 3);
+    assert!(rows[2].starts_with("2025-01-01T02:00:00Z,"), "{}", rows[2]);
+    penumbra_ok(
+        dir.path(),
+        &[
+            "series",
+            "--synthetic",
+            "--site",
+            "a,-89.9,0,2",
+            "--start",
+            "2025-01-01",
+            "--stop",
+            "2025-01-01T12:00",
+            "--step",
+            "6h",
+            "--no-plots",
+            "--kernels",
+            k.to_str().unwrap(),
+            "--out-dir",
+            "s",
+        ],
+    );
+    let series = std::fs::read_to_string(dir.path().join("s/a/series.csv")).unwrap();
+    assert!(
+        series
+            .lines()
+            .nth(1)
+            .unwrap()
+            .starts_with("2025-01-01T00:00:00Z,")
+    );
+    let run: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("s/run.json")).unwrap())
+            .unwrap();
+    assert_eq!(run["epoch_start_utc"], "2025-01-01T00:00:00Z");
+    assert_eq!(run["epoch_stop_utc"], "2025-01-01T12:00:00Z");
+    let stats: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("s/stats.json")).unwrap())
+            .unwrap();
+    assert!(stats.to_string().contains("2025-01-01T00:00:00Z"));
+}
+
+/// DOY, SPICE month names, UTC offsets and TDB give the same rows as the plain UTC form (the
+/// TDB form within the CSV's precision: its instant is 0.2 ms from the UTC one).
+#[test]
+fn epochs_in_spice_forms_give_the_same_ephemerides() {
+    let dir = tempfile::tempdir().unwrap();
+    let k = kernels_dir();
+    let row = |utc: &str| {
+        let o = penumbra(
+            dir.path(),
+            &[
+                "ephem",
+                "--lat-deg",
+                "-89.9",
+                "--lon-deg",
+                "0",
+                "--utc",
+                utc,
+                "--kernels",
+                k.to_str().unwrap(),
+            ],
+        );
+        assert!(o.status.success(), "{utc}: {}", stderr(&o));
+        stdout(&o).lines().nth(1).unwrap().to_string()
+    };
+    let want = row("2024-02-01T12:00:00");
+    for form in [
+        "2024-032T12:00",
+        "2024 FEB 01 12:00:00",
+        "2024-feb-01 12:00",
+        "2024-02-01T14:00+02:00",
+        "2024-02-01T07:00-05:00",
+    ] {
+        assert_eq!(row(form), want, "{form}");
+    }
+    let tdb = row("2024-02-01T12:01:09.184 TDB");
+    let fields = |r: &str| -> Vec<f64> {
+        r.split(',')
+            .skip(1)
+            .map(|x| x.parse::<f64>().unwrap())
+            .collect()
+    };
+    for (a, b) in fields(&tdb).iter().zip(fields(&want)) {
+        assert!((a - b).abs() <= 1e-6 * b.abs().max(1.0), "{tdb} vs {want}");
+    }
+    assert_clean_error(
+        &penumbra(
+            dir.path(),
+            &[
+                "ephem",
+                "--lat-deg",
+                "-89.9",
+                "--lon-deg",
+                "0",
+                "--utc",
+                "2023-366",
+            ],
+        ),
+        "day of year 366",
+    );
+}
