@@ -35,9 +35,9 @@ pub struct HorizonArgs {
     /// Output file (written atomically); stdout when absent.
     #[arg(long, value_name = "FILE")]
     pub out: Option<PathBuf>,
-    /// Compute backend: `gpu` runs the GPU horizon scan (sampled like `--method exact`;
-    /// `--method` is then ignored), `auto` the GPU when a hardware adapter exists else the CPU.
-    #[arg(long, value_enum, default_value_t = BackendArg::Cpu)]
+    /// Compute backend: `auto` (default; for one site the CPU scan of `--method`), `cpu`, or
+    /// `gpu` (the GPU horizon scan, sampled like `--method exact`; `--method` is then ignored).
+    #[arg(long, value_enum, default_value_t = BackendArg::Auto)]
     pub backend: BackendArg,
 }
 

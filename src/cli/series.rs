@@ -61,8 +61,9 @@ pub struct SeriesArgs {
     /// Compute backend: with `--engine horizon`, of the horizons (`gpu`: GPU horizon scan,
     /// sampled like the exact method; `--horizon-method` is then ignored); with
     /// `--engine smap-dp`, of the per-site DP searches (profiles and every epoch's Sun and Earth).
-    /// `auto`: GPU when a hardware adapter exists; `cpu`.
-    #[arg(long, value_enum, default_value_t = BackendArg::Cpu)]
+    /// `auto` (default, as in every command): the CPU scans for `--engine horizon`, the GPU for
+    /// `--engine smap-dp` when a hardware adapter exists (else the CPU, with one warning line).
+    #[arg(long, value_enum, default_value_t = BackendArg::Auto)]
     pub backend: BackendArg,
     /// Engine of the visible fractions: horizon (per-site horizons from every DEM layer) or
     /// smap-dp (the map pipeline's model grid + DP search at each site; finest layer only;

@@ -98,8 +98,9 @@ pub struct SeriesConfig {
     pub write_csv: bool,
     /// The engine of the visible fractions.
     pub engine: SeriesEngine,
-    /// Where the horizons are computed: `cpu` (default), `gpu` (the GPU horizon scan, sampled
-    /// like the exact method; `horizon_method` is then ignored) or `auto` (see docs/gpu.md).
+    /// Where the horizons are computed: `auto` (default: the CPU scan for the horizon engine,
+    /// the GPU for smap-dp when a hardware adapter exists), `cpu`, or `gpu` (the GPU horizon
+    /// scan, sampled like the exact method; `horizon_method` is then ignored). See docs/gpu.md.
     #[serde(with = "backend_serde")]
     pub backend: crate::gpu::Backend,
 }
@@ -157,7 +158,7 @@ impl Default for SeriesConfig {
             plots: true,
             write_csv: true,
             engine: SeriesEngine::Horizon,
-            backend: crate::gpu::Backend::Cpu,
+            backend: crate::gpu::Backend::Auto,
         }
     }
 }

@@ -72,7 +72,9 @@ fn site_horizons_on(
     sites: &[SeriesSite],
     config: &SeriesConfig,
 ) -> anyhow::Result<(Vec<Horizon>, String)> {
-    if config.backend != crate::gpu::Backend::Cpu {
+    // `auto` takes the CPU scan here: for a few sites it is the fast method (`--horizon-method
+    // fast`, ≤ 0.002 deg), while the GPU scan samples like the exact one.
+    if config.backend == crate::gpu::Backend::Gpu {
         let resolved = crate::gpu::resolve_backend(config.backend)
             .with_context(|| format!("resolving backend {}", config.backend.as_str()))?;
         if let crate::gpu::ResolvedBackend::Gpu(ctx) = resolved {
@@ -406,19 +408,6 @@ pub fn run_series(
     if sites.is_empty() {
         anyhow::bail!("no sites given");
     }
-    // smap-dp on the GPU: `gpu` needs an adapter (else one error line), `auto` takes a hardware
-    // one or falls back to the CPU with one warning line (crate::gpu::resolve_backend).
-    let gpu_ctx = match (config.engine, config.backend) {
-        (SeriesEngine::SmapDp, backend) if backend != crate::gpu::Backend::Cpu => {
-            match crate::gpu::resolve_backend(backend)
-                .with_context(|| format!("resolving backend {}", backend.as_str()))?
-            {
-                crate::gpu::ResolvedBackend::Gpu(ctx) => Some(ctx),
-                crate::gpu::ResolvedBackend::Cpu => None,
-            }
-        }
-        _ => None,
-    };
     let mut gpu_fractions: Option<Vec<(Vec<f64>, Vec<f64>)>> = None;
     let mut backend_note = "cpu: smap-dp searches".to_string();
     let (horizons, dp, table) = match config.engine {
@@ -441,6 +430,20 @@ pub fn run_series(
                     .with_context(|| format!("site '{}'", s.name))
                 })
                 .collect::<anyhow::Result<Vec<_>>>()?;
+            // smap-dp on the GPU: `gpu` needs an adapter (else one error line), `auto` takes a hardware
+            // one or falls back to the CPU with one warning line (crate::gpu::resolve_backend).
+            // (resolved after the sites are checked: a bad site is one error line, no backend warning)
+            let gpu_ctx = match (config.engine, config.backend) {
+                (SeriesEngine::SmapDp, backend) if backend != crate::gpu::Backend::Cpu => {
+                    match crate::gpu::resolve_backend(backend)
+                        .with_context(|| format!("resolving backend {}", backend.as_str()))?
+                    {
+                        crate::gpu::ResolvedBackend::Gpu(ctx) => Some(ctx),
+                        crate::gpu::ResolvedBackend::Cpu => None,
+                    }
+                }
+                _ => None,
+            };
             match gpu_ctx.as_deref() {
                 Some(ctx) => {
                     let gpu = dp::SmapDpGpu::new(ctx, &dp)?;
