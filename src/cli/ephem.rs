@@ -34,8 +34,14 @@ pub struct EphemArgs {
     /// Site east longitude, degrees.
     #[arg(long, allow_hyphen_values = true)]
     pub lon_deg: f64,
-    /// Site height above the 1737.4 km reference sphere, metres.
-    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    /// Site height above the 1737.4 km reference sphere, metres (not above the ground: the
+    /// ephemerides need no DEM; `--height-m` is an old alias).
+    #[arg(
+        long = "height-above-sphere-m",
+        alias = "height-m",
+        default_value_t = 0.0,
+        allow_hyphen_values = true
+    )]
     pub height_m: f64,
     /// Epoch(s).
     #[command(flatten)]

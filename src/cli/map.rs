@@ -30,13 +30,15 @@ impl From<ObserversArg> for penumbra::map::ObserverPlacement {
 pub enum EngineArg {
     /// Brute-force ray march (the reference; slow).
     Brute,
-    /// SMap hard shadows (paper 004); soft fractions via SMap + DP.
+    /// SMap hard shadows ("Real-time terrain shadowing by directional light"); soft fractions
+    /// via SMap + DP.
     Smap,
-    /// DP maximum-mipmap soft shadows everywhere (papers 000/003).
+    /// DP maximum-mipmap soft shadows everywhere (Jung, Schrempp and Son: dynamic programming
+    /// and maximum mipmaps).
     Dp,
     /// SMap at the disc limbs + DP in the penumbra only (the design's combination).
     Combined,
-    /// Fourier-compressed horizon maps (paper 001): per-cell horizons at 64 azimuths, 16 complex
+    /// Fourier-compressed horizon maps (Fritsch et al.): per-cell horizons at 64 azimuths, 16 complex
     /// DFT coefficients in f16, built once; each light is then a cheap evaluation.
     Fourier,
     /// Epoch ranges only: exact whole-grid horizons (line sweep, every layer; or --horizons

@@ -60,10 +60,12 @@ pub enum Command {
     /// List the GPU adapters wgpu finds (honours WGPU_BACKEND): name, backend, device type,
     /// driver and the compute limits that bound penumbra's kernels.
     GpuInfo(gpu_info::GpuInfoArgs),
-    /// Render the terrain seen from a camera at one epoch (CPU reference renderer): Lambert
-    /// sunlight + earthshine with soft shadows, 8-bit sRGB PNG.
+    /// Render the terrain seen from a camera at an epoch or a sequence of epochs: sunlight and
+    /// earthshine with soft shadows (Hapke BRDF by default; the GPU when one exists), 8-bit
+    /// sRGB PNG and optionally a radiance GeoTIFF.
     Render(render::RenderArgs),
-    /// Fourier-compressed horizon maps (paper 001): build one from a DEM, or describe one.
+    /// Horizon maps: exact whole-grid horizons by the line sweep (`sweep`), or Fourier-compressed
+    /// ones (Fritsch et al.; `build`, `info`).
     HorizonMap {
         /// The horizon-map action.
         #[command(subcommand)]

@@ -19,7 +19,7 @@ pub enum BrdfArg {
 /// Camera kind of `penumbra render`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum CameraArg {
-    /// At a site: --lat-deg/--lon-deg, --height-m above the ground, looking along
+    /// At a site: --lat-deg/--lon-deg, --observer-height-m above the ground, looking along
     /// --look-az-deg/--look-el-deg.
     Site,
     /// In orbit: --lat-deg/--lon-deg, --altitude-km above the 1737.4 km sphere, looking at the
@@ -42,8 +42,14 @@ pub struct RenderArgs {
     /// Camera east longitude, degrees.
     #[arg(long, allow_hyphen_values = true)]
     pub lon_deg: f64,
-    /// Site camera: height above the ground (DEM), metres.
-    #[arg(long, default_value_t = penumbra::DEFAULT_OBSERVER_HEIGHT_M, allow_hyphen_values = true)]
+    /// Site camera: height above the ground (DEM), metres (as `--observer-height-m` of `horizon`
+    /// and `map`; `--height-m` is an old alias).
+    #[arg(
+        long = "observer-height-m",
+        alias = "height-m",
+        default_value_t = penumbra::DEFAULT_OBSERVER_HEIGHT_M,
+        allow_hyphen_values = true
+    )]
     pub height_m: f64,
     /// Site camera: view azimuth, degrees from north clockwise (local frame of the site).
     #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
@@ -67,11 +73,11 @@ pub struct RenderArgs {
     /// `<stem>_0000.png`, `<stem>_0001.png`, ...
     #[command(flatten)]
     pub epochs: EpochArgs,
-    /// Image width, pixels.
-    #[arg(long, default_value_t = penumbra::products::render::DEFAULT_WIDTH_PX)]
+    /// Image width, pixels (`--width` is an old alias).
+    #[arg(long = "width-px", alias = "width", default_value_t = penumbra::products::render::DEFAULT_WIDTH_PX)]
     pub width: u32,
-    /// Image height, pixels.
-    #[arg(long, default_value_t = penumbra::products::render::DEFAULT_HEIGHT_PX)]
+    /// Image height, pixels (`--height` is an old alias).
+    #[arg(long = "height-px", alias = "height", default_value_t = penumbra::products::render::DEFAULT_HEIGHT_PX)]
     pub height: u32,
     /// Surface BRDF.
     #[arg(long, value_enum, default_value_t = BrdfArg::Hapke)]

@@ -39,8 +39,8 @@ pub struct SeriesArgs {
     /// Aberration correction: lt+s or none.
     #[arg(long, default_value = "lt+s")]
     pub abcorr: String,
-    /// Disc integration: exact (strip integral, default), segment (paper 001 circular segment)
-    /// or middle-value.
+    /// Disc integration: exact (strip integral, default), segment (the circular segment of
+    /// Fritsch et al.) or middle-value.
     #[arg(long, value_enum, default_value_t = DiscMethodArg::Exact)]
     pub disc_method: DiscMethodArg,
     /// Solar limb darkening used to flux-weight the Sun's visible fraction.
@@ -83,7 +83,7 @@ pub struct SeriesArgs {
 pub enum DiscMethodArg {
     /// Exact strip integral.
     Exact,
-    /// Circular segment under the line through the disc's edge azimuths (paper 001).
+    /// Circular segment under the line through the disc's edge azimuths (Fritsch et al.).
     Segment,
     /// Horizontal chord at the centre azimuth's horizon (Max 1988).
     MiddleValue,

@@ -325,7 +325,8 @@ fn place_camera(
         } => {
             if !(height_m >= 0.0 && height_m.is_finite()) {
                 anyhow::bail!(
-                    "--height-m {height_m} puts the camera below the terrain surface: give a finite height >= 0"
+                    "camera height {height_m} m above the ground (--observer-height-m, or height_m \
+                     in a scenario) puts it below the terrain surface: give a finite height >= 0"
                 );
             }
             let (ground_m, _) = stack.height_at_lat_lon_m_checked(lat_deg, lon_deg)?;

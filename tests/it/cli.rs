@@ -222,3 +222,73 @@ fn epochs_in_spice_forms_give_the_same_ephemerides() {
         "day of year 366",
     );
 }
+
+/// Help written for users: no rustdoc link syntax, no internal paper numbers, and no flag name
+/// with two meanings (`--height-m` was "above the sphere" in `ephem` and "above the ground" in
+/// `render`; the visible names are now `--height-above-sphere-m` and `--observer-height-m`, the
+/// old ones hidden aliases).
+#[test]
+fn help_is_for_users_and_flag_names_have_one_meaning() {
+    let dir = tempfile::tempdir().unwrap();
+    let commands: &[&[&str]] = &[
+        &[],
+        &["ephem"],
+        &["kernels"],
+        &["run"],
+        &["horizon"],
+        &["map"],
+        &["series"],
+        &["dem", "info"],
+        &["dem", "synth"],
+        &["gpu-info"],
+        &["render"],
+        &["horizon-map", "build"],
+        &["horizon-map", "sweep"],
+        &["horizon-map", "info"],
+        &["completions"],
+        &["man"],
+    ];
+    for cmd in commands {
+        let mut args = cmd.to_vec();
+        args.push("--help");
+        let help = stdout(&penumbra_ok(dir.path(), &args));
+        for bad in [
+            "[`",
+            "paper 0",
+            "papers 0",
+            "--height-m <",
+            "--width <",
+            "--height <",
+        ] {
+            assert!(
+                !help.contains(bad),
+                "penumbra {cmd:?} --help shows {bad:?}:\n{help}"
+            );
+        }
+    }
+    let render = stdout(&penumbra_ok(dir.path(), &["render", "--help"]));
+    for flag in ["--observer-height-m", "--width-px", "--height-px"] {
+        assert!(render.contains(flag), "render --help lacks {flag}");
+    }
+    // The old names still work: the same row from both spellings.
+    let k = kernels_dir();
+    let row = |flag: &str| {
+        stdout(&penumbra_ok(
+            dir.path(),
+            &[
+                "ephem",
+                "--lat-deg",
+                "-89.9",
+                "--lon-deg",
+                "0",
+                flag,
+                "1957",
+                "--utc",
+                "2025-01-01",
+                "--kernels",
+                k.to_str().unwrap(),
+            ],
+        ))
+    };
+    assert_eq!(row("--height-m"), row("--height-above-sphere-m"));
+}

@@ -11,7 +11,7 @@ use crate::output::BelowSphereExits;
 pub trait BlockStore {
     /// The finished block of `rows`, if there is one (`None` → compute it).
     fn load(&mut self, rows: Range<usize>) -> Option<Vec<u8>>;
-    /// Keeps the finished block of `rows` (the bytes of [`HorizonStatistics::block_bytes`]).
+    /// Keeps the finished block of `rows` (a block of rows as bytes: first pixel, pixel and epoch counts, the arrays).
     fn store(&mut self, rows: Range<usize>, bytes: &[u8]) -> Result<(), String>;
 }
 
