@@ -112,6 +112,11 @@ pub struct MapArgs {
     /// uninterrupted run's.
     #[arg(long, requires = "out_dir")]
     pub resume: bool,
+    /// Epoch range: compute shard I of N only (0 <= I < N; a block of rows of the finest layer,
+    /// horizons engine) and write a partial (shard.json + shard.pnbstat) into --out-dir;
+    /// `penumbra merge` combines the N partials into this command's maps (docs/SCALING.md).
+    #[arg(long, value_name = "I/N", value_parser = penumbra::products::shard::Shard::parse, requires = "out_dir")]
+    pub shard: Option<penumbra::products::shard::Shard>,
     /// Compute backend: `gpu` (DP max-mipmap soft shadows of the discs for sweeps and one-light
     /// maps whatever `--engine` says, except `fourier` one-light maps: horizon map built and
     /// evaluated on the GPU), `cpu` (the engine of `--engine`) or `auto` (the GPU when a hardware
@@ -192,6 +197,7 @@ pub fn run(args: &MapArgs) -> anyhow::Result<()> {
         out_earth_fraction: args.out_earth_fraction.clone(),
         out_dir: args.out_dir.clone(),
         resume: args.resume,
+        shard: args.shard,
         backend: args.backend.into(),
         gpu_tile_cells: args.gpu_tile_cells,
         observers: args.observers.map(Into::into),

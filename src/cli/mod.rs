@@ -19,6 +19,18 @@ mod render;
 mod run;
 mod series;
 
+/// Arguments of `penumbra merge`.
+#[derive(Debug, Clone, Args)]
+pub struct MergeArgs {
+    /// Output folder of the merged maps and their run.json.
+    #[arg(long, value_name = "DIR")]
+    pub out_dir: PathBuf,
+    /// The shards' output folders (each holding shard.json and shard.pnbstat), all N of one job
+    /// in any order.
+    #[arg(value_name = "SHARD_DIR", required = true)]
+    pub shards: Vec<PathBuf>,
+}
+
 /// penumbra: sunlight and earthlight at the lunar poles.
 #[derive(Debug, Parser)]
 #[command(name = "penumbra", version, about, long_about = None)]
@@ -48,6 +60,9 @@ pub enum Command {
     /// Illumination maps: one light (Sun fraction, hard mask, Earth fraction) or statistics over
     /// an epoch range (average illumination, longest darkness, PSR, Earth visibility).
     Map(map::MapArgs),
+    /// Combine the partials of `penumbra map --shard I/N` into the maps of the whole job (the
+    /// same bytes as one `penumbra map` run).
+    Merge(MergeArgs),
     /// Per-site illumination time series: Sun and Earth visible fractions, irradiance,
     /// statistics and plots.
     Series(series::SeriesArgs),
@@ -104,6 +119,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Dem { command } => dem::run(command),
         Command::Series(args) => series::run(&args),
         Command::Map(args) => map::run(&args),
+        Command::Merge(args) => penumbra::products::shard::merge(&args.out_dir, &args.shards),
         Command::Horizon(args) => horizon::run(&args),
         Command::GpuInfo(args) => gpu_info::run(&args),
         Command::Render(args) => render::run(&args),

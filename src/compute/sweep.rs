@@ -147,6 +147,34 @@ fn horizon_statistics(
     store: &mut dyn BlockStore,
 ) -> anyhow::Result<RangeResult> {
     let fine = stack.layers.first().context("no DEM layer")?;
+    let rows = 0..fine.grid.rows;
+    let (stats, note) = horizon_statistics_rows(
+        backend, stack, map, kernels, epochs, abcorr, report, store, rows,
+    )?;
+    Ok(RangeResult {
+        stats: SweepStats::from_horizons(stats, step_h, map.limb.name()),
+        note,
+        model: None,
+    })
+}
+
+/// The horizons engine's raw statistics of the finest layer's `rows` (all of them, or a shard's:
+/// then the sweep keeps only those rows' horizons and memory scales with the rows), and what
+/// ran. Pixel `i` of the result is the grid's pixel `rows.start · cols + i`; the values are bit
+/// for bit those of a whole-grid run. `map.engine` is not looked at.
+#[allow(clippy::too_many_arguments, reason = "range_statistics' arguments")]
+pub fn horizon_statistics_rows(
+    backend: &ResolvedBackend,
+    stack: &TerrainStack,
+    map: &RangeMap,
+    kernels: &Kernels,
+    epochs: &[Epoch],
+    abcorr: AbCorr,
+    report: Report<'_>,
+    store: &mut dyn BlockStore,
+    rows: std::ops::Range<usize>,
+) -> anyhow::Result<(crate::horizon::statistics::HorizonStatistics, String)> {
+    let fine = stack.layers.first().context("no DEM layer")?;
     let engine = StatisticsEngine::new(
         stack,
         StatisticsParams {
@@ -176,7 +204,8 @@ fn horizon_statistics(
                     azimuths: *azimuths,
                     max_step: *max_step,
                 },
-            )?;
+            )?
+            .with_rows(rows.clone())?;
             let progress = crate::output::progress_bar(
                 sweep.directions().len(),
                 "penumbra: horizons [{bar:40}] {pos}/{len} directions, {elapsed} (eta {eta})",
@@ -189,7 +218,7 @@ fn horizon_statistics(
             progress.finish_and_clear();
             crate::note!(
                 "penumbra: horizons of {} x {} px toward {} directions in {:.1} s ({:.0} MB)",
-                fine.grid.rows,
+                rows.len(),
                 fine.grid.cols,
                 sweep.directions().len(),
                 t0.elapsed().as_secs_f64(),
@@ -210,20 +239,20 @@ fn horizon_statistics(
     let bodies = epoch_bodies(fine, kernels, epochs, abcorr)?;
     let t1 = std::time::Instant::now();
     let progress = crate::output::progress_bar(
-        fine.grid.rows,
+        rows.len(),
         "penumbra: statistics [{bar:40}] {pos}/{len} rows, {elapsed} (eta {eta})",
     );
-    let rows_total = fine.grid.rows;
-    let stats = engine.run_with_store(source.as_mut(), &bodies, store, |rows| {
-        progress.set_position(rows as u64);
-        report(rows, rows_total)
+    let rows_total = rows.len();
+    let stats = engine.run_rows(source.as_mut(), &bodies, store, rows.clone(), |done| {
+        progress.set_position(done as u64);
+        report(done, rows_total)
     })?;
     progress.finish_and_clear();
     let secs = t1.elapsed().as_secs_f64();
-    let cell_epochs = (fine.grid.rows * fine.grid.cols) as f64 * epochs.len() as f64;
+    let cell_epochs = (rows.len() * fine.grid.cols) as f64 * epochs.len() as f64;
     crate::note!(
         "penumbra: statistics of {} x {} px over {} epochs in {:.1} s ({:.0} M pixel-epochs/s)",
-        fine.grid.rows,
+        rows.len(),
         fine.grid.cols,
         epochs.len(),
         secs,
@@ -244,11 +273,7 @@ fn horizon_statistics(
          Earth directions)",
         map.limb.name()
     );
-    Ok(RangeResult {
-        stats: SweepStats::from_horizons(stats, step_h, map.limb.name()),
-        note,
-        model: None,
-    })
+    Ok((stats, note))
 }
 
 /// The Sun and the Earth at every epoch, seen from the centre of `dem` (positions relative to

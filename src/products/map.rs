@@ -36,6 +36,9 @@ pub struct MapRequest {
     /// Epoch range: carry on an unfinished run in `out_dir` (the horizons engine keeps finished
     /// blocks of rows).
     pub resume: bool,
+    /// Epoch range: compute this shard of the map only (a block of rows of the finest layer,
+    /// horizons engine) and write a partial for `penumbra merge` ([`super::shard`]).
+    pub shard: Option<super::shard::Shard>,
     /// Compute backend.
     pub backend: Backend,
     /// GPU tiles of this many cells per side (≥ 2) instead of the automatic choice.
@@ -61,6 +64,23 @@ pub fn run(req: &MapRequest) -> anyhow::Result<()> {
             "--engine horizons makes statistics over an epoch range (--start/--stop/--step); \
              for one light use brute, smap, dp, combined or fourier"
         );
+    }
+    if req.shard.is_some() {
+        if !req.epochs.is_some_and(|e| e.is_range()) || req.out_dir.is_none() {
+            anyhow::bail!(
+                "--shard makes one part of a map over an epoch range: give --start/--stop/--step                  and --out-dir"
+            );
+        }
+        if !matches!(req.engine, None | Some(MapEngineKind::Horizons)) {
+            anyhow::bail!(
+                "--shard runs the horizons engine (whole-grid horizons, then every epoch per                  pixel): leave --engine at auto or give --engine horizons"
+            );
+        }
+        if req.backend == crate::gpu::Backend::Gpu {
+            anyhow::bail!(
+                "--shard runs the horizons engine, which runs on the CPU: drop --backend gpu"
+            );
+        }
     }
     let t0 = std::time::Instant::now();
     if !(req.observer_height_m >= 0.0 && req.observer_height_m <= 100_000.0) {
@@ -131,12 +151,13 @@ pub fn run(req: &MapRequest) -> anyhow::Result<()> {
     // and before any heavy work, so that a missing adapter is one error line (or one warning
     // line with `auto`).
     // The horizons engine is CPU-only: no adapter probe (and no `auto` warning) for it.
-    let backend =
-        if req.engine == Some(MapEngineKind::Horizons) && req.backend != crate::gpu::Backend::Gpu {
-            crate::compute::ResolvedBackend::Cpu
-        } else {
-            crate::compute::resolve(req.backend)?
-        };
+    let backend = if (req.engine == Some(MapEngineKind::Horizons) || req.shard.is_some())
+        && req.backend != crate::gpu::Backend::Gpu
+    {
+        crate::compute::ResolvedBackend::Cpu
+    } else {
+        crate::compute::resolve(req.backend)?
+    };
     let placement = crate::compute::one_light::placement(&backend, req.observers)?;
     let kernels = if epochs.is_empty() {
         None
@@ -150,7 +171,12 @@ pub fn run(req: &MapRequest) -> anyhow::Result<()> {
         let (Some(kernels), Some(out_dir)) = (&kernels, &req.out_dir) else {
             anyhow::bail!("an epoch range needs kernels and --out-dir");
         };
-        let _lock = crate::output::cleanup::RunLock::begin(out_dir, "run.json")
+        // A shard's manifest, like a run's run.json, goes first and comes back last.
+        let manifest = match req.shard {
+            Some(_) => super::shard::MANIFEST,
+            None => "run.json",
+        };
+        let _lock = crate::output::cleanup::RunLock::begin(out_dir, manifest)
             .map_err(anyhow::Error::msg)?;
         let mut dem_files = req.terrain.dem_files()?;
         let (mut cp, note) = crate::output::checkpoint::Checkpoint::open(
@@ -163,6 +189,76 @@ pub fn run(req: &MapRequest) -> anyhow::Result<()> {
             crate::note!("{note}");
         }
         let step_h = req.epochs.map_or(3600.0, |e| e.step_s()) / 3600.0;
+        let span = format!(
+            "{} .. {}, {} epochs",
+            crate::ephem::time::format_iso(epochs[0]),
+            crate::ephem::time::format_iso(*epochs.last().unwrap_or(&epochs[0])),
+            epochs.len()
+        );
+        if let crate::compute::sweep::HorizonsFrom::File(path) = &req.horizons
+            && (req.engine == Some(MapEngineKind::Horizons) || req.shard.is_some())
+        {
+            dem_files.push(crate::output::InputFile::of(path)?);
+        }
+        if let Some(shard) = req.shard {
+            let fine = &stack.layers[0];
+            let rows = shard.rows(fine.grid.rows).map_err(anyhow::Error::msg)?;
+            let range_map = crate::compute::sweep::RangeMap {
+                engine: MapEngineKind::Horizons,
+                observer_height_m: req.observer_height_m,
+                placement,
+                gpu_tile_cells: req.gpu_tile_cells,
+                horizons: req.horizons.clone(),
+                limb: req.limb,
+            };
+            let (stats, note) = crate::compute::sweep::horizon_statistics_rows(
+                &backend,
+                &stack,
+                &range_map,
+                kernels,
+                &epochs,
+                abcorr,
+                &mut |_, _| true,
+                &mut cp,
+                rows.clone(),
+            )?;
+            let mut prov = crate::output::Provenance::new();
+            prov.kernels = kernels.files.clone();
+            prov.dem_layers = dem_layers;
+            prov.dem_files = dem_files;
+            prov.set_epochs(&epochs);
+            prov.backend = note;
+            let job = job_fingerprint(req, &kernels.files, &prov.dem_files)?;
+            let run = super::shard::ShardRun {
+                shard,
+                job,
+                fine,
+                rows: rows.clone(),
+                provenance: &prov,
+                step_h,
+                span,
+                limb_law: req.limb.name().to_string(),
+                arrays_bytes: super::shard::arrays_bytes(&stack, rows.len(), &req.horizons),
+            };
+            let manifest =
+                super::shard::write_partial(out_dir, &run, &stats, t0.elapsed().as_secs_f64())?;
+            cp.finish();
+            crate::note!(
+                "penumbra: shard {shard} (rows {}..{} of {}) -> {} ({:.1} s, arrays {:.0} MB{}); \
+                 combine the shards with `penumbra merge --out-dir OUT DIR...`",
+                rows.start,
+                rows.end,
+                fine.grid.rows,
+                out_dir.display(),
+                manifest.wall_time_s,
+                manifest.arrays_bytes as f64 / 1e6,
+                manifest
+                    .peak_rss_bytes
+                    .map(|b| format!(", peak resident {:.0} MB", b as f64 / 1e6))
+                    .unwrap_or_default()
+            );
+            return Ok(());
+        }
         let engine_kind = match req.engine {
             Some(e) => e,
             None => {
@@ -197,12 +293,6 @@ pub fn run(req: &MapRequest) -> anyhow::Result<()> {
             &mut |_, _| true,
             &mut cp,
         )?;
-        let span = format!(
-            "{} .. {}, {} epochs",
-            crate::ephem::time::format_iso(epochs[0]),
-            crate::ephem::time::format_iso(*epochs.last().unwrap_or(&epochs[0])),
-            epochs.len()
-        );
         let files = write_sweep(
             &stack.layers[0],
             result.model.as_ref(),
@@ -215,6 +305,7 @@ pub fn run(req: &MapRequest) -> anyhow::Result<()> {
         prov.dem_layers = dem_layers;
         if let crate::compute::sweep::HorizonsFrom::File(path) = &req.horizons
             && engine_kind == MapEngineKind::Horizons
+            && req.engine.is_none()
         {
             dem_files.push(crate::output::InputFile::of(path)?);
         }
@@ -360,5 +451,51 @@ fn range_fingerprint(
         serde_json::to_string(kernels)?.as_bytes(),
         serde_json::to_string(dems)?.as_bytes(),
         horizons.as_bytes(),
+    ]))
+}
+
+/// The fingerprint of a sharded job (what `penumbra merge` checks): penumbra's build, every
+/// parameter but the shard, its output folder and `--resume`, and the inputs by content (the
+/// kernels' and DEMs' sha256, not their paths), so that shards run from other folders or
+/// through the Python module merge.
+fn job_fingerprint(
+    req: &MapRequest,
+    kernels: &[crate::ephem::kernels::KernelFile],
+    inputs: &[crate::output::InputFile],
+) -> anyhow::Result<String> {
+    let terrain = match &req.terrain {
+        TerrainSource::Dems(_) => TerrainSource::Dems(Vec::new()),
+        other => other.clone(),
+    };
+    let horizons = match &req.horizons {
+        crate::compute::sweep::HorizonsFrom::File(_) => {
+            crate::compute::sweep::HorizonsFrom::File(PathBuf::new())
+        }
+        other => other.clone(),
+    };
+    let request = format!(
+        "{:?}",
+        MapRequest {
+            terrain,
+            horizons,
+            out_dir: None,
+            resume: false,
+            shard: None,
+            kernels: KernelSource::default(),
+            ..req.clone()
+        }
+    );
+    let kernels: Vec<(&str, &str)> = kernels
+        .iter()
+        .map(|k| (k.kind, k.sha256.as_str()))
+        .collect();
+    let inputs: Vec<&str> = inputs.iter().map(|f| f.sha256.as_str()).collect();
+    let prov = crate::output::Provenance::new();
+    Ok(crate::output::checkpoint::fingerprint(&[
+        prov.penumbra_version.as_bytes(),
+        prov.git_commit.as_bytes(),
+        request.as_bytes(),
+        format!("{kernels:?}").as_bytes(),
+        format!("{inputs:?}").as_bytes(),
     ]))
 }

@@ -13,7 +13,8 @@
 use crate::MOON_RADIUS_M;
 
 /// A map projection on the Moon's reference sphere.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
 pub enum Projection {
     /// Polar stereographic, spherical form (PDS/LOLA polar products, PROJ `+proj=stere`).
     ///
@@ -162,7 +163,7 @@ pub fn wrap_deg_180(deg: f64) -> f64 {
 }
 
 /// The pixel ↔ map transform of a north-up grid (pixel-is-area; see the module docs).
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct GridGeometry {
     /// Number of rows.
     pub rows: usize,

@@ -24,5 +24,6 @@ mod resume;
 mod series;
 mod series_engines;
 mod shadow;
+mod shard;
 mod terrain;
 mod util;

@@ -97,6 +97,18 @@ impl HorizonStatistics {
     /// Places a block of [`Self::block_bytes`] for pixels `first_px..first_px + n_px`; `false`
     /// (and nothing changed) when the bytes are not such a block.
     pub(crate) fn place_block_bytes(&mut self, first_px: usize, n_px: usize, bytes: &[u8]) -> bool {
+        self.place_block_bytes_at(first_px, first_px, n_px, bytes)
+    }
+
+    /// [`Self::place_block_bytes`] for a block written as pixels `block_first_px..` of other
+    /// statistics (a shard's own), placed at pixels `first_px..` of these.
+    pub(crate) fn place_block_bytes_at(
+        &mut self,
+        block_first_px: usize,
+        first_px: usize,
+        n_px: usize,
+        bytes: &[u8],
+    ) -> bool {
         let header = 8 + 5 * 8;
         if bytes.len() != header + n_px * (1 + 3 * 8 + 6 * 4) || &bytes[..8] != MAGIC {
             return false;
@@ -105,7 +117,7 @@ impl HorizonStatistics {
             let s = 8 + 8 * i;
             u64::from_le_bytes(bytes[s..s + 8].try_into().expect("8 bytes"))
         };
-        if word(0) != first_px as u64
+        if word(0) != block_first_px as u64
             || word(1) != n_px as u64
             || word(2) != self.epochs as u64
             || first_px + n_px > self.nodata.len()

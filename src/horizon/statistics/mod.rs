@@ -379,12 +379,37 @@ impl<'a> StatisticsEngine<'a> {
         source: &mut dyn HorizonRows,
         epochs: &[EpochBodies],
         store: &mut dyn BlockStore,
+        progress: impl FnMut(usize) -> bool,
+    ) -> Result<HorizonStatistics, HorizonError> {
+        let rows = 0..self.fine().grid.rows;
+        self.run_rows(source, epochs, store, rows, progress)
+    }
+
+    /// [`Self::run_with_store`] for the finest layer's `rows` only (a shard of a map): the
+    /// statistics returned hold those rows' pixels (pixel `i` is the grid's pixel
+    /// `rows.start * cols + i`), bit for bit the values of a whole run, and `progress` gets the
+    /// rows done from `rows.start`. `source` needs to hold those rows only.
+    pub fn run_rows(
+        &self,
+        source: &mut dyn HorizonRows,
+        epochs: &[EpochBodies],
+        store: &mut dyn BlockStore,
+        rows: std::ops::Range<usize>,
         mut progress: impl FnMut(usize) -> bool,
     ) -> Result<HorizonStatistics, HorizonError> {
         self.check_source(source)?;
         let fine = self.fine();
         let g = fine.grid;
-        let n_px = g.rows * g.cols;
+        if rows.start >= rows.end || rows.end > g.rows {
+            return Err(HorizonError::SweepUnsupported {
+                reason: format!(
+                    "statistics of rows {}..{} (the finest layer has {} rows)",
+                    rows.start, rows.end, g.rows
+                ),
+            });
+        }
+        let base_px = rows.start * g.cols;
+        let n_px = rows.len() * g.cols;
         let lookup = AzimuthLookup::new(source.grid_az_deg()).expect("checked");
         let n = lookup.n_bands();
         let h_obs_m = source.observer_height_m();
@@ -450,18 +475,18 @@ impl<'a> StatisticsEngine<'a> {
         let arch = pulp::Arch::new();
         // At least MIN_BLOCKS blocks: the units a killed run keeps.
         let rows_per_block = (BLOCK_BYTES / (2 * n * g.cols).max(1))
-            .min(g.rows.div_ceil(MIN_BLOCKS))
-            .clamp(1, g.rows);
+            .min(rows.len().div_ceil(MIN_BLOCKS))
+            .clamp(1, rows.len());
         let mut block: Vec<i16> = Vec::new();
-        let mut row0 = 0;
-        while row0 < g.rows {
-            let row1 = (row0 + rows_per_block).min(g.rows);
+        let mut row0 = rows.start;
+        while row0 < rows.end {
+            let row1 = (row0 + rows_per_block).min(rows.end);
             let block_px = (row1 - row0) * g.cols;
             let first_px = row0 * g.cols;
             if let Some(bytes) = store.load(row0..row1)
-                && out.place_block_bytes(first_px, block_px, &bytes)
+                && out.place_block_bytes(first_px - base_px, block_px, &bytes)
             {
-                if !progress(row1) {
+                if !progress(row1 - rows.start) {
                     return Err(HorizonError::Interrupted);
                 }
                 row0 = row1;
@@ -528,6 +553,7 @@ impl<'a> StatisticsEngine<'a> {
                 .collect();
             let mut below = (0u64, 0u64);
             for (px, a) in results {
+                let px = px - base_px;
                 out.nodata[px] = false;
                 out.sun_fraction_sum[px] = a.sun_fraction_sum;
                 out.sun_visible_count[px] = a.sun_visible;
@@ -546,9 +572,12 @@ impl<'a> StatisticsEngine<'a> {
             out.below_sphere.cells += below.0;
             out.below_sphere.cell_epochs += below.1;
             store
-                .store(row0..row1, &out.block_bytes(first_px, block_px, below))
+                .store(
+                    row0..row1,
+                    &out.block_bytes(first_px - base_px, block_px, below),
+                )
                 .map_err(HorizonError::Checkpoint)?;
-            if !progress(row1) {
+            if !progress(row1 - rows.start) {
                 return Err(HorizonError::Interrupted);
             }
             row0 = row1;

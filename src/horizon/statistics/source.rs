@@ -40,6 +40,8 @@ pub struct InMemoryHorizons {
     grid: GridGeometry,
     grid_az_deg: Vec<f64>,
     observer_height_m: f64,
+    /// The rows held ([`HorizonSweep::rows`]).
+    rows: Range<usize>,
     bands: Vec<Vec<i16>>,
 }
 
@@ -74,6 +76,7 @@ impl InMemoryHorizons {
             grid: sweep.grid_dem().grid,
             grid_az_deg: dirs.iter().map(|d| d.grid_az_deg).collect(),
             observer_height_m: sweep.params().observer_height_m,
+            rows: sweep.rows(),
             bands,
         })
     }
@@ -96,9 +99,18 @@ impl HorizonRows for InMemoryHorizons {
     }
     fn read_rows(&mut self, rows: Range<usize>, out: &mut Vec<i16>) -> Result<(), HorizonError> {
         let cols = self.grid.cols;
+        if rows.start < self.rows.start || rows.end > self.rows.end {
+            return Err(HorizonError::SweepUnsupported {
+                reason: format!(
+                    "rows {}..{} asked of horizons held for rows {}..{}",
+                    rows.start, rows.end, self.rows.start, self.rows.end
+                ),
+            });
+        }
+        let (a, b) = (rows.start - self.rows.start, rows.end - self.rows.start);
         out.clear();
         for band in &self.bands {
-            out.extend_from_slice(&band[rows.start * cols..rows.end * cols]);
+            out.extend_from_slice(&band[a * cols..b * cols]);
         }
         Ok(())
     }

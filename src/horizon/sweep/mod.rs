@@ -96,14 +96,19 @@ pub struct SweepDirection {
     pub target_error_deg: f64,
 }
 
-/// One finished band: the horizon of every pixel of the finest layer toward one direction.
+/// One finished band: the horizon of every pixel of the swept rows of the finest layer toward
+/// one direction.
 pub struct SweepBand<'b> {
     /// Index into [`HorizonSweep::directions`].
     pub index: usize,
     /// The direction.
     pub direction: SweepDirection,
+    /// The rows of the finest layer the band covers ([`HorizonSweep::rows`]: all of them unless
+    /// the sweep was restricted with [`HorizonSweep::with_rows`]).
+    pub rows: std::ops::Range<usize>,
     /// Horizon elevation above the local horizontal, degrees, row-major on the finest layer's
-    /// grid; NaN at nodata pixels, −90 where no terrain lies along the line.
+    /// grid from the first row of `rows`; NaN at nodata pixels, −90 where no terrain lies along
+    /// the line.
     pub elevation_deg: &'b [f32],
     /// Ground distance to the horizon point, metres (NaN where there is none).
     pub distance_m: &'b [f32],
@@ -197,6 +202,8 @@ pub struct HorizonSweep<'a> {
     two_r_k0_m: f64,
     params: SweepParams,
     directions: Vec<SweepDirection>,
+    /// The rows of the finest layer whose horizons are kept (all by default).
+    rows: std::ops::Range<usize>,
 }
 
 /// One terrain sample along a line.
@@ -292,7 +299,31 @@ impl<'a> HorizonSweep<'a> {
             two_r_k0_m: 2.0 * radius_m * k0,
             params,
             directions,
+            rows: 0..fine.grid.rows,
         })
+    }
+
+    /// The same sweep keeping only the horizons of the finest layer's `rows` (a shard of a map,
+    /// `penumbra map --shard`): the bands cover those rows, lines that do not cross them are not
+    /// swept, and each line's walk stops once past them. The horizons are the same values as
+    /// the whole sweep's for those rows (each depends on the terrain along its own line only).
+    pub fn with_rows(mut self, rows: std::ops::Range<usize>) -> Result<Self, HorizonError> {
+        let all = self.grid_dem().grid.rows;
+        if rows.start >= rows.end || rows.end > all {
+            return Err(HorizonError::SweepUnsupported {
+                reason: format!(
+                    "rows {}..{} (the finest layer has {all} rows)",
+                    rows.start, rows.end
+                ),
+            });
+        }
+        self.rows = rows;
+        Ok(self)
+    }
+
+    /// The rows of the finest layer whose horizons the sweep keeps.
+    pub fn rows(&self) -> std::ops::Range<usize> {
+        self.rows.clone()
     }
 
     /// The parameters.
@@ -318,7 +349,9 @@ impl<'a> HorizonSweep<'a> {
         mut sink: impl FnMut(SweepBand<'_>) -> Result<(), E>,
         mut progress: impl FnMut(usize),
     ) -> Result<(), E> {
-        let n_px = self.grid_dem().grid.rows * self.grid_dem().grid.cols;
+        let cols = self.grid_dem().grid.cols;
+        let first_px = self.rows.start * cols;
+        let n_px = self.rows.len() * cols;
         let mut done = 0;
         for (canonical, forward, backward) in self.line_directions() {
             let looks = self.sweep_direction(canonical, forward.is_some(), backward.is_some());
@@ -327,12 +360,13 @@ impl<'a> HorizonSweep<'a> {
                 let mut el = vec![f32::NAN; n_px];
                 let mut dist = vec![f32::NAN; n_px];
                 for &(px, e, d) in looks {
-                    el[px as usize] = e;
-                    dist[px as usize] = d;
+                    el[px as usize - first_px] = e;
+                    dist[px as usize - first_px] = d;
                 }
                 sink(SweepBand {
                     index,
                     direction: self.directions[index],
+                    rows: self.rows.clone(),
                     elevation_deg: &el,
                     distance_m: &dist,
                 })?;
@@ -397,11 +431,13 @@ impl<'a> HorizonSweep<'a> {
         let g = &self.grid_dem().grid;
         let (d_row, d_col) = (-canonical.1 as i64, canonical.0 as i64);
         let key_of = |r: i64, c: i64| c * d_row - r * d_col;
+        // Only the lines through the kept rows (a line's key is linear in row and column).
+        let (r0, r1) = (self.rows.start as i64, self.rows.end as i64 - 1);
         let corners = [
-            key_of(0, 0),
-            key_of(0, g.cols as i64 - 1),
-            key_of(g.rows as i64 - 1, 0),
-            key_of(g.rows as i64 - 1, g.cols as i64 - 1),
+            key_of(r0, 0),
+            key_of(r0, g.cols as i64 - 1),
+            key_of(r1, 0),
+            key_of(r1, g.cols as i64 - 1),
         ];
         let (k0, k1) = (
             *corners.iter().min().expect("four corners"),
@@ -636,8 +672,21 @@ impl<'a> HorizonSweep<'a> {
         let xy = |s: &Sample| (sign * s.x_m, s.y_m);
         let mut next = 0;
         let h_obs = self.params.observer_height_m;
+        // The kept pixels (the kept rows): the rows along a line are monotonic, so the walk
+        // stops at the first observer past them. Skipping an observer leaves the hull as it is:
+        // the next one's loop adds every sample beyond it.
+        let cols = self.grid_dem().grid.cols;
+        let kept = self.rows.start * cols..self.rows.end * cols;
+        let mut entered = false;
         for k in 0..observers.len() {
             let o = obs_at(k);
+            if !kept.contains(&o.pixel) {
+                if entered {
+                    break;
+                }
+                continue;
+            }
+            entered = true;
             let so = samples[o.sample];
             let psi_o = sign * so.psi_rad;
             while next < n && sign * samples[at(next)].psi_rad >= psi_o + theta_min_rad {
