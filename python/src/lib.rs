@@ -704,16 +704,7 @@ fn map_statistics<'py>(
             ))
         })?,
     };
-    let limb = match limb_darkening {
-        "none" => penumbra::series::LimbLaw::None,
-        "eddington" => penumbra::series::LimbLaw::Eddington,
-        "allen550nm" => penumbra::series::LimbLaw::Allen550nm,
-        o => {
-            return Err(bad(format!(
-                "limb_darkening '{o}': use none, eddington or allen550nm"
-            )));
-        }
-    };
+    let limb = limb_law(limb_darkening)?;
     if !(observer_height_m.is_finite() && observer_height_m >= 0.0) {
         return Err(bad(format!(
             "observer_height_m {observer_height_m} must be a finite number >= 0"
@@ -1028,6 +1019,101 @@ fn render<'py>(
     ))
 }
 
+/// The limb darkening law named `text`.
+fn limb_law(text: &str) -> PyResult<penumbra::series::LimbLaw> {
+    Ok(match text {
+        "none" => penumbra::series::LimbLaw::None,
+        "eddington" => penumbra::series::LimbLaw::Eddington,
+        "allen550nm" => penumbra::series::LimbLaw::Allen550nm,
+        o => {
+            return Err(bad(format!(
+                "limb_darkening '{o}': use none, eddington or allen550nm"
+            )));
+        }
+    })
+}
+
+// --- sharded maps -----------------------------------------------------------------------------------
+
+/// `map_shard(terrain, start, stop, step, out_dir, shard, shards, …)`: shard `shard` of `shards`
+/// of a map over `start` … `stop` every `step` (UTC strings and a step such as `"1h"`): the CLI's
+/// `penumbra map --start --stop --step --shard I/N --out-dir` (horizons engine), writing the
+/// partial (`shard.json`, `shard.pnbstat`) into `out_dir`. Returns the manifest as a dict.
+/// Shards made here and by the CLI with the same parameters and inputs merge together.
+#[pyfunction]
+#[pyo3(signature = (terrain, start, stop, step, out_dir, shard, shards, observer_height_m = 2.0, kernels = None, abcorr = "lt+s", horizons = None, azimuths = 720, max_step = 16, limb_darkening = "eddington", resume = false))]
+#[allow(clippy::too_many_arguments, reason = "a Python function with keywords")]
+fn map_shard<'py>(
+    py: Python<'py>,
+    terrain: &Terrain,
+    start: &str,
+    stop: &str,
+    step: &str,
+    out_dir: PathBuf,
+    shard: usize,
+    shards: usize,
+    observer_height_m: f64,
+    kernels: Option<PathBuf>,
+    abcorr: &str,
+    horizons: Option<PathBuf>,
+    azimuths: usize,
+    max_step: u32,
+    limb_darkening: &str,
+    resume: bool,
+) -> PyResult<Bound<'py, PyAny>> {
+    use penumbra::compute::sweep::HorizonsFrom;
+    let shard = penumbra::products::shard::Shard::parse(&format!("{shard}/{shards}"))
+        .map_err(|e| bad(e.replace("--shard", "map_shard")))?;
+    if !(4..=100_000).contains(&azimuths) || !(1..=64).contains(&max_step) {
+        return Err(bad(
+            "map_shard: azimuths must be 4 … 100000 and max_step 1 … 64",
+        ));
+    }
+    let epochs =
+        penumbra::products::EpochSpec::parse_required(None, Some(start), Some(stop), Some(step))
+            .map_err(py_err)?;
+    let req = penumbra::products::map::MapRequest {
+        terrain: terrain.source.clone(),
+        observer_height_m,
+        engine: None,
+        epochs: Some(epochs),
+        sun_dir_in_moon_me: None,
+        sun_az_el_deg: None,
+        // The command line's default, so that the job's fingerprint is the CLI's.
+        sun_radius_deg: 0.2666,
+        out_fraction: None,
+        out_mask: None,
+        out_earth_fraction: None,
+        out_dir: Some(out_dir.clone()),
+        resume,
+        shard: Some(shard),
+        backend: penumbra::gpu::Backend::Auto,
+        gpu_tile_cells: None,
+        observers: None,
+        horizons: match horizons {
+            Some(p) => HorizonsFrom::File(p),
+            None => HorizonsFrom::Sweep { azimuths, max_step },
+        },
+        limb: limb_law(limb_darkening)?,
+        abcorr: self::abcorr(abcorr)?,
+        kernels: penumbra::products::KernelSource { dir: kernels },
+    };
+    py.allow_threads(|| penumbra::products::map::run(&req))
+        .map_err(py_err)?;
+    let text = std::fs::read_to_string(out_dir.join(penumbra::products::shard::MANIFEST))
+        .map_err(|e| bad(format!("reading the shard's manifest: {e}")))?;
+    let json = py.import("json")?;
+    json.call_method1("loads", (text,))
+}
+
+/// `merge_shards(out_dir, shard_dirs)`: `penumbra merge --out-dir OUT DIR…`: combines the
+/// partials of all shards of one job into its maps (the bytes of a single-machine run).
+#[pyfunction]
+fn merge_shards(py: Python<'_>, out_dir: PathBuf, shard_dirs: Vec<PathBuf>) -> PyResult<()> {
+    py.allow_threads(|| penumbra::products::shard::merge(&out_dir, &shard_dirs))
+        .map_err(py_err)
+}
+
 // --- scenarios --------------------------------------------------------------------------------------
 
 /// `run_scenario(path, out_dir=None, kernels=None, resume=False)`: runs a scenario file as
@@ -1063,6 +1149,8 @@ fn _penumbra(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(series, m)?)?;
     m.add_function(wrap_pyfunction!(map_statistics, m)?)?;
     m.add_function(wrap_pyfunction!(map_light, m)?)?;
+    m.add_function(wrap_pyfunction!(map_shard, m)?)?;
+    m.add_function(wrap_pyfunction!(merge_shards, m)?)?;
     m.add_function(wrap_pyfunction!(write_geotiff, m)?)?;
     m.add_function(wrap_pyfunction!(render, m)?)?;
     m.add_function(wrap_pyfunction!(run_scenario, m)?)?;

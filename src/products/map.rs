@@ -211,6 +211,14 @@ pub fn run(req: &MapRequest) -> anyhow::Result<()> {
                 horizons: req.horizons.clone(),
                 limb: req.limb,
             };
+            let arrays_bytes = super::shard::arrays_bytes(&stack, rows.len(), &req.horizons);
+            crate::output::guard::check_budget(
+                &format!("shard {shard} (rows {}..{}: terrain, horizons, statistics)", rows.start, rows.end),
+                u128::from(arrays_bytes),
+            )
+            .map_err(|e| {
+                anyhow::anyhow!("{e}; split the map into more shards or sweep the horizons once into a file (--horizons)")
+            })?;
             let (stats, note) = crate::compute::sweep::horizon_statistics_rows(
                 &backend,
                 &stack,
@@ -238,7 +246,7 @@ pub fn run(req: &MapRequest) -> anyhow::Result<()> {
                 step_h,
                 span,
                 limb_law: req.limb.name().to_string(),
-                arrays_bytes: super::shard::arrays_bytes(&stack, rows.len(), &req.horizons),
+                arrays_bytes,
             };
             let manifest =
                 super::shard::write_partial(out_dir, &run, &stats, t0.elapsed().as_secs_f64())?;
@@ -275,6 +283,19 @@ pub fn run(req: &MapRequest) -> anyhow::Result<()> {
                 e
             }
         };
+        if engine_kind == MapEngineKind::Horizons {
+            let rows = stack.layers[0].grid.rows;
+            crate::output::guard::check_budget(
+                "the map's arrays (terrain, whole-grid horizons, statistics)",
+                u128::from(super::shard::arrays_bytes(&stack, rows, &req.horizons)),
+            )
+            .map_err(|e| {
+                anyhow::anyhow!(
+                    "{e}; split the map into shards (--shard I/N, then penumbra merge) or sweep \
+                     the horizons once into a file (--horizons)"
+                )
+            })?;
+        }
         let result = crate::compute::sweep::range_statistics(
             &backend,
             &stack,

@@ -86,6 +86,24 @@ def map_light(
     kernels: Optional[Path] = None,
     abcorr: str = "lt+s",
 ) -> Dict[str, Any]: ...
+def map_shard(
+    terrain: Terrain,
+    start: str,
+    stop: str,
+    step: str,
+    out_dir: Path,
+    shard: int,
+    shards: int,
+    observer_height_m: float = 2.0,
+    kernels: Optional[Path] = None,
+    abcorr: str = "lt+s",
+    horizons: Optional[Path] = None,
+    azimuths: int = 720,
+    max_step: int = 16,
+    limb_darkening: str = "eddington",
+    resume: bool = False,
+) -> Dict[str, Any]: ...
+def merge_shards(out_dir: Path, shard_dirs: Sequence[Path]) -> None: ...
 def write_geotiff(
     path: Path, array: npt.NDArray[Any], terrain: Terrain, description: str
 ) -> None: ...
