@@ -19,6 +19,11 @@ pub struct SeriesArgs {
     /// (planetocentric latitude, east longitude, degrees; height in metres); repeatable.
     #[arg(long, value_name = "SITE", allow_hyphen_values = true)]
     pub site: Vec<String>,
+    /// Sites from a file: CSV with a header naming name, lat_deg, lon_deg and optionally
+    /// height_m (above the ground, metres), or GeoJSON Points [lon_deg, lat_deg] with
+    /// properties.name and optionally properties.height_m. Adds to --site.
+    #[arg(long, value_name = "FILE")]
+    pub sites: Option<PathBuf>,
     /// Latitude of a single site named "site", degrees (alternative to --site).
     #[arg(
         long,
@@ -148,6 +153,12 @@ pub fn run(args: &SeriesArgs) -> anyhow::Result<()> {
         .iter()
         .map(|s| penumbra::series::parse_site_flag(s, args.observer_height_m))
         .collect::<anyhow::Result<_>>()?;
+    if let Some(path) = &args.sites {
+        sites.extend(penumbra::series::read_sites_file(
+            path,
+            args.observer_height_m,
+        )?);
+    }
     if let (Some(lat_deg), Some(lon_deg)) = (args.lat_deg, args.lon_deg) {
         sites.push(SeriesSite {
             name: "site".into(),

@@ -20,6 +20,13 @@ pub fn parse_utc(text: &str) -> Result<Epoch, EphemError> {
         text: text.to_string(),
         why: why.to_string(),
     };
+    // Every accepted form is ASCII; refusing the rest here keeps the byte slicing below on
+    // character boundaries.
+    if let Some(c) = text.chars().find(|c| !c.is_ascii()) {
+        return Err(bad(&format!(
+            "'{c}' is not part of any epoch format (ASCII only)"
+        )));
+    }
     let upper = text.trim().to_ascii_uppercase();
     let mut s = upper.as_str();
     let mut scale = TimeScale::UTC;
@@ -451,6 +458,10 @@ mod tests {
             "2024-01-03T25:00",
             "2024/01/03",
             "",
+            // Multi-byte characters where the parser slices bytes (found by the fuzzer).
+            "2025\u{201}-02T00:00:00",
+            "2024-0\u{e9}2",
+            "2024 F\u{c9}B 01",
         ] {
             assert!(parse_utc(s).is_err(), "{s} should not parse");
         }

@@ -133,12 +133,28 @@ fn window(series: &SiteSeries<'_>, run: Option<Run>) -> (f64, Option<String>, Op
     }
 }
 
+/// Where a site stands, as written into `stats.json` next to its statistics.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct SiteLocation {
+    /// Planetocentric latitude, degrees.
+    pub lat_deg: f64,
+    /// East longitude, degrees.
+    pub lon_deg: f64,
+    /// Observer height above the ground, metres.
+    pub height_above_ground_m: f64,
+    /// Ground height above the 1737.4 km sphere at the site (from the finest layer), metres.
+    pub ground_height_m: f64,
+}
+
 /// Time-weighted statistics of one site's series. Percentages are of the whole series (0–100);
 /// durations in hours; times ISO 8601 UTC; `None` where no such window exists.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct SiteStats {
     /// Site name.
     pub site: String,
+    /// Where the site stands (filled in by the series runner; absent for bare fraction series).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub location: Option<SiteLocation>,
     /// Start of the first sample (UTC).
     pub start_utc: String,
     /// End of the last sample's interval, `start + n · step` (UTC).
@@ -214,6 +230,7 @@ pub fn site_stats(series: &SiteSeries<'_>) -> Result<SiteStats, IllumError> {
     let sun_visible_pct = pct(n, sun_vis);
     Ok(SiteStats {
         site: series.site.to_string(),
+        location: None,
         start_utc: crate::ephem::time::format_iso(series.start_utc),
         end_utc: crate::ephem::time::format_iso(series.epoch_at(n)),
         step_s: series.step_s,
@@ -342,9 +359,20 @@ impl Default for StatsDefinitions {
     }
 }
 
+/// The `schema` of `stats.json` files this penumbra writes: bumped when a field changes meaning
+/// or goes away (new fields keep the number).
+pub const STATS_SCHEMA: &str = "penumbra-stats/1";
+
+fn stats_schema() -> String {
+    STATS_SCHEMA.to_string()
+}
+
 /// The content of `stats.json`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct StatsFile {
+    /// The file's schema and version ([`STATS_SCHEMA`]).
+    #[serde(default = "stats_schema")]
+    pub schema: String,
     /// Thresholds and weighting.
     pub definitions: StatsDefinitions,
     /// Per-site statistics.
@@ -363,6 +391,7 @@ impl StatsFile {
             None
         };
         Ok(Self {
+            schema: stats_schema(),
             definitions: StatsDefinitions::default(),
             sites,
             combined,

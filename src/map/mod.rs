@@ -134,6 +134,18 @@ pub enum MapEngineKind {
 }
 
 impl MapEngineKind {
+    /// The engine's name, as `--engine` takes it.
+    pub fn name(self) -> &'static str {
+        match self {
+            MapEngineKind::Direct(Engine::Brute) => "brute",
+            MapEngineKind::Direct(Engine::Smap) => "smap",
+            MapEngineKind::Direct(Engine::Dp) => "dp",
+            MapEngineKind::Direct(Engine::Combined) => "combined",
+            MapEngineKind::Fourier => "fourier",
+            MapEngineKind::Horizons => "horizons",
+        }
+    }
+
     /// Parses a scenario's engine name (`brute`, `smap`, `dp`, `combined`, `fourier`).
     pub fn parse(name: &str) -> Option<Self> {
         Some(match name {

@@ -4,7 +4,7 @@ use std::path::Path;
 
 use super::SweepStats;
 use crate::illum::plot::{MapLegend, write_map_preview};
-use crate::model::{MapGrid, write_f32_on, write_u8_on};
+use crate::model::{MapGrid, RasterInfo, write_f32_on, write_u8_on};
 use crate::shadow::MASK_NODATA;
 use crate::terrain::Dem;
 
@@ -14,6 +14,19 @@ type Continuous = (&'static str, String, Vec<f32>, f64, String);
 /// The description (GeoTIFF `content`) of the PSR mask.
 pub const PSR_DESCRIPTION: &str =
     "permanently shadowed over the span: 1 never lit, 0 lit at least once, 255 no data";
+
+/// The GeoTIFF unit of a statistic, from its file stem's suffix (`_pct`, `_h`, `_w_m2`).
+pub fn geotiff_unit(stem: &str) -> &'static str {
+    if stem.ends_with("_pct") {
+        "%"
+    } else if stem.ends_with("_h") {
+        "h"
+    } else if stem.ends_with("_w_m2") {
+        "W m-2"
+    } else {
+        ""
+    }
+}
 
 /// One statistic of a sweep as a raster on the DEM's grid.
 #[derive(Debug, Clone)]
@@ -210,6 +223,12 @@ pub fn write_sweep(
 ) -> anyhow::Result<Vec<String>> {
     let (rasters, psr_out) = sweep_rasters(dem, model, s)?;
     let mut files = Vec::new();
+    // The span in every GeoTIFF's metadata.
+    let items: Vec<(&'static str, String)> = vec![
+        ("span_utc", span.to_string()),
+        ("epochs", s.epochs.to_string()),
+        ("step_h", format!("{}", s.step_h)),
+    ];
     let (rows, cols) = (dem.grid.rows, dem.grid.cols);
     for r in rasters {
         let out = r.values;
@@ -221,7 +240,12 @@ pub fn write_sweep(
         let tenth = r.full_scale / 10.0;
         let max = ((f64::from(data_max) / tenth).ceil() * tenth).clamp(tenth, r.full_scale);
         let tif = format!("{}.tif", r.name);
-        write_f32_on(dem, &out_dir.join(&tif), &out, &r.description)?;
+        let info = RasterInfo {
+            description: &r.description,
+            unit: geotiff_unit(r.name),
+            items: items.clone(),
+        };
+        write_f32_on(dem, &out_dir.join(&tif), &out, &info)?;
         let png = format!("{}.png", r.name);
         write_map_preview(
             &out_dir.join(&png),
@@ -241,7 +265,11 @@ pub fn write_sweep(
         dem,
         &out_dir.join("psr_mask.tif"),
         &psr_out,
-        PSR_DESCRIPTION,
+        &RasterInfo {
+            description: PSR_DESCRIPTION,
+            unit: "",
+            items,
+        },
     )?;
     let psr_f: Vec<f32> = psr_out
         .iter()

@@ -364,40 +364,98 @@ impl MapGrid {
     }
 
     /// Writes an f32 raster on the output grid (NaN = nodata) with provenance metadata.
-    pub fn write_f32(&self, path: &Path, values: &[f32], what: &str) -> anyhow::Result<()> {
-        write_f32_on(&self.dem, path, values, what)
+    pub fn write_f32(
+        &self,
+        path: &Path,
+        values: &[f32],
+        info: &RasterInfo<'_>,
+    ) -> anyhow::Result<()> {
+        write_f32_on(&self.dem, path, values, info)
     }
 
     /// Writes a u8 raster on the output grid (255 = nodata) with provenance metadata.
-    pub fn write_u8(&self, path: &Path, values: &[u8], what: &str) -> anyhow::Result<()> {
-        write_u8_on(&self.dem, path, values, what)
+    pub fn write_u8(
+        &self,
+        path: &Path,
+        values: &[u8],
+        info: &RasterInfo<'_>,
+    ) -> anyhow::Result<()> {
+        write_u8_on(&self.dem, path, values, info)
+    }
+
+    /// The azimuth and elevation (degrees) of a model-space light direction at the map centre.
+    pub fn az_el_deg_at_centre(&self, light: [f64; 3]) -> (f64, f64) {
+        let enu = self.hf.model_from_enu().transpose() * nalgebra::Vector3::from(light);
+        crate::frames::az_el_deg_from_enu(&enu)
+    }
+}
+
+/// What a map raster holds, for its GeoTIFF: the band's description and unit, and the run's
+/// parameters as metadata items (epoch, Sun direction, observer height, engine, span, …).
+#[derive(Debug, Clone, Default)]
+pub struct RasterInfo<'a> {
+    /// What the values are (band description and the `content` item).
+    pub description: &'a str,
+    /// Their unit (`%`, `h`, `W m-2`; empty for fractions and classes).
+    pub unit: &'a str,
+    /// Further metadata items (`name`, value).
+    pub items: Vec<(&'static str, String)>,
+}
+
+impl<'a> RasterInfo<'a> {
+    /// A raster described by `description`, in `unit`.
+    pub fn new(description: &'a str, unit: &'a str) -> Self {
+        Self {
+            description,
+            unit,
+            items: Vec::new(),
+        }
     }
 }
 
 /// Writes an f32 raster on `dem`'s grid (NaN = nodata) with provenance metadata.
-pub fn write_f32_on(dem: &Dem, path: &Path, values: &[f32], what: &str) -> anyhow::Result<()> {
+pub fn write_f32_on(
+    dem: &Dem,
+    path: &Path,
+    values: &[f32],
+    info: &RasterInfo<'_>,
+) -> anyhow::Result<()> {
     crate::terrain::write_geotiff_f32(
         path,
         &dem.grid,
         &dem.projection,
         values,
         Some(f32::NAN),
-        &metadata(what),
+        &metadata(info),
+        band(info),
     )
     .with_context(|| format!("writing {}", path.display()))
 }
 
 /// Writes a u8 raster on `dem`'s grid (255 = nodata) with provenance metadata.
-pub fn write_u8_on(dem: &Dem, path: &Path, values: &[u8], what: &str) -> anyhow::Result<()> {
+pub fn write_u8_on(
+    dem: &Dem,
+    path: &Path,
+    values: &[u8],
+    info: &RasterInfo<'_>,
+) -> anyhow::Result<()> {
     crate::terrain::write_geotiff_u8(
         path,
         &dem.grid,
         &dem.projection,
         values,
         Some(MASK_NODATA),
-        &metadata(what),
+        &metadata(info),
+        band(info),
     )
     .with_context(|| format!("writing {}", path.display()))
+}
+
+fn band<'a>(info: &RasterInfo<'a>) -> crate::terrain::BandInfo<'a> {
+    crate::terrain::BandInfo {
+        description: info.description,
+        unit: info.unit,
+    }
 }
 
 /// The value of the cell nearest to fractional (row, col) among the 4 x 4 cells around it for
@@ -419,10 +477,12 @@ fn nearest_valid<T>(r: f32, c: f32, at: impl Fn(isize, isize) -> Option<T>) -> O
     best.map(|(_, v)| v)
 }
 
-fn metadata(what: &str) -> Vec<(&'static str, &str)> {
-    vec![
+fn metadata<'a>(info: &'a RasterInfo<'_>) -> Vec<(&'a str, &'a str)> {
+    let mut items = vec![
         ("software", concat!("penumbra ", env!("CARGO_PKG_VERSION"))),
         ("git_commit", env!("PENUMBRA_GIT_COMMIT")),
-        ("content", what),
-    ]
+        ("content", info.description),
+    ];
+    items.extend(info.items.iter().map(|(k, v)| (*k, v.as_str())));
+    items
 }

@@ -5,5 +5,7 @@ mod grid;
 mod lights;
 
 pub(crate) use grid::BelowSphereTally;
-pub use grid::{MAX_MODEL_CELLS, MapGrid, VISIBLE_MIN_FRACTION, write_f32_on, write_u8_on};
+pub use grid::{
+    MAX_MODEL_CELLS, MapGrid, RasterInfo, VISIBLE_MIN_FRACTION, write_f32_on, write_u8_on,
+};
 pub use lights::{EpochLights, epoch_lights};

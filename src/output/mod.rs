@@ -156,14 +156,21 @@ pub fn write_bytes_atomic(path: &Path, bytes: &[u8]) -> Result<(), OutputError> 
 pub fn sha256_file(path: &Path) -> std::io::Result<String> {
     use sha2::Digest as _;
     let mut hasher = sha2::Sha256::new();
-    let mut f = std::fs::File::open(path)?;
+    // A FIFO or `/dev/zero` would block or never end.
+    let mut f = guard::open_regular(path)?;
     std::io::copy(&mut f, &mut hasher)?;
     Ok(format!("{:x}", hasher.finalize()))
 }
 
+/// The `schema` of the `run.json` records this penumbra writes: bumped when a field changes
+/// meaning or goes away (new fields keep the number).
+pub const RUN_SCHEMA: &str = "penumbra-run/1";
+
 /// Provenance of a run, written as `run.json` next to its outputs: what made the files, from what.
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct Provenance {
+    /// The record's schema and version ([`RUN_SCHEMA`]).
+    pub schema: &'static str,
     /// penumbra's version.
     pub penumbra_version: &'static str,
     /// The git commit the binary was built from, or `unknown`.
@@ -263,6 +270,7 @@ impl Provenance {
     /// A provenance record with the tool's identity and command line filled in.
     pub fn new() -> Self {
         Provenance {
+            schema: RUN_SCHEMA,
             penumbra_version: env!("CARGO_PKG_VERSION"),
             git_commit: env!("PENUMBRA_GIT_COMMIT"),
             command_line: std::env::args().collect(),

@@ -387,19 +387,45 @@ pub fn run(req: &MapRequest) -> anyhow::Result<()> {
         placement,
         req.gpu_tile_cells,
     )?;
+    // The light and the run's parameters, in every file's metadata.
+    let (sun_az_deg, sun_el_deg) = grid.az_el_deg_at_centre(sun);
+    let mut items: Vec<(&'static str, String)> = vec![
+        ("engine", engine_kind.name().to_string()),
+        ("observer_height_m", format!("{}", req.observer_height_m)),
+        ("sun_az_deg_at_map_centre", format!("{sun_az_deg:.6}")),
+        ("sun_el_deg_at_map_centre", format!("{sun_el_deg:.6}")),
+        (
+            "sun_radius_deg",
+            format!("{:.6}", sun_radius_rad.to_degrees()),
+        ),
+    ];
+    if kernels.is_some() {
+        items.insert(0, ("epoch_utc", crate::ephem::time::format_iso(epochs[0])));
+        items.push(("abcorr", abcorr.spice_name().to_string()));
+    }
+    if let Some((dir, _)) = earth {
+        let (az, el) = grid.az_el_deg_at_centre(dir);
+        items.push(("earth_az_deg_at_map_centre", format!("{az:.6}")));
+        items.push(("earth_el_deg_at_map_centre", format!("{el:.6}")));
+    }
+    let info = |description| crate::model::RasterInfo {
+        description,
+        unit: "",
+        items: items.clone(),
+    };
     if let Some(path) = &req.out_fraction {
         let f = maps.fraction(sun, sun_radius_rad)?;
         grid.below_sphere_exits(maps.pixel_observers(), sun, &f)?
             .warn();
-        grid.write_f32(path, &f, SUN_FRACTION_DESCRIPTION)?;
+        grid.write_f32(path, &f, &info(SUN_FRACTION_DESCRIPTION))?;
     }
     if let Some(path) = &req.out_mask {
         let m = maps.mask(sun)?;
-        grid.write_u8(path, &m, SUN_MASK_DESCRIPTION)?;
+        grid.write_u8(path, &m, &info(SUN_MASK_DESCRIPTION))?;
     }
     if let (Some(path), Some((dir, radius))) = (&req.out_earth_fraction, earth) {
         let f = maps.fraction(dir, radius)?;
-        grid.write_f32(path, &f, EARTH_FRACTION_DESCRIPTION)?;
+        grid.write_f32(path, &f, &info(EARTH_FRACTION_DESCRIPTION))?;
     }
     crate::note!(
         "penumbra: map written ({:.1} s)",

@@ -26,7 +26,9 @@ pub struct SeriesRequest {
 pub fn run(req: &SeriesRequest) -> anyhow::Result<()> {
     let t0 = std::time::Instant::now();
     if req.sites.is_empty() {
-        anyhow::bail!("no site given (use --site NAME,LAT,LON or --lat-deg/--lon-deg)");
+        anyhow::bail!(
+            "no site given (use --site NAME,LAT,LON, --sites FILE or --lat-deg/--lon-deg)"
+        );
     }
     series::validate_sites(&req.sites)?;
     let epochs = req.epochs.epochs()?;

@@ -69,8 +69,12 @@ pub struct Scenario {
     pub abcorr: AbCorr,
     /// The epoch range.
     pub time: TimeSpec,
-    /// The sites.
+    /// The sites (`[[sites]]` tables and/or `sites_file`).
+    #[serde(default)]
     pub sites: Vec<SiteSpec>,
+    /// A table of sites, relative to the scenario file: CSV (`name,lat_deg,lon_deg[,height_m]`)
+    /// or GeoJSON points (see `penumbra series --sites`); its sites follow the `[[sites]]` ones.
+    pub sites_file: Option<PathBuf>,
     /// Terrain: DEM layers or the synthetic DEM. Without it the run is ephemeris-only.
     pub terrain: Option<TerrainSpec>,
     /// Per-site illumination series (needs `[terrain]`); present = enabled.
@@ -175,7 +179,8 @@ pub struct TimeSpec {
 #[derive(Debug, Clone, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SiteSpec {
-    /// Name, used in file names (letters, digits, `-` and `_`).
+    /// Name, used as a folder name (letters and digits of any script, inner spaces and
+    /// `- _ . ( ) + , '`; see [`crate::series::check_site_name`]).
     pub name: String,
     /// Planetocentric latitude, degrees.
     pub lat_deg: f64,
@@ -234,6 +239,23 @@ impl Scenario {
                 .collect::<Vec<_>>()
                 .join(" "),
         })?;
+        let mut scenario = scenario;
+        if let Some(file) = &scenario.sites_file {
+            let base = path.parent().unwrap_or(Path::new("."));
+            let table =
+                crate::series::read_sites_file(&base.join(file), default_height_above_ground_m())
+                    .map_err(|e| ScenarioError::Invalid {
+                    path: path.display().to_string(),
+                    why: format!("sites_file: {e:#}"),
+                })?;
+            scenario.sites.extend(table.into_iter().map(|s| SiteSpec {
+                name: s.name,
+                lat_deg: s.lat_deg,
+                lon_deg: s.lon_deg,
+                height_above_ground_m: s.height_above_ground_m,
+                ground_height_m: None,
+            }));
+        }
         scenario.validate(path)?;
         Ok(scenario)
     }
@@ -244,23 +266,17 @@ impl Scenario {
             why,
         };
         if self.sites.is_empty() {
-            return Err(invalid("no [[sites]] given".into()));
+            return Err(invalid("no [[sites]] and no sites_file given".into()));
         }
         let mut seen = std::collections::HashSet::new();
         for s in &self.sites {
-            if s.name.is_empty()
-                || !s
-                    .name
-                    .chars()
-                    .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_')
-            {
+            crate::series::check_site_name(&s.name).map_err(invalid)?;
+            if !seen.insert(s.name.to_lowercase()) {
                 return Err(invalid(format!(
-                    "site name '{}' must be letters, digits, '-' or '_'",
+                    "site name '{}' is used twice (names are folder names: they must differ in \
+                     more than letter case)",
                     s.name
                 )));
-            }
-            if !seen.insert(s.name.clone()) {
-                return Err(invalid(format!("site name '{}' is used twice", s.name)));
             }
             if s.height_above_ground_m.is_nan() || s.height_above_ground_m < 0.0 {
                 return Err(invalid(format!(

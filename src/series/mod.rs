@@ -11,7 +11,8 @@
 //! 3. per site and epoch: the visible fractions of both discs ([`crate::illum::disc`]) and the
 //!    solar irradiance ([`crate::illum::irradiance`]);
 //! 4. per site: `series.csv`, `horizon.csv`, `stats.json` and PNG plots; for all sites together a
-//!    combined `stats.json` ("at least one site lit").
+//!    combined `stats.json` (each site's location, and "at least one site lit") and the tidy long
+//!    table `series_long.csv` (site, lat, lon, heights, then the `series.csv` columns).
 //!
 //! Sites are processed in parallel; each site's rows are written and dropped before the next, so
 //! memory holds only the shared ephemeris table (≈300 B per epoch) and two `f64` fractions per site
@@ -34,7 +35,8 @@ pub mod config;
 pub mod dp;
 
 pub use config::{
-    LimbLaw, SeriesConfig, SeriesEngine, SeriesSite, parse_site_flag, validate_sites,
+    LimbLaw, SeriesConfig, SeriesEngine, SeriesSite, check_site_name, parse_site_flag,
+    read_sites_file, validate_sites,
 };
 
 /// The CSV header of a site's `series.csv`.
@@ -504,13 +506,68 @@ pub fn run_series(
             earth_fraction: &o.earth_fraction,
         })
         .collect();
-    StatsFile::from_series(&all)?.write_json(&out_dir.join("stats.json"))?;
+    let mut stats = StatsFile::from_series(&all)?;
+    for (s, o) in stats.sites.iter_mut().zip(&outcomes) {
+        s.location = Some(illum::stats::SiteLocation {
+            lat_deg: o.site.lat_deg,
+            lon_deg: o.site.lon_deg,
+            height_above_ground_m: o.site.height_above_ground_m,
+            ground_height_m: o.horizon.ground_height_m,
+        });
+    }
+    stats.write_json(&out_dir.join("stats.json"))?;
     files.push("stats.json".into());
+    if config.write_csv {
+        write_long_table(&outcomes, out_dir)?;
+        files.push(LONG_TABLE.into());
+    }
     Ok(SeriesRun {
         outcomes,
         files,
         backend: backend_note,
     })
+}
+
+/// The run's tidy long table: every site's `series.csv` rows, one table.
+pub const LONG_TABLE: &str = "series_long.csv";
+
+/// The columns [`LONG_TABLE`] puts before [`SERIES_CSV_HEADER`]'s.
+pub const LONG_TABLE_SITE_COLUMNS: &str =
+    "site,lat_deg,lon_deg,height_above_ground_m,ground_height_m";
+
+/// Writes [`LONG_TABLE`]: the rows of each site's `series.csv` (read back, so that the values are
+/// the same text) after the site's name, latitude, longitude and heights, sites in input order.
+fn write_long_table(outcomes: &[SiteOutcome], out_dir: &Path) -> anyhow::Result<()> {
+    use std::io::BufRead as _;
+    crate::output::write_atomic(&out_dir.join(LONG_TABLE), |w| -> anyhow::Result<()> {
+        writeln!(w, "{LONG_TABLE_SITE_COLUMNS},{SERIES_CSV_HEADER}")?;
+        for o in outcomes {
+            let path = out_dir.join(&o.site.name).join("series.csv");
+            let file = std::fs::File::open(&path)
+                .with_context(|| format!("reading back {}", path.display()))?;
+            let prefix = format!(
+                "{},{},{},{},{:.3}",
+                csv_field(&o.site.name),
+                o.site.lat_deg,
+                o.site.lon_deg,
+                o.site.height_above_ground_m,
+                o.horizon.ground_height_m
+            );
+            for line in std::io::BufReader::new(file).lines().skip(1) {
+                writeln!(w, "{prefix},{}", line?)?;
+            }
+        }
+        Ok(())
+    })
+}
+
+/// A CSV field: quoted (with doubled quotes) when it holds a comma, a quote or a space at an end.
+fn csv_field(s: &str) -> String {
+    if s.contains([',', '"', '\n', '\r']) || s.starts_with(' ') || s.ends_with(' ') {
+        format!("\"{}\"", s.replace('"', "\"\""))
+    } else {
+        s.to_string()
+    }
 }
 
 /// Where [`run_one_site`] takes its fractions from.

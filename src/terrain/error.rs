@@ -39,9 +39,9 @@ pub enum DemError {
         /// The decoder's message.
         detail: String,
     },
-    /// The sample type is not one penumbra reads (float32, int16, uint16, uint8).
+    /// The sample type is not one penumbra reads (float64, float32, int32, int16, uint16, uint8).
     #[error(
-        "reading DEM {path}: unsupported sample format {detail} (supported: float32, int16, uint16, uint8)"
+        "reading DEM {path}: unsupported sample format {detail} (supported: float64, float32, int32, int16, uint16, uint8)"
     )]
     UnsupportedSampleFormat {
         /// The file.

@@ -1,7 +1,8 @@
 //! GeoTIFF input and output for single-band DEMs and maps, with the pure-Rust `tiff` crate.
 //!
-//! **Reading** ([`read_geotiff`]): float32, int16, uint16 and uint8 samples, strips or tiles,
-//! uncompressed, LZW or Deflate (decoded by `tiff`). Integer samples are scaled with the
+//! **Reading** ([`read_geotiff`]): float64, float32, int32, int16, uint16 and uint8 samples,
+//! strips or tiles, uncompressed, LZW or Deflate, with or without a predictor (decoded by
+//! `tiff`); heights are kept as float32 (float64 DEMs lose nothing at a centimetre). Integer samples are scaled with the
 //! `SCALE`/`OFFSET` items of the GDAL_METADATA tag (42112) when present; the GDAL_NODATA tag
 //! (42113) marks holes, which become `NaN`. Georeferencing comes from the GeoTIFF 1.0 tags
 //! ModelPixelScale (33550) + ModelTiepoint (33922), or ModelTransformation (34264, no rotation),
@@ -23,13 +24,15 @@
 //! measured figure).
 //!
 //! **Writing** ([`write_geotiff_f32`], [`write_geotiff_u16`], [`write_geotiff_u8`],
-//! [`write_dem`]): uncompressed strips with ModelPixelScale, ModelTiepoint, a user-defined
-//! GeoKeyDirectory (sphere `R`, polar stereographic or equirectangular), GDAL_NODATA and an
-//! optional GDAL_METADATA block (provenance items). Files are encoded in memory and written with
-//! [`crate::output::write_atomic`] (temp file + rename).
+//! [`write_dem`]): Cloud-Optimized GeoTIFFs (`cog.rs`: 256² tiles, Deflate with a predictor,
+//! overviews, IFDs before the data, GDAL's layout) with ModelPixelScale, ModelTiepoint, a
+//! user-defined GeoKeyDirectory (sphere `R`, polar stereographic or equirectangular), GDAL_NODATA
+//! and a GDAL_METADATA block (provenance items, the band's description and unit, [`BandInfo`]).
+//! Files are encoded in memory and written with [`crate::output::write_atomic`] (temp file +
+//! rename).
 
 use std::collections::BTreeMap;
-use std::io::{Cursor, Read, Seek};
+use std::io::{Read, Seek};
 use std::path::Path;
 
 use tiff::decoder::{ChunkType, Decoder, DecodingResult};
@@ -148,7 +151,9 @@ pub fn read_geotiff_from<R: Read + Seek>(
         .unwrap_or(1);
     let kind = match (format, bits) {
         (3, 32) => SampleKind::F32,
+        (3, 64) => SampleKind::F64,
         (2, 16) => SampleKind::I16,
+        (2, 32) => SampleKind::I32,
         (1, 16) => SampleKind::U16,
         (1, 8) => SampleKind::U8,
         _ => {
@@ -288,6 +293,15 @@ pub fn read_geotiff_from<R: Read + Seek>(
                     }
                 });
             }
+            (SampleKind::F64, DecodingResult::F64(v)) => {
+                // NaN nodata never equals itself: NaN samples are holes anyway.
+                place.copy(&mut heights_m, &v, |x| int_sample(x, nodata, scale, offset));
+            }
+            (SampleKind::I32, DecodingResult::I32(v)) => {
+                place.copy(&mut heights_m, &v, |x| {
+                    int_sample(f64::from(x), nodata, scale, offset)
+                });
+            }
             (SampleKind::I16, DecodingResult::I16(v)) => {
                 place.copy(&mut heights_m, &v, |x| {
                     int_sample(f64::from(x), nodata, scale, offset)
@@ -371,7 +385,8 @@ fn check_declared_size<R: Read + Seek>(
         ));
     }
     let bytes_per_sample: u128 = match kind {
-        SampleKind::F32 => 4,
+        SampleKind::F64 => 8,
+        SampleKind::F32 | SampleKind::I32 => 4,
         SampleKind::I16 | SampleKind::U16 => 2,
         SampleKind::U8 => 1,
     };
@@ -398,7 +413,9 @@ fn check_declared_size<R: Read + Seek>(
 /// The sample types penumbra reads.
 #[derive(Debug, Clone, Copy)]
 enum SampleKind {
+    F64,
     F32,
+    I32,
     I16,
     U16,
     U8,
@@ -826,14 +843,16 @@ fn parse_nodata(s: &str) -> Option<f64> {
 
 mod bands;
 mod bands_read;
+mod cog;
 mod gdal_metadata;
 mod write;
 
 pub use bands::{BandSample, MultiBandTiff};
 pub use bands_read::MultiBandTiffReader;
 
+pub use cog::COG_TILE_PX;
 use gdal_metadata::*;
-pub use write::{write_dem, write_geotiff_f32, write_geotiff_u8, write_geotiff_u16};
+pub use write::{BandInfo, write_dem, write_geotiff_f32, write_geotiff_u8, write_geotiff_u16};
 
 #[cfg(test)]
 mod tests;

@@ -292,3 +292,185 @@ fn help_is_for_users_and_flag_names_have_one_meaning() {
     };
     assert_eq!(row("--height-m"), row("--height-above-sphere-m"));
 }
+
+#[test]
+fn sites_come_from_csv_or_geojson_with_spaces_in_names() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let k = kernels_dir();
+    std::fs::write(
+        d.join("sites.csv"),
+        "# candidate sites\nname,lat_deg,lon_deg,height_m\nConnecting Ridge (east),-89.9,10,2\n\
+         rim 2,-89.85,200,\n",
+    )
+    .unwrap();
+    std::fs::write(
+        d.join("sites.geojson"),
+        r#"{"type": "FeatureCollection", "features": [
+  {"type": "Feature", "geometry": {"type": "Point", "coordinates": [10, -89.9]},
+   "properties": {"name": "Connecting Ridge (east)", "height_m": 2}},
+  {"type": "Feature", "geometry": {"type": "Point", "coordinates": [200, -89.85, 1234]},
+   "properties": {"name": "rim 2"}}]}"#,
+    )
+    .unwrap();
+    let series = |extra: &[&str], out: &str| {
+        let mut args = vec![
+            "series",
+            "--synthetic",
+            "--start",
+            "2025-01-01",
+            "--stop",
+            "2025-01-02",
+            "--step",
+            "6h",
+            "--no-plots",
+            "--observer-height-m",
+            "3",
+            "--kernels",
+            k.to_str().unwrap(),
+            "--out-dir",
+            out,
+        ];
+        args.extend(extra);
+        penumbra(d, &args)
+    };
+    for (file, out) in [("sites.csv", "c"), ("sites.geojson", "g")] {
+        let o = series(&["--sites", file], out);
+        assert!(o.status.success(), "{}", stderr(&o));
+    }
+    // The same sites as flags (the oracle: the flag parser, not the file readers).
+    let o = series(
+        &[
+            "--site",
+            "Connecting Ridge (east),-89.9,10,2",
+            "--site",
+            "rim 2,-89.85,200,3",
+        ],
+        "f",
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    for name in ["Connecting Ridge (east)", "rim 2"] {
+        let want = std::fs::read(d.join("f").join(name).join("series.csv")).unwrap();
+        assert!(want.len() > 100);
+        for out in ["c", "g"] {
+            let got = std::fs::read(d.join(out).join(name).join("series.csv")).unwrap();
+            assert!(got == want, "{out}/{name}/series.csv differs");
+        }
+    }
+    let stats: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(d.join("c/stats.json")).unwrap()).unwrap();
+    assert_eq!(stats["schema"], "penumbra-stats/1");
+    let run: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(d.join("c/run.json")).unwrap()).unwrap();
+    assert_eq!(run["schema"], "penumbra-run/1");
+    // Each site's location in stats.json; the tidy long table holds every site's rows after the
+    // site's columns, and is listed in run.json.
+    let loc = &stats["sites"][1]["location"];
+    assert_eq!(stats["sites"][1]["site"], "rim 2");
+    assert_eq!(
+        (loc["lat_deg"].as_f64(), loc["lon_deg"].as_f64()),
+        (Some(-89.85), Some(200.0))
+    );
+    assert_eq!(loc["height_above_ground_m"].as_f64(), Some(3.0));
+    assert!(run["outputs"].to_string().contains("series_long.csv"));
+    let mut long = csv::Reader::from_path(d.join("c/series_long.csv")).unwrap();
+    let header = long.headers().unwrap().clone();
+    let per_site_header = std::fs::read_to_string(d.join("f/rim 2/series.csv")).unwrap();
+    let per_site_header = per_site_header.lines().next().unwrap();
+    assert_eq!(
+        header.iter().collect::<Vec<_>>().join(","),
+        format!("site,lat_deg,lon_deg,height_above_ground_m,ground_height_m,{per_site_header}")
+    );
+    let long_rows: Vec<csv::StringRecord> = long.records().map(Result::unwrap).collect();
+    let mut n = 0;
+    for (name, lat, ground) in [
+        (
+            "Connecting Ridge (east)",
+            "-89.9",
+            &stats["sites"][0]["location"]["ground_height_m"],
+        ),
+        ("rim 2", "-89.85", &loc["ground_height_m"]),
+    ] {
+        let mut per_site =
+            csv::Reader::from_path(d.join("f").join(name).join("series.csv")).unwrap();
+        for want in per_site.records() {
+            let got = &long_rows[n];
+            n += 1;
+            assert_eq!((&got[0], &got[1]), (name, lat));
+            let g: f64 = got[4].parse().unwrap();
+            assert!((g - ground.as_f64().unwrap()).abs() < 1e-3);
+            assert_eq!(
+                got.iter().skip(5).collect::<Vec<_>>(),
+                want.unwrap().iter().collect::<Vec<_>>()
+            );
+        }
+    }
+    assert_eq!(n, long_rows.len());
+    assert_eq!(n, 2 * 5, "5 epochs (the stop is included) at 2 sites");
+    // A scenario takes the same table as `sites_file` (relative to the scenario).
+    std::fs::write(
+        d.join("s.toml"),
+        format!(
+            "name = \"s\"\noutput_dir = \"sc\"\nkernels = \"{}\"\nsites_file = \"sites.geojson\"\n\
+             [time]\nstart = \"2025-01-01\"\nstop = \"2025-01-02\"\nstep = \"6h\"\n\
+             [terrain]\nsynthetic = {{ size_px = 100, px_m = 100.0, seed = 1 }}\n[series]\nplots = false\n",
+            k.display()
+        ),
+    )
+    .unwrap();
+    let o = penumbra(d, &["run", "s.toml"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let long = std::fs::read_to_string(d.join("sc/series_long.csv")).unwrap();
+    assert_eq!(long.lines().count(), 1 + 10);
+    assert!(
+        long.lines()
+            .nth(1)
+            .unwrap()
+            .starts_with("Connecting Ridge (east),-89.9,10,2,")
+    );
+    assert!(
+        long.lines()
+            .nth(6)
+            .unwrap()
+            .starts_with("rim 2,-89.85,200,2,")
+    );
+    // Bad files and names: one line each, naming the problem.
+    for (name, text, needle) in [
+        ("a.csv", "name,lat\nx,-89.9\n", "must name columns"),
+        (
+            "b.csv",
+            "name,lat_deg,lon_deg\nx,-89.9,east\n",
+            "line 2: longitude 'east'",
+        ),
+        (
+            "c.csv",
+            "name,lat_deg,lon_deg\nRidge,-89.9,0\nridge,-89.8,0\n",
+            "differ in more than letter case",
+        ),
+        (
+            "d.csv",
+            "name,lat_deg,lon_deg\n../x,-89.9,0\n",
+            "site name '../x'",
+        ),
+        ("e.csv", "name,lat_deg,lon_deg\n", "no sites"),
+        (
+            "f.geojson",
+            r#"{"type": "FeatureCollection", "features": [{"type": "Feature", "geometry": {"type": "LineString", "coordinates": [[0, -89], [1, -89]]}, "properties": {"name": "x"}}]}"#,
+            "feature 0: its geometry is not a Point",
+        ),
+        (
+            "g.geojson",
+            r#"{"type": "FeatureCollection", "features": [{"type": "Feature", "geometry": {"type": "Point", "coordinates": [0, -89.9]}, "properties": {}}]}"#,
+            "no properties.name",
+        ),
+        ("h.json", "{not json", "not JSON"),
+    ] {
+        std::fs::write(d.join(name), text).unwrap();
+        assert_clean_error(&series(&["--sites", name], "bad"), needle);
+    }
+    assert_clean_error(&series(&["--sites", "absent.csv"], "bad"), "absent.csv");
+    assert_clean_error(
+        &series(&["--site", "a/b,-89.9,0"], "bad"),
+        "site name 'a/b'",
+    );
+}

@@ -3,6 +3,7 @@
 //! when no adapter exists; `PENUMBRA_REQUIRE_GPU=1` turns the skip into a failure. In CI they
 //! run on lavapipe (`WGPU_BACKEND=vulkan`).
 
+use crate::util::OutputWithin as _;
 use std::path::Path;
 
 use penumbra::terrain::HeightField;
@@ -274,7 +275,7 @@ fn penumbra_with_backend(wgpu_backend: Option<&str>, args: &[&str]) -> std::proc
     if let Some(b) = wgpu_backend {
         cmd.env("WGPU_BACKEND", b);
     }
-    cmd.output().unwrap()
+    cmd.output_within().unwrap()
 }
 
 /// `gpu-info` lists the adapters (or says there is none) and exits 0.
@@ -355,7 +356,7 @@ fn map_range(cwd: &Path, wgpu_backend: Option<&str>, backend: &str) -> std::proc
     if let Some(b) = wgpu_backend {
         cmd.env("WGPU_BACKEND", b);
     }
-    cmd.output().unwrap()
+    cmd.output_within().unwrap()
 }
 
 /// Minimum agreement of the PSR masks of `map --backend gpu` (soft GPU sweep: DP max-mipmap visible

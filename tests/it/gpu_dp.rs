@@ -4,6 +4,8 @@
 //! adapter exists, a failure with `PENUMBRA_REQUIRE_GPU=1`). naga validation of the DP shaders is
 //! part of `gpu::naga_validates_every_shader` (every `shaders/*.wgsl`).
 
+#[cfg(feature = "gpu")]
+use crate::util::OutputWithin as _;
 use penumbra::shadow::{Engine, SUN_ANGULAR_RADIUS_RAD, dp};
 use penumbra::twins::{self, DpMip, MarchGrid, RowBand};
 
@@ -281,7 +283,7 @@ fn map_range_dp(cwd: &std::path::Path, backend: &str) -> std::process::Output {
         .current_dir(cwd)
         .env("XDG_RUNTIME_DIR", "/tmp")
         .env_remove("PENUMBRA_KERNELS")
-        .output()
+        .output_within()
         .unwrap()
 }
 
@@ -498,7 +500,7 @@ fn map_one_light_gpu_matches_cpu() {
             ])
             .current_dir(dir.path())
             .env("XDG_RUNTIME_DIR", "/tmp")
-            .output()
+            .output_within()
             .unwrap();
         assert!(
             out.status.success(),

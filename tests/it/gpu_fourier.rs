@@ -5,6 +5,7 @@
 //! (a failure with `PENUMBRA_REQUIRE_GPU=1`). naga validation of both shaders is part of
 //! `gpu::naga_validates_every_shader` (every `shaders/*.wgsl` with its `// requires:` lines).
 
+use crate::util::OutputWithin as _;
 use penumbra::shadow::fourier::{self, HorizonMap, HorizonMapMeta, HorizonMapParams};
 use penumbra::shadow::{MASK_NODATA, SUN_ANGULAR_RADIUS_RAD};
 use penumbra::terrain::HeightField;
@@ -342,7 +343,7 @@ fn penumbra_gpu_env(cwd: &std::path::Path, args: &[&str]) -> std::process::Outpu
         .args(args)
         .current_dir(cwd)
         .env("XDG_RUNTIME_DIR", "/tmp")
-        .output()
+        .output_within()
         .unwrap()
 }
 
@@ -457,7 +458,7 @@ fn penumbra_with_wgpu(
         .current_dir(cwd)
         .env("XDG_RUNTIME_DIR", "/tmp")
         .env("WGPU_BACKEND", wgpu_backend)
-        .output()
+        .output_within()
         .unwrap()
 }
 

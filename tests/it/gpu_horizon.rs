@@ -5,6 +5,7 @@
 //! exact scan on the synthetic DEM and on the real LOLA grids (skipped with a reason when absent).
 //! No adapter: skipped with a printed reason, unless `PENUMBRA_REQUIRE_GPU=1`.
 
+use crate::util::OutputWithin as _;
 use std::path::Path;
 
 use penumbra::MOON_RADIUS_M;
@@ -247,7 +248,7 @@ fn penumbra_in(dir: &Path, wgpu_backend: Option<&str>, args: &[&str]) -> std::pr
     if let Some(b) = wgpu_backend {
         cmd.env("WGPU_BACKEND", b);
     }
-    cmd.output().unwrap()
+    cmd.output_within().unwrap()
 }
 
 /// A 100 x 100 synthetic DEM (100 m) written by `penumbra dem synth` into `dir/dem.tif`.

@@ -5,6 +5,8 @@
 //! tests run on lavapipe and skip with a printed reason without an adapter (a failure with
 //! `PENUMBRA_REQUIRE_GPU=1`).
 
+#[cfg(feature = "gpu")]
+use crate::util::OutputWithin as _;
 use penumbra::shadow::{Engine, SUN_ANGULAR_RADIUS_RAD, dp};
 use penumbra::twins::dp_tiles::{self, TileBlock, TilePlan};
 use penumbra::twins::{self, DpMip, MarchGrid, RowBand};
@@ -454,7 +456,7 @@ mod on_gpu {
                 .current_dir(dir.path())
                 .env("XDG_RUNTIME_DIR", "/tmp")
                 .env_remove("PENUMBRA_KERNELS")
-                .output()
+                .output_within()
                 .unwrap();
             assert!(
                 out.status.success(),
@@ -517,7 +519,7 @@ mod on_gpu {
                 .args(extra)
                 .current_dir(dir.path())
                 .env("XDG_RUNTIME_DIR", "/tmp")
-                .output()
+                .output_within()
                 .unwrap();
             assert!(
                 out.status.success(),

@@ -1,6 +1,7 @@
 //! Horizon tests: analytic cases (flat sphere, ring wall), the exact scan against a brute-force
 //! fine ray march, fast vs exact on the real LOLA grids, bad input, and the CLI.
 
+use crate::util::OutputWithin as _;
 use std::path::PathBuf;
 use std::process::Command;
 
@@ -338,7 +339,7 @@ fn cli_missing_dem_is_a_one_line_error() {
         ])
         .arg("--out")
         .arg(&out)
-        .output()
+        .output_within()
         .unwrap();
     assert_eq!(o.status.code(), Some(2));
     let err = String::from_utf8_lossy(&o.stderr);
@@ -370,7 +371,7 @@ fn cli_writes_csv_and_json_and_rejects_bad_height() {
         .args(["--observer-height-m", "-1"])
         .arg("--out")
         .arg(&csv)
-        .output()
+        .output_within()
         .unwrap();
     assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stderr).contains("observer height -1 m"));
@@ -378,7 +379,7 @@ fn cli_writes_csv_and_json_and_rejects_bad_height() {
 
     let mut cmd = penumbra();
     base(&mut cmd);
-    let o = cmd.arg("--out").arg(&csv).output().unwrap();
+    let o = cmd.arg("--out").arg(&csv).output_within().unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let text = std::fs::read_to_string(&csv).unwrap();
     let mut lines = text.lines();
@@ -389,7 +390,7 @@ fn cli_writes_csv_and_json_and_rejects_bad_height() {
     base(&mut cmd);
     let o = cmd
         .args(["--format", "json", "--method", "exact"])
-        .output()
+        .output_within()
         .unwrap();
     assert!(o.status.success());
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();

@@ -2,6 +2,7 @@
 //! a different algorithm: great-circle segments, every crossing plus the in-patch maxima, no
 //! hull), on a synthetic two-layer stack away from the pole and on the real LOLA grids.
 
+use crate::util::OutputWithin as _;
 use penumbra::horizon::sweep::grid_convergence_deg;
 use penumbra::horizon::{HorizonEngine, HorizonMethod, HorizonParams, HorizonSweep, SweepParams};
 use penumbra::terrain::{Dem, TerrainStack};
@@ -164,7 +165,7 @@ fn gdal_value(file: &std::path::Path, band: usize, row: usize, col: usize) -> Op
         .args(["-valonly", "-b", &band.to_string()])
         .arg(file)
         .args([col.to_string(), row.to_string()])
-        .output()
+        .output_within()
         .ok()?;
     out.status
         .success()
@@ -213,7 +214,7 @@ fn cli_sweep_writes_a_gdal_readable_multiband_geotiff() {
     assert_eq!(sweep.directions().len(), 16);
     let Some(info) = std::process::Command::new("gdalinfo")
         .arg(dir.path().join("hz.tif"))
-        .output()
+        .output_within()
         .ok()
         .filter(|o| o.status.success())
     else {

@@ -1,12 +1,13 @@
 //! `penumbra map` through the binary: georeferencing read back by GDAL, analytic lights, bad input.
 
+use crate::util::OutputWithin as _;
 use crate::util::{assert_clean_error, files_in, kernels_dir, penumbra, penumbra_ok, read_tif};
 
 fn gdalinfo_json(path: &std::path::Path) -> Option<serde_json::Value> {
     let out = std::process::Command::new("gdalinfo")
         .args(["-json", "-stats"])
         .arg(path)
-        .output()
+        .output_within()
         .ok()?;
     if !out.status.success() {
         return None;

@@ -6,6 +6,7 @@
 //! The table is built from classes: each numeric flag × values outside its physical bounds, each
 //! bad DEM file × each command that reads a DEM, bad kernels, bad outputs, bad scenarios.
 
+use crate::util::OutputWithin as _;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -40,7 +41,16 @@ fn bad_dems(dir: &Path) -> Vec<(PathBuf, &'static str)> {
     let mut out = Vec::new();
     let mut put = |name: &str, g: GridGeometry, p: Projection, z: Vec<f32>, needle| {
         let path = dir.join(name);
-        write_geotiff_f32(&path, &g, &p, &z, None, &[]).unwrap();
+        write_geotiff_f32(
+            &path,
+            &g,
+            &p,
+            &z,
+            None,
+            &[],
+            penumbra::terrain::BandInfo::default(),
+        )
+        .unwrap();
         out.push((path, needle));
     };
     put(
@@ -161,6 +171,7 @@ fn bad_dems(dir: &Path) -> Vec<(PathBuf, &'static str)> {
         &vec![1.0; 64 * 64],
         None,
         &[],
+        penumbra::terrain::BandInfo::default(),
     )
     .unwrap();
     let bytes = std::fs::read(&whole).unwrap();
@@ -810,7 +821,7 @@ fn bad_scenarios(dir: &Path, good_dem: &Path, k: &Path) -> Vec<Case> {
             "before",
         ),
         (
-            format!("{head}{time}[[sites]]\nname = \"a b\"\nlat_deg = -89.9\nlon_deg = 0.0\n"),
+            format!("{head}{time}[[sites]]\nname = \"a/b\"\nlat_deg = -89.9\nlon_deg = 0.0\n"),
             "site name",
         ),
         (
@@ -1146,7 +1157,7 @@ fn no_xdg_runtime_dir_noise_without_a_session() {
         .current_dir(dir.path())
         .env_remove("XDG_RUNTIME_DIR")
         .args(["gpu-info", "--backend", "auto"])
-        .output()
+        .output_within()
         .unwrap();
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!stderr.contains("XDG_RUNTIME_DIR"), "{stderr}");

@@ -7,6 +7,7 @@
 //! equal the uninterrupted run's byte for byte; `run.json` too, but for the command line and
 //! the wall time.
 
+use crate::util::OutputWithin as _;
 use std::collections::BTreeMap;
 use std::path::Path;
 use std::process::{Command, Output};
@@ -69,7 +70,7 @@ fn run(dir: &Path, out: &str, resume: bool, exit_after: Option<u32>) -> Output {
     if let Some(n) = exit_after {
         cmd.env("PENUMBRA_TEST_EXIT_AFTER_CHECKPOINTS", n.to_string());
     }
-    cmd.output().expect("the penumbra binary runs")
+    cmd.output_within().expect("the penumbra binary runs")
 }
 
 /// Every file under `dir` (relative path → bytes); run.json without its command line and wall
@@ -269,7 +270,7 @@ fn a_killed_map_range_resumes_to_the_same_bytes() {
         if let Some(n) = exit_after {
             cmd.env("PENUMBRA_TEST_EXIT_AFTER_CHECKPOINTS", n.to_string());
         }
-        cmd.output().unwrap()
+        cmd.output_within().unwrap()
     };
     assert!(go("full", &[], None).status.success());
     let full = contents(&dir.path().join("full"));

@@ -154,7 +154,7 @@ fn series_bad_input_is_a_clean_error_and_writes_nothing() {
         // Off the DEM (the synthetic DEM spans 20 km around the pole).
         (vec!["--site", "far,-85.0,0"], "outside"),
         (vec!["--site", "neg,-89.6,0,-1"], "height"),
-        (vec!["--site", "bad name,-89.6,0"], "site name"),
+        (vec!["--site", "bad/name,-89.6,0"], "site name"),
         (vec!["--site", "x,-89.6"], "--site"),
     ];
     for (extra, needle) in cases {

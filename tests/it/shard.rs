@@ -3,6 +3,7 @@
 //! 240 m crop with its far field), refuses what it must (other jobs, holes, repeats, damaged
 //! or unfinished shards), and a killed shard re-run alone gives the same merged maps.
 
+use crate::util::OutputWithin as _;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
@@ -118,6 +119,7 @@ fn holed_dem(dir: &Path) -> PathBuf {
         &dem.heights_m,
         Some(f32::NAN),
         &[],
+        penumbra::terrain::BandInfo::default(),
     )
     .unwrap();
     path
@@ -306,7 +308,7 @@ fn a_killed_shard_rerun_alone_gives_the_same_merged_maps() {
     let killed = std::process::Command::new(env!("CARGO_BIN_EXE_penumbra"))
         .args(&args)
         .env("PENUMBRA_TEST_EXIT_AFTER_CHECKPOINTS", "2")
-        .output()
+        .output_within()
         .unwrap();
     assert_eq!(killed.status.code(), Some(137), "{killed:?}");
     assert!(!p("a1/shard.json").exists());
@@ -332,7 +334,7 @@ fn a_map_too_big_for_memory_is_refused_and_fits_in_shards() {
             .args(args)
             .current_dir(d)
             .env("PENUMBRA_MEMORY_BUDGET_GB", "0.01")
-            .output()
+            .output_within()
             .unwrap()
     };
     let mut whole = synthetic_args("2025-01-02", k.to_str().unwrap());

@@ -1,6 +1,7 @@
 //! Terrain (issue 4): `penumbra dem info|synth` through the binary, GeoTIFF output checked with
 //! GDAL, the real LOLA grids of `../shared/data/lola-south-pole-moondao/`, and bad inputs.
 
+use crate::util::OutputWithin as _;
 use std::io::Cursor;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -30,11 +31,11 @@ fn lola(file: &str) -> Option<PathBuf> {
 }
 
 fn run(args: &[&str]) -> Output {
-    Command::new(BIN).args(args).output().unwrap()
+    Command::new(BIN).args(args).output_within().unwrap()
 }
 
 fn has_tool(tool: &str) -> bool {
-    let found = Command::new(tool).arg("--version").output().is_ok();
+    let found = Command::new(tool).arg("--version").output_within().is_ok();
     if !found {
         println!("skipped: `{tool}` is not installed");
     }
@@ -78,7 +79,7 @@ fn info_json(path: &Path, at: &[(f64, f64)]) -> serde_json::Value {
         args.push("--at".into());
         args.push(format!("{lat},{lon}"));
     }
-    let out = Command::new(BIN).args(&args).output().unwrap();
+    let out = Command::new(BIN).args(&args).output_within().unwrap();
     assert!(
         out.status.success(),
         "{}",
@@ -214,7 +215,7 @@ fn reading_the_1536_dem_peaks_below_one_and_a_half_times_its_size() {
         let out = Command::new(time)
             .args(["-f", "%M", BIN, "dem", "info"])
             .arg(file)
-            .output()
+            .output_within()
             .unwrap();
         let err = String::from_utf8_lossy(&out.stderr);
         err.trim().lines().last().unwrap().trim().parse().unwrap()
@@ -268,7 +269,7 @@ fn gdal_json(path: &Path) -> serde_json::Value {
     let out = Command::new("gdalinfo")
         .args(["-json", "-proj4"])
         .arg(path)
-        .output()
+        .output_within()
         .unwrap();
     assert!(
         out.status.success(),
@@ -283,7 +284,7 @@ fn gdal_value(path: &Path, col: usize, row: usize) -> f64 {
         .arg("-valonly")
         .arg(path)
         .args([col.to_string(), row.to_string()])
-        .output()
+        .output_within()
         .unwrap();
     String::from_utf8_lossy(&out.stdout).trim().parse().unwrap()
 }
@@ -372,7 +373,16 @@ fn u8_u16_equirectangular_and_nodata_read_back_in_gdal() {
     };
     let p16 = dir.path().join("u16.tif");
     let v16: Vec<u16> = (0..35).map(|i| i * 1000 + 7).collect();
-    terrain::write_geotiff_u16(&p16, &grid, &eqc, &v16, Some(7), &[]).unwrap();
+    terrain::write_geotiff_u16(
+        &p16,
+        &grid,
+        &eqc,
+        &v16,
+        Some(7),
+        &[],
+        terrain::BandInfo::default(),
+    )
+    .unwrap();
     let v = gdal_json(&p16);
     let proj4 = v["coordinateSystem"]["proj4"].as_str().unwrap();
     assert!(
@@ -398,6 +408,7 @@ fn u8_u16_equirectangular_and_nodata_read_back_in_gdal() {
         &v8,
         Some(255),
         &[],
+        terrain::BandInfo::default(),
     )
     .unwrap();
     let v = gdal_json(&p8);
@@ -472,6 +483,42 @@ fn gdal_written_tiled_lzw_int16_pixel_is_point_with_scale_reads_correctly() {
                 "COMPRESS=DEFLATE",
             ][..],
         ),
+        // Float64 and Int32 (issue 18), with the predictors GDAL users set.
+        (
+            "tiled_deflate_pred3_f64.tif",
+            &[
+                "-ot",
+                "Float64",
+                "-co",
+                "TILED=YES",
+                "-co",
+                "COMPRESS=DEFLATE",
+                "-co",
+                "PREDICTOR=3",
+            ][..],
+        ),
+        (
+            "strips_lzw_pred2_i32_scaled.tif",
+            &[
+                "-ot",
+                "Int32",
+                "-scale",
+                "-3000",
+                "5000",
+                "-300000",
+                "500000",
+                "-a_scale",
+                "0.01",
+                "-co",
+                "COMPRESS=LZW",
+                "-co",
+                "PREDICTOR=2",
+            ][..],
+        ),
+        (
+            "cog_f32.tif",
+            &["-of", "COG", "-co", "BLOCKSIZE=16", "-co", "PREDICTOR=YES"][..],
+        ),
     ] {
         let dst = dir.path().join(name);
         let out = Command::new("gdal_translate")
@@ -479,7 +526,7 @@ fn gdal_written_tiled_lzw_int16_pixel_is_point_with_scale_reads_correctly() {
             .args(opts)
             .arg(&src)
             .arg(&dst)
-            .output()
+            .output_within()
             .unwrap();
         assert!(
             out.status.success(),
@@ -545,18 +592,8 @@ fn bad_inputs_fail_with_one_line_and_exit_code_2() {
     let text = d.join("notes.tif");
     std::fs::write(&text, "these are not the pixels you are looking for\n").unwrap();
     assert_clean_failure(&run(&["dem", "info", &arg(&text)]), "not a TIFF");
-    // Unsupported sample format: float64 and uint32.
-    let f64_path = d.join("f64.tif");
-    let mut buf = Cursor::new(Vec::new());
-    tiff::encoder::TiffEncoder::new(&mut buf)
-        .unwrap()
-        .write_image::<tiff::encoder::colortype::Gray64Float>(2, 2, &[1.0, 2.0, 3.0, 4.0])
-        .unwrap();
-    std::fs::write(&f64_path, buf.into_inner()).unwrap();
-    assert_clean_failure(
-        &run(&["dem", "info", &arg(&f64_path)]),
-        "unsupported sample format 64-bit float",
-    );
+    // Unsupported sample format: uint32 (float64 and int32 are read: see
+    // gdal_written_float64_int32_and_predictors_read_back).
     let u32_path = d.join("u32.tif");
     let mut buf = Cursor::new(Vec::new());
     tiff::encoder::TiffEncoder::new(&mut buf)
@@ -616,6 +653,7 @@ fn bad_inputs_fail_with_one_line_and_exit_code_2() {
         &[f32::NAN; 9],
         Some(f32::NAN),
         &[],
+        terrain::BandInfo::default(),
     )
     .unwrap();
     assert_clean_failure(
@@ -656,4 +694,181 @@ fn bad_inputs_fail_with_one_line_and_exit_code_2() {
         .filter(|e| e.file_name().to_string_lossy().starts_with(".penumbra-"))
         .collect();
     assert!(leftovers.is_empty(), "temporary files left: {leftovers:?}");
+}
+
+/// GDAL's COG validator (`validate_cloud_optimized_geotiff.py`, python3-gdal), run by the system
+/// Python; `None` (with a printed reason) when it is not installed.
+fn cog_validator() -> Option<PathBuf> {
+    let script = Command::new("/usr/bin/python3")
+        .args([
+            "-c",
+            "import osgeo_utils.samples.validate_cloud_optimized_geotiff as v; print(v.__file__)",
+        ])
+        .output_within()
+        .ok()
+        .filter(|o| o.status.success())
+        .map(|o| PathBuf::from(String::from_utf8_lossy(&o.stdout).trim()));
+    if script.is_none() {
+        println!(
+            "skipped: GDAL's validate_cloud_optimized_geotiff (python3-gdal) is not installed"
+        );
+    }
+    script
+}
+
+/// Every GeoTIFF penumbra writes (DEM, one-light maps, statistics maps) is a valid COG to GDAL's
+/// own validator (full check: block leaders and trailers), tiled, Deflate with a predictor, with
+/// overviews, a band description, a unit, nodata and the run's parameters as metadata.
+#[test]
+fn every_geotiff_output_is_a_cloud_optimized_geotiff_with_its_metadata() {
+    if !has_tool("gdalinfo") {
+        return;
+    }
+    let Some(validator) = cog_validator() else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let k = crate::util::kernels_dir();
+    let k = k.to_str().unwrap();
+    let dem = d.join("dem.tif");
+    let dem_s = dem.to_str().unwrap();
+    assert!(
+        run(&["-q", "dem", "synth", "--size", "300", "--out", dem_s])
+            .status
+            .success()
+    );
+    let one = |flag: &str, name: &str| {
+        let o = run(&[
+            "-q",
+            "map",
+            "--dem",
+            dem_s,
+            "--utc",
+            "2025-01-20T06:00",
+            "--kernels",
+            k,
+            flag,
+            d.join(name).to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    };
+    one("--out-fraction", "fraction.tif");
+    one("--out-mask", "mask.tif");
+    let maps = d.join("maps");
+    let o = run(&[
+        "-q",
+        "map",
+        "--dem",
+        dem_s,
+        "--start",
+        "2025-01-01",
+        "--stop",
+        "2025-01-03",
+        "--step",
+        "6h",
+        "--engine",
+        "horizons",
+        "--azimuths",
+        "90",
+        "--kernels",
+        k,
+        "--out-dir",
+        maps.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let mut tifs = vec![dem.clone(), d.join("fraction.tif"), d.join("mask.tif")];
+    let mut stats: Vec<PathBuf> = std::fs::read_dir(&maps)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "tif"))
+        .collect();
+    stats.sort();
+    assert!(stats.len() >= 9, "{stats:?}");
+    tifs.extend(stats);
+    for tif in &tifs {
+        let name = tif.file_name().unwrap().to_string_lossy().to_string();
+        let v = Command::new("/usr/bin/python3")
+            .arg(&validator)
+            .arg("--full-check=yes")
+            .arg(tif)
+            .output_within()
+            .unwrap();
+        let said =
+            String::from_utf8_lossy(&v.stdout).to_string() + &String::from_utf8_lossy(&v.stderr);
+        assert!(
+            v.status.success() && said.contains("is a valid cloud optimized GeoTIFF"),
+            "{name}: {said}"
+        );
+        assert!(!said.to_lowercase().contains("warning"), "{name}: {said}");
+        let j = gdal_json(tif);
+        let band = &j["bands"][0];
+        assert_eq!(j["metadata"]["IMAGE_STRUCTURE"]["LAYOUT"], "COG", "{name}");
+        assert_eq!(
+            j["metadata"]["IMAGE_STRUCTURE"]["COMPRESSION"], "DEFLATE",
+            "{name}"
+        );
+        assert!(
+            j["metadata"]["IMAGE_STRUCTURE"]["PREDICTOR"].is_string(),
+            "{name}"
+        );
+        assert_eq!(band["block"], serde_json::json!([256, 256]), "{name}");
+        assert_eq!(
+            band["overviews"].as_array().map(Vec::len),
+            Some(1),
+            "{name}: 300 px -> 150"
+        );
+        assert!(
+            !band["description"].as_str().unwrap_or("").is_empty(),
+            "{name}: no description"
+        );
+        // (a DEM without holes declares none)
+        assert!(
+            name == "dem.tif" || band.get("noDataValue").is_some(),
+            "{name}: no nodata"
+        );
+        let md = &j["metadata"][""];
+        assert!(
+            md["software"].as_str().unwrap().starts_with("penumbra"),
+            "{name}"
+        );
+        let unit = band["unit"].as_str().unwrap_or("");
+        match name.as_str() {
+            "dem.tif" => assert_eq!(unit, "m"),
+            "fraction.tif" | "mask.tif" => {
+                assert_eq!(md["epoch_utc"], "2025-01-20T06:00:00Z", "{name}");
+                for item in [
+                    "engine",
+                    "observer_height_m",
+                    "sun_az_deg_at_map_centre",
+                    "sun_el_deg_at_map_centre",
+                ] {
+                    assert!(md[item].is_string(), "{name}: no {item}");
+                }
+            }
+            n if n.ends_with("_pct.tif") => assert_eq!(unit, "%", "{name}"),
+            n if n.ends_with("_h.tif") => assert_eq!(unit, "h", "{name}"),
+            n if n.ends_with("_w_m2.tif") => assert_eq!(unit, "W m-2", "{name}"),
+            _ => {}
+        }
+        if tif.starts_with(&maps) {
+            assert!(
+                md["span_utc"].as_str().unwrap().contains("9 epochs"),
+                "{name}: {md}"
+            );
+        }
+    }
+    // The values GDAL reads are ours, pixel for pixel (the DEM: floating-point predictor).
+    let ours = terrain::read_geotiff(&dem).unwrap();
+    for &(col, row) in &[
+        (0, 0),
+        (299, 0),
+        (150, 150),
+        (255, 256),
+        (299, 299),
+        (17, 280),
+    ] {
+        let g = gdal_value(&dem, col, row);
+        assert_eq!(g as f32, ours.heights_m[row * 300 + col], "({col},{row})");
+    }
 }

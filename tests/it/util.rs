@@ -34,13 +34,64 @@ pub fn shared_lola(name: &str) -> Option<PathBuf> {
 }
 
 /// Runs the penumbra binary with `args` in `cwd`.
+///
+/// A run that outlives [`RUN_LIMIT_S`] is killed and the test fails naming its arguments: a hang
+/// (a FIFO read, a loop) fails one test instead of stalling the whole suite until CI's limit.
 pub fn penumbra(cwd: &Path, args: &[&str]) -> Output {
     std::process::Command::new(env!("CARGO_BIN_EXE_penumbra"))
         .args(args)
         .current_dir(cwd)
         .env_remove("PENUMBRA_KERNELS")
-        .output()
+        .output_within()
         .expect("the penumbra binary runs")
+}
+
+/// The longest one penumbra command in a test may run, seconds (the slowest takes ≈ 3 min on CI).
+pub const RUN_LIMIT_S: u64 = 900;
+
+/// `Command::output` with a time limit ([`RUN_LIMIT_S`]): a command still running then is killed
+/// and the test panics naming it, so that a hang fails one test instead of stalling the suite.
+pub trait OutputWithin {
+    /// Runs the command to its end, collecting stdout and stderr (stdin is null).
+    fn output_within(&mut self) -> std::io::Result<Output>;
+}
+
+impl OutputWithin for std::process::Command {
+    fn output_within(&mut self) -> std::io::Result<Output> {
+        use std::io::Read as _;
+        use std::process::Stdio;
+        let mut child = self
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()?;
+        let drain = |mut r: Box<dyn std::io::Read + Send>| {
+            std::thread::spawn(move || {
+                let mut buf = Vec::new();
+                let _ = r.read_to_end(&mut buf);
+                buf
+            })
+        };
+        let out = drain(Box::new(child.stdout.take().expect("piped stdout")));
+        let err = drain(Box::new(child.stderr.take().expect("piped stderr")));
+        let t0 = std::time::Instant::now();
+        let status = loop {
+            if let Some(status) = child.try_wait()? {
+                break status;
+            }
+            if t0.elapsed().as_secs() >= RUN_LIMIT_S {
+                let _ = child.kill();
+                let _ = child.wait();
+                panic!("{self:?} still ran after {RUN_LIMIT_S} s: killed (a hang?)");
+            }
+            std::thread::sleep(std::time::Duration::from_millis(10));
+        };
+        Ok(Output {
+            status,
+            stdout: out.join().expect("stdout reader"),
+            stderr: err.join().expect("stderr reader"),
+        })
+    }
 }
 
 /// Runs the penumbra binary with `args` in `cwd` and asserts that it succeeded (stderr shown

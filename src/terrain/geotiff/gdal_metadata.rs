@@ -124,3 +124,27 @@ pub(super) fn gdal_metadata_xml_with_bands(items: &[(&str, &str)], bands: &[Stri
     xml.push_str("</GDALMetadata>");
     xml
 }
+
+/// The GDAL_METADATA XML of dataset-level `items` and one band's description and unit (roles
+/// `description` and `unittype`, as GDAL writes them).
+pub(super) fn gdal_metadata_xml_with_band(
+    items: &[(&str, &str)],
+    band: super::BandInfo<'_>,
+) -> String {
+    let mut xml = gdal_metadata_xml(items);
+    xml.truncate(xml.len() - "</GDALMetadata>".len());
+    if !band.description.is_empty() {
+        xml.push_str(&format!(
+            "  <Item name=\"DESCRIPTION\" sample=\"0\" role=\"description\">{}</Item>\n",
+            xml_escape(band.description)
+        ));
+    }
+    if !band.unit.is_empty() {
+        xml.push_str(&format!(
+            "  <Item name=\"UNITTYPE\" sample=\"0\" role=\"unittype\">{}</Item>\n",
+            xml_escape(band.unit)
+        ));
+    }
+    xml.push_str("</GDALMetadata>");
+    xml
+}

@@ -1,5 +1,7 @@
 //! Unit tests of the GeoTIFF reader and writer.
 
+use std::io::Cursor;
+
 use tiff::encoder::{TiffEncoder, colortype};
 
 use super::write::geo_keys_for;
@@ -62,7 +64,7 @@ fn u16_u8_and_equirectangular_round_trip() {
     };
     let p16 = dir.path().join("u16.tif");
     let v16: Vec<u16> = (0..24).map(|i| i * 2700).collect();
-    write_geotiff_u16(&p16, &g, &eqc, &v16, Some(0), &[]).unwrap();
+    write_geotiff_u16(&p16, &g, &eqc, &v16, Some(0), &[], BandInfo::default()).unwrap();
     let d = read_geotiff(&p16).unwrap();
     assert_eq!(d.projection, eqc);
     assert_eq!(d.grid, g);
@@ -72,7 +74,16 @@ fn u16_u8_and_equirectangular_round_trip() {
     }
     let p8 = dir.path().join("u8.tif");
     let v8: Vec<u8> = (0..24).map(|i| i * 10).collect();
-    write_geotiff_u8(&p8, &g, &Projection::LOLA_SOUTH_POLAR, &v8, None, &[]).unwrap();
+    write_geotiff_u8(
+        &p8,
+        &g,
+        &Projection::LOLA_SOUTH_POLAR,
+        &v8,
+        None,
+        &[],
+        BandInfo::default(),
+    )
+    .unwrap();
     let d = read_geotiff(&p8).unwrap();
     for (a, b) in d.heights_m.iter().zip(&v8) {
         assert_eq!(*a, f32::from(*b));
@@ -206,4 +217,104 @@ fn int16_with_scale_offset_and_nodata_is_decoded() {
     for (h, r) in dem.heights_m.iter().zip(&raw).skip(1) {
         assert_eq!(f64::from(*h), f64::from(*r) * 0.5 + 10.0);
     }
+}
+
+#[test]
+fn cog_tiles_overviews_and_predictors_round_trip_exactly() {
+    // 600 x 530: 3 x 3 tiles with partial edges, two overview levels (300 x 265, 150 x 133).
+    let dir = tempfile::tempdir().unwrap();
+    let g = grid(530, 600);
+    let mut heights: Vec<f32> = (0..530 * 600)
+        .map(|i| ((i % 600) as f32 * 0.37).sin() * 1200.0 + (i / 600) as f32 * 0.5 - 3000.25)
+        .collect();
+    for h in heights.iter_mut().step_by(97) {
+        *h = f32::NAN;
+    }
+    let dem = Dem {
+        grid: g,
+        projection: Projection::LOLA_SOUTH_POLAR,
+        heights_m: heights.clone(),
+        name: "t".into(),
+    };
+    let path = dir.path().join("cog.tif");
+    write_dem(&path, &dem, &[]).unwrap();
+    let back = read_geotiff(&path).unwrap();
+    assert_eq!(back.grid, g);
+    for (a, b) in back.heights_m.iter().zip(&heights) {
+        assert!(
+            a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan()),
+            "{a} vs {b}"
+        );
+    }
+    // The layout: tiled, Deflate, floating-point predictor, overviews after the main image.
+    let bytes = std::fs::read(&path).unwrap();
+    let mut d = tiff::decoder::Decoder::new(std::io::Cursor::new(&bytes)).unwrap();
+    assert_eq!(d.get_chunk_type(), ChunkType::Tile);
+    assert_eq!(
+        d.find_tag_unsigned::<u16>(Tag::Compression).unwrap(),
+        Some(8)
+    );
+    assert_eq!(d.find_tag_unsigned::<u16>(Tag::Predictor).unwrap(), Some(3));
+    let mut sizes = vec![d.dimensions().unwrap()];
+    while d.more_images() {
+        d.next_image().unwrap();
+        sizes.push(d.dimensions().unwrap());
+    }
+    assert_eq!(sizes, vec![(600, 530), (300, 265), (150, 133)]);
+    // The last overview is the mean of the valid pixels of each 4 x 4 block of the first.
+    let DecodingResult::F32(ovr) = d.read_image().unwrap() else {
+        panic!("f32 overview")
+    };
+    let mut lvl1 = vec![f32::NAN; 300 * 265];
+    for r in 0..265 {
+        for c in 0..300 {
+            let v: Vec<f64> = [(0, 0), (0, 1), (1, 0), (1, 1)]
+                .iter()
+                .map(|(dr, dc)| (2 * r + dr, 2 * c + dc))
+                .filter(|&(rr, cc)| rr < 530 && cc < 600)
+                .map(|(rr, cc)| f64::from(heights[rr * 600 + cc]))
+                .filter(|h| !h.is_nan())
+                .collect();
+            if !v.is_empty() {
+                lvl1[r * 300 + c] = (v.iter().sum::<f64>() / v.len() as f64) as f32;
+            }
+        }
+    }
+    let at = |r: usize, c: usize| {
+        let v: Vec<f64> = [(0, 0), (0, 1), (1, 0), (1, 1)]
+            .iter()
+            .map(|(dr, dc)| (2 * r + dr, 2 * c + dc))
+            .filter(|&(rr, cc)| rr < 265 && cc < 300)
+            .map(|(rr, cc)| f64::from(lvl1[rr * 300 + cc]))
+            .filter(|h| !h.is_nan())
+            .collect();
+        (v.iter().sum::<f64>() / v.len() as f64) as f32
+    };
+    assert_eq!(ovr.len(), 150 * 133);
+    for (r, c) in [(0, 0), (7, 149), (132, 0), (132, 149), (60, 77)] {
+        assert_eq!(ovr[r * 150 + c], at(r, c), "overview pixel ({r}, {c})");
+    }
+    // u8 classes keep their values in the overviews (first valid pixel of each block).
+    let classes: Vec<u8> = (0..530 * 600).map(|i| [0u8, 1, 255][i % 7 % 3]).collect();
+    let p8 = dir.path().join("mask.tif");
+    write_geotiff_u8(
+        &p8,
+        &g,
+        &Projection::LOLA_SOUTH_POLAR,
+        &classes,
+        Some(255),
+        &[],
+        BandInfo::default(),
+    )
+    .unwrap();
+    let mut d = tiff::decoder::Decoder::new(std::fs::File::open(&p8).unwrap()).unwrap();
+    let DecodingResult::U8(full) = d.read_image().unwrap() else {
+        panic!("u8")
+    };
+    assert_eq!(full, classes);
+    d.next_image().unwrap();
+    let DecodingResult::U8(ovr) = d.read_image().unwrap() else {
+        panic!("u8")
+    };
+    assert!(ovr.iter().all(|v| [0, 1, 255].contains(v)));
 }

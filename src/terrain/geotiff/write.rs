@@ -3,9 +3,6 @@
 
 use std::path::Path;
 
-use tiff::encoder::{TiffEncoder, colortype};
-use tiff::tags::Tag;
-
 use super::*;
 
 /// Builds the GeoKeyDirectory, double and ASCII parameters of a user-defined CRS on the sphere.
@@ -101,16 +98,24 @@ pub(super) fn geo_keys_for(projection: &Projection) -> (Vec<u16>, Vec<f64>, Stri
     (dir, doubles, ascii)
 }
 
+/// What a band holds: GDAL's band description and unit (`gdalinfo`: "Description",
+/// "Unit Type"; rasterio: `descriptions`, `units`). Empty strings write nothing.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct BandInfo<'a> {
+    /// What the values are (e.g. "% of time any part of the Sun is visible").
+    pub description: &'a str,
+    /// Their unit (e.g. `%`, `h`, `m`, `W m-2`; empty for a class or a fraction without one).
+    pub unit: &'a str,
+}
+
 /// Sample types penumbra writes.
-trait WriteSample: Copy + std::fmt::Display {
-    type Color: colortype::ColorType<Inner = Self>;
+trait WriteSample: super::cog::CogSample + std::fmt::Display {
     /// The GDAL_NODATA text of a nodata value.
     fn nodata_text(self) -> String {
         self.to_string()
     }
 }
 impl WriteSample for f32 {
-    type Color = colortype::Gray32Float;
     fn nodata_text(self) -> String {
         if self.is_nan() {
             "nan".to_string()
@@ -119,25 +124,19 @@ impl WriteSample for f32 {
         }
     }
 }
-impl WriteSample for u16 {
-    type Color = colortype::Gray16;
-}
-impl WriteSample for u8 {
-    type Color = colortype::Gray8;
-}
+impl WriteSample for u16 {}
+impl WriteSample for u8 {}
 
-fn write_geotiff<T>(
+/// Writes one band as a Cloud-Optimized GeoTIFF (see [`super::cog`]), atomically.
+fn write_geotiff<T: WriteSample>(
     path: &Path,
     grid: &GridGeometry,
     projection: &Projection,
     values: &[T],
     nodata: Option<T>,
     metadata: &[(&str, &str)],
-) -> Result<()>
-where
-    T: WriteSample,
-    [T]: tiff::encoder::TiffValue,
-{
+    band: BandInfo<'_>,
+) -> Result<()> {
     if grid.rows == 0 || grid.cols == 0 || values.len() != grid.rows * grid.cols {
         return Err(DemError::InvalidParameter(format!(
             "raster of {} values for a {}x{} grid",
@@ -146,60 +145,40 @@ where
             grid.cols
         )));
     }
-    let name = path.display().to_string();
-    let enc_err = |e: TiffError| DemError::Encode {
-        path: name.clone(),
-        detail: e.to_string(),
-    };
-    let (dir, doubles, ascii) = geo_keys_for(projection);
-    let mut bytes = Cursor::new(Vec::with_capacity(std::mem::size_of_val(values) + 4096));
-    {
-        let mut encoder = TiffEncoder::new(&mut bytes).map_err(enc_err)?;
-        let (w, h) = (
-            u32::try_from(grid.cols)
-                .map_err(|_| DemError::InvalidParameter("too many columns".into()))?,
-            u32::try_from(grid.rows)
-                .map_err(|_| DemError::InvalidParameter("too many rows".into()))?,
-        );
-        let mut image = encoder.new_image::<T::Color>(w, h).map_err(enc_err)?;
-        let dir_enc = image.encoder();
-        dir_enc
-            .write_tag(
-                Tag::ModelPixelScaleTag,
-                &[grid.px_x_m, grid.px_y_m, 0.0][..],
-            )
-            .map_err(enc_err)?;
-        dir_enc
-            .write_tag(
-                Tag::ModelTiepointTag,
-                &[0.0, 0.0, 0.0, grid.x_left_m, grid.y_top_m, 0.0][..],
-            )
-            .map_err(enc_err)?;
-        dir_enc
-            .write_tag(Tag::GeoKeyDirectoryTag, &dir[..])
-            .map_err(enc_err)?;
-        dir_enc
-            .write_tag(Tag::GeoDoubleParamsTag, &doubles[..])
-            .map_err(enc_err)?;
-        dir_enc
-            .write_tag(Tag::GeoAsciiParamsTag, ascii.as_str())
-            .map_err(enc_err)?;
-        if !metadata.is_empty() {
-            dir_enc
-                .write_tag(
-                    Tag::Unknown(TAG_GDAL_METADATA),
-                    gdal_metadata_xml(metadata).as_str(),
-                )
-                .map_err(enc_err)?;
-        }
-        if let Some(nd) = nodata.map(WriteSample::nodata_text) {
-            dir_enc
-                .write_tag(Tag::Unknown(TAG_GDAL_NODATA), nd.as_str())
-                .map_err(enc_err)?;
-        }
-        image.write_data(values).map_err(enc_err)?;
+    if u32::try_from(grid.cols).is_err() || u32::try_from(grid.rows).is_err() {
+        return Err(DemError::InvalidParameter(format!(
+            "a {}x{} grid is too large for a TIFF",
+            grid.cols, grid.rows
+        )));
     }
-    let bytes = bytes.into_inner();
+    let name = path.display().to_string();
+    let (dir, doubles, ascii) = geo_keys_for(projection);
+    use super::cog::ExtraVal;
+    let mut extra = vec![
+        (33550, ExtraVal::Double(vec![grid.px_x_m, grid.px_y_m, 0.0])),
+        (
+            33922,
+            ExtraVal::Double(vec![0.0, 0.0, 0.0, grid.x_left_m, grid.y_top_m, 0.0]),
+        ),
+        (34735, ExtraVal::Short(dir)),
+        (34736, ExtraVal::Double(doubles)),
+        (34737, ExtraVal::Ascii(ascii)),
+    ];
+    if !metadata.is_empty() || !band.description.is_empty() || !band.unit.is_empty() {
+        extra.push((
+            TAG_GDAL_METADATA,
+            ExtraVal::Ascii(gdal_metadata_xml_with_band(metadata, band)),
+        ));
+    }
+    let nodata_text = nodata.map(WriteSample::nodata_text);
+    let bytes = super::cog::encode_cog(
+        grid.cols,
+        grid.rows,
+        values,
+        nodata,
+        nodata_text.as_deref(),
+        extra,
+    );
     write_atomic(path, |w| {
         w.write_all(&bytes).map_err(|source| {
             DemError::Output(OutputError::Io {
@@ -219,8 +198,9 @@ pub fn write_geotiff_f32(
     values: &[f32],
     nodata: Option<f32>,
     metadata: &[(&str, &str)],
+    band: BandInfo<'_>,
 ) -> Result<()> {
-    write_geotiff(path, grid, projection, values, nodata, metadata)
+    write_geotiff(path, grid, projection, values, nodata, metadata, band)
 }
 
 /// Writes a uint16 single-band GeoTIFF (see [`write_geotiff_f32`]).
@@ -231,8 +211,9 @@ pub fn write_geotiff_u16(
     values: &[u16],
     nodata: Option<u16>,
     metadata: &[(&str, &str)],
+    band: BandInfo<'_>,
 ) -> Result<()> {
-    write_geotiff(path, grid, projection, values, nodata, metadata)
+    write_geotiff(path, grid, projection, values, nodata, metadata, band)
 }
 
 /// Writes a uint8 single-band GeoTIFF (see [`write_geotiff_f32`]).
@@ -243,8 +224,9 @@ pub fn write_geotiff_u8(
     values: &[u8],
     nodata: Option<u8>,
     metadata: &[(&str, &str)],
+    band: BandInfo<'_>,
 ) -> Result<()> {
-    write_geotiff(path, grid, projection, values, nodata, metadata)
+    write_geotiff(path, grid, projection, values, nodata, metadata, band)
 }
 
 /// Writes a DEM as a float32 GeoTIFF; holes (`NaN`) are declared with `GDAL_NODATA = nan`.
@@ -257,5 +239,9 @@ pub fn write_dem(path: &Path, dem: &Dem, metadata: &[(&str, &str)]) -> Result<()
         &dem.heights_m,
         nodata,
         metadata,
+        BandInfo {
+            description: "height above the 1737.4 km sphere",
+            unit: "m",
+        },
     )
 }
