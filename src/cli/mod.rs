@@ -166,7 +166,8 @@ fn man(out_dir: Option<&std::path::Path>) -> anyhow::Result<()> {
 #[derive(Debug, Clone, Args)]
 pub struct KernelArgs {
     /// Folder of SPICE kernels (.bsp, .bpc, .tf, .tls), or a SPICE meta-kernel (.tm) listing
-    /// them. Default: $PENUMBRA_KERNELS, ./kernels, then the kernels/ folder of the source tree.
+    /// them. Default: $PENUMBRA_KERNELS, else the kernel set built into penumbra (DE440 Sun/Earth/
+    /// Moon 2000-2050, MOON_ME DE421; `penumbra kernels` lists it).
     #[arg(long, value_name = "DIR|TM")]
     pub kernels: Option<PathBuf>,
 }

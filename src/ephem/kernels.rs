@@ -8,9 +8,9 @@
 //! A SPICE meta-kernel (`.tm`) may stand in for the folder: its `KERNELS_TO_LOAD` files are
 //! loaded in order (see [`super::metakernel`]).
 //!
-//! Where the folder comes from, first match wins: `--kernels DIR`, the `PENUMBRA_KERNELS`
-//! environment variable, `./kernels` in the working directory, then the `kernels/` folder of the
-//! source tree the binary was built from.
+//! Where the folder comes from, first match wins: `--kernels DIR` (or a scenario's `kernels`),
+//! the `PENUMBRA_KERNELS` environment variable, then the shipped set built into the binary
+//! ([`super::embedded`]). `penumbra kernels` prints which one was used.
 
 use std::path::{Path, PathBuf};
 
@@ -75,16 +75,38 @@ pub struct Kernels {
     pub coverage: (Epoch, Epoch),
 }
 
-/// Where the default kernel folder is: `PENUMBRA_KERNELS`, `./kernels`, then the source tree's.
+/// Where the default kernels are: the `PENUMBRA_KERNELS` folder (or meta-kernel), else the set
+/// built into penumbra ([`super::embedded`]). A `./kernels` folder in the working directory is
+/// not looked at: give it with `--kernels kernels`.
 pub fn default_kernel_dir() -> PathBuf {
-    if let Some(dir) = std::env::var_os("PENUMBRA_KERNELS") {
-        return PathBuf::from(dir);
+    default_kernel_source().0
+}
+
+/// The default kernels and where they come from, in words (for `penumbra kernels`).
+pub fn default_kernel_source() -> (PathBuf, String) {
+    if let Some(dir) = std::env::var_os("PENUMBRA_KERNELS").filter(|d| !d.is_empty()) {
+        let dir = PathBuf::from(dir);
+        let what = format!("$PENUMBRA_KERNELS = {}", dir.display());
+        return (dir, what);
     }
-    let local = PathBuf::from("kernels");
-    if local.is_dir() {
-        return local;
+    match super::embedded::embedded_kernel_dir() {
+        Ok(dir) => {
+            let what = format!(
+                "the set built into penumbra {} (id {}, written to {})",
+                env!("CARGO_PKG_VERSION"),
+                super::embedded::embedded_set_id(),
+                dir.display()
+            );
+            (dir, what)
+        }
+        Err(why) => {
+            // The source tree's copy, if this binary was built here; else loading says it is absent.
+            eprintln!("penumbra: warning: {why}");
+            let dir = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/kernels"));
+            let what = format!("the source tree's kernels/ ({})", dir.display());
+            (dir, what)
+        }
     }
-    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/kernels"))
 }
 
 fn load_failed(path: &Path, why: impl std::fmt::Display) -> EphemError {

@@ -10,6 +10,15 @@ use crate::ephem::{self, time::format_utc};
 pub fn report(source: &KernelSource) -> anyhow::Result<String> {
     let kernels = source.load()?;
     let mut out = String::new();
+    let origin = match &source.dir {
+        Some(dir) => format!("--kernels {}", dir.display()),
+        None => crate::ephem::kernels::default_kernel_source().1,
+    };
+    writeln!(
+        out,
+        "kernel source: {origin}\n  (first of: --kernels DIR|FILE.tm or a scenario's `kernels`, \
+         $PENUMBRA_KERNELS, the set built into penumbra)"
+    )?;
     match &kernels.meta_kernel {
         Some(mk) => writeln!(out, "meta-kernel: {}", mk.display())?,
         None => writeln!(out, "kernel folder: {}", kernels.dir.display())?,

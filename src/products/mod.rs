@@ -117,7 +117,8 @@ pub fn synthetic_stack(params: &SynthParams) -> anyhow::Result<(TerrainStack, St
 }
 
 /// Where the SPICE kernels come from: a folder or a meta-kernel (`.tm`), or the default search
-/// ([`crate::ephem::kernels::default_kernel_dir`]: `$PENUMBRA_KERNELS`, `./kernels`, the source tree's).
+/// ([`crate::ephem::kernels::default_kernel_dir`]: `$PENUMBRA_KERNELS`, else the set built into
+/// penumbra).
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
 pub struct KernelSource {
     /// The kernel folder or meta-kernel; `None` for the default search.

@@ -38,7 +38,9 @@
 //! `Im X_k`; 16-bit unsigned samples holding the f16 bit patterns; `NaN` for holes), the
 //! geometry as JSON in the ImageDescription tag of page 0 ([`HorizonMap::write_tiff`],
 //! [`HorizonMap::read_tiff`]). Only the full-resolution coefficients are stored (not the mip
-//! pyramid; [`HorizonMap::mipmapped`] rebuilds it on load).
+//! pyramid; [`HorizonMap::mipmapped`] rebuilds it on load). Every page is georeferenced on the
+//! model grid (orthographic on the lunar sphere at the model centre, rotated by a
+//! ModelTransformation: [`crate::terrain::orthographic_model_tags`]) so that GIS tools place it.
 
 use std::io::{BufReader, Cursor};
 use std::path::Path;
@@ -510,6 +512,15 @@ impl HorizonMap {
         );
         let json = serde_json::to_string(&self.meta).map_err(|e| err(&e))?;
         let per = 2 * self.meta.n_coeffs;
+        let m = &self.meta;
+        let (transform, dir, doubles, ascii) = crate::terrain::orthographic_model_tags(
+            m.centre_lat_deg,
+            m.centre_lon_deg,
+            m.rotation_deg.to_radians(),
+            m.x_left_m,
+            m.y_top_m,
+            m.px_m,
+        );
         let mut bytes = Cursor::new(Vec::new());
         {
             let mut enc = TiffEncoder::new(&mut bytes).map_err(|e| err(&e))?;
@@ -530,6 +541,16 @@ impl HorizonMap {
                         .write_tag(Tag::ImageDescription, json.as_str())
                         .map_err(|e| err(&e))?;
                 }
+                // Every page georeferenced (GDAL opens each as GTIFF_DIR:n:file).
+                let e = image.encoder();
+                e.write_tag(Tag::ModelTransformationTag, &transform[..])
+                    .map_err(|e| err(&e))?;
+                e.write_tag(Tag::GeoKeyDirectoryTag, &dir[..])
+                    .map_err(|e| err(&e))?;
+                e.write_tag(Tag::GeoDoubleParamsTag, &doubles[..])
+                    .map_err(|e| err(&e))?;
+                e.write_tag(Tag::GeoAsciiParamsTag, ascii.as_str())
+                    .map_err(|e| err(&e))?;
                 image.write_data(&data).map_err(|e| err(&e))?;
             }
         }

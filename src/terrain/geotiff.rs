@@ -82,6 +82,10 @@ const USER_DEFINED: u16 = 32767;
 const CT_POLAR_STEREOGRAPHIC: u16 = 15;
 /// `CT_Equirectangular`.
 const CT_EQUIRECTANGULAR: u16 = 17;
+/// TIFF Compression value of ZSTD (GDAL, libtiff).
+const COMPRESSION_ZSTD: u16 = 50000;
+/// ProjCoordTransGeoKey value of the orthographic projection.
+const CT_ORTHOGRAPHIC: u16 = 21;
 /// EPSG unit code of the metre.
 const EPSG_METRE: u16 = 9001;
 /// EPSG unit code of the degree.
@@ -260,6 +264,26 @@ pub fn read_geotiff_from<R: Read + Seek>(
         ChunkType::Strip => 1,
         ChunkType::Tile => cols.div_ceil(chunk_w.max(1)),
     };
+    // ZSTD chunks are decoded here (pure-Rust `ruzstd`; the `tiff` crate's ZSTD needs C libzstd).
+    let compression: u16 = decoder
+        .find_tag_unsigned(Tag::Compression)
+        .map_err(tiff_err)?
+        .unwrap_or(1);
+    let zstd = (compression == COMPRESSION_ZSTD)
+        .then(|| -> std::result::Result<_, TiffError> {
+            let (offsets_tag, counts_tag) = match chunk_type {
+                ChunkType::Strip => (Tag::StripOffsets, Tag::StripByteCounts),
+                ChunkType::Tile => (Tag::TileOffsets, Tag::TileByteCounts),
+            };
+            let predictor: u16 = decoder.find_tag_unsigned(Tag::Predictor)?.unwrap_or(1);
+            Ok((
+                decoder.get_tag_u64_vec(offsets_tag)?,
+                decoder.get_tag_u64_vec(counts_tag)?,
+                predictor,
+            ))
+        })
+        .transpose()
+        .map_err(tiff_err)?;
     for chunk in 0..n_chunks {
         let (w, h) = decoder.chunk_data_dimensions(chunk);
         let (w, h) = (w as usize, h as usize);
@@ -271,7 +295,34 @@ pub fn read_geotiff_from<R: Read + Seek>(
                 (idx / chunks_across) * chunk_h,
             ),
         };
-        let data = decoder.read_chunk(chunk).map_err(tiff_err)?;
+        let data = match &zstd {
+            None => decoder.read_chunk(chunk).map_err(tiff_err)?,
+            Some((offsets, counts, predictor)) => {
+                // A tile is stored whole (padded); a strip holds its own rows.
+                let stored = match chunk_type {
+                    ChunkType::Strip => (w, h),
+                    ChunkType::Tile => (chunk_w, chunk_h),
+                };
+                let at = (offsets.get(idx).copied(), counts.get(idx).copied());
+                let (Some(offset), Some(count)) = at else {
+                    return Err(geo_err(format!("no offset or size for chunk {idx}")));
+                };
+                let big_endian = decoder.byte_order() == tiff::tags::ByteOrder::BigEndian;
+                zstd_chunk::read(
+                    decoder.inner(),
+                    (offset, count),
+                    stored,
+                    (w, h),
+                    kind,
+                    *predictor,
+                    big_endian,
+                )
+                .map_err(|detail| DemError::Decode {
+                    path: name.into(),
+                    detail: format!("ZSTD chunk {idx}: {detail}"),
+                })?
+            }
+        };
         let place = Placement {
             cols,
             rows,
@@ -421,6 +472,18 @@ enum SampleKind {
     U8,
 }
 
+impl SampleKind {
+    /// Bytes per sample.
+    fn bytes(self) -> usize {
+        match self {
+            SampleKind::F64 => 8,
+            SampleKind::F32 | SampleKind::I32 => 4,
+            SampleKind::I16 | SampleKind::U16 => 2,
+            SampleKind::U8 => 1,
+        }
+    }
+}
+
 fn variant_name(d: &DecodingResult) -> &'static str {
     match d {
         DecodingResult::U8(_) => "u8",
@@ -494,6 +557,15 @@ fn map_tiff_error(name: &str, e: TiffError) -> DemError {
             DemError::UnsupportedSampleFormat {
                 path: name.into(),
                 detail: u.to_string(),
+            }
+        }
+        TiffError::UnsupportedError(u) if u.to_string().contains("compression method") => {
+            DemError::Decode {
+                path: name.into(),
+                detail: format!(
+                    "{u} (penumbra reads uncompressed, LZW, Deflate and ZSTD; convert with \
+                     `gdal_translate -co COMPRESS=DEFLATE -co PREDICTOR=3 IN OUT`)"
+                ),
             }
         }
         other => DemError::Decode {
@@ -846,13 +918,17 @@ mod bands_read;
 mod cog;
 mod gdal_metadata;
 mod write;
+mod zstd_chunk;
 
 pub use bands::{BandSample, MultiBandTiff};
 pub use bands_read::MultiBandTiffReader;
 
 pub use cog::COG_TILE_PX;
 use gdal_metadata::*;
-pub use write::{BandInfo, write_dem, write_geotiff_f32, write_geotiff_u8, write_geotiff_u16};
+pub use write::{
+    BandInfo, orthographic_model_tags, write_dem, write_geotiff_f32, write_geotiff_u8,
+    write_geotiff_u16,
+};
 
 #[cfg(test)]
 mod tests;

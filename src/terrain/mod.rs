@@ -20,7 +20,8 @@ use std::path::Path;
 
 pub use error::DemError;
 pub use geotiff::{
-    BandInfo, read_geotiff, write_dem, write_geotiff_f32, write_geotiff_u8, write_geotiff_u16,
+    BandInfo, orthographic_model_tags, read_geotiff, write_dem, write_geotiff_f32,
+    write_geotiff_u8, write_geotiff_u16,
 };
 pub use grid::{Dem, GridGeometry, Projection, TerrainStack};
 pub use heightfield::{CellWindow, HeightField};

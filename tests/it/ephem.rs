@@ -559,3 +559,70 @@ fn meta_kernels_load_the_same_set_as_the_folder() {
     let out = penumbra(dir.path(), &["kernels", "--kernels", bsp.to_str().unwrap()]);
     assert_clean_error(&out, "meta-kernel");
 }
+
+/// Kernels come from `--kernels`, else `$PENUMBRA_KERNELS`, else the set built into the binary
+/// (a `./kernels` folder in the working directory is not looked at); `penumbra kernels` says
+/// which. A copy of the binary outside the source tree, with an empty cache, gives the same
+/// ephemeris rows as the shipped folder.
+#[test]
+fn kernels_come_from_the_flag_the_environment_or_the_built_in_set() {
+    use crate::util::OutputWithin as _;
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // A decoy ./kernels that would fail to load.
+    std::fs::create_dir(d.join("kernels")).unwrap();
+    std::fs::write(d.join("kernels/bad.bsp"), "not a kernel").unwrap();
+    let bin = d.join("penumbra-copy");
+    std::fs::copy(env!("CARGO_BIN_EXE_penumbra"), &bin).unwrap();
+    let run = |args: &[&str], env: Option<&str>| {
+        let mut cmd = std::process::Command::new(&bin);
+        cmd.args(args)
+            .current_dir(d)
+            .env("XDG_CACHE_HOME", d.join("cache"))
+            .env_remove("PENUMBRA_KERNELS");
+        if let Some(e) = env {
+            cmd.env("PENUMBRA_KERNELS", e);
+        }
+        cmd.output_within().unwrap()
+    };
+    let o = run(&["kernels"], None);
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(
+        text.contains("kernel source: the set built into penumbra"),
+        "{text}"
+    );
+    assert!(
+        text.contains(&d.join("cache").display().to_string()),
+        "{text}"
+    );
+    let k = kernels_dir();
+    let o = run(&["kernels", "--kernels", k.to_str().unwrap()], None);
+    assert!(String::from_utf8_lossy(&o.stdout).contains("kernel source: --kernels"));
+    let o = run(&["kernels"], Some(k.to_str().unwrap()));
+    assert!(String::from_utf8_lossy(&o.stdout).contains("kernel source: $PENUMBRA_KERNELS"));
+    let o = run(&["kernels"], Some("/nonexistent-kernels"));
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("/nonexistent-kernels"));
+    // Same rows from the built-in set as from the shipped folder.
+    let ephem = [
+        "ephem",
+        "--lat-deg",
+        "-89.45",
+        "--lon-deg",
+        "-137.3",
+        "--start",
+        "2024-01-01",
+        "--stop",
+        "2024-01-02",
+        "--step",
+        "6h",
+    ];
+    let built_in = run(&ephem, None);
+    let mut with_flag = ephem.to_vec();
+    with_flag.extend(["--kernels", k.to_str().unwrap()]);
+    let shipped = run(&with_flag, None);
+    assert!(built_in.status.success() && shipped.status.success());
+    assert!(built_in.stdout.len() > 200);
+    assert_eq!(built_in.stdout, shipped.stdout);
+}

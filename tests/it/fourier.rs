@@ -285,3 +285,95 @@ fn cli_build_and_info() {
     assert_clean_error(&bad, "nope.tif");
     assert!(!dir.path().join("x.tif").exists());
 }
+
+/// `horizon-map build` pages are georeferenced: GDAL (PROJ's orthographic, inverted by
+/// `gdaltransform`) puts each pixel centre at the lat/lon whose model coordinates — by penumbra's
+/// own frame code (`ModelFrame`) — are that pixel's centre.
+#[test]
+fn horizon_map_pages_are_georeferenced_for_gdal() {
+    use crate::util::OutputWithin as _;
+    let found = std::process::Command::new("gdaltransform")
+        .arg("--version")
+        .output_within()
+        .is_ok();
+    if !found {
+        println!("skipped: gdaltransform is not installed");
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let out = penumbra(
+        dir.path(),
+        &[
+            "horizon-map",
+            "build",
+            "--synthetic",
+            "--azimuths",
+            "32",
+            "--max-distance-cells",
+            "4",
+            "--out",
+            "hm.tif",
+        ],
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let path = dir.path().join("hm.tif");
+    let m = HorizonMap::read_tiff(&path).unwrap().meta;
+    let pixels = [
+        (0usize, 0usize),
+        (m.cols - 1, 0),
+        (m.cols / 3, m.rows / 2),
+        (m.cols - 1, m.rows - 1),
+    ];
+    let input: String = pixels
+        .iter()
+        .map(|(i, j)| format!("{} {}\n", *i as f64 + 0.5, *j as f64 + 0.5))
+        .collect();
+    let mut child = std::process::Command::new("gdaltransform")
+        .args(["-t_srs", "+proj=longlat +R=1737400 +no_defs"])
+        .arg(format!("GTIFF_DIR:3:{}", path.display()))
+        .stdin(std::process::Stdio::piped())
+        .stdout(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    use std::io::Write as _;
+    child
+        .stdin
+        .take()
+        .unwrap()
+        .write_all(input.as_bytes())
+        .unwrap();
+    let got = child.wait_with_output().unwrap();
+    assert!(got.status.success());
+    let frame = penumbra::terrain::ModelFrame::rotated(
+        m.centre_lat_deg,
+        m.centre_lon_deg,
+        m.rotation_deg.to_radians(),
+    );
+    for ((i, j), line) in pixels
+        .iter()
+        .zip(String::from_utf8_lossy(&got.stdout).lines())
+    {
+        let v: Vec<f64> = line
+            .split_whitespace()
+            .map(|t| t.parse().unwrap())
+            .collect();
+        let (lon, lat) = (v[0], v[1]);
+        // The sphere point's model x/y (orthographic: its components along model x and y).
+        let p = penumbra::frames::site_in_moon_me_km(lat, lon, 0.0) * 1000.0;
+        let model = frame.model_from_moon_me * p;
+        let want = (
+            m.x_left_m + (*i as f64 + 0.5) * m.px_m,
+            m.y_top_m - (*j as f64 + 0.5) * m.px_m,
+        );
+        assert!(
+            (model.x - want.0).abs() < 1e-3 && (model.y - want.1).abs() < 1e-3,
+            "pixel ({i}, {j}): GDAL lat {lat} lon {lon} -> model ({}, {}), want {want:?}",
+            model.x,
+            model.y
+        );
+    }
+}

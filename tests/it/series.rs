@@ -109,7 +109,13 @@ fn series_cli_writes_every_file_and_the_combined_statistics() {
     let res = dir.path().join("res");
     assert_eq!(
         files_in(&res),
-        vec!["plateau", "ridge", "run.json", "stats.json"]
+        vec![
+            "plateau",
+            "ridge",
+            "run.json",
+            "series_long.csv",
+            "stats.json"
+        ]
     );
     assert_eq!(
         files_in(&res.join("ridge")),

@@ -519,6 +519,77 @@ fn gdal_written_tiled_lzw_int16_pixel_is_point_with_scale_reads_correctly() {
             "cog_f32.tif",
             &["-of", "COG", "-co", "BLOCKSIZE=16", "-co", "PREDICTOR=YES"][..],
         ),
+        // ZSTD (decoded by penumbra with the pure-Rust ruzstd), every predictor.
+        (
+            "tiled_zstd_pred3_f32.tif",
+            &[
+                "-co",
+                "TILED=YES",
+                "-co",
+                "BLOCKXSIZE=16",
+                "-co",
+                "BLOCKYSIZE=16",
+                "-co",
+                "COMPRESS=ZSTD",
+                "-co",
+                "PREDICTOR=3",
+            ][..],
+        ),
+        (
+            "strips_zstd_pred2_i16_scaled.tif",
+            &[
+                "-ot",
+                "Int16",
+                "-scale",
+                "-3000",
+                "5000",
+                "-12000",
+                "20000",
+                "-a_scale",
+                "0.25",
+                "-co",
+                "COMPRESS=ZSTD",
+                "-co",
+                "PREDICTOR=2",
+                "-co",
+                "BLOCKYSIZE=7",
+            ][..],
+        ),
+        (
+            "tiled_zstd_f64.tif",
+            &[
+                "-ot",
+                "Float64",
+                "-co",
+                "TILED=YES",
+                "-co",
+                "BLOCKXSIZE=32",
+                "-co",
+                "BLOCKYSIZE=16",
+                "-co",
+                "COMPRESS=ZSTD",
+            ][..],
+        ),
+        (
+            "cog_zstd_u16.tif",
+            &[
+                "-of",
+                "COG",
+                "-ot",
+                "UInt16",
+                "-scale",
+                "-3000",
+                "5000",
+                "0",
+                "60000",
+                "-co",
+                "BLOCKSIZE=32",
+                "-co",
+                "COMPRESS=ZSTD",
+                "-co",
+                "PREDICTOR=YES",
+            ][..],
+        ),
     ] {
         let dst = dir.path().join(name);
         let out = Command::new("gdal_translate")
@@ -602,6 +673,18 @@ fn bad_inputs_fail_with_one_line_and_exit_code_2() {
         .unwrap();
     std::fs::write(&u32_path, buf.into_inner()).unwrap();
     assert_clean_failure(&run(&["dem", "info", &arg(&u32_path)]), "32-bit unsigned");
+    // LERC (no pure-Rust decoder): one line that says how to convert.
+    if has_tool("gdal_translate") {
+        let lerc = d.join("lerc.tif");
+        let o = Command::new("gdal_translate")
+            .args(["-q", "-co", "COMPRESS=LERC"])
+            .arg(&good)
+            .arg(&lerc)
+            .output_within()
+            .unwrap();
+        assert!(o.status.success());
+        assert_clean_failure(&run(&["dem", "info", &arg(&lerc)]), "COMPRESS=DEFLATE");
+    }
     // No georeferencing at all: a plain float32 TIFF.
     let plain = d.join("plain.tif");
     let mut buf = Cursor::new(Vec::new());

@@ -77,6 +77,87 @@ pub(super) fn geo_keys_for(projection: &Projection) -> (Vec<u16>, Vec<f64>, Stri
             entries.push((KEY_PROJ_CENTER_LAT, GeoKeyValue::Doubles(vec![0.0])));
         }
     }
+    geo_key_directory(entries)
+}
+
+/// The GeoTIFF tags that place a rotated model-space grid (penumbra's tangent-plane model,
+/// `crate::terrain::ModelFrame`) on the Moon: an orthographic projection on the 1737.4 km sphere
+/// centred at (`lat0_deg`, `lon0_deg`) and a ModelTransformation with the grid's rotation.
+/// Returns (ModelTransformation 4 x 4, GeoKeyDirectory, GeoDoubleParams, GeoAsciiParams).
+///
+/// A model point at height `h` lies at `(R + h) / R` of its sphere point's orthographic
+/// coordinates, so GIS positions are off by `h / R` of the distance from the centre
+/// (≈ 0.1 % at 1.7 km: 23 m at 20 km from the centre) — below a cell on penumbra's grids.
+pub fn orthographic_model_tags(
+    lat0_deg: f64,
+    lon0_deg: f64,
+    rotation_rad: f64,
+    x_left_m: f64,
+    y_top_m: f64,
+    px_m: f64,
+) -> ([f64; 16], Vec<u16>, Vec<f64>, String) {
+    let r = crate::MOON_RADIUS_M;
+    let entries = vec![
+        (KEY_MODEL_TYPE, GeoKeyValue::Short(1)),
+        (KEY_RASTER_TYPE, GeoKeyValue::Short(1)),
+        (
+            KEY_GT_CITATION,
+            GeoKeyValue::Ascii(format!(
+                "Orthographic on the lunar sphere R={r} m centred at lat {lat0_deg} lon {lon0_deg} (penumbra model space)"
+            )),
+        ),
+        (KEY_GEOGRAPHIC_TYPE, GeoKeyValue::Short(USER_DEFINED)),
+        (
+            KEY_GEOG_CITATION,
+            GeoKeyValue::Ascii(format!(
+                "GCS Name = Moon sphere R={r} m|Datum = Moon|Ellipsoid = Moon sphere|Primem = Reference meridian"
+            )),
+        ),
+        (KEY_GEOG_DATUM, GeoKeyValue::Short(USER_DEFINED)),
+        (KEY_GEOG_ANGULAR_UNITS, GeoKeyValue::Short(EPSG_DEGREE)),
+        (KEY_GEOG_ELLIPSOID, GeoKeyValue::Short(USER_DEFINED)),
+        (KEY_GEOG_SEMI_MAJOR, GeoKeyValue::Doubles(vec![r])),
+        (KEY_GEOG_SEMI_MINOR, GeoKeyValue::Doubles(vec![r])),
+        (
+            KEY_GEOG_PRIME_MERIDIAN_LONG,
+            GeoKeyValue::Doubles(vec![0.0]),
+        ),
+        (KEY_PROJECTED_CS_TYPE, GeoKeyValue::Short(USER_DEFINED)),
+        (KEY_PROJECTION, GeoKeyValue::Short(USER_DEFINED)),
+        (KEY_PROJ_COORD_TRANS, GeoKeyValue::Short(CT_ORTHOGRAPHIC)),
+        (KEY_PROJ_LINEAR_UNITS, GeoKeyValue::Short(EPSG_METRE)),
+        (KEY_PROJ_FALSE_EASTING, GeoKeyValue::Doubles(vec![0.0])),
+        (KEY_PROJ_FALSE_NORTHING, GeoKeyValue::Doubles(vec![0.0])),
+        (KEY_PROJ_CENTER_LONG, GeoKeyValue::Doubles(vec![lon0_deg])),
+        (KEY_PROJ_CENTER_LAT, GeoKeyValue::Doubles(vec![lat0_deg])),
+    ];
+    let (dir, doubles, ascii) = geo_key_directory(entries);
+    // Model (x, y) = (x_left + i px, y_top - j px) at pixel corner (i, j); east/north =
+    // model_from_enu(rot)^T (x, y): e = c x + s y, n = -s x + c y.
+    let (s, c) = rotation_rad.sin_cos();
+    let transform = [
+        c * px_m,
+        -s * px_m,
+        0.0,
+        c * x_left_m + s * y_top_m,
+        -s * px_m,
+        -c * px_m,
+        0.0,
+        -s * x_left_m + c * y_top_m,
+        0.0,
+        0.0,
+        0.0,
+        0.0,
+        0.0,
+        0.0,
+        0.0,
+        1.0,
+    ];
+    (transform, dir, doubles, ascii)
+}
+
+/// Encodes sorted-or-not GeoKey entries as the GeoKeyDirectory, double and ASCII parameters.
+fn geo_key_directory(mut entries: Vec<(u16, GeoKeyValue)>) -> (Vec<u16>, Vec<f64>, String) {
     entries.sort_by_key(|(k, _)| *k);
     let mut dir: Vec<u16> = vec![1, 1, 0, entries.len() as u16];
     let mut doubles = Vec::new();
