@@ -615,8 +615,11 @@ fn series<'py>(
             earth_fraction: &r.earth,
         })
         .collect();
-    let stats = penumbra::illum::stats::StatsFile::from_series(&series_list)
+    let mut stats = penumbra::illum::stats::StatsFile::from_series(&series_list)
         .map_err(|e| py_err(e.into()))?;
+    for ((s, spec), horizon) in stats.sites.iter_mut().zip(&specs).zip(&horizons) {
+        s.location = Some(ser::site_location(spec, horizon));
+    }
     let json = serde_json::to_string(&stats).map_err(|e| bad(e.to_string()))?;
     let stats = py.import("json")?.call_method1("loads", (json,))?;
     Ok((out, stats))
@@ -748,25 +751,32 @@ fn map_statistics<'py>(
         )?;
         let (rasters, psr) =
             penumbra::map::sweep_rasters(&stack.layers[0], result.model.as_ref(), &result.stats)?;
-        Ok((rasters, psr, result.note))
+        let items =
+            penumbra::map::sweep_metadata(&penumbra::map::span_text(&epochs), &result.stats);
+        Ok((rasters, psr, result.note, items))
     });
-    let (rasters, psr, note) = match (result, stopped) {
+    let (rasters, psr, note, items) = match (result, stopped) {
         (_, Some(e)) => return Err(e),
         (r, None) => r.map_err(py_err)?,
     };
     let g = stack.layers[0].grid;
     let out = PyDict::new(py);
     let descriptions = PyDict::new(py);
+    let units = PyDict::new(py);
     for r in rasters {
         let a =
             Array2::from_shape_vec((g.rows, g.cols), r.values).map_err(|e| bad(e.to_string()))?;
         out.set_item(r.name, a.into_pyarray(py))?;
         descriptions.set_item(r.name, r.description)?;
+        units.set_item(r.name, penumbra::map::geotiff_unit(r.name))?;
     }
     let a = Array2::from_shape_vec((g.rows, g.cols), psr).map_err(|e| bad(e.to_string()))?;
     out.set_item("psr_mask", a.into_pyarray(py))?;
     descriptions.set_item("psr_mask", penumbra::map::PSR_DESCRIPTION)?;
+    units.set_item("psr_mask", "")?;
     out.set_item("descriptions", descriptions)?;
+    out.set_item("units", units)?;
+    out.set_item("metadata", metadata_dict(py, &items)?)?;
     out.set_item("transform", geotransform(&g))?;
     out.set_item("crs_wkt", wkt_of(&stack.layers[0].projection))?;
     out.set_item("engine", note)?;
@@ -835,7 +845,7 @@ fn map_light<'py>(
         None => None,
     };
     let stack = Arc::clone(&terrain.stack);
-    let (sun_f, mask, earth_f) = py
+    let (sun_f, mask, earth_f, items) = py
         .allow_threads(|| -> anyhow::Result<_> {
             let grid = penumbra::model::MapGrid::new(&stack)?;
             let (sun, radius, earth) = match (light, &kernels) {
@@ -866,7 +876,15 @@ fn map_light<'py>(
                 Some((dir, r)) => Some(maps.fraction(dir, r)?),
                 None => None,
             };
-            Ok((f, m, e))
+            let items = pm::one_light_metadata(
+                &grid,
+                kind,
+                observer_height_m,
+                (sun, radius),
+                earth.map(|(dir, _)| dir),
+                light.map(|e| (e, ab)),
+            );
+            Ok((f, m, e, items))
         })
         .map_err(py_err)?;
     let g = stack.layers[0].grid;
@@ -884,22 +902,48 @@ fn map_light<'py>(
         descriptions.set_item("earth_fraction", pm::EARTH_FRACTION_DESCRIPTION)?;
     }
     out.set_item("descriptions", descriptions)?;
+    out.set_item("metadata", metadata_dict(py, &items)?)?;
     out.set_item("transform", geotransform(&g))?;
     out.set_item("crs_wkt", wkt_of(&stack.layers[0].projection))?;
     Ok(out)
 }
 
-/// `write_geotiff(path, array, terrain, description)`: writes a `(rows, cols)` float32 (NaN =
-/// nodata) or uint8 (255 = nodata) array on the terrain's finest grid as the CLI writes its maps
-/// (same georeferencing, metadata and layout; atomically).
+/// The `name` → value items of a GeoTIFF's metadata as a Python dict (insertion order kept).
+fn metadata_dict<'py>(py: Python<'py>, items: &[(String, String)]) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    for (k, v) in items {
+        d.set_item(k, v)?;
+    }
+    Ok(d)
+}
+
+/// `write_geotiff(path, array, terrain, description, unit="", metadata=None)`: writes a
+/// `(rows, cols)` float32 (NaN = nodata) or uint8 (255 = nodata) array on the terrain's finest
+/// grid as the CLI writes its maps (a Cloud-Optimized GeoTIFF with the same georeferencing, band
+/// description, unit and metadata items, in the dict's order; atomically). With a map's
+/// `descriptions[name]`, `units[name]` and `metadata`, the file is the CLI's byte for byte.
 #[pyfunction]
+#[pyo3(signature = (path, array, terrain, description, unit = "", metadata = None))]
 fn write_geotiff(
     py: Python<'_>,
     path: PathBuf,
     array: &Bound<'_, PyAny>,
     terrain: &Terrain,
     description: &str,
+    unit: &str,
+    metadata: Option<&Bound<'_, PyDict>>,
 ) -> PyResult<()> {
+    let mut items: Vec<(String, String)> = Vec::new();
+    if let Some(md) = metadata {
+        for (k, v) in md.iter() {
+            items.push((k.extract()?, v.str()?.extract()?));
+        }
+    }
+    let info = penumbra::model::RasterInfo {
+        description,
+        unit,
+        items,
+    };
     let dem = &terrain.stack.layers[0];
     let (rows, cols) = (dem.grid.rows, dem.grid.cols);
     let shape: (usize, usize) = array.getattr("shape")?.extract()?;
@@ -912,26 +956,12 @@ fn write_geotiff(
     let flat = array.call_method0("ravel")?;
     if kind == "u" {
         let v: Vec<u8> = flat.call_method1("astype", ("uint8",))?.extract()?;
-        py.allow_threads(|| {
-            penumbra::model::write_u8_on(
-                dem,
-                &path,
-                &v,
-                &penumbra::model::RasterInfo::new(description, ""),
-            )
-        })
-        .map_err(py_err)
+        py.allow_threads(|| penumbra::model::write_u8_on(dem, &path, &v, &info))
+            .map_err(py_err)
     } else {
         let v: Vec<f32> = flat.call_method1("astype", ("float32",))?.extract()?;
-        py.allow_threads(|| {
-            penumbra::model::write_f32_on(
-                dem,
-                &path,
-                &v,
-                &penumbra::model::RasterInfo::new(description, ""),
-            )
-        })
-        .map_err(py_err)
+        py.allow_threads(|| penumbra::model::write_f32_on(dem, &path, &v, &info))
+            .map_err(py_err)
     }
 }
 

@@ -65,7 +65,8 @@ def test_map_statistics_equal_the_cli_geotiffs_byte_for_byte(cli: Path, tmp_path
         assert m[name].shape == t.shape
         assert m[name].dtype == (np.uint8 if name == "psr_mask" else np.float32)
         out = tmp_path / f"py_{name}.tif"
-        penumbra.write_geotiff(out, m[name], t, m["descriptions"][name])
+        penumbra.write_geotiff(out, m[name], t, m["descriptions"][name], m["units"][name],
+                               m["metadata"])
         assert out.read_bytes() == (tmp_path / "m" / f"{name}.tif").read_bytes(), name
     assert m["transform"] == t.transform
 
@@ -128,6 +129,8 @@ def test_render_equals_the_cli_png(cli: Path, tmp_path: Path) -> None:
     )
     assert img.shape == (80, 120, 3) and img.dtype == np.uint8
     assert radiance.shape == (80, 120) and radiance.dtype == np.float32
+    # Looking 1 deg down with a 70 deg field: the top row is sky, which is NaN (no terrain).
+    assert np.isnan(radiance[0]).all() and np.nanmax(radiance) > 0
     image = pytest.importorskip("PIL.Image")
     cli_img = np.asarray(image.open(tmp_path / "f.png").convert("RGB"))
     assert np.array_equal(cli_img, img)
@@ -142,7 +145,7 @@ def test_map_light_equals_the_cli_geotiffs_byte_for_byte(cli: Path, tmp_path: Pa
     m = penumbra.map_light(t, utc="2027-02-05T00:00")
     for name, cli_file in (("sun_fraction", "f.tif"), ("sun_mask", "m.tif"), ("earth_fraction", "e.tif")):
         out = tmp_path / f"py_{name}.tif"
-        penumbra.write_geotiff(out, m[name], t, m["descriptions"][name])
+        penumbra.write_geotiff(out, m[name], t, m["descriptions"][name], metadata=m["metadata"])
         assert out.read_bytes() == (tmp_path / cli_file).read_bytes(), name
     assert m["sun_mask"].dtype == np.uint8 and m["sun_fraction"].dtype == np.float32
     lit = m["sun_mask"] == 1

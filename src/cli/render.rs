@@ -92,8 +92,9 @@ pub struct RenderArgs {
     /// Output PNG file (8-bit sRGB).
     #[arg(long, value_name = "FILE.png")]
     pub out: PathBuf,
-    /// Also write the terrain radiance, W m^-2 sr^-1, as a 32-bit float TIFF (sky pixels 0;
-    /// numbered like --out for a range).
+    /// Also write the terrain radiance, W m^-2 sr^-1, as a 32-bit float TIFF (sky pixels NaN,
+    /// declared as nodata; the frame's epoch and camera as metadata; numbered like --out for a
+    /// range).
     #[arg(long, value_name = "FILE.tif")]
     pub out_radiance: Option<PathBuf>,
     /// Aberration correction: lt+s or none.

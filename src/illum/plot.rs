@@ -16,7 +16,6 @@ use plotters::prelude::*;
 
 use super::IllumError;
 use super::disc::HorizonProfile;
-use crate::ephem::time::format_iso;
 
 /// Default plot size in pixels (width, height).
 pub const DEFAULT_SIZE_PX: (u32, u32) = (1200, 600);
@@ -130,7 +129,84 @@ fn time_unit(span_s: f64) -> (f64, &'static str) {
     }
 }
 
-/// Renders the visible fraction of the Sun (and the Earth) over time as PNG bytes.
+/// Series longer than this are drawn as monthly aggregates (hourly lines over months are a solid
+/// wall of colour), days.
+pub const AGGREGATE_AFTER_DAYS: f64 = 62.0;
+
+/// A date label for a time axis in `unit_s` units from `start`: `MM-DD HH:MM` for hours,
+/// `YYYY-MM-DD` for days, `YYYY-MM` for years (UTC).
+fn date_label(start: Epoch, x: f64, unit_s: f64) -> String {
+    let e = start + hifitime::Duration::from_seconds(x * unit_s);
+    let (y, mo, d, h, mi, _, _) = e.to_gregorian_utc();
+    if unit_s <= 3600.0 {
+        format!("{mo:02}-{d:02} {h:02}:{mi:02}")
+    } else if unit_s <= 86_400.0 {
+        format!("{y}-{mo:02}-{d:02}")
+    } else {
+        format!("{y}-{mo:02}")
+    }
+}
+
+/// One calendar month (UTC) of a series.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MonthStats {
+    /// Year and month (1–12).
+    pub year_month: (i32, u8),
+    /// Mean visible fraction of the Sun over the month's samples, % (time- and disc-weighted).
+    pub sun_pct: f64,
+    /// Mean visible fraction of the Earth, % (`NaN` without an Earth series).
+    pub earth_pct: f64,
+    /// Longest run of samples with the Sun entirely hidden within or into the month, hours: a
+    /// run that began in an earlier month counts from its start.
+    pub longest_dark_h: f64,
+}
+
+/// Monthly aggregates of a series (calendar months, UTC): what the plot of a long series shows.
+pub fn monthly_stats(series: &FractionSeries<'_>) -> Vec<MonthStats> {
+    let mut out: Vec<MonthStats> = Vec::new();
+    let (mut sun_sum, mut earth_sum, mut n) = (0.0, 0.0, 0usize);
+    let (mut run, mut longest) = (0usize, 0usize);
+    let mut current: Option<(i32, u8)> = None;
+    let step_h = series.step_s / 3600.0;
+    let mut close = |ym: (i32, u8), sun: f64, earth: f64, n: usize, longest: usize| {
+        out.push(MonthStats {
+            year_month: ym,
+            sun_pct: 100.0 * sun / n.max(1) as f64,
+            earth_pct: if series.earth_fraction.is_some() {
+                100.0 * earth / n.max(1) as f64
+            } else {
+                f64::NAN
+            },
+            longest_dark_h: longest as f64 * step_h,
+        });
+    };
+    for (k, &sun) in series.sun_fraction.iter().enumerate() {
+        let e = series.start_utc + hifitime::Duration::from_seconds(k as f64 * series.step_s);
+        let (y, mo, ..) = e.to_gregorian_utc();
+        if current.is_some_and(|c| c != (y, mo)) {
+            close(current.unwrap_or((y, mo)), sun_sum, earth_sum, n, longest);
+            (sun_sum, earth_sum, n, longest) = (0.0, 0.0, 0, 0);
+        }
+        current = Some((y, mo));
+        sun_sum += sun;
+        earth_sum += series.earth_fraction.map_or(0.0, |e| e[k]);
+        n += 1;
+        if sun <= 0.0 {
+            run += 1;
+            longest = longest.max(run);
+        } else {
+            run = 0;
+        }
+    }
+    if let Some(ym) = current {
+        close(ym, sun_sum, earth_sum, n, longest);
+    }
+    out
+}
+
+/// Renders the visible fraction of the Sun (and the Earth) over time as PNG bytes: the samples
+/// against dates for series up to [`AGGREGATE_AFTER_DAYS`], monthly bars ([`monthly_stats`]: mean
+/// visible %, longest darkness) beyond.
 pub fn render_fraction_plot_png(
     title: &str,
     series: &FractionSeries<'_>,
@@ -144,17 +220,20 @@ pub fn render_fraction_plot_png(
         });
     }
     let span_s = n as f64 * series.step_s;
-    let (unit_s, unit_name) = time_unit(span_s);
+    if span_s > AGGREGATE_AFTER_DAYS * 86_400.0 {
+        return render_monthly_png(title, &monthly_stats(series), size_px);
+    }
+    let (unit_s, _) = time_unit(span_s);
     let x_max = span_s / unit_s;
     let x_of = |k: usize| k as f64 * series.step_s / unit_s;
+    let start = series.start_utc;
     render_png(WHAT, size_px, |root| {
         let mut chart = rect_chart(root, title, 0.0..x_max, -0.02..1.2, WHAT)?;
         chart
             .configure_mesh()
-            .x_desc(format!(
-                "time since {} ({unit_name})",
-                format_iso(series.start_utc)
-            ))
+            .x_desc("date (UTC)")
+            .x_label_formatter(&|x| date_label(start, *x, unit_s))
+            .x_labels(8)
             .y_desc("visible fraction of the disc")
             .y_labels(13)
             .light_line_style(BLACK.mix(0.04))
@@ -185,6 +264,101 @@ pub fn render_fraction_plot_png(
             .label("Sun")
             .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], SUN_COLOR));
         draw_legend(&mut chart, 15, SeriesLabelPosition::UpperRight, WHAT)?;
+        Ok(())
+    })
+}
+
+/// Monthly bars: mean visible % of the Sun and the Earth (top), longest darkness (bottom).
+fn render_monthly_png(
+    title: &str,
+    months: &[MonthStats],
+    size_px: (u32, u32),
+) -> Result<Vec<u8>, IllumError> {
+    const WHAT: &str = "monthly visibility plot";
+    let m = months.len() as f64;
+    let label = |x: f64| {
+        let i = x.floor().max(0.0) as usize;
+        months
+            .get(i)
+            .map(|s| format!("{}-{:02}", s.year_month.0, s.year_month.1))
+            .unwrap_or_default()
+    };
+    let bars_per_label = (months.len() / 12).max(1);
+    let has_earth = months.iter().any(|s| !s.earth_pct.is_nan());
+    render_png(WHAT, size_px, |root| {
+        let root = root
+            .titled(title, ("sans-serif", 24))
+            .map_err(plot_err(WHAT))?;
+        let (top, bottom) = root.split_vertically(root.dim_in_pixel().1 * 55 / 100);
+        let mut chart = ChartBuilder::on(&top)
+            .margin(12)
+            .x_label_area_size(30)
+            .y_label_area_size(60)
+            .build_cartesian_2d(0.0..m, 0.0..105.0)
+            .map_err(plot_err(WHAT))?;
+        chart
+            .configure_mesh()
+            .x_labels((months.len() / bars_per_label).clamp(2, 13))
+            .x_label_formatter(&|x| label(*x))
+            .y_desc("mean visible % of the month")
+            .light_line_style(BLACK.mix(0.04))
+            .label_style(("sans-serif", 14))
+            .axis_desc_style(("sans-serif", 16))
+            .draw()
+            .map_err(plot_err(WHAT))?;
+        let width = if has_earth { 0.42 } else { 0.84 };
+        chart
+            .draw_series(months.iter().enumerate().map(|(i, s)| {
+                let x0 = i as f64 + 0.08;
+                Rectangle::new([(x0, 0.0), (x0 + width, s.sun_pct)], SUN_COLOR.filled())
+            }))
+            .map_err(plot_err(WHAT))?
+            .label("Sun (disc-weighted)")
+            .legend(|(x, y)| Rectangle::new([(x, y - 5), (x + 15, y + 5)], SUN_COLOR.filled()));
+        if has_earth {
+            chart
+                .draw_series(months.iter().enumerate().map(|(i, s)| {
+                    let x0 = i as f64 + 0.5;
+                    Rectangle::new([(x0, 0.0), (x0 + width, s.earth_pct)], EARTH_COLOR.filled())
+                }))
+                .map_err(plot_err(WHAT))?
+                .label("Earth")
+                .legend(|(x, y)| {
+                    Rectangle::new([(x, y - 5), (x + 15, y + 5)], EARTH_COLOR.filled())
+                });
+        }
+        draw_legend(&mut chart, 14, SeriesLabelPosition::LowerRight, WHAT)?;
+        let dark_max = months
+            .iter()
+            .map(|s| s.longest_dark_h)
+            .fold(0.0_f64, f64::max)
+            .max(1.0)
+            * 1.1;
+        let mut chart = ChartBuilder::on(&bottom)
+            .margin(12)
+            .x_label_area_size(50)
+            .y_label_area_size(60)
+            .build_cartesian_2d(0.0..m, 0.0..dark_max)
+            .map_err(plot_err(WHAT))?;
+        chart
+            .configure_mesh()
+            .x_labels((months.len() / bars_per_label).clamp(2, 13))
+            .x_label_formatter(&|x| label(*x))
+            .x_desc("month (UTC)")
+            .y_desc("longest darkness (h)")
+            .light_line_style(BLACK.mix(0.04))
+            .label_style(("sans-serif", 14))
+            .axis_desc_style(("sans-serif", 16))
+            .draw()
+            .map_err(plot_err(WHAT))?;
+        chart
+            .draw_series(months.iter().enumerate().map(|(i, s)| {
+                Rectangle::new(
+                    [(i as f64 + 0.08, 0.0), (i as f64 + 0.92, s.longest_dark_h)],
+                    RGBColor(60, 60, 60).filled(),
+                )
+            }))
+            .map_err(plot_err(WHAT))?;
         Ok(())
     })
 }
@@ -317,12 +491,15 @@ pub fn render_horizon_plot_png(
             .axis_desc_style(("sans-serif", 17))
             .draw()
             .map_err(plot_err(WHAT))?;
+        // Tracks first: the terrain covers them where they pass below it, and the horizon line
+        // stays on top.
+        draw_tracks(&mut chart, tracks, Some, WHAT)?;
         let pts = horizon_points(horizon);
         chart
             .draw_series(AreaSeries::new(
                 pts.iter().copied(),
                 el_lo,
-                TERRAIN_COLOR.mix(0.6),
+                TERRAIN_COLOR.mix(0.75),
             ))
             .map_err(plot_err(WHAT))?;
         chart
@@ -330,7 +507,6 @@ pub fn render_horizon_plot_png(
             .map_err(plot_err(WHAT))?
             .label("horizon (terrain below)")
             .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK.stroke_width(2)));
-        draw_tracks(&mut chart, tracks, Some, WHAT)?;
         draw_legend(&mut chart, 15, SeriesLabelPosition::UpperRight, WHAT)?;
         Ok(())
     })
@@ -358,6 +534,14 @@ pub fn render_horizon_polar_png(
             .margin(20)
             .build_cartesian_2d(-1.2..1.2, -1.2..1.2)
             .map_err(plot_err(WHAT))?;
+        // Tracks first: the terrain ring covers them where they pass below the horizon, and
+        // the horizon line is drawn last, on top.
+        draw_tracks(
+            &mut chart,
+            tracks,
+            |(az, el)| (el >= el_lo).then(|| to_xy(az, el)),
+            WHAT,
+        )?;
         // Terrain: the ring between the horizon curve and the rim, closed through a seam at 0°.
         let mut ring: Vec<(f64, f64)> = horizon_points(horizon)
             .into_iter()
@@ -365,7 +549,7 @@ pub fn render_horizon_polar_png(
             .collect();
         ring.extend((0..=360).rev().map(|a| to_xy(f64::from(a), el_lo)));
         chart
-            .draw_series(std::iter::once(Polygon::new(ring, TERRAIN_COLOR.mix(0.6))))
+            .draw_series(std::iter::once(Polygon::new(ring, TERRAIN_COLOR.mix(0.75))))
             .map_err(plot_err(WHAT))?;
         // Elevation rings with labels, and azimuth spokes every 30°.
         let (ticks, decimals) = nice_ticks(el_lo, el_hi, 8);
@@ -418,12 +602,6 @@ pub fn render_horizon_polar_png(
             .map_err(plot_err(WHAT))?
             .label("horizon (terrain outside)")
             .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK.stroke_width(2)));
-        draw_tracks(
-            &mut chart,
-            tracks,
-            |(az, el)| (el >= el_lo).then(|| to_xy(az, el)),
-            WHAT,
-        )?;
         draw_legend(&mut chart, 14, SeriesLabelPosition::UpperLeft, WHAT)?;
         root.draw(&Text::new(
             format!("radius: elevation, {el_hi:.1}° at centre to {el_lo:.1}° at rim"),

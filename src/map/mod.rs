@@ -20,7 +20,10 @@
 
 mod write;
 
-pub use write::{PSR_DESCRIPTION, SweepRaster, sweep_rasters, write_sweep};
+pub use write::{
+    PSR_DESCRIPTION, SweepRaster, geotiff_unit, span_text, sweep_metadata, sweep_rasters,
+    write_sweep,
+};
 
 use rayon::prelude::*;
 

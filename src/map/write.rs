@@ -15,6 +15,29 @@ type Continuous = (&'static str, String, Vec<f32>, f64, String);
 pub const PSR_DESCRIPTION: &str =
     "permanently shadowed over the span: 1 never lit, 0 lit at least once, 255 no data";
 
+/// The span of an epoch range as `penumbra map` records it: `first .. last, N epochs`.
+pub fn span_text(epochs: &[hifitime::Epoch]) -> String {
+    match (epochs.first(), epochs.last()) {
+        (Some(a), Some(b)) => format!(
+            "{} .. {}, {} epochs",
+            crate::ephem::time::format_iso(*a),
+            crate::ephem::time::format_iso(*b),
+            epochs.len()
+        ),
+        _ => "no epochs".to_string(),
+    }
+}
+
+/// The metadata items of every statistics GeoTIFF: the span ([`span_text`], or a scenario's), the
+/// number of epochs and the step.
+pub fn sweep_metadata(span: &str, s: &SweepStats) -> Vec<(String, String)> {
+    vec![
+        ("span_utc".to_string(), span.to_string()),
+        ("epochs".to_string(), s.epochs.to_string()),
+        ("step_h".to_string(), format!("{}", s.step_h)),
+    ]
+}
+
 /// The GeoTIFF unit of a statistic, from its file stem's suffix (`_pct`, `_h`, `_w_m2`).
 pub fn geotiff_unit(stem: &str) -> &'static str {
     if stem.ends_with("_pct") {
@@ -223,12 +246,7 @@ pub fn write_sweep(
 ) -> anyhow::Result<Vec<String>> {
     let (rasters, psr_out) = sweep_rasters(dem, model, s)?;
     let mut files = Vec::new();
-    // The span in every GeoTIFF's metadata.
-    let items: Vec<(&'static str, String)> = vec![
-        ("span_utc", span.to_string()),
-        ("epochs", s.epochs.to_string()),
-        ("step_h", format!("{}", s.step_h)),
-    ];
+    let items = sweep_metadata(span, s);
     let (rows, cols) = (dem.grid.rows, dem.grid.cols);
     for r in rasters {
         let out = r.values;

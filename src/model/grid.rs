@@ -399,7 +399,7 @@ pub struct RasterInfo<'a> {
     /// Their unit (`%`, `h`, `W m-2`; empty for fractions and classes).
     pub unit: &'a str,
     /// Further metadata items (`name`, value).
-    pub items: Vec<(&'static str, String)>,
+    pub items: Vec<(String, String)>,
 }
 
 impl<'a> RasterInfo<'a> {
@@ -483,6 +483,6 @@ fn metadata<'a>(info: &'a RasterInfo<'_>) -> Vec<(&'a str, &'a str)> {
         ("git_commit", env!("PENUMBRA_GIT_COMMIT")),
         ("content", info.description),
     ];
-    items.extend(info.items.iter().map(|(k, v)| (*k, v.as_str())));
+    items.extend(info.items.iter().map(|(k, v)| (k.as_str(), v.as_str())));
     items
 }

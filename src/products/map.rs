@@ -189,12 +189,7 @@ pub fn run(req: &MapRequest) -> anyhow::Result<()> {
             crate::note!("{note}");
         }
         let step_h = req.epochs.map_or(3600.0, |e| e.step_s()) / 3600.0;
-        let span = format!(
-            "{} .. {}, {} epochs",
-            crate::ephem::time::format_iso(epochs[0]),
-            crate::ephem::time::format_iso(*epochs.last().unwrap_or(&epochs[0])),
-            epochs.len()
-        );
+        let span = crate::map::span_text(&epochs);
         if let crate::compute::sweep::HorizonsFrom::File(path) = &req.horizons
             && (req.engine == Some(MapEngineKind::Horizons) || req.shard.is_some())
         {
@@ -388,26 +383,14 @@ pub fn run(req: &MapRequest) -> anyhow::Result<()> {
         req.gpu_tile_cells,
     )?;
     // The light and the run's parameters, in every file's metadata.
-    let (sun_az_deg, sun_el_deg) = grid.az_el_deg_at_centre(sun);
-    let mut items: Vec<(&'static str, String)> = vec![
-        ("engine", engine_kind.name().to_string()),
-        ("observer_height_m", format!("{}", req.observer_height_m)),
-        ("sun_az_deg_at_map_centre", format!("{sun_az_deg:.6}")),
-        ("sun_el_deg_at_map_centre", format!("{sun_el_deg:.6}")),
-        (
-            "sun_radius_deg",
-            format!("{:.6}", sun_radius_rad.to_degrees()),
-        ),
-    ];
-    if kernels.is_some() {
-        items.insert(0, ("epoch_utc", crate::ephem::time::format_iso(epochs[0])));
-        items.push(("abcorr", abcorr.spice_name().to_string()));
-    }
-    if let Some((dir, _)) = earth {
-        let (az, el) = grid.az_el_deg_at_centre(dir);
-        items.push(("earth_az_deg_at_map_centre", format!("{az:.6}")));
-        items.push(("earth_el_deg_at_map_centre", format!("{el:.6}")));
-    }
+    let items = one_light_metadata(
+        &grid,
+        engine_kind,
+        req.observer_height_m,
+        (sun, sun_radius_rad),
+        earth.map(|(dir, _)| dir),
+        kernels.as_ref().map(|_| (epochs[0], abcorr)),
+    );
     let info = |description| crate::model::RasterInfo {
         description,
         unit: "",
@@ -432,6 +415,44 @@ pub fn run(req: &MapRequest) -> anyhow::Result<()> {
         t0.elapsed().as_secs_f64()
     );
     Ok(())
+}
+
+/// The metadata items of a one-light map's GeoTIFFs: the epoch (when the light comes from the
+/// ephemeris), the engine, the observer height, the Sun's azimuth and elevation at the map centre,
+/// the Sun's angular radius, the aberration correction (with an epoch) and the Earth's azimuth
+/// and elevation at the map centre (with an Earth direction).
+pub fn one_light_metadata(
+    grid: &crate::model::MapGrid,
+    engine: MapEngineKind,
+    observer_height_m: f64,
+    (sun, sun_radius_rad): ([f64; 3], f64),
+    earth: Option<[f64; 3]>,
+    epoch: Option<(hifitime::Epoch, crate::ephem::AbCorr)>,
+) -> Vec<(String, String)> {
+    let (sun_az_deg, sun_el_deg) = grid.az_el_deg_at_centre(sun);
+    let mut items: Vec<(&str, String)> = Vec::new();
+    if let Some((e, _)) = epoch {
+        items.push(("epoch_utc", crate::ephem::time::format_iso(e)));
+    }
+    items.extend([
+        ("engine", engine.name().to_string()),
+        ("observer_height_m", format!("{observer_height_m}")),
+        ("sun_az_deg_at_map_centre", format!("{sun_az_deg:.6}")),
+        ("sun_el_deg_at_map_centre", format!("{sun_el_deg:.6}")),
+        (
+            "sun_radius_deg",
+            format!("{:.6}", sun_radius_rad.to_degrees()),
+        ),
+    ]);
+    if let Some((_, abcorr)) = epoch {
+        items.push(("abcorr", abcorr.spice_name().to_string()));
+    }
+    if let Some(dir) = earth {
+        let (az, el) = grid.az_el_deg_at_centre(dir);
+        items.push(("earth_az_deg_at_map_centre", format!("{az:.6}")));
+        items.push(("earth_el_deg_at_map_centre", format!("{el:.6}")));
+    }
+    items.into_iter().map(|(k, v)| (k.to_string(), v)).collect()
 }
 
 /// The GeoTIFF `content` of a one-light Sun fraction map.

@@ -473,10 +473,12 @@ fn render_one_frame(
     let out = numbered(&opts.out);
     let mut written = Vec::new();
     if let Some(tif) = &opts.out_radiance {
+        let items: Vec<(&str, &str)> = text.iter().map(|(k, v)| (*k, v.as_str())).collect();
         let bytes = crate::render::encode_f32_tiff(
             &crate::render::radiance_image(&samples),
             opts.width,
             opts.height,
+            &items,
         )?;
         let tif = numbered(tif);
         crate::output::write_bytes_atomic(&tif, &bytes)?;

@@ -447,20 +447,41 @@ pub fn radiance_image(samples: &[Sample]) -> Vec<f32> {
         .iter()
         .map(|s| match s {
             Sample::Terrain { radiance_w_m2_sr } => *radiance_w_m2_sr,
-            _ => 0.0,
+            // Sky (and the discs of the Sun and the Earth): no terrain, not a dark terrain.
+            _ => f32::NAN,
         })
         .collect()
 }
 
 /// Encodes a `width` x `height` f32 image (row-major, row 0 at the top) as a single-band 32-bit
-/// float TIFF.
-pub fn encode_f32_tiff(values: &[f32], width: u32, height: u32) -> Result<Vec<u8>> {
+/// float TIFF: NaN declared as nodata (GDAL_NODATA, the sky), the band's description and unit
+/// (W m-2 sr-1) and `items` (the frame's epoch, camera, …) in GDAL_METADATA.
+pub fn encode_f32_tiff(
+    values: &[f32],
+    width: u32,
+    height: u32,
+    items: &[(&str, &str)],
+) -> Result<Vec<u8>> {
+    let err = |e: tiff::TiffError| RenderError::Tiff(e.to_string());
+    let xml = crate::terrain::gdal_metadata_xml_with_band(
+        items,
+        crate::terrain::BandInfo {
+            description: "terrain radiance toward the camera (NaN: sky, no terrain)",
+            unit: "W m-2 sr-1",
+        },
+    );
     let mut buf = std::io::Cursor::new(Vec::new());
     {
-        let mut enc = tiff::encoder::TiffEncoder::new(&mut buf)
-            .map_err(|e| RenderError::Tiff(e.to_string()))?;
-        enc.write_image::<tiff::encoder::colortype::Gray32Float>(width, height, values)
-            .map_err(|e| RenderError::Tiff(e.to_string()))?;
+        let mut enc = tiff::encoder::TiffEncoder::new(&mut buf).map_err(err)?;
+        let mut image = enc
+            .new_image::<tiff::encoder::colortype::Gray32Float>(width, height)
+            .map_err(err)?;
+        let tags = image.encoder();
+        tags.write_tag(tiff::tags::Tag::Unknown(42112), xml.as_str())
+            .map_err(err)?;
+        tags.write_tag(tiff::tags::Tag::Unknown(42113), "nan")
+            .map_err(err)?;
+        image.write_data(values).map_err(err)?;
     }
     Ok(buf.into_inner())
 }

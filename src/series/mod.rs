@@ -508,12 +508,7 @@ pub fn run_series(
         .collect();
     let mut stats = StatsFile::from_series(&all)?;
     for (s, o) in stats.sites.iter_mut().zip(&outcomes) {
-        s.location = Some(illum::stats::SiteLocation {
-            lat_deg: o.site.lat_deg,
-            lon_deg: o.site.lon_deg,
-            height_above_ground_m: o.site.height_above_ground_m,
-            ground_height_m: o.horizon.ground_height_m,
-        });
+        s.location = Some(site_location(&o.site, &o.horizon));
     }
     stats.write_json(&out_dir.join("stats.json"))?;
     files.push("stats.json".into());
@@ -526,6 +521,17 @@ pub fn run_series(
         files,
         backend: backend_note,
     })
+}
+
+/// Where a site stands, for `stats.json`: its coordinates, its height above the ground and the
+/// ground height its horizon was computed from.
+pub fn site_location(site: &SeriesSite, horizon: &Horizon) -> illum::stats::SiteLocation {
+    illum::stats::SiteLocation {
+        lat_deg: site.lat_deg,
+        lon_deg: site.lon_deg,
+        height_above_ground_m: site.height_above_ground_m,
+        ground_height_m: horizon.ground_height_m,
+    }
 }
 
 /// The run's tidy long table: every site's `series.csv` rows, one table.

@@ -924,6 +924,9 @@ pub use bands::{BandSample, MultiBandTiff};
 pub use bands_read::MultiBandTiffReader;
 
 pub use cog::COG_TILE_PX;
+/// GDAL's metadata XML (`GDAL_METADATA`, tag 42112) of dataset items and one band's description
+/// and unit.
+pub use gdal_metadata::gdal_metadata_xml_with_band;
 use gdal_metadata::*;
 pub use write::{
     BandInfo, orthographic_model_tags, write_dem, write_geotiff_f32, write_geotiff_u8,

@@ -13,6 +13,7 @@ pub mod grid;
 pub mod heightfield;
 pub mod info;
 pub mod model_space;
+pub mod pds3;
 pub mod synth;
 pub(crate) mod unit_projector;
 
@@ -20,8 +21,8 @@ use std::path::Path;
 
 pub use error::DemError;
 pub use geotiff::{
-    BandInfo, orthographic_model_tags, read_geotiff, write_dem, write_geotiff_f32,
-    write_geotiff_u8, write_geotiff_u16,
+    BandInfo, gdal_metadata_xml_with_band, orthographic_model_tags, read_geotiff, write_dem,
+    write_geotiff_f32, write_geotiff_u8, write_geotiff_u16,
 };
 pub use grid::{Dem, GridGeometry, Projection, TerrainStack};
 pub use heightfield::{CellWindow, HeightField};
@@ -29,10 +30,14 @@ pub use info::DemInfo;
 pub use model_space::{ModelFrame, ModelGridSpec, ResampleStats, resample_to_model_space};
 
 /// Loads a DEM file and checks it against physical bounds ([`Dem::check`]: georeferencing,
-/// heights above the 1737.4 km sphere). GeoTIFF is the only format read today (PDS3 `.IMG` +
-/// `.LBL` is not supported yet).
+/// heights above the 1737.4 km sphere): a GeoTIFF ([`read_geotiff`]) or a PDS3 product (`.LBL`,
+/// or an `.IMG` with an attached label or a `.LBL` beside it: [`pds3::read_pds3`]).
 pub fn load_dem(path: &Path) -> error::Result<Dem> {
-    let dem = read_geotiff(path)?;
+    let dem = if pds3::is_pds3(path) {
+        pds3::read_pds3(path)?
+    } else {
+        read_geotiff(path)?
+    };
     dem.check().map_err(|detail| DemError::Rejected {
         path: path.display().to_string(),
         detail,

@@ -363,3 +363,56 @@ fn fast_methods_error_on_lola_horizon() {
         assert!(s.mean < 0.05 && m.mean < 0.05, "{} {}", s.mean, m.mean);
     }
 }
+
+/// Monthly aggregates (what the plot of a long series draws) against hand-counted values: an
+/// hourly series from 2025-01-31 00:00 UTC over Jan 31 (24 samples), February (672) and March 1
+/// (24); dark from 20:00 on Jan 31 to 05:00 on Feb 1 (10 h), half-lit through March 1.
+#[test]
+fn monthly_aggregates_match_hand_counts() {
+    let start = penumbra::ephem::time::parse_utc("2025-01-31T00:00").unwrap();
+    let mut sun = vec![1.0; 24 + 672 + 24];
+    for f in &mut sun[20..30] {
+        *f = 0.0;
+    }
+    for f in &mut sun[24 + 672..] {
+        *f = 0.5;
+    }
+    let earth = vec![0.25; sun.len()];
+    let months = penumbra::illum::plot::monthly_stats(&FractionSeries {
+        start_utc: start,
+        step_s: 3600.0,
+        sun_fraction: &sun,
+        earth_fraction: Some(&earth),
+    });
+    assert_eq!(months.len(), 3);
+    assert_eq!(months[0].year_month, (2025, 1));
+    assert!((months[0].sun_pct - 100.0 * 20.0 / 24.0).abs() < 1e-9);
+    assert_eq!(months[0].longest_dark_h, 4.0);
+    assert_eq!(months[1].year_month, (2025, 2));
+    assert!((months[1].sun_pct - 100.0 * 666.0 / 672.0).abs() < 1e-9);
+    assert_eq!(months[1].longest_dark_h, 10.0);
+    assert_eq!(months[2].year_month, (2025, 3));
+    assert!((months[2].sun_pct - 50.0).abs() < 1e-12);
+    assert_eq!(months[2].longest_dark_h, 0.0);
+    assert!(months.iter().all(|m| (m.earth_pct - 25.0).abs() < 1e-12));
+    // The plot of this 30-day series has date labels; a 100-day one is drawn as months.
+    let dir = tempfile::tempdir().unwrap();
+    let long: Vec<f64> = (0..24 * 100)
+        .map(|k| if k % 24 < 6 { 0.0 } else { 1.0 })
+        .collect();
+    for (s, name) in [(&sun[..], "short.png"), (&long[..], "long.png")] {
+        write_fraction_plot(
+            &dir.path().join(name),
+            "t",
+            &FractionSeries {
+                start_utc: start,
+                step_s: 3600.0,
+                sun_fraction: s,
+                earth_fraction: None,
+            },
+            (900, 500),
+        )
+        .unwrap();
+        assert!(std::fs::metadata(dir.path().join(name)).unwrap().len() > 5000);
+    }
+}

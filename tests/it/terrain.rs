@@ -955,3 +955,155 @@ fn every_geotiff_output_is_a_cloud_optimized_geotiff_with_its_metadata() {
         assert_eq!(g as f32, ours.heights_m[row * 300 + col], "({col},{row})");
     }
 }
+
+/// A PDS3 label for a `cols` x `rows` south-polar stereographic DEM centred on the pole.
+fn pds3_label(
+    cols: usize,
+    rows: usize,
+    px_m: f64,
+    pointer: &str,
+    record_bytes: usize,
+    sample: (&str, u32),
+    scale_offset: (f64, f64),
+) -> String {
+    format!(
+        "PDS_VERSION_ID = \"PDS3\"\r\n/* made by penumbra's tests */\r\nRECORD_TYPE = FIXED_LENGTH\r\n\
+         RECORD_BYTES = {record_bytes}\r\n^IMAGE = {pointer}\r\nOBJECT = IMAGE\r\n  NAME = HEIGHT\r\n\
+         LINES = {rows}\r\n  LINE_SAMPLES = {cols}\r\n  SAMPLE_TYPE = {}\r\n  SAMPLE_BITS = {}\r\n\
+         UNIT = METER\r\n  SCALING_FACTOR = {}\r\n  OFFSET = {}\r\n  MISSING_CONSTANT = -32768\r\n\
+         END_OBJECT = IMAGE\r\nOBJECT = IMAGE_MAP_PROJECTION\r\n  MAP_PROJECTION_TYPE = \"POLAR STEREOGRAPHIC\"\r\n\
+         A_AXIS_RADIUS = 1737.4 <KM>\r\n  B_AXIS_RADIUS = 1737.4 <KM>\r\n  C_AXIS_RADIUS = 1737.4 <KM>\r\n\
+         CENTER_LATITUDE = -90 <DEG>\r\n  CENTER_LONGITUDE = 0 <DEG>\r\n  MAP_PROJECTION_ROTATION = 0.0\r\n\
+         MAP_SCALE = {px_m} <METERS/PIXEL>\r\n  LINE_PROJECTION_OFFSET = {} <PIXEL>\r\n\
+         SAMPLE_PROJECTION_OFFSET = {} <PIXEL>\r\nEND_OBJECT = IMAGE_MAP_PROJECTION\r\nEND\r\n",
+        sample.0,
+        sample.1,
+        scale_offset.0,
+        scale_offset.1,
+        rows as f64 / 2.0 - 0.5,
+        cols as f64 / 2.0 - 0.5,
+    )
+}
+
+/// PDS3 DEMs as LOLA ships them (16-bit integers × 0.5 + OFFSET 1737400 = radii, detached
+/// label) and with an attached label (float32 heights) are read natively: the same grid as
+/// GDAL's PDS driver, heights = GDAL's raw × scale + offset − 1737400 m, within half a metre of
+/// the DEM they were made from. GDAL's own conversion of the label to GeoTIFF gives radii, which
+/// penumbra refuses with the fix.
+#[test]
+fn pds3_dems_read_natively_as_gdal_reads_them() {
+    if !has_tool("gdalinfo") {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let dem = synth::south_polar_dem(&synth::SynthParams {
+        size_px: 40,
+        px_m: 100.0,
+        seed: 3,
+    })
+    .unwrap();
+    let (rows, cols) = (dem.grid.rows, dem.grid.cols);
+    // LOLA style: LSB int16, 0.5 m, OFFSET = radius, detached label; one hole.
+    let mut raw = Vec::new();
+    for (i, h) in dem.heights_m.iter().enumerate() {
+        let v: i16 = if i == 41 {
+            -32768
+        } else {
+            (f64::from(*h) / 0.5).round() as i16
+        };
+        raw.extend_from_slice(&v.to_le_bytes());
+    }
+    std::fs::write(d.join("ldem.img"), &raw).unwrap();
+    std::fs::write(
+        d.join("ldem.lbl"),
+        pds3_label(
+            cols,
+            rows,
+            100.0,
+            "\"ldem.img\"",
+            cols * 2,
+            ("LSB_INTEGER", 16),
+            (0.5, 1737400.0),
+        ),
+    )
+    .unwrap();
+    // Attached label: float32 heights after a label padded to whole records.
+    let rb = cols * 4;
+    let probe = pds3_label(cols, rows, 100.0, "99", rb, ("PC_REAL", 32), (1.0, 0.0));
+    let label_records = probe.len().div_ceil(rb);
+    let pointer = format!("{:>2}", label_records + 1);
+    let mut label = pds3_label(cols, rows, 100.0, &pointer, rb, ("PC_REAL", 32), (1.0, 0.0));
+    assert_eq!(label.len(), probe.len());
+    label.push_str(&" ".repeat(label_records * rb - label.len()));
+    let mut attached = label.into_bytes();
+    for h in &dem.heights_m {
+        attached.extend_from_slice(&h.to_le_bytes());
+    }
+    std::fs::write(d.join("attached.img"), &attached).unwrap();
+
+    for (file, tol_m) in [
+        ("ldem.lbl", 0.25),
+        ("ldem.img", 0.25),
+        ("attached.img", 0.0),
+    ] {
+        let path = d.join(file);
+        let ours = terrain::load_dem(&path).unwrap();
+        assert_eq!(ours.projection, Projection::LOLA_SOUTH_POLAR, "{file}");
+        let gdal_path = if file == "ldem.img" {
+            d.join("ldem.lbl")
+        } else {
+            path.clone()
+        };
+        let j = gdal_json(&gdal_path);
+        let gt: Vec<f64> = j["geoTransform"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_f64().unwrap())
+            .collect();
+        assert_eq!(
+            (
+                ours.grid.x_left_m,
+                ours.grid.px_x_m,
+                ours.grid.y_top_m,
+                -ours.grid.px_y_m
+            ),
+            (gt[0], gt[1], gt[3], gt[5]),
+            "{file}: grid vs GDAL's geotransform"
+        );
+        assert_eq!(ours.grid, dem.grid, "{file}: the grid the DEM was made on");
+        let scale = j["bands"][0]["scale"].as_f64().unwrap_or(1.0);
+        let offset = j["bands"][0]["offset"].as_f64().unwrap_or(0.0);
+        for &(col, row) in &[(0, 0), (1, 1), (39, 0), (17, 23), (39, 39)] {
+            let h = ours.heights_m[row * cols + col];
+            if (row, col) == (1, 1) && file != "attached.img" {
+                assert!(h.is_nan(), "{file}: MISSING_CONSTANT is a hole");
+                continue;
+            }
+            let want = gdal_value(&gdal_path, col, row) * scale + offset
+                - if offset > 1e6 { 1_737_400.0 } else { 0.0 };
+            assert!(
+                (f64::from(h) - want).abs() < 1e-3,
+                "{file} ({col},{row}): {h} vs GDAL {want}"
+            );
+            let made = f64::from(dem.heights_m[row * cols + col]);
+            assert!(
+                (f64::from(h) - made).abs() <= tol_m,
+                "{file} ({col},{row}): {h} vs {made}"
+            );
+        }
+    }
+    // GDAL's conversion of the LOLA-style label keeps OFFSET: radii, refused with the fix.
+    if has_tool("gdal_translate") {
+        let tif = d.join("radii.tif");
+        let o = Command::new("gdal_translate")
+            .args(["-q", "-unscale", "-ot", "Float32"])
+            .arg(d.join("ldem.lbl"))
+            .arg(&tif)
+            .output_within()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        assert_clean_failure(&run(&["dem", "info", tif.to_str().unwrap()]), "radii");
+    }
+}

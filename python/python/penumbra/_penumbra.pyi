@@ -105,7 +105,12 @@ def map_shard(
 ) -> Dict[str, Any]: ...
 def merge_shards(out_dir: Path, shard_dirs: Sequence[Path]) -> None: ...
 def write_geotiff(
-    path: Path, array: npt.NDArray[Any], terrain: Terrain, description: str
+    path: Path,
+    array: npt.NDArray[Any],
+    terrain: Terrain,
+    description: str,
+    unit: str = "",
+    metadata: Optional[Dict[str, str]] = None,
 ) -> None: ...
 def render(
     terrain: Terrain,

@@ -127,10 +127,7 @@ pub(super) fn gdal_metadata_xml_with_bands(items: &[(&str, &str)], bands: &[Stri
 
 /// The GDAL_METADATA XML of dataset-level `items` and one band's description and unit (roles
 /// `description` and `unittype`, as GDAL writes them).
-pub(super) fn gdal_metadata_xml_with_band(
-    items: &[(&str, &str)],
-    band: super::BandInfo<'_>,
-) -> String {
+pub fn gdal_metadata_xml_with_band(items: &[(&str, &str)], band: super::BandInfo<'_>) -> String {
     let mut xml = gdal_metadata_xml(items);
     xml.truncate(xml.len() - "</GDALMetadata>".len());
     if !band.description.is_empty() {
