@@ -435,13 +435,7 @@ fn check_declared_size<R: Read + Seek>(
             "the header declares {stored} bytes of pixel data but the file has {file_len} bytes (truncated?)"
         ));
     }
-    let bytes_per_sample: u128 = match kind {
-        SampleKind::F64 => 8,
-        SampleKind::F32 | SampleKind::I32 => 4,
-        SampleKind::I16 | SampleKind::U16 => 2,
-        SampleKind::U8 => 1,
-    };
-    let decoded = cells * bytes_per_sample;
+    let decoded = cells * kind.bytes() as u128;
     let compression: u16 = decoder
         .find_tag_unsigned(Tag::Compression)
         .ok()
@@ -559,15 +553,15 @@ fn map_tiff_error(name: &str, e: TiffError) -> DemError {
                 detail: u.to_string(),
             }
         }
-        TiffError::UnsupportedError(u) if u.to_string().contains("compression method") => {
-            DemError::Decode {
-                path: name.into(),
-                detail: format!(
-                    "{u} (penumbra reads uncompressed, LZW, Deflate and ZSTD; convert with \
+        TiffError::UnsupportedError(
+            u @ tiff::TiffUnsupportedError::UnsupportedCompressionMethod(_),
+        ) => DemError::Decode {
+            path: name.into(),
+            detail: format!(
+                "{u} (penumbra reads uncompressed, LZW, Deflate and ZSTD; convert with \
                      `gdal_translate -co COMPRESS=DEFLATE -co PREDICTOR=3 IN OUT`)"
-                ),
-            }
-        }
+            ),
+        },
         other => DemError::Decode {
             path: name.into(),
             detail: other.to_string(),

@@ -34,16 +34,18 @@ pub fn is_pds3(path: &Path) -> bool {
         .extension()
         .map(|e| e.to_string_lossy().to_ascii_lowercase())
         .unwrap_or_default();
-    if ext == "lbl" {
-        return true;
-    }
-    let mut head = [0u8; 64];
-    let n = crate::output::guard::open_regular(path)
-        .and_then(|mut f| f.read(&mut head))
-        .unwrap_or(0);
-    let text = String::from_utf8_lossy(&head[..n]);
-    text.trim_start().starts_with("PDS_VERSION_ID")
+    ext == "lbl"
+        || starts_with_label(path).unwrap_or(false)
         || (ext == "img" && sibling_label(path).is_some())
+}
+
+/// Whether the file begins with a PDS3 label (`PDS_VERSION_ID`, leading blanks allowed).
+fn starts_with_label(path: &Path) -> std::io::Result<bool> {
+    let mut head = [0u8; 64];
+    let n = crate::output::guard::open_regular(path)?.read(&mut head)?;
+    Ok(String::from_utf8_lossy(&head[..n])
+        .trim_start()
+        .starts_with("PDS_VERSION_ID"))
 }
 
 /// The detached label next to an image (`x.IMG` → `x.LBL` or `x.lbl`).
@@ -244,23 +246,15 @@ pub fn read_pds3(path: &Path) -> Result<Dem> {
         detail: format!("PDS3: {detail}"),
     };
     // The label: the file itself (attached or detached label) or the .LBL beside an .IMG.
-    let label_path = match crate::output::guard::read_small_text(path, 64) {
-        Ok(t) if t.trim_start().starts_with("PDS_VERSION_ID") => path.to_path_buf(),
-        _ => {
-            let mut head = [0u8; 16];
-            let n = crate::output::guard::open_regular(path)
-                .and_then(|mut f| f.read(&mut head))
-                .map_err(|source| DemError::Io {
-                    path: name.clone(),
-                    source,
-                })?;
-            if String::from_utf8_lossy(&head[..n]).starts_with("PDS_VERSION_ID") {
-                path.to_path_buf()
-            } else {
-                sibling_label(path)
-                    .ok_or_else(|| bad("no PDS3 label in the file and no .LBL beside it".into()))?
-            }
-        }
+    let has_label = starts_with_label(path).map_err(|source| DemError::Io {
+        path: name.clone(),
+        source,
+    })?;
+    let label_path = if has_label {
+        path.to_path_buf()
+    } else {
+        sibling_label(path)
+            .ok_or_else(|| bad("no PDS3 label in the file and no .LBL beside it".into()))?
     };
     let mut label_bytes = Vec::new();
     crate::output::guard::open_regular(&label_path)

@@ -7,7 +7,6 @@ use super::*;
 
 /// Builds the GeoKeyDirectory, double and ASCII parameters of a user-defined CRS on the sphere.
 pub(super) fn geo_keys_for(projection: &Projection) -> (Vec<u16>, Vec<f64>, String) {
-    let mut entries: Vec<(u16, GeoKeyValue)> = Vec::new();
     let r = projection.radius_m();
     let (citation, ct) = match *projection {
         Projection::PolarStereographic { south, .. } => (
@@ -22,29 +21,7 @@ pub(super) fn geo_keys_for(projection: &Projection) -> (Vec<u16>, Vec<f64>, Stri
             CT_EQUIRECTANGULAR,
         ),
     };
-    entries.push((KEY_MODEL_TYPE, GeoKeyValue::Short(1)));
-    entries.push((KEY_RASTER_TYPE, GeoKeyValue::Short(1)));
-    entries.push((KEY_GT_CITATION, GeoKeyValue::Ascii(citation)));
-    entries.push((KEY_GEOGRAPHIC_TYPE, GeoKeyValue::Short(USER_DEFINED)));
-    entries.push((
-        KEY_GEOG_CITATION,
-        GeoKeyValue::Ascii(format!(
-            "GCS Name = Moon sphere R={r} m|Datum = Moon|Ellipsoid = Moon sphere|Primem = Reference meridian"
-        )),
-    ));
-    entries.push((KEY_GEOG_DATUM, GeoKeyValue::Short(USER_DEFINED)));
-    entries.push((KEY_GEOG_ANGULAR_UNITS, GeoKeyValue::Short(EPSG_DEGREE)));
-    entries.push((KEY_GEOG_ELLIPSOID, GeoKeyValue::Short(USER_DEFINED)));
-    entries.push((KEY_GEOG_SEMI_MAJOR, GeoKeyValue::Doubles(vec![r])));
-    entries.push((KEY_GEOG_SEMI_MINOR, GeoKeyValue::Doubles(vec![r])));
-    entries.push((
-        KEY_GEOG_PRIME_MERIDIAN_LONG,
-        GeoKeyValue::Doubles(vec![0.0]),
-    ));
-    entries.push((KEY_PROJECTED_CS_TYPE, GeoKeyValue::Short(USER_DEFINED)));
-    entries.push((KEY_PROJECTION, GeoKeyValue::Short(USER_DEFINED)));
-    entries.push((KEY_PROJ_COORD_TRANS, GeoKeyValue::Short(ct)));
-    entries.push((KEY_PROJ_LINEAR_UNITS, GeoKeyValue::Short(EPSG_METRE)));
+    let mut entries = projected_on_sphere(citation, r, ct);
     match *projection {
         Projection::PolarStereographic {
             south,
@@ -97,40 +74,19 @@ pub fn orthographic_model_tags(
     px_m: f64,
 ) -> ([f64; 16], Vec<u16>, Vec<f64>, String) {
     let r = crate::MOON_RADIUS_M;
-    let entries = vec![
-        (KEY_MODEL_TYPE, GeoKeyValue::Short(1)),
-        (KEY_RASTER_TYPE, GeoKeyValue::Short(1)),
-        (
-            KEY_GT_CITATION,
-            GeoKeyValue::Ascii(format!(
-                "Orthographic on the lunar sphere R={r} m centred at lat {lat0_deg} lon {lon0_deg} (penumbra model space)"
-            )),
+    let mut entries = projected_on_sphere(
+        format!(
+            "Orthographic on the lunar sphere R={r} m centred at lat {lat0_deg} lon {lon0_deg} (penumbra model space)"
         ),
-        (KEY_GEOGRAPHIC_TYPE, GeoKeyValue::Short(USER_DEFINED)),
-        (
-            KEY_GEOG_CITATION,
-            GeoKeyValue::Ascii(format!(
-                "GCS Name = Moon sphere R={r} m|Datum = Moon|Ellipsoid = Moon sphere|Primem = Reference meridian"
-            )),
-        ),
-        (KEY_GEOG_DATUM, GeoKeyValue::Short(USER_DEFINED)),
-        (KEY_GEOG_ANGULAR_UNITS, GeoKeyValue::Short(EPSG_DEGREE)),
-        (KEY_GEOG_ELLIPSOID, GeoKeyValue::Short(USER_DEFINED)),
-        (KEY_GEOG_SEMI_MAJOR, GeoKeyValue::Doubles(vec![r])),
-        (KEY_GEOG_SEMI_MINOR, GeoKeyValue::Doubles(vec![r])),
-        (
-            KEY_GEOG_PRIME_MERIDIAN_LONG,
-            GeoKeyValue::Doubles(vec![0.0]),
-        ),
-        (KEY_PROJECTED_CS_TYPE, GeoKeyValue::Short(USER_DEFINED)),
-        (KEY_PROJECTION, GeoKeyValue::Short(USER_DEFINED)),
-        (KEY_PROJ_COORD_TRANS, GeoKeyValue::Short(CT_ORTHOGRAPHIC)),
-        (KEY_PROJ_LINEAR_UNITS, GeoKeyValue::Short(EPSG_METRE)),
+        r,
+        CT_ORTHOGRAPHIC,
+    );
+    entries.extend([
         (KEY_PROJ_FALSE_EASTING, GeoKeyValue::Doubles(vec![0.0])),
         (KEY_PROJ_FALSE_NORTHING, GeoKeyValue::Doubles(vec![0.0])),
         (KEY_PROJ_CENTER_LONG, GeoKeyValue::Doubles(vec![lon0_deg])),
         (KEY_PROJ_CENTER_LAT, GeoKeyValue::Doubles(vec![lat0_deg])),
-    ];
+    ]);
     let (dir, doubles, ascii) = geo_key_directory(entries);
     // Model (x, y) = (x_left + i px, y_top - j px) at pixel corner (i, j); east/north =
     // model_from_enu(rot)^T (x, y): e = c x + s y, n = -s x + c y.
@@ -154,6 +110,36 @@ pub fn orthographic_model_tags(
         1.0,
     ];
     (transform, dir, doubles, ascii)
+}
+
+/// The GeoKeys shared by every CRS penumbra writes: a user-defined projected CRS (`citation`,
+/// coordinate transformation `ct`, metres) on a user-defined sphere of radius `r` metres.
+fn projected_on_sphere(citation: String, r: f64, ct: u16) -> Vec<(u16, GeoKeyValue)> {
+    vec![
+        (KEY_MODEL_TYPE, GeoKeyValue::Short(1)),
+        (KEY_RASTER_TYPE, GeoKeyValue::Short(1)),
+        (KEY_GT_CITATION, GeoKeyValue::Ascii(citation)),
+        (KEY_GEOGRAPHIC_TYPE, GeoKeyValue::Short(USER_DEFINED)),
+        (
+            KEY_GEOG_CITATION,
+            GeoKeyValue::Ascii(format!(
+                "GCS Name = Moon sphere R={r} m|Datum = Moon|Ellipsoid = Moon sphere|Primem = Reference meridian"
+            )),
+        ),
+        (KEY_GEOG_DATUM, GeoKeyValue::Short(USER_DEFINED)),
+        (KEY_GEOG_ANGULAR_UNITS, GeoKeyValue::Short(EPSG_DEGREE)),
+        (KEY_GEOG_ELLIPSOID, GeoKeyValue::Short(USER_DEFINED)),
+        (KEY_GEOG_SEMI_MAJOR, GeoKeyValue::Doubles(vec![r])),
+        (KEY_GEOG_SEMI_MINOR, GeoKeyValue::Doubles(vec![r])),
+        (
+            KEY_GEOG_PRIME_MERIDIAN_LONG,
+            GeoKeyValue::Doubles(vec![0.0]),
+        ),
+        (KEY_PROJECTED_CS_TYPE, GeoKeyValue::Short(USER_DEFINED)),
+        (KEY_PROJECTION, GeoKeyValue::Short(USER_DEFINED)),
+        (KEY_PROJ_COORD_TRANS, GeoKeyValue::Short(ct)),
+        (KEY_PROJ_LINEAR_UNITS, GeoKeyValue::Short(EPSG_METRE)),
+    ]
 }
 
 /// Encodes sorted-or-not GeoKey entries as the GeoKeyDirectory, double and ASCII parameters.
