@@ -967,6 +967,14 @@ fn write_geotiff(
 
 // --- render -----------------------------------------------------------------------------------------
 
+/// `exposure=`: `"sequence"` (the default; for one frame: its own, never brighter than polar
+/// daylight), `"auto"` (per frame, no floor) or a number in 1/(W m⁻² sr⁻¹).
+#[derive(FromPyObject)]
+enum ExposureArg {
+    Value(f64),
+    Name(String),
+}
+
 /// `render(terrain, utc, lat_deg, lon_deg, camera="site", …)`: a frame of the terrain at one
 /// epoch, as `penumbra render` draws it (the same code, through a temporary file): `(image,
 /// radiance)`, `image` an `(height, width, 3)` uint8 array (the PNG), `radiance` an
@@ -993,7 +1001,7 @@ fn render<'py>(
     width: u32,
     height: u32,
     brdf: &str,
-    exposure: Option<f64>,
+    exposure: Option<ExposureArg>,
     kernels: Option<PathBuf>,
     abcorr: &str,
     backend: &str,
@@ -1021,7 +1029,11 @@ fn render<'py>(
         height,
         brdf,
         albedo: None,
-        exposure,
+        exposure: match exposure {
+            None => penumbra::render::Exposure::default(),
+            Some(ExposureArg::Value(e)) => e.to_string().parse().map_err(bad)?,
+            Some(ExposureArg::Name(n)) => n.parse().map_err(bad)?,
+        },
         out: png.clone(),
         out_radiance: Some(tif.clone()),
         abcorr: self::abcorr(abcorr)?,

@@ -85,10 +85,12 @@ pub struct RenderArgs {
     /// Lambert albedo (only with --brdf lambert), in [0, 1]; default 0.12.
     #[arg(long)]
     pub albedo: Option<f64>,
-    /// Exposure, 1/(W m^-2 sr^-1), applied before the Reinhard curve; default: automatic
-    /// (the 99th percentile of the terrain radiance maps to 2).
-    #[arg(long)]
-    pub exposure: Option<f64>,
+    /// Exposure: `sequence` (default: one exposure for all frames of the run, so brightness is
+    /// comparable between frames: the brightest frame's 99th-percentile lit terrain radiance maps
+    /// near white, never brighter than level ground under a 1 deg Sun, so earthshine-only scenes
+    /// stay dark), `auto` (each frame its own), or a number in 1/(W m^-2 sr^-1).
+    #[arg(long, default_value = "sequence", value_name = "sequence|auto|NUMBER")]
+    pub exposure: penumbra::render::Exposure,
     /// Output PNG file (8-bit sRGB).
     #[arg(long, value_name = "FILE.png")]
     pub out: PathBuf,

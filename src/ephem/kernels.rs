@@ -30,16 +30,57 @@ pub const EARTH_ID: i32 = 399;
 pub const MOON_ID: i32 = 301;
 /// NAIF id of the J2000 inertial frame.
 pub const J2000_ID: i32 = 1;
-/// Frame id of `MOON_PA_DE421`, the frame of the Moon orientation BPC.
+/// Frame id of `MOON_PA_DE421`, the frame of the DE421 Moon orientation BPC.
 pub const MOON_PA_DE421_ID: i32 = 31006;
-/// Frame id of `MOON_ME_DE421`, which `anise` reaches after converting `moon_080317.tf`. It is the
-/// `MOON_ME` of SPICE (`moon_080317.tf` makes `MOON_ME` an identity alias of it).
-pub const MOON_ME_ID: i32 = 31007;
+/// Frame id of `MOON_ME_DE421` (`moon_080317.tf`): the `MOON_ME` of the DE421 set.
+pub const MOON_ME_DE421_ID: i32 = 31007;
+/// Frame id of `MOON_PA_DE440`, the frame of the DE440 Moon orientation BPC
+/// (`moon_pa_de440_200625.bpc`).
+pub const MOON_PA_DE440_ID: i32 = 31008;
+/// Frame id of `MOON_ME_DE440_ME421` (`moon_de440_220930.tf`): the `MOON_ME` of the DE440 set.
+pub const MOON_ME_DE440_ID: i32 = 31009;
 
 /// The Moon-centred J2000 frame.
 pub const MOON_J2000: Frame = Frame::new(MOON_ID, J2000_ID);
-/// The Moon-centred `MOON_ME` frame.
-pub const MOON_ME: Frame = Frame::new(MOON_ID, MOON_ME_ID);
+
+/// A lunar mean-Earth/polar-axis frame pair: the principal-axes frame held by a binary PCK and the
+/// mean-Earth frame a text frame kernel defines relative to it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+pub struct LunarFrames {
+    /// NAIF name of the principal-axes frame (`MOON_PA_DE440`).
+    pub pa_name: &'static str,
+    /// Its frame id (the BPC's frame class id).
+    pub pa_id: i32,
+    /// NAIF name of the mean-Earth frame (`MOON_ME_DE440_ME421`).
+    pub me_name: &'static str,
+    /// Its frame id (a TK frame of the frame kernel).
+    pub me_id: i32,
+}
+
+impl LunarFrames {
+    /// The Moon-centred `MOON_ME` frame of this pair.
+    pub fn moon_me(&self) -> Frame {
+        Frame::new(MOON_ID, self.me_id)
+    }
+}
+
+/// The lunar frame pairs penumbra knows, most recent first: when a set holds both, `MOON_ME` is
+/// the DE440 one. (SPICE's generic aliases `MOON_PA`/`MOON_ME` are 31000/31001 in the DE421 kernel
+/// and 31010/31011 in the DE440 one; penumbra names the realisation it uses instead.)
+pub const LUNAR_FRAMES: [LunarFrames; 2] = [
+    LunarFrames {
+        pa_name: "MOON_PA_DE440",
+        pa_id: MOON_PA_DE440_ID,
+        me_name: "MOON_ME_DE440_ME421",
+        me_id: MOON_ME_DE440_ID,
+    },
+    LunarFrames {
+        pa_name: "MOON_PA_DE421",
+        pa_id: MOON_PA_DE421_ID,
+        me_name: "MOON_ME_DE421",
+        me_id: MOON_ME_DE421_ID,
+    },
+];
 
 /// Seconds before the first usable epoch that the ephemeris must cover: light-time correction
 /// looks the Sun up about 500 s earlier, plus margin.
@@ -73,6 +114,15 @@ pub struct Kernels {
     /// First and last epoch at which the Sun, the Earth, the Moon and the `MOON_ME` frame are all
     /// available (light-time margin included).
     pub coverage: (Epoch, Epoch),
+    /// The lunar frames in use: `MOON_ME` is `frames.moon_me()`.
+    pub frames: LunarFrames,
+}
+
+impl Kernels {
+    /// The Moon-centred `MOON_ME` frame of this set.
+    pub fn moon_me(&self) -> Frame {
+        self.frames.moon_me()
+    }
 }
 
 /// Where the default kernels are: the `PENUMBRA_KERNELS` folder (or meta-kernel), else the set
@@ -153,14 +203,14 @@ impl Kernels {
             .filter(|p| p.is_file())
             .collect();
         paths.sort();
-        let (almanac, files, skipped) = load_files(&paths, false)?;
+        let (almanac, files, skipped, fk_ids) = load_files(&paths, false)?;
         if files.is_empty() {
             return Err(EphemError::KernelDir {
                 path: dir.display().to_string(),
                 why: "no kernel files (.bsp, .bpc, .tf, .tls) found".into(),
             });
         }
-        let coverage = coverage(&almanac, dir)?;
+        let (frames, coverage) = coverage(&almanac, &fk_ids, dir)?;
         Ok(Kernels {
             almanac,
             dir: dir.to_path_buf(),
@@ -168,6 +218,7 @@ impl Kernels {
             files,
             skipped,
             coverage,
+            frames,
         })
     }
 
@@ -214,9 +265,9 @@ impl Kernels {
             }
             paths.push(resolved);
         }
-        let (almanac, files, skipped) = load_files(&paths, true)?;
+        let (almanac, files, skipped, fk_ids) = load_files(&paths, true)?;
         let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
-        let coverage = coverage(&almanac, path)?;
+        let (frames, coverage) = coverage(&almanac, &fk_ids, path)?;
         Ok(Kernels {
             almanac,
             dir,
@@ -224,6 +275,7 @@ impl Kernels {
             files,
             skipped,
             coverage,
+            frames,
         })
     }
 
@@ -255,14 +307,18 @@ pub struct SkippedKernel {
 
 /// Loads `paths` in order into one almanac. Files with other extensions are ignored in a folder
 /// and reported as skipped when a meta-kernel lists them (`listed`).
-fn load_files(
-    paths: &[PathBuf],
-    listed: bool,
-) -> Result<(Almanac, Vec<KernelFile>, Vec<SkippedKernel>), EphemError> {
+/// The loaded almanac, the files, the skipped files and the frame ids the frame kernels define.
+type Loaded = (Almanac, Vec<KernelFile>, Vec<SkippedKernel>, Vec<i32>);
+
+fn load_files(paths: &[PathBuf], listed: bool) -> Result<Loaded, EphemError> {
     let mut skipped = Vec::new();
     let mut almanac = Almanac::default();
     let mut files = Vec::new();
-    let mut have_fk = false;
+    // Every frame kernel's text, in load order: they are converted together, so that a frame
+    // may be defined relative to one in another kernel, and a later definition of an id wins
+    // (as in SPICE's kernel pool).
+    let mut fk_text: Vec<u8> = Vec::new();
+    let mut fk_paths: Vec<PathBuf> = Vec::new();
     for path in paths {
         let path = path.clone();
         let ext = path
@@ -305,17 +361,10 @@ fn load_files(
                     });
                     continue;
                 }
-                let ep = guarded(&path, || {
-                    anise::naif::kpl::parser::convert_fk(&path, false).map_err(|e| e.to_string())
-                })?;
-                if have_fk {
-                    return Err(load_failed(
-                        &path,
-                        "only one text frame kernel with TKFRAME definitions is supported",
-                    ));
-                }
-                have_fk = true;
-                almanac = almanac.with_euler_parameters(ep);
+                // Each kernel starts in a comment block, whatever mode the previous one ended in.
+                fk_text.extend_from_slice(b"\n\\begintext\n");
+                fk_text.extend_from_slice(&bytes);
+                fk_paths.push(path.clone());
             }
             _ => check_leap_seconds(&path, &bytes)?,
         }
@@ -326,7 +375,33 @@ fn load_files(
             kind,
         });
     }
-    Ok((almanac, files, skipped))
+    let mut fk_ids = Vec::new();
+    if let Some(last) = fk_paths.last() {
+        let label = if fk_paths.len() == 1 {
+            last.clone()
+        } else {
+            let names: Vec<String> = fk_paths.iter().map(|p| p.display().to_string()).collect();
+            PathBuf::from(names.join(" + "))
+        };
+        let ep = frame_parameters(&label, &fk_text)?;
+        fk_ids = ep.lut.by_id.keys().copied().collect();
+        almanac = almanac.with_euler_parameters_as(ep, Some("frame kernels".into()));
+    }
+    Ok((almanac, files, skipped, fk_ids))
+}
+
+/// Converts the text of one or more frame kernels (`label` names them in errors) into `anise`
+/// Euler parameters; a panic of the parser on a corrupt file is an error.
+pub fn frame_parameters(
+    label: &Path,
+    text: &[u8],
+) -> Result<anise::structure::EulerParameterDataSet, EphemError> {
+    use anise::naif::kpl::{fk::FKItem, parser};
+    guarded(label, || {
+        let items =
+            parser::parse_bytes::<_, FKItem>(&mut &text[..], false).map_err(|e| e.to_string())?;
+        parser::convert_fk_items(items).map_err(|e| e.to_string())
+    })
 }
 
 fn sha256_hex(bytes: &[u8]) -> String {
@@ -334,9 +409,15 @@ fn sha256_hex(bytes: &[u8]) -> String {
     format!("{:x}", sha2::Sha256::digest(bytes))
 }
 
-/// Intersection of the SPK domains of the bodies penumbra needs and of the BPC domain, shrunk by
-/// the light-time margin at the start.
-fn coverage(almanac: &Almanac, dir: &Path) -> Result<(Epoch, Epoch), EphemError> {
+/// The lunar frames of the set ([`LUNAR_FRAMES`]: the first whose principal-axes frame a BPC
+/// holds and whose mean-Earth frame the frame kernels define), and the intersection of the SPK
+/// domains of the bodies penumbra needs and of that BPC's domain, shrunk by the light-time margin
+/// at the start.
+fn coverage(
+    almanac: &Almanac,
+    fk_ids: &[i32],
+    dir: &Path,
+) -> Result<(LunarFrames, (Epoch, Epoch)), EphemError> {
     let missing = |what: String| EphemError::KernelDir {
         path: dir.display().to_string(),
         why: what,
@@ -355,29 +436,51 @@ fn coverage(almanac: &Almanac, dir: &Path) -> Result<(Epoch, Epoch), EphemError>
         start = start.max(s);
         stop = stop.min(e);
     }
-    let (s, e) = almanac.bpc_domain(MOON_PA_DE421_ID).map_err(|_| {
-        missing("no binary PCK holds the Moon orientation (MOON_PA_DE421, 31006)".into())
-    })?;
+    let in_bpc: Vec<&LunarFrames> = LUNAR_FRAMES
+        .iter()
+        .filter(|f| almanac.bpc_domain(f.pa_id).is_ok())
+        .collect();
+    let Some(frames) = in_bpc.iter().find(|f| fk_ids.contains(&f.me_id)).copied() else {
+        return Err(missing(match in_bpc.first() {
+            None => "no binary PCK holds the Moon orientation (MOON_PA_DE440 31008 or MOON_PA_DE421 31006)".into(),
+            Some(f) => format!(
+                "the binary PCK holds {} ({}) but no frame kernel defines {} ({}): add {}",
+                f.pa_name,
+                f.pa_id,
+                f.me_name,
+                f.me_id,
+                if f.pa_id == MOON_PA_DE440_ID { "moon_de440_220930.tf" } else { "moon_080317.tf" }
+            ),
+        }));
+    };
+    let (s, e) = almanac
+        .bpc_domain(frames.pa_id)
+        .map_err(|e| missing(e.to_string()))?;
     start = start.max(s);
     stop = stop.min(e);
-    // MOON_ME must resolve (needs the frame kernel).
+    // MOON_ME must resolve through the frame kernels' chain.
     almanac
-        .rotate(MOON_J2000, MOON_ME, start + hifitime::Unit::Day * 1)
+        .rotate(
+            MOON_J2000,
+            frames.moon_me(),
+            start + hifitime::Unit::Day * 1,
+        )
         .map_err(|e| {
             missing(format!(
-                "MOON_ME does not resolve (is moon_080317.tf there?): {e}"
+                "{} ({}) does not resolve: {e}",
+                frames.me_name, frames.me_id
             ))
         })?;
     start += hifitime::Unit::Second * LIGHT_TIME_MARGIN_S;
     if stop <= start {
         return Err(missing("the kernels' time spans do not overlap".into()));
     }
-    Ok((start, stop))
+    Ok((*frames, (start, stop)))
 }
 
 /// Checks a leap-seconds kernel against hifitime's built-in table: the number of `DELTA_AT`
 /// entries and the last offset must match (naif0012: 28 entries, last 37 s on 2017-01-01).
-fn check_leap_seconds(path: &Path, bytes: &[u8]) -> Result<(), EphemError> {
+pub fn check_leap_seconds(path: &Path, bytes: &[u8]) -> Result<(), EphemError> {
     let text = String::from_utf8_lossy(bytes);
     let Some(start) = text.find("DELTET/DELTA_AT") else {
         return Err(load_failed(

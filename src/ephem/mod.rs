@@ -97,7 +97,7 @@ pub fn moon_geometry_table(
     epochs
         .par_iter()
         .with_min_len(256)
-        .map(|&epoch| MoonGeometry::at(&kernels.almanac, epoch))
+        .map(|&epoch| MoonGeometry::at(kernels, epoch))
         .collect()
 }
 

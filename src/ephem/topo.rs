@@ -23,7 +23,7 @@ use anise::prelude::{Aberration, Almanac, Epoch, Frame};
 use nalgebra::{Matrix3, Vector3};
 
 use super::EphemError;
-use super::kernels::{EARTH_ID, EMB_ID, J2000_ID, MOON_ID, MOON_J2000, MOON_ME, SSB_ID, SUN_ID};
+use super::kernels::{EARTH_ID, EMB_ID, J2000_ID, Kernels, MOON_ID, MOON_J2000, SSB_ID, SUN_ID};
 use crate::frames::{az_el_deg_from_enu, enu_from_moon_me, site_in_moon_me_km};
 use crate::{EARTH_RADIUS_KM, SPEED_OF_LIGHT_KM_S, SUN_RADIUS_KM};
 
@@ -116,9 +116,10 @@ impl MoonGeometry {
     /// the SSB, Moon and Earth wrt the EMB, i.e. the DE440 segments themselves) combined here, and
     /// one rotation. Asking anise for Sun-wrt-Moon directly would walk the tree and evaluate seven
     /// segments.
-    pub fn at(almanac: &Almanac, epoch: Epoch) -> Result<Self, EphemError> {
+    pub fn at(kernels: &Kernels, epoch: Epoch) -> Result<Self, EphemError> {
+        let almanac = &kernels.almanac;
         let dcm = almanac
-            .rotate(MOON_J2000, MOON_ME, epoch)
+            .rotate(MOON_J2000, kernels.moon_me(), epoch)
             .map_err(|e| EphemError::Query {
                 action: "rotating J2000 to MOON_ME",
                 why: e.to_string(),

@@ -294,12 +294,20 @@ fn render_monthly_png(
             .margin(12)
             .x_label_area_size(30)
             .y_label_area_size(60)
-            .build_cartesian_2d(0.0..m, 0.0..105.0)
+            // Head room above 100 % for the legend, so that it covers no bar.
+            .build_cartesian_2d(0.0..m, 0.0..135.0)
             .map_err(plot_err(WHAT))?;
         chart
             .configure_mesh()
             .x_labels((months.len() / bars_per_label).clamp(2, 13))
             .x_label_formatter(&|x| label(*x))
+            .y_label_formatter(&|y| {
+                if *y <= 100.0 {
+                    format!("{y:.0}")
+                } else {
+                    String::new()
+                }
+            })
             .y_desc("mean visible % of the month")
             .light_line_style(BLACK.mix(0.04))
             .label_style(("sans-serif", 14))
@@ -327,7 +335,7 @@ fn render_monthly_png(
                     Rectangle::new([(x, y - 5), (x + 15, y + 5)], EARTH_COLOR.filled())
                 });
         }
-        draw_legend(&mut chart, 14, SeriesLabelPosition::LowerRight, WHAT)?;
+        draw_legend(&mut chart, 14, SeriesLabelPosition::UpperRight, WHAT)?;
         let dark_max = months
             .iter()
             .map(|s| s.longest_dark_h)
@@ -697,14 +705,229 @@ pub fn viridis(t: f64) -> RGBColor {
     RGBColor(mix(a.0, b.0), mix(a.1, b.1), mix(a.2, b.2))
 }
 
+/// Where a raster lies on the Moon: its grid and map projection (for the graticule, the scale
+/// bar and the north arrow of [`render_map_png`]).
+#[derive(Debug, Clone, Copy)]
+pub struct MapPlace {
+    /// The raster's grid.
+    pub grid: crate::terrain::GridGeometry,
+    /// Its projection.
+    pub projection: crate::terrain::Projection,
+}
+
+/// The graticule, scale bar and north arrow of a map preview, in preview pixels.
+struct Overlay {
+    /// Per preview pixel (row-major, `w × h`): on a parallel or a meridian.
+    line: Vec<bool>,
+    /// Labels: text and preview pixel (x, y) where it goes.
+    labels: Vec<(String, i32, i32)>,
+    /// Degrees between parallels and between meridians.
+    steps_deg: (f64, f64),
+    /// Scale bar: length in preview pixels and its label.
+    scale_bar: (f64, String),
+    /// True north at the preview's centre: unit vector in preview pixels (x right, y down), or
+    /// `None` at the pole itself.
+    north: Option<(f64, f64)>,
+}
+
+/// Smallest step of `steps` that cuts `span` into at most `max_lines` pieces.
+fn grid_step(span: f64, steps: &[f64], max_lines: f64) -> f64 {
+    steps
+        .iter()
+        .copied()
+        .find(|s| span / s <= max_lines)
+        .unwrap_or(steps[steps.len() - 1])
+}
+
+/// Great-circle distance between two points of the 1737.4 km sphere, metres.
+fn sphere_distance_m(a: (f64, f64), b: (f64, f64)) -> f64 {
+    let (la, lo_a) = (a.0.to_radians(), a.1.to_radians());
+    let (lb, lo_b) = (b.0.to_radians(), b.1.to_radians());
+    let h =
+        ((lb - la) / 2.0).sin().powi(2) + la.cos() * lb.cos() * ((lo_b - lo_a) / 2.0).sin().powi(2);
+    2.0 * crate::MOON_RADIUS_M * h.sqrt().min(1.0).asin()
+}
+
+impl Overlay {
+    /// The overlay of a `w × h` preview of `place`, one preview pixel = `scale` raster cells.
+    fn new(place: &MapPlace, w: usize, h: usize, scale: f64) -> Overlay {
+        let g = &place.grid;
+        // Preview pixel corner (i, j) (i along x, j along y) -> raster fractional (row, col) of
+        // the cell-centre convention.
+        let lat_lon = |i: f64, j: f64| {
+            let (x, y) = g.xy_from_row_col(j * scale - 0.5, i * scale - 0.5);
+            place.projection.lat_lon_from_xy(x, y)
+        };
+        // Lat/lon at the centres of the preview pixels, plus one extra column and row.
+        let (wc, hc) = (w + 1, h + 1);
+        let mut ll = Vec::with_capacity(wc * hc);
+        for j in 0..hc {
+            for i in 0..wc {
+                ll.push(lat_lon(i as f64 + 0.5, j as f64 + 0.5));
+            }
+        }
+        let (mut lat_min, mut lat_max) = (f64::INFINITY, f64::NEG_INFINITY);
+        for &(lat, _) in &ll {
+            lat_min = lat_min.min(lat);
+            lat_max = lat_max.max(lat);
+        }
+        // The pole in preview pixels (where the projection has it).
+        let pole_lat = if lat_max + lat_min < 0.0 { -90.0 } else { 90.0 };
+        let (px_pole, py_pole) = {
+            let (x, y) = place.projection.xy_from_lat_lon(pole_lat, 0.0);
+            let (row, col) = g.row_col_from_xy(x, y);
+            ((col + 0.5) / scale, (row + 0.5) / scale)
+        };
+        let pole_inside =
+            px_pole >= 0.0 && py_pole >= 0.0 && px_pole <= w as f64 && py_pole <= h as f64;
+        let lat_step = grid_step(
+            lat_max - lat_min,
+            &[
+                0.01, 0.02, 0.05, 0.1, 0.2, 0.25, 0.5, 1.0, 2.0, 5.0, 10.0, 15.0, 30.0,
+            ],
+            5.0,
+        );
+        let lon_step = if pole_inside {
+            30.0
+        } else {
+            // Longitude span through the unwrapped differences to the centre pixel.
+            let lon_c = ll[(hc / 2) * wc + wc / 2].1;
+            let (mut lo, mut hi) = (0.0_f64, 0.0_f64);
+            for &(_, lon) in &ll {
+                let d = (lon - lon_c + 540.0).rem_euclid(360.0) - 180.0;
+                lo = lo.min(d);
+                hi = hi.max(d);
+            }
+            grid_step(
+                hi - lo,
+                &[
+                    0.05, 0.1, 0.2, 0.5, 1.0, 2.0, 5.0, 10.0, 15.0, 30.0, 45.0, 90.0,
+                ],
+                6.0,
+            )
+        };
+        let lat_bin = |lat: f64| (lat / lat_step).floor() as i64;
+        let lon_bin = |lon: f64| (lon / lon_step).floor() as i64;
+        let mut line = vec![false; w * h];
+        // Where each line is labelled: parallels at their rightmost pixel, meridians at their
+        // pixel farthest from the pole.
+        let mut lat_at: std::collections::BTreeMap<i64, (i32, i32)> = Default::default();
+        let mut lon_at: std::collections::BTreeMap<i64, (i32, i32, f64)> = Default::default();
+        // Meridians crowd at the pole: none drawn within this many pixels of it.
+        let pole_clear = 0.06 * w.min(h) as f64;
+        for j in 0..h {
+            for i in 0..w {
+                let here = ll[j * wc + i];
+                let (right, below) = (ll[j * wc + i + 1], ll[(j + 1) * wc + i]);
+                let b = lat_bin(here.0);
+                for n in [right, below] {
+                    let bn = lat_bin(n.0);
+                    if bn != b {
+                        line[j * w + i] = true;
+                        let key = b.max(bn);
+                        let e = lat_at.entry(key).or_insert((i as i32, j as i32));
+                        if i as i32 > e.0 {
+                            *e = (i as i32, j as i32);
+                        }
+                    }
+                }
+                let far = (i as f64 + 0.5 - px_pole).hypot(j as f64 + 0.5 - py_pole);
+                if far < pole_clear {
+                    continue;
+                }
+                let b = lon_bin(here.1);
+                for n in [right, below] {
+                    let bn = lon_bin(n.1);
+                    // Neighbours across the ±180° seam differ by one turn, not one line.
+                    let turn = (360.0 / lon_step).round() as i64;
+                    let d = (bn - b).rem_euclid(turn);
+                    if d != 0 {
+                        line[j * w + i] = true;
+                        let key = if d == 1 { bn } else { b }.rem_euclid(turn);
+                        let e = lon_at.entry(key).or_insert((i as i32, j as i32, far));
+                        if far > e.2 {
+                            *e = (i as i32, j as i32, far);
+                        }
+                    }
+                }
+            }
+        }
+        let decimals = |step: f64| {
+            if step >= 1.0 {
+                0
+            } else if step >= 0.1 {
+                1
+            } else {
+                2
+            }
+        };
+        let mut labels = Vec::new();
+        for (k, (i, j)) in lat_at {
+            let v = k as f64 * lat_step;
+            labels.push((format!("{v:.*}°", decimals(lat_step)), i - 46, j - 14));
+        }
+        for (k, (i, j, _)) in lon_at {
+            let mut v = k as f64 * lon_step;
+            if v > 180.0 {
+                v -= 360.0;
+            }
+            let text = if v == 0.0 || v == 180.0 {
+                format!("{:.*}°", decimals(lon_step), v.abs())
+            } else if v < 0.0 {
+                format!("{:.*}°W", decimals(lon_step), -v)
+            } else {
+                format!("{:.*}°E", decimals(lon_step), v)
+            };
+            labels.push((text, i + 3, j + 2));
+        }
+        // Scale at the preview's centre: the sphere distance of one preview pixel along x.
+        let (ci, cj) = (w as f64 / 2.0, h as f64 / 2.0);
+        let m_per_px = sphere_distance_m(lat_lon(ci - 0.5, cj), lat_lon(ci + 0.5, cj));
+        let target_m = m_per_px * w as f64 / 5.0;
+        let magnitude = 10f64.powf(target_m.log10().floor());
+        let bar_m = [1.0, 2.0, 5.0]
+            .iter()
+            .map(|f| f * magnitude)
+            .rfind(|v| *v <= target_m)
+            .unwrap_or(magnitude);
+        let bar_label = if bar_m >= 1000.0 {
+            format!("{} km", bar_m / 1000.0)
+        } else {
+            format!("{bar_m} m")
+        };
+        // True north at the centre: towards increasing latitude.
+        let (lat_c, lon_c) = lat_lon(ci, cj);
+        let north = if lat_c.abs() > 89.999 {
+            None
+        } else {
+            let (x0, y0) = place.projection.xy_from_lat_lon(lat_c, lon_c);
+            let (x1, y1) = place.projection.xy_from_lat_lon(lat_c + 0.001, lon_c);
+            let (dx, dy) = ((x1 - x0) / g.px_x_m, -(y1 - y0) / g.px_y_m);
+            let n = dx.hypot(dy);
+            Some((dx / n, dy / n))
+        };
+        Overlay {
+            line,
+            labels,
+            steps_deg: (lat_step, lon_step),
+            scale_bar: (bar_m / m_per_px, bar_label),
+            north,
+        }
+    }
+}
+
 /// Renders a raster (row-major, `NaN` = nodata, drawn grey) as a PNG preview with a title and a
-/// colour bar or a legend. Large rasters are subsampled to at most 800 px on a side.
+/// colour bar or a legend. Large rasters are subsampled to at most 800 px on a side. With `place`,
+/// a graticule (parallels and meridians, labelled), a scale bar (true at the centre) and the true
+/// north at the centre are drawn; without it, rows are drawn top to bottom and nothing is said of
+/// north.
 pub fn render_map_png(
     title: &str,
     values: &[f32],
     rows: usize,
     cols: usize,
     legend: &MapLegend,
+    place: Option<&MapPlace>,
 ) -> Result<Vec<u8>, IllumError> {
     const WHAT: &str = "map preview";
     if rows == 0 || cols == 0 || values.len() != rows * cols {
@@ -719,7 +942,8 @@ pub fn render_map_png(
         ((rows as f64 / scale).round() as u32).max(1),
     );
     let (left, top) = (20_i32, 50_i32);
-    let size_px = ((w_map + 300).max(500), (h_map + 80).max(300));
+    let size_px = ((w_map + 300).max(500), (h_map + 110).max(330));
+    let overlay = place.map(|p| Overlay::new(p, w_map as usize, h_map as usize, scale));
     let colour_of = |v: f32| -> RGBColor {
         if v.is_nan() {
             return RGBColor(200, 200, 200);
@@ -755,8 +979,77 @@ pub fn render_map_png(
             for px in 0..w_map {
                 let col = ((f64::from(px) + 0.5) * scale) as usize;
                 let v = values[row.min(rows - 1) * cols + col.min(cols - 1)];
-                root.draw_pixel((left + px as i32, top + py as i32), &colour_of(v))
+                let mut c = colour_of(v);
+                if let Some(o) = &overlay
+                    && o.line[py as usize * w_map as usize + px as usize]
+                {
+                    // Graticule: half-way to white.
+                    let mix = |a: u8| ((u16::from(a) + 255) / 2) as u8;
+                    c = RGBColor(mix(c.0), mix(c.1), mix(c.2));
+                }
+                root.draw_pixel((left + px as i32, top + py as i32), &c)
                     .map_err(plot_err(WHAT))?;
+            }
+        }
+        if let Some(o) = &overlay {
+            for (text, i, j) in &o.labels {
+                let width = 7 * text.chars().count() as i32;
+                let (x, y) = (
+                    (left + i).clamp(left, left + w_map as i32 - width),
+                    (top + j).clamp(top, top + h_map as i32 - 14),
+                );
+                // A dark box behind the label, so that it reads on bright data.
+                root.draw(&Rectangle::new(
+                    [(x - 2, y - 1), (x + width, y + 13)],
+                    RGBAColor(0, 0, 0, 0.45).filled(),
+                ))
+                .map_err(plot_err(WHAT))?;
+                root.draw(&Text::new(
+                    text.clone(),
+                    (x, y),
+                    ("sans-serif", 12).into_font().color(&WHITE),
+                ))
+                .map_err(plot_err(WHAT))?;
+            }
+            // Scale bar under the map, left.
+            let y = top + h_map as i32 + 36;
+            let len = o.scale_bar.0.round() as i32;
+            root.draw(&Rectangle::new(
+                [(left, y), (left + len, y + 5)],
+                BLACK.filled(),
+            ))
+            .map_err(plot_err(WHAT))?;
+            root.draw(&Text::new(
+                format!("{} (at the centre)", o.scale_bar.1),
+                (left + len + 8, y - 4),
+                ("sans-serif", 13).into_font(),
+            ))
+            .map_err(plot_err(WHAT))?;
+            // True north at the centre, right of the scale bar's label.
+            let (ax, ay) = (left + len + 200, y + 2);
+            match o.north {
+                Some((dx, dy)) => {
+                    let tip = (ax + (dx * 22.0) as i32, ay + (dy * 22.0) as i32);
+                    let tail = (ax - (dx * 8.0) as i32, ay - (dy * 8.0) as i32);
+                    root.draw(&PathElement::new(vec![tail, tip], BLACK.stroke_width(2)))
+                        .map_err(plot_err(WHAT))?;
+                    root.draw(&Circle::new(tip, 3, BLACK.filled()))
+                        .map_err(plot_err(WHAT))?;
+                    root.draw(&Text::new(
+                        "N (true north at the centre)",
+                        (ax + 28, y - 4),
+                        ("sans-serif", 13).into_font(),
+                    ))
+                    .map_err(plot_err(WHAT))?;
+                }
+                None => {
+                    root.draw(&Text::new(
+                        "pole at the centre: north points away from it",
+                        (ax, y - 4),
+                        ("sans-serif", 13).into_font(),
+                    ))
+                    .map_err(plot_err(WHAT))?;
+                }
             }
         }
         let x0 = left + w_map as i32 + 30;
@@ -806,8 +1099,15 @@ pub fn render_map_png(
                 }
             }
         }
+        let note = match &overlay {
+            Some(o) => format!(
+                "grey = no data; parallels every {}°, meridians every {}°",
+                o.steps_deg.0, o.steps_deg.1
+            ),
+            None => "grid rows top to bottom (no georeferencing); grey = no data".to_string(),
+        };
         root.draw(&Text::new(
-            "north up (grid rows); grey = no data".to_string(),
+            note,
             (left, top + h_map as i32 + 10),
             ("sans-serif", 13).into_font(),
         ))
@@ -824,8 +1124,9 @@ pub fn write_map_preview(
     rows: usize,
     cols: usize,
     legend: &MapLegend,
+    place: Option<&MapPlace>,
 ) -> Result<(), IllumError> {
-    let png = render_map_png(title, values, rows, cols, legend)?;
+    let png = render_map_png(title, values, rows, cols, legend, place)?;
     crate::output::write_bytes_atomic(path, &png)?;
     Ok(())
 }
@@ -845,6 +1146,105 @@ mod tests {
         let (t, d) = nice_ticks(0.05, 0.95, 8);
         let labels: Vec<String> = t.iter().map(|v| format!("{v:.d$}")).collect();
         assert_eq!(labels, ["0.2", "0.4", "0.6", "0.8"]);
+    }
+
+    /// A polar stereographic place: `n × n` cells of `px_m` centred on map point (`xc`, `yc`).
+    fn polar_place(n: usize, px_m: f64, xc: f64, yc: f64) -> MapPlace {
+        let half = n as f64 * px_m / 2.0;
+        MapPlace {
+            grid: crate::terrain::GridGeometry {
+                rows: n,
+                cols: n,
+                x_left_m: xc - half,
+                y_top_m: yc + half,
+                px_x_m: px_m,
+                px_y_m: px_m,
+            },
+            projection: crate::terrain::Projection::LOLA_SOUTH_POLAR,
+        }
+    }
+
+    /// Every graticule pixel lies within one pixel of a parallel or a meridian, by an inverse
+    /// polar stereographic written here (`lat = −90° + 2 atan(ρ / 2R)`, `lon = atan2(x, y)`), and
+    /// every parallel crossing the map is drawn.
+    #[test]
+    fn graticule_lines_lie_on_parallels_and_meridians() {
+        let r = crate::MOON_RADIUS_M;
+        let place = polar_place(400, 100.0, 0.0, 0.0);
+        let o = Overlay::new(&place, 400, 400, 1.0);
+        let (lat_step, lon_step) = o.steps_deg;
+        assert_eq!((lat_step, lon_step), (0.2, 30.0));
+        let mut parallels = std::collections::BTreeSet::new();
+        let mut n_line = 0;
+        for j in 0..400 {
+            for i in 0..400 {
+                if !o.line[j * 400 + i] {
+                    continue;
+                }
+                n_line += 1;
+                let (x, y) = (
+                    -20_000.0 + (i as f64 + 0.5) * 100.0,
+                    20_000.0 - (j as f64 + 0.5) * 100.0,
+                );
+                let rho = x.hypot(y);
+                let lat = -90.0 + 2.0 * (rho / (2.0 * r)).atan().to_degrees();
+                let lon = x.atan2(y).to_degrees();
+                // Metres per degree of latitude along the map (scale ≈ 1 this near the pole).
+                let m_per_deg = r * std::f64::consts::PI / 180.0;
+                let near_lat = (lat / lat_step).round() * lat_step;
+                let d_par_px = (lat - near_lat).abs() * m_per_deg / 100.0;
+                let near_lon = (lon / lon_step).round() * lon_step;
+                let d_mer_px = (lon - near_lon).abs().to_radians() * rho / 100.0;
+                assert!(
+                    d_par_px.min(d_mer_px) <= 1.0,
+                    "pixel ({i}, {j}) at {lat:.4}°, {lon:.2}° is {d_par_px:.2} px from a parallel and {d_mer_px:.2} px from a meridian"
+                );
+                if d_par_px <= 1.0 {
+                    parallels.insert((near_lat * 10.0).round() as i64);
+                }
+            }
+        }
+        // The map reaches −90 + 2 atan(20 km √2 / 2R) ≈ −89.07°: parallels −89.2 … −89.8.
+        assert_eq!(
+            parallels.into_iter().collect::<Vec<_>>(),
+            [-898, -896, -894, -892]
+        );
+        assert!(n_line > 2000, "{n_line} line pixels");
+        assert!(o.north.is_none(), "the pole is at the centre");
+    }
+
+    /// Off the pole: true north points away from the pole (the map direction of the centre from
+    /// the pole), and the scale bar's length in pixels times the sphere distance of one pixel
+    /// (100 m over the projection's scale factor `2 / (1 + sin |lat|)`) is its label, a 1, 2 or 5
+    /// that fills a tenth to a fifth of the map.
+    #[test]
+    fn north_arrow_and_scale_bar_are_true_at_the_centre() {
+        let r = crate::MOON_RADIUS_M;
+        // Centre at lat −88°, lon 45° E.
+        // ρ = 2R tan(45° + lat/2) on the south polar stereographic map.
+        let rho = 2.0 * r * 1.0_f64.to_radians().tan();
+        let (xc, yc) = (
+            rho * 45f64.to_radians().sin(),
+            rho * 45f64.to_radians().cos(),
+        );
+        let o = Overlay::new(&polar_place(300, 100.0, xc, yc), 300, 300, 1.0);
+        let (dx, dy) = o.north.expect("off the pole");
+        let want = (xc / rho, -yc / rho);
+        assert!(
+            dx * want.0 + dy * want.1 > 0.99999,
+            "({dx}, {dy}) vs {want:?}"
+        );
+        let k = 2.0 / (1.0 + 88f64.to_radians().sin());
+        let m_per_px = 100.0 / k;
+        let (bar_px, label) = &o.scale_bar;
+        let bar_m = bar_px * m_per_px;
+        let lead = bar_m / 10f64.powf(bar_m.log10().floor());
+        assert!(
+            [1.0, 2.0, 5.0].iter().any(|v| (lead - v).abs() < 1e-6),
+            "{bar_m} m"
+        );
+        assert!(*bar_px >= 30.0 && *bar_px <= 60.0, "{bar_px} px");
+        assert_eq!(*label, format!("{} km", (bar_m / 1000.0).round()));
     }
 
     #[test]

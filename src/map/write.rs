@@ -3,7 +3,7 @@
 use std::path::Path;
 
 use super::SweepStats;
-use crate::illum::plot::{MapLegend, write_map_preview};
+use crate::illum::plot::{MapLegend, MapPlace, write_map_preview};
 use crate::model::{MapGrid, RasterInfo, write_f32_on, write_u8_on};
 use crate::shadow::MASK_NODATA;
 use crate::terrain::Dem;
@@ -248,6 +248,10 @@ pub fn write_sweep(
     let mut files = Vec::new();
     let items = sweep_metadata(span, s);
     let (rows, cols) = (dem.grid.rows, dem.grid.cols);
+    let place = MapPlace {
+        grid: dem.grid,
+        projection: dem.projection,
+    };
     for r in rasters {
         let out = r.values;
         // Colour bar up to the data's maximum, rounded up to a tenth of the full scale.
@@ -276,6 +280,7 @@ pub fn write_sweep(
                 max,
                 unit: r.unit,
             },
+            Some(&place),
         )?;
         files.extend([tif, png]);
     }
@@ -317,6 +322,7 @@ pub fn write_sweep(
                 "lit at least once".into(),
             ),
         ]),
+        Some(&place),
     )?;
     files.extend(["psr_mask.tif".to_string(), "psr_mask.png".to_string()]);
     Ok(files)

@@ -52,14 +52,19 @@ pub fn memory_budget_bytes() -> u64 {
     {
         return (gb * (1u64 << 30) as f64) as u64;
     }
-    let available_kib = std::fs::read_to_string("/proc/meminfo")
-        .ok()
-        .and_then(|text| {
-            text.lines()
-                .find(|l| l.starts_with("MemAvailable:"))
-                .and_then(|l| l.split_whitespace().nth(1))
-                .and_then(|v| v.parse::<u64>().ok())
-        });
+    // Read once per process: the budget is a bound, not a live figure, and readers check it on
+    // every input (the fuzz targets call them millions of times).
+    static AVAILABLE_KIB: std::sync::OnceLock<Option<u64>> = std::sync::OnceLock::new();
+    let available_kib = *AVAILABLE_KIB.get_or_init(|| {
+        std::fs::read_to_string("/proc/meminfo")
+            .ok()
+            .and_then(|text| {
+                text.lines()
+                    .find(|l| l.starts_with("MemAvailable:"))
+                    .and_then(|l| l.split_whitespace().nth(1))
+                    .and_then(|v| v.parse::<u64>().ok())
+            })
+    });
     match available_kib {
         Some(kib) => kib * 1024 / 10 * 8,
         None => 8 << 30,

@@ -69,7 +69,7 @@ pub fn run(req: &EphemRequest) -> anyhow::Result<()> {
         epochs
             .par_iter()
             .map(|&e| {
-                let geo = ephem::MoonGeometry::at(&kernels.almanac, e)?;
+                let geo = ephem::MoonGeometry::at(&kernels, e)?;
                 Ok((
                     ephem::topo::sub_body_point(&geo, &geo.sun_wrt_moon, abcorr),
                     ephem::topo::sub_body_point(&geo, &geo.earth_wrt_moon, abcorr),

@@ -3,7 +3,7 @@
 use std::fmt::Write as _;
 
 use super::KernelSource;
-use crate::ephem::{self, time::format_utc};
+use crate::ephem::time::format_utc;
 
 /// The report of `penumbra kernels`: files (size, sha256), SPK bodies and their spans, frames and
 /// the usable epoch span.
@@ -46,12 +46,14 @@ pub fn report(source: &KernelSource) -> anyhow::Result<String> {
     for (id, (s, e)) in domains.into_iter().filter(|(id, _)| *id != 0) {
         writeln!(out, "  {:>4} {}: {} .. {}", id, body_name(id), s, e)?;
     }
+    let f = kernels.frames;
     writeln!(
         out,
-        "frames: J2000 (1), MOON_PA_DE421 (31006, binary PCK), MOON_ME = MOON_ME_DE421 (31007, from the frame kernel)"
+        "frames: J2000 (1), {} ({}, binary PCK), MOON_ME = {} ({}, from the frame kernels)",
+        f.pa_name, f.pa_id, f.me_name, f.me_id
     )?;
-    if let Ok((s, e)) = kernels.almanac.bpc_domain(ephem::kernels::MOON_PA_DE421_ID) {
-        writeln!(out, "  MOON_PA_DE421 orientation data: {s} .. {e}")?;
+    if let Ok((s, e)) = kernels.almanac.bpc_domain(f.pa_id) {
+        writeln!(out, "  {} orientation data: {s} .. {e}", f.pa_name)?;
     }
     writeln!(
         out,

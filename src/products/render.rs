@@ -171,8 +171,8 @@ pub struct RenderOptions {
     pub brdf: BrdfChoice,
     /// Lambert albedo (only with [`BrdfChoice::Lambert`]), in [0, 1]; default 0.12.
     pub albedo: Option<f64>,
-    /// Exposure, 1/(W m^-2 sr^-1); `None` for automatic.
-    pub exposure: Option<f64>,
+    /// Exposure: fixed physical (`Sun`, the default), per-frame automatic or a given value.
+    pub exposure: crate::render::Exposure,
     /// Output PNG (numbered `<stem>_0000.png`, ... for several frames).
     pub out: PathBuf,
     /// Also the terrain radiance as a float32 TIFF (numbered like `out`).
@@ -202,7 +202,7 @@ pub struct RenderLook {
     /// Lambert albedo.
     pub albedo: Option<f64>,
     /// Exposure.
-    pub exposure: Option<f64>,
+    pub exposure: crate::render::Exposure,
 }
 
 impl RenderOptions {
@@ -228,7 +228,7 @@ pub fn check_look(look: &RenderLook, n_frames: usize) -> anyhow::Result<crate::r
             n_frames
         );
     }
-    if let Some(e) = look.exposure
+    if let crate::render::Exposure::Fixed(e) = look.exposure
         && !(e > 0.0 && e.is_finite())
     {
         anyhow::bail!("--exposure {e} must be a finite number > 0");
@@ -427,6 +427,7 @@ fn render_one_frame(
     epoch: Epoch,
     lights: crate::render::Lights,
     index: Option<usize>,
+    exposure: Option<f64>,
 ) -> anyhow::Result<(Vec<PathBuf>, f64)> {
     let opts = job.opts;
     let scene = job.fractions.scene(lights)?.with_brdf(job.brdf);
@@ -438,9 +439,8 @@ fn render_one_frame(
         opts.width,
         opts.height,
     )?;
-    let exposure = opts
-        .exposure
-        .unwrap_or_else(|| crate::render::auto_exposure(&samples));
+    // The run's exposure, or this frame's own (a single frame, or `auto`).
+    let exposure = exposure.unwrap_or_else(|| opts.exposure.value(&samples));
     let mut rgb = crate::render::tone_map(&samples, exposure);
     crate::render::add_sun_glare(&mut rgb, &scene, camera, opts.width, opts.height);
     // Sun elevation at the site (or the orbit camera's target), above the plane normal to the
@@ -464,6 +464,7 @@ fn render_one_frame(
         ("penumbra:camera", placed.what.clone()),
         ("penumbra:brdf", format!("{:?}", job.brdf)),
         ("penumbra:exposure", format!("{exposure:.6e}")),
+        ("penumbra:exposure_mode", opts.exposure.to_string()),
     ];
     let png = crate::render::encode_png(&rgb, opts.width, opts.height, &text)?;
     let numbered = |p: &Path| match index {
@@ -582,6 +583,39 @@ pub fn render_frames_kept(
         fractions,
     };
     let many = frames.len() > 1;
+    // One exposure for all frames of a sequence: from a pre-render of every frame at a quarter of
+    // the width (at least 128 px, at most the frame's; a single frame sets its own from its
+    // full-size samples).
+    let exposure = match opts.exposure {
+        crate::render::Exposure::Fixed(e) => Some(e),
+        crate::render::Exposure::Auto => None,
+        crate::render::Exposure::Sequence if !many => None,
+        crate::render::Exposure::Sequence => {
+            let w = opts.width.min((opts.width / 4).max(128));
+            let h = ((u64::from(opts.height) * u64::from(w) / u64::from(opts.width)) as u32).max(1);
+            let mut brightest: Option<f64> = None;
+            for (l, placed) in lights_all.iter().zip(&placed) {
+                let lights = Lights {
+                    sun: l.sun,
+                    sun_radius_rad: l.sun_radius_rad,
+                    earth: l.earth,
+                    earth_radius_rad: l.earth_radius_rad,
+                };
+                let scene = job.fractions.scene(lights)?.with_brdf(job.brdf);
+                let samples = crate::compute::render::render_samples(
+                    job.backend,
+                    &scene,
+                    &placed.camera,
+                    w,
+                    h,
+                )?;
+                if let Some(p99) = crate::render::terrain_radiance_p99(&samples) {
+                    brightest = Some(brightest.map_or(p99, |b| b.max(p99)));
+                }
+            }
+            Some(crate::render::sequence_exposure(brightest))
+        }
+    };
     let progress = super::progress_bar(
         frames.len(),
         "rendering {bar:40} {pos}/{len} frames, eta {eta}",
@@ -603,7 +637,7 @@ pub fn render_frames_kept(
             earth_radius_rad: l.earth_radius_rad,
         };
         let (written, sun_el_deg) =
-            render_one_frame(&job, placed, *epoch, lights, many.then_some(k))?;
+            render_one_frame(&job, placed, *epoch, lights, many.then_some(k), exposure)?;
         store.finished(k, &written)?;
         progress.inc(1);
         if let (false, Some(out)) = (many, written.last()) {

@@ -382,7 +382,7 @@ pub fn image_error(img: &[Sample], reference: &[Sample]) -> ImageError {
         Sample::Terrain { radiance_w_m2_sr } => Some(f64::from(*radiance_w_m2_sr)),
         _ => None,
     };
-    let scale = 2.0 / super::auto_exposure(reference);
+    let scale = super::terrain_radiance_p99(reference).unwrap_or(2.0);
     let (mut sum, mut max, mut mismatch) = (0.0, 0.0_f64, 0);
     for (a, b) in img.iter().zip(reference) {
         let (la, lb) = (l(a), l(b));

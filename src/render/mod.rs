@@ -507,9 +507,109 @@ pub fn check_size(width: u32, height: u32) -> Result<()> {
     Ok(())
 }
 
-/// Exposure (1/(W/(m² sr))) that maps the 99th percentile of the terrain radiance to 2 before
-/// the Reinhard curve (about 67 % of white); 1 when no terrain is lit.
-pub fn auto_exposure(samples: &[Sample]) -> f64 {
+/// The dimmest daylight an automatic exposure is set for, W m⁻² sr⁻¹: a level Lambert surface of
+/// albedo 0.12 (the Moon's typical normal albedo) under the Sun 1° high at 1 au,
+/// `0.12 · S0 · sin 1° / π` ≈ 0.91. An exposure never brightens a scene beyond what it would give
+/// this surface, so a frame lit only by the Earth (≈ 10⁻⁶–10⁻⁴ W m⁻² sr⁻¹) stays dark.
+pub const DAYLIGHT_FLOOR_RADIANCE_W_M2_SR: f64 =
+    0.12 * crate::SOLAR_CONSTANT_W_M2 * 0.017_452_406_437_283_51 / std::f64::consts::PI;
+
+/// Exposed radiance `x` at which an automatic exposure puts a frame's 99th-percentile lit terrain
+/// radiance (≈ 90 % of white, level 229 after the tone curve and sRGB).
+pub const AUTO_EXPOSED_P99: f64 = 1.4;
+
+/// White point of the tone curve: `x = exposure · L` at or above it is white.
+pub const TONE_WHITE_POINT: f64 = 2.0;
+
+/// How the radiance of a frame becomes grey levels.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub enum Exposure {
+    /// One exposure for every frame of a run (the default): the brightest frame's 99th-percentile
+    /// lit terrain radiance maps to `x` = [`AUTO_EXPOSED_P99`], never brighter than for
+    /// [`DAYLIGHT_FLOOR_RADIANCE_W_M2_SR`]. Brightness is comparable between the frames of a
+    /// sequence (no flicker), and a frame lit only by the Earth is dark.
+    #[default]
+    Sequence,
+    /// Per frame: each frame's own 99th percentile maps to `x` = [`AUTO_EXPOSED_P99`], with no
+    /// floor: every frame looks lit, brightness is not comparable between frames.
+    Auto,
+    /// A given exposure, 1/(W m⁻² sr⁻¹).
+    Fixed(f64),
+}
+
+/// The exposure of a sequence whose brightest frame has 99th-percentile lit terrain radiance
+/// `p99` (`None`: no terrain lit in any frame), 1/(W m⁻² sr⁻¹).
+pub fn sequence_exposure(p99: Option<f64>) -> f64 {
+    AUTO_EXPOSED_P99 / p99.unwrap_or(0.0).max(DAYLIGHT_FLOOR_RADIANCE_W_M2_SR)
+}
+
+impl Exposure {
+    /// The exposure of one frame rendered alone, 1/(W m⁻² sr⁻¹).
+    pub fn value(&self, samples: &[Sample]) -> f64 {
+        match self {
+            Exposure::Sequence => sequence_exposure(terrain_radiance_p99(samples)),
+            Exposure::Auto => auto_exposure(samples),
+            Exposure::Fixed(e) => *e,
+        }
+    }
+}
+
+impl std::str::FromStr for Exposure {
+    type Err = String;
+    /// `sequence`, `auto` (or `frame`), or a number > 0 (1/(W m⁻² sr⁻¹)).
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
+        match s.trim().to_ascii_lowercase().as_str() {
+            "sequence" => Ok(Exposure::Sequence),
+            "auto" | "frame" => Ok(Exposure::Auto),
+            t => match t.parse::<f64>() {
+                Ok(e) if e > 0.0 && e.is_finite() => Ok(Exposure::Fixed(e)),
+                _ => Err(format!(
+                    "exposure '{s}': use sequence (one per run, the default), auto (per frame) or a number > 0 in 1/(W m-2 sr-1)"
+                )),
+            },
+        }
+    }
+}
+
+impl serde::Serialize for Exposure {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
+        match self {
+            Exposure::Fixed(e) => s.serialize_f64(*e),
+            other => s.serialize_str(&other.to_string()),
+        }
+    }
+}
+
+/// Scenarios write `exposure = "sun"`, `"auto"` or a number.
+impl<'de> serde::Deserialize<'de> for Exposure {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        #[derive(serde::Deserialize)]
+        #[serde(untagged)]
+        enum Raw {
+            Number(f64),
+            Text(String),
+        }
+        let text = match Raw::deserialize(d)? {
+            Raw::Number(e) => e.to_string(),
+            Raw::Text(t) => t,
+        };
+        text.parse().map_err(serde::de::Error::custom)
+    }
+}
+
+impl std::fmt::Display for Exposure {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Exposure::Sequence => f.write_str("sequence"),
+            Exposure::Auto => f.write_str("auto"),
+            Exposure::Fixed(e) => write!(f, "{e}"),
+        }
+    }
+}
+
+/// The 99th percentile of the lit terrain radiance of a frame, W m⁻² sr⁻¹ (`None` when no terrain
+/// is lit).
+pub fn terrain_radiance_p99(samples: &[Sample]) -> Option<f64> {
     let mut l: Vec<f32> = samples
         .iter()
         .filter_map(|s| match s {
@@ -520,22 +620,39 @@ pub fn auto_exposure(samples: &[Sample]) -> f64 {
         })
         .collect();
     if l.is_empty() {
-        return 1.0;
+        return None;
     }
     l.sort_by(f32::total_cmp);
-    let p99 = l[((l.len() - 1) as f64 * 0.99).round() as usize];
-    2.0 / f64::from(p99)
+    Some(f64::from(l[((l.len() - 1) as f64 * 0.99).round() as usize]))
 }
 
-/// Tone maps samples to 8-bit sRGB (RGB, row-major): terrain grey `reinhard(exposure * L)`,
-/// the Sun's disc near-white, the Earth's disc blue-grey, sky black.
+/// Exposure (1/(W m⁻² sr⁻¹)) that maps the 99th percentile of the terrain radiance to `x` =
+/// [`AUTO_EXPOSED_P99`] on the tone curve ([`tone_curve`]); 1 when no terrain is lit.
+pub fn auto_exposure(samples: &[Sample]) -> f64 {
+    terrain_radiance_p99(samples).map_or(1.0, |p99| AUTO_EXPOSED_P99 / p99)
+}
+
+/// The tone curve from exposed radiance `x = exposure · L` to linear display value in [0, 1]:
+/// extended Reinhard `x (1 + x / W²) / (1 + x)` with white point `W` = [`TONE_WHITE_POINT`]. It is
+/// nearly linear in the shadows and mid-tones (slope 1 at 0, 0.375 at `x` = 0.5) and rolls off to
+/// white at `W`, so lit terrain keeps its shading (plain Reinhard `x/(1+x)` at the old automatic
+/// exposure squeezed it into grey levels 178–205).
+pub fn tone_curve(x: f64) -> f64 {
+    if x.is_nan() || x <= 0.0 {
+        return 0.0;
+    }
+    let w2 = TONE_WHITE_POINT * TONE_WHITE_POINT;
+    (x * (1.0 + x / w2) / (1.0 + x)).min(1.0)
+}
+
+/// Tone maps samples to 8-bit sRGB (RGB, row-major): terrain grey `srgb(tone_curve(exposure ·
+/// L))`, the Sun's disc near-white, the Earth's disc blue-grey, sky black.
 pub fn tone_map(samples: &[Sample], exposure: f64) -> Vec<u8> {
     let mut rgb = Vec::with_capacity(samples.len() * 3);
     for s in samples {
         let px = match s {
             Sample::Terrain { radiance_w_m2_sr } => {
-                let x = exposure * f64::from(*radiance_w_m2_sr);
-                let v = srgb_u8(x / (1.0 + x));
+                let v = srgb_u8(tone_curve(exposure * f64::from(*radiance_w_m2_sr)));
                 [v, v, v]
             }
             Sample::Sun => [255, 250, 230],
@@ -546,6 +663,11 @@ pub fn tone_map(samples: &[Sample], exposure: f64) -> Vec<u8> {
         rgb.extend_from_slice(&px);
     }
     rgb
+}
+
+/// sRGB-encoded 8-bit value of a linear display value (for tests and documentation).
+pub fn srgb_level(linear: f64) -> u8 {
+    srgb_u8(linear)
 }
 
 /// Cosmetic veiling glare of the Sun (PNG only, not in the radiance): when the Sun's disc is

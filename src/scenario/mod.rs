@@ -230,7 +230,13 @@ impl Scenario {
                     source,
                 }
             })?;
-        let scenario: Scenario = toml::from_str(&text).map_err(|e| ScenarioError::Parse {
+        Self::from_toml(&text, path)
+    }
+
+    /// Parses and validates scenario text as if read from `path` (relative paths in it are taken
+    /// against `path`'s folder, errors name `path`).
+    pub fn from_toml(text: &str, path: &Path) -> Result<Self, ScenarioError> {
+        let scenario: Scenario = toml::from_str(text).map_err(|e| ScenarioError::Parse {
             path: path.display().to_string(),
             why: e
                 .to_string()

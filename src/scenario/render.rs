@@ -42,8 +42,9 @@ pub struct PathSpec {
     pub brdf: Option<crate::products::render::BrdfChoice>,
     /// Lambert albedo (with `brdf = "lambert"`).
     pub albedo: Option<f64>,
-    /// Fixed exposure, 1/(W m^-2 sr^-1).
-    pub exposure: Option<f64>,
+    /// Exposure: `"sequence"` (default: one for all frames), `"auto"` (per frame) or a number in
+    /// 1/(W m^-2 sr^-1).
+    pub exposure: Option<crate::render::Exposure>,
     /// Also write float radiance TIFFs under `render/` with this name (numbered).
     pub out_radiance: Option<String>,
 }
@@ -212,8 +213,9 @@ pub struct ViewSpec {
     pub brdf: Option<crate::products::render::BrdfChoice>,
     /// Lambert albedo (with `brdf = "lambert"`).
     pub albedo: Option<f64>,
-    /// Fixed exposure, 1/(W m^-2 sr^-1).
-    pub exposure: Option<f64>,
+    /// Exposure: `"sequence"` (default: one for all frames), `"auto"` (per frame) or a number in
+    /// 1/(W m^-2 sr^-1).
+    pub exposure: Option<crate::render::Exposure>,
     /// Also write the float radiance TIFF under `render/` with this name.
     pub out_radiance: Option<String>,
 }
@@ -255,7 +257,7 @@ impl ViewSpec {
             height: self.height.unwrap_or(r::DEFAULT_HEIGHT_PX),
             brdf: self.brdf.unwrap_or_default(),
             albedo: self.albedo,
-            exposure: self.exposure,
+            exposure: self.exposure.unwrap_or_default(),
         }
     }
 
@@ -273,7 +275,7 @@ impl ViewSpec {
             height: self.height.unwrap_or(r::DEFAULT_HEIGHT_PX),
             brdf: self.brdf.unwrap_or_default(),
             albedo: self.albedo,
-            exposure: self.exposure,
+            exposure: self.exposure.unwrap_or_default(),
             out: render_dir.join(&self.out),
             out_radiance: self.out_radiance.as_ref().map(|r| render_dir.join(r)),
             abcorr,

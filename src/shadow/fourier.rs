@@ -564,12 +564,27 @@ impl HorizonMap {
             path: name.clone(),
             detail: e.to_string(),
         };
+        let file = crate::output::guard::open_regular(path).map_err(|e| err(&e))?;
+        let file_len = file.metadata().map_err(|e| err(&e))?.len();
+        Self::read_tiff_from(BufReader::new(file), file_len, &name)
+    }
+
+    /// Reads a map written by [`HorizonMap::write_tiff`] from `reader`, which holds `file_len`
+    /// bytes; `name` names the source in errors. (The fuzz target reads from memory.)
+    pub fn read_tiff_from<R: std::io::Read + std::io::Seek>(
+        reader: R,
+        file_len: u64,
+        name: &str,
+    ) -> Result<Self, FourierError> {
+        let err = |e: &dyn std::fmt::Display| FourierError::Tiff {
+            path: name.to_string(),
+            detail: e.to_string(),
+        };
         let fmt = |d: String| FourierError::Format {
-            path: name.clone(),
+            path: name.to_string(),
             detail: d,
         };
-        let file = crate::output::guard::open_regular(path).map_err(|e| err(&e))?;
-        let mut dec = Decoder::new(BufReader::new(file)).map_err(|e| err(&e))?;
+        let mut dec = Decoder::new(reader).map_err(|e| err(&e))?;
         let json = dec
             .find_tag(Tag::ImageDescription)
             .map_err(|e| err(&e))?
@@ -596,7 +611,6 @@ impl HorizonMap {
         let per = 2 * meta.n_coeffs;
         let n_cells = meta.rows as u128 * meta.cols as u128;
         // Pages are stored uncompressed: the file must hold every f16 value it declares.
-        let file_len = std::fs::metadata(path).map_err(|e| err(&e))?.len();
         if n_cells * per as u128 * 2 > u128::from(file_len) {
             return Err(fmt(format!(
                 "metadata declares {} x {} cells x {per} values, more than the file's {file_len} bytes hold",

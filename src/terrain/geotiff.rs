@@ -923,8 +923,8 @@ pub use cog::COG_TILE_PX;
 pub use gdal_metadata::gdal_metadata_xml_with_band;
 use gdal_metadata::*;
 pub use write::{
-    BandInfo, orthographic_model_tags, write_dem, write_geotiff_f32, write_geotiff_u8,
-    write_geotiff_u16,
+    BandInfo, iau_2015_crs, orthographic_model_tags, write_dem, write_geotiff_f32,
+    write_geotiff_u8, write_geotiff_u16,
 };
 
 #[cfg(test)]

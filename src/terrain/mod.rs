@@ -14,6 +14,7 @@ pub mod heightfield;
 pub mod info;
 pub mod model_space;
 pub mod pds3;
+pub mod pds4;
 pub mod synth;
 pub(crate) mod unit_projector;
 
@@ -30,11 +31,14 @@ pub use info::DemInfo;
 pub use model_space::{ModelFrame, ModelGridSpec, ResampleStats, resample_to_model_space};
 
 /// Loads a DEM file and checks it against physical bounds ([`Dem::check`]: georeferencing,
-/// heights above the 1737.4 km sphere): a GeoTIFF ([`read_geotiff`]) or a PDS3 product (`.LBL`,
-/// or an `.IMG` with an attached label or a `.LBL` beside it: [`pds3::read_pds3`]).
+/// heights above the 1737.4 km sphere): a GeoTIFF ([`read_geotiff`]), a PDS3 product (`.LBL`,
+/// or an `.IMG` with an attached label or a `.LBL` beside it: [`pds3::read_pds3`]) or a PDS4 one
+/// (its `.xml` label: [`pds4::read_pds4`]).
 pub fn load_dem(path: &Path) -> error::Result<Dem> {
     let dem = if pds3::is_pds3(path) {
         pds3::read_pds3(path)?
+    } else if pds4::is_pds4(path) {
+        pds4::read_pds4(path)?
     } else {
         read_geotiff(path)?
     };

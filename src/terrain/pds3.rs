@@ -153,9 +153,9 @@ fn parse_label(text: &str) -> std::result::Result<Label, String> {
     Ok(label)
 }
 
-/// Sample types of a PDS3 image.
+/// Sample types of a PDS3 (or PDS4) image.
 #[derive(Debug, Clone, Copy)]
-enum Sample {
+pub(super) enum Sample {
     Int {
         bytes: usize,
         signed: bool,
@@ -168,7 +168,7 @@ enum Sample {
 }
 
 impl Sample {
-    fn parse(kind: &str, bits: u32) -> std::result::Result<Self, String> {
+    pub(super) fn parse(kind: &str, bits: u32) -> std::result::Result<Self, String> {
         let kind = kind.to_ascii_uppercase();
         let bytes = match bits {
             8 | 16 | 32 | 64 => bits as usize / 8,
@@ -379,28 +379,6 @@ pub fn read_pds3(path: &Path) -> Result<Dem> {
             .find(|p| p.is_file())
             .ok_or_else(|| bad(format!("the image file {} is absent", data_path.display())))?
     };
-    let row_bytes = prefix + cols as u64 * sample.bytes() as u64 + suffix;
-    let need = offset_bytes + row_bytes * rows as u64;
-    let file_len = std::fs::metadata(&data_path)
-        .map_err(|source| DemError::Io {
-            path: data_path.display().to_string(),
-            source,
-        })?
-        .len();
-    if need > file_len {
-        return Err(DemError::Truncated {
-            path: data_path.display().to_string(),
-            detail: format!(
-                "the label declares {cols} x {rows} samples at byte {offset_bytes} ({need} bytes) but the file has {file_len}"
-            ),
-        });
-    }
-    crate::output::guard::check_budget(
-        &format!("the {cols} x {rows} pixel grid"),
-        rows as u128 * cols as u128 * 4,
-    )
-    .map_err(&bad)?;
-
     // --- values -------------------------------------------------------------------------------
     let scale = opt(image, "SCALING_FACTOR", 1.0)?;
     let offset = opt(image, "OFFSET", 0.0)?;
@@ -413,46 +391,30 @@ pub fn read_pds3(path: &Path) -> Result<Dem> {
         "KILOMETER" | "KILOMETERS" | "KM" => 1000.0,
         u => return Err(bad(format!("UNIT = {u} (heights in METER or KILOMETER)"))),
     };
-    if !(scale.is_finite() && scale != 0.0 && offset.is_finite()) {
-        return Err(bad(format!("SCALING_FACTOR {scale} / OFFSET {offset}")));
-    }
-    let missing = image
+    let missing: Vec<f64> = image
         .get("MISSING_CONSTANT")
         .or_else(|| image.get("NULL"))
-        .and_then(Value::number);
-    // Values that are radii (LOLA: OFFSET = 1737400 m) become heights above the 1737.4 km sphere.
-    let offset_m = offset * to_m;
-    let radius_shift = if (1_700_000.0..=1_780_000.0).contains(&offset_m) {
-        crate::MOON_RADIUS_M
-    } else {
-        0.0
-    };
-    let mut heights_m = vec![f32::NAN; rows * cols];
-    let mut f = crate::output::guard::open_regular(&data_path).map_err(|source| DemError::Io {
-        path: data_path.display().to_string(),
-        source,
-    })?;
-    f.seek(SeekFrom::Start(offset_bytes))
-        .map_err(|source| DemError::Io {
-            path: data_path.display().to_string(),
-            source,
-        })?;
-    let mut reader = std::io::BufReader::new(f);
-    let mut row = vec![0u8; row_bytes as usize];
-    for r in 0..rows {
-        reader.read_exact(&mut row).map_err(|source| DemError::Io {
-            path: data_path.display().to_string(),
-            source,
-        })?;
-        let data = &row[prefix as usize..prefix as usize + cols * sample.bytes()];
-        for (c, b) in data.chunks_exact(sample.bytes()).enumerate() {
-            let raw = sample.value(b);
-            if raw.is_nan() || Some(raw) == missing {
-                continue;
-            }
-            heights_m[r * cols + c] = ((raw * scale + offset) * to_m - radius_shift) as f32;
-        }
-    }
+        .and_then(Value::number)
+        .into_iter()
+        .collect();
+    let heights_m = read_heights(
+        &Layout {
+            data_path,
+            offset_bytes,
+            rows,
+            cols,
+            sample,
+            prefix,
+            suffix,
+        },
+        Scaling {
+            scale,
+            offset,
+            to_m,
+            missing,
+        },
+        &bad,
+    )?;
 
     // --- georeferencing -----------------------------------------------------------------------
     let kind = proj
@@ -547,4 +509,110 @@ pub fn read_pds3(path: &Path) -> Result<Dem> {
         heights_m,
         name: name.clone(),
     })
+}
+
+/// Where an image's samples are: `rows` lines of `prefix` bytes, `cols` samples, `suffix` bytes,
+/// from byte `offset_bytes` of `data_path`.
+pub(super) struct Layout {
+    pub data_path: PathBuf,
+    pub offset_bytes: u64,
+    pub rows: usize,
+    pub cols: usize,
+    pub sample: Sample,
+    pub prefix: u64,
+    pub suffix: u64,
+}
+
+/// How raw samples become heights: `(raw · scale + offset) · to_m`, `missing` values are holes.
+pub(super) struct Scaling {
+    pub scale: f64,
+    pub offset: f64,
+    pub to_m: f64,
+    pub missing: Vec<f64>,
+}
+
+/// Reads the samples of `layout` as heights above the 1737.4 km sphere, metres (`NaN` holes):
+/// the file must hold what the label declares (checked before allocating, with the memory
+/// budget); values that are radii (an offset within 1700–1780 km, as LOLA's 1737400 m) become
+/// heights.
+pub(super) fn read_heights(
+    layout: &Layout,
+    scaling: Scaling,
+    bad: &dyn Fn(String) -> DemError,
+) -> Result<Vec<f32>> {
+    let Layout {
+        data_path,
+        offset_bytes,
+        rows,
+        cols,
+        sample,
+        prefix,
+        suffix,
+    } = layout;
+    let (rows, cols, sample, prefix, offset_bytes) =
+        (*rows, *cols, *sample, *prefix, *offset_bytes);
+    let Scaling {
+        scale,
+        offset,
+        to_m,
+        missing,
+    } = scaling;
+    let row_bytes = prefix + cols as u64 * sample.bytes() as u64 + suffix;
+    let need = offset_bytes + row_bytes * rows as u64;
+    let file_len = std::fs::metadata(data_path)
+        .map_err(|source| DemError::Io {
+            path: data_path.display().to_string(),
+            source,
+        })?
+        .len();
+    if need > file_len {
+        return Err(DemError::Truncated {
+            path: data_path.display().to_string(),
+            detail: format!(
+                "the label declares {cols} x {rows} samples at byte {offset_bytes} ({need} bytes) but the file has {file_len}"
+            ),
+        });
+    }
+    crate::output::guard::check_budget(
+        &format!("the {cols} x {rows} pixel grid"),
+        rows as u128 * cols as u128 * 4,
+    )
+    .map_err(bad)?;
+    if !(scale.is_finite() && scale != 0.0 && offset.is_finite()) {
+        return Err(bad(format!("scaling factor {scale} / offset {offset}")));
+    }
+    // Values that are radii (LOLA: OFFSET = 1737400 m) become heights above the 1737.4 km sphere.
+    let offset_m = offset * to_m;
+    let radius_shift = if (1_700_000.0..=1_780_000.0).contains(&offset_m) {
+        crate::MOON_RADIUS_M
+    } else {
+        0.0
+    };
+    let mut heights_m = vec![f32::NAN; rows * cols];
+    let mut f = crate::output::guard::open_regular(data_path).map_err(|source| DemError::Io {
+        path: data_path.display().to_string(),
+        source,
+    })?;
+    f.seek(SeekFrom::Start(offset_bytes))
+        .map_err(|source| DemError::Io {
+            path: data_path.display().to_string(),
+            source,
+        })?;
+    let mut reader = std::io::BufReader::new(f);
+    let mut row = vec![0u8; row_bytes as usize];
+    for r in 0..rows {
+        reader.read_exact(&mut row).map_err(|source| DemError::Io {
+            path: data_path.display().to_string(),
+            source,
+        })?;
+        let data = &row[prefix as usize..prefix as usize + cols * sample.bytes()];
+        for (c, b) in data.chunks_exact(sample.bytes()).enumerate() {
+            let raw = sample.value(b);
+            if raw.is_nan() || missing.contains(&raw) {
+                continue;
+            }
+            heights_m[r * cols + c] = ((raw * scale + offset) * to_m - radius_shift) as f32;
+        }
+    }
+    Ok(heights_m)
 }

@@ -445,7 +445,7 @@ fn sub_solar_and_sub_earth_points_match_spice() {
         let f: Vec<&str> = line.split(',').collect();
         let epoch = ephem::time::parse_utc(f[0]).unwrap();
         let (lat, lon): (f64, f64) = (f[2].parse().unwrap(), f[3].parse().unwrap());
-        let geo = ephem::MoonGeometry::at(&kernels.almanac, epoch).unwrap();
+        let geo = ephem::MoonGeometry::at(&kernels, epoch).unwrap();
         let target = if f[1] == "SUN" {
             geo.sun_wrt_moon
         } else {
@@ -625,4 +625,110 @@ fn kernels_come_from_the_flag_the_environment_or_the_built_in_set() {
     assert!(built_in.status.success() && shipped.status.success());
     assert!(built_in.stdout.len() > 200);
     assert_eq!(built_in.stdout, shipped.stdout);
+}
+
+/// Copies the named files of `kernels/` and of `tests/fixtures/kernels-de440-frames/` into `dir`.
+fn kernel_set(dir: &std::path::Path, shipped: &[&str], de440_ids: &[&str]) {
+    std::fs::create_dir_all(dir).unwrap();
+    for f in shipped {
+        std::fs::copy(kernels_dir().join(f), dir.join(f)).unwrap();
+    }
+    for f in de440_ids {
+        std::fs::copy(fixture(&format!("kernels-de440-frames/{f}")), dir.join(f)).unwrap();
+    }
+}
+
+/// A kernel set with the DE440 lunar frame ids (`MOON_PA_DE440` 31008 in the binary PCK,
+/// `MOON_ME_DE440_ME421` 31009 from a frame kernel with NAIF's `moon_de440_220930.tf`
+/// definitions) loads, and the Sun and Earth directions match SPICE evaluated in
+/// `MOON_ME_DE440_ME421` on the same files (`tests/fixtures/spice_reference_de440_frames.csv`,
+/// `tools/make_de440_frames_fixture.py`) within 0.01". The DE440 and DE421 mean-Earth frames
+/// differ by up to 0.15" here, so matching the first and not the second shows which frame was
+/// applied. Several frame kernels load together (the DE421 and DE440 ones and a name-only one),
+/// the DE440 frames win, and a PCK without its frame kernel is refused naming the kernel to add.
+#[test]
+fn de440_lunar_frames_and_several_frame_kernels_load_and_match_spice() {
+    let dir = tempfile::tempdir().unwrap();
+    let de440 = dir.path().join("de440");
+    kernel_set(
+        &de440,
+        &["de440_moon_2025_2050.bsp", "naif0012.tls"],
+        &["moon_pa_de440_ids.bpc", "moon_de440_frames.tf"],
+    );
+    let kernels = Kernels::load(&de440).expect("the DE440-id set loads");
+    assert_eq!(kernels.frames.me_name, "MOON_ME_DE440_ME421");
+    assert_eq!(kernels.frames.pa_id, 31008);
+    let text = std::fs::read_to_string(fixture("spice_reference_de440_frames.csv")).unwrap();
+    let mut lines = text.lines().filter(|l| !l.starts_with('#'));
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = |n: &str| header.iter().position(|h| *h == n).unwrap();
+    let (mut worst, mut worst_de421, mut n) = (0.0f64, 0.0f64, 0);
+    for l in lines {
+        let f: Vec<&str> = l.split(',').collect();
+        let num = |c: &str| f[col(c)].parse::<f64>().unwrap();
+        let site = Site::new(num("lat_deg"), num("lon_deg"), num("height_m")).unwrap();
+        let epoch = ephem::time::parse_utc(f[col("utc")]).unwrap();
+        let abcorr = AbCorr::parse(f[col("abcorr")]).unwrap();
+        let v = &ephem::sun_earth_series(&kernels, &[site], &[epoch], abcorr).unwrap()[0][0];
+        let body = if f[col("target")] == "SUN" {
+            v.sun
+        } else {
+            v.earth
+        };
+        let diff = |az: f64, el: f64| {
+            let d_az = wrap_deg(body.az_deg - az) * el.to_radians().cos() * 3600.0;
+            d_az.abs().max((body.el_deg - el).abs() * 3600.0)
+        };
+        worst = worst.max(diff(num("az_deg"), num("el_deg")));
+        worst_de421 = worst_de421.max(diff(num("az_de421_deg"), num("el_de421_deg")));
+        n += 1;
+    }
+    eprintln!(
+        "{n} rows: max |Δ| vs SPICE in MOON_ME_DE440_ME421 {worst:.2e}\", vs MOON_ME_DE421 {worst_de421:.3}\""
+    );
+    assert_eq!(n, 60);
+    assert!(worst < ANGLE_TOL_ARCSEC, "{worst}\"");
+    assert!(
+        worst_de421 > 0.1,
+        "the DE421 frame would match as well: {worst_de421}\""
+    );
+
+    // Both sets in one folder (three frame kernels, one of them names only): DE440 wins.
+    let both = dir.path().join("both");
+    kernel_set(
+        &both,
+        &[
+            "de440_moon_2025_2050.bsp",
+            "naif0012.tls",
+            "moon_pa_de421_2000_2050.bpc",
+            "moon_080317.tf",
+            "moon_assoc_me.tf",
+        ],
+        &["moon_pa_de440_ids.bpc", "moon_de440_frames.tf"],
+    );
+    let out = penumbra_ok(
+        dir.path(),
+        &["kernels", "--kernels", both.to_str().unwrap()],
+    );
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert!(
+        text.contains("MOON_ME = MOON_ME_DE440_ME421 (31009"),
+        "{text}"
+    );
+    // The DE421 set alone still uses its own frames.
+    let k421 = Kernels::load(&kernels_dir()).unwrap();
+    assert_eq!(k421.frames.me_id, 31007);
+
+    // The DE440 PCK without its frame kernel: refused, naming what to add.
+    let lone = dir.path().join("lone");
+    kernel_set(
+        &lone,
+        &["de440_moon_2025_2050.bsp", "naif0012.tls", "moon_080317.tf"],
+        &["moon_pa_de440_ids.bpc"],
+    );
+    let out = penumbra(
+        dir.path(),
+        &["kernels", "--kernels", lone.to_str().unwrap()],
+    );
+    assert_clean_error(&out, "moon_de440_220930.tf");
 }

@@ -178,7 +178,7 @@ mod on_gpu {
     }
 
     fn parity(gpu: &[Sample], cpu: &[Sample]) -> Parity {
-        let scale = 2.0 / penumbra::render::auto_exposure(cpu);
+        let scale = penumbra::render::terrain_radiance_p99(cpu).unwrap_or(2.0);
         let mut p = Parity {
             silhouette: 0,
             max_scaled: 0.0,

@@ -1107,3 +1107,160 @@ fn pds3_dems_read_natively_as_gdal_reads_them() {
         assert_clean_failure(&run(&["dem", "info", tif.to_str().unwrap()]), "radii");
     }
 }
+
+/// GeoTIFF keys can only name EPSG codes, so penumbra writes the IAU Moon (2015) sphere CRSs
+/// (`IAU_2015:30135` south polar stereographic here) as GDAL itself writes them for
+/// `gdal_translate -a_srs IAU_2015:30135`: GDAL reads the same CRS (WKT equal, character for
+/// character) from penumbra's DEM as from GDAL's own re-tagged copy of it.
+#[test]
+fn the_crs_is_iau_2015_30135_as_gdal_writes_it() {
+    if !has_tool("gdal_translate") {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let ours = dir.path().join("ours.tif");
+    let theirs = dir.path().join("gdal.tif");
+    crate::util::penumbra_ok(
+        dir.path(),
+        &[
+            "dem",
+            "synth",
+            "--size",
+            "64",
+            "--out",
+            ours.to_str().unwrap(),
+        ],
+    );
+    let st = std::process::Command::new("gdal_translate")
+        .args(["-q", "-a_srs", "IAU_2015:30135"])
+        .arg(&ours)
+        .arg(&theirs)
+        .status()
+        .unwrap();
+    assert!(st.success());
+    let wkt = |p: &Path| {
+        let out = std::process::Command::new("gdalinfo")
+            .arg("-json")
+            .arg(p)
+            .output()
+            .unwrap();
+        let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        v["coordinateSystem"]["wkt"].as_str().unwrap().to_string()
+    };
+    let (a, b) = (wkt(&ours), wkt(&theirs));
+    assert!(
+        a.contains("Moon (2015) - Sphere / Ocentric / South Polar"),
+        "{a}"
+    );
+    assert_eq!(a, b);
+    assert_eq!(
+        penumbra::terrain::geotiff::iau_2015_crs(&penumbra::terrain::Projection::LOLA_SOUTH_POLAR)
+            .map(|c| c.0),
+        Some(30135)
+    );
+}
+
+/// PDS4 DEMs (XML label + image) as GDAL's PDS4 driver writes them from penumbra's synthetic DEM:
+/// float32 heights (a 3-D image of one band), and LOLA-style int16 × 0.5 + `value_offset`
+/// 1737400 m (radii) with a missing constant. penumbra reads the grid GDAL reads (geotransform
+/// from `gdalinfo -json`) and heights = GDAL's raw × scale + offset (− 1737400 m for radii) at 6
+/// pixels.
+#[test]
+fn pds4_dems_read_natively_as_gdal_reads_them() {
+    if !has_tool("gdal_translate") {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let src = d.join("synth.tif");
+    let o = run(&[
+        "dem",
+        "synth",
+        "--size",
+        "48",
+        "--px-m",
+        "100",
+        "--out",
+        src.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let translate = |args: &[&str], out: &str| {
+        let o = Command::new("gdal_translate")
+            .args(["-q", "-of", "PDS4"])
+            .args(args)
+            .arg(&src)
+            .arg(d.join(out))
+            .output_within()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        d.join(out)
+    };
+    let float = translate(&[], "f.xml");
+    // Heights h -> raw 2h (int16), declared as radii: raw × 0.5 + 1737400.
+    let radii = translate(
+        &[
+            "-ot",
+            "Int16",
+            "-scale",
+            "-1000",
+            "1000",
+            "-2000",
+            "2000",
+            "-a_scale",
+            "0.5",
+            "-a_offset",
+            "1737400",
+            "-a_nodata",
+            "-32768",
+        ],
+        "r.xml",
+    );
+    let label = std::fs::read_to_string(&radii).unwrap();
+    assert!(
+        label.contains("scaling_factor") && label.contains("value_offset"),
+        "{label}"
+    );
+    for (xml, scale, offset) in [(&float, 1.0, 0.0), (&radii, 0.5, 1_737_400.0)] {
+        let dem = penumbra::terrain::load_dem(xml).unwrap_or_else(|e| panic!("{e}"));
+        let info = Command::new("gdalinfo")
+            .arg("-json")
+            .arg(xml)
+            .output_within()
+            .unwrap();
+        let v: serde_json::Value = serde_json::from_slice(&info.stdout).unwrap();
+        let gt: Vec<f64> = v["geoTransform"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|x| x.as_f64().unwrap())
+            .collect();
+        let g = &dem.grid;
+        assert_eq!((g.rows, g.cols), (48, 48));
+        for (ours, theirs) in [
+            (g.x_left_m, gt[0]),
+            (g.px_x_m, gt[1]),
+            (g.y_top_m, gt[3]),
+            (-g.px_y_m, gt[5]),
+        ] {
+            assert!(
+                (ours - theirs).abs() < 1e-6,
+                "{}: {ours} vs GDAL {theirs}",
+                xml.display()
+            );
+        }
+        assert_eq!(
+            dem.projection,
+            penumbra::terrain::Projection::LOLA_SOUTH_POLAR
+        );
+        for &(col, row) in &[(0, 0), (47, 0), (20, 24), (31, 7), (0, 47), (47, 47)] {
+            let want = gdal_value(xml, col, row) * scale + offset
+                - if offset > 1e6 { 1_737_400.0 } else { 0.0 };
+            let h = f64::from(dem.heights_m[row * 48 + col]);
+            assert!(
+                (h - want).abs() < 1e-3,
+                "{} ({col},{row}): {h} vs GDAL {want}",
+                xml.display()
+            );
+        }
+    }
+}

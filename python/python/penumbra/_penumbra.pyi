@@ -128,7 +128,7 @@ def render(
     width: int = 640,
     height: int = 400,
     brdf: str = "hapke",
-    exposure: Optional[float] = None,
+    exposure: Union[float, str, None] = None,
     kernels: Optional[Path] = None,
     abcorr: str = "lt+s",
     backend: str = "auto",

@@ -5,7 +5,49 @@ use std::path::Path;
 
 use super::*;
 
+/// The IAU 2015 code and name of a projection that is one of the IAU's Moon (2015) sphere CRSs
+/// (R = 1737.4 km, the poles' stereographic at k = 1 and central meridian 0, or equirectangular
+/// at latitude of true scale 0 and central meridian 0 or 180).
+pub fn iau_2015_crs(projection: &Projection) -> Option<(u32, &'static str)> {
+    if projection.radius_m() != crate::MOON_RADIUS_M {
+        return None;
+    }
+    match *projection {
+        Projection::PolarStereographic {
+            south,
+            lon0_deg,
+            k0,
+            ..
+        } if lon0_deg == 0.0 && k0 == 1.0 => Some(if south {
+            (30135, "Moon (2015) - Sphere / Ocentric / South Polar")
+        } else {
+            (30130, "Moon (2015) - Sphere / Ocentric / North Polar")
+        }),
+        Projection::Equirectangular {
+            lon0_deg,
+            lat_ts_deg,
+            ..
+        } if lat_ts_deg == 0.0 && (lon0_deg == 0.0 || lon0_deg == 180.0) => {
+            Some(if lon0_deg == 0.0 {
+                (
+                    30110,
+                    "Moon (2015) - Sphere / Ocentric / Equirectangular, clon = 0",
+                )
+            } else {
+                (
+                    30115,
+                    "Moon (2015) - Sphere / Ocentric / Equirectangular, clon = 180",
+                )
+            })
+        }
+        _ => None,
+    }
+}
+
 /// Builds the GeoKeyDirectory, double and ASCII parameters of a user-defined CRS on the sphere.
+/// GeoTIFF keys hold EPSG codes only, so an IAU 2015 CRS ([`iau_2015_crs`]) is written as GDAL
+/// writes `-a_srs IAU_2015:30135`: user-defined keys with the IAU names in the citations (GDAL
+/// then reads the same CRS from penumbra's file as from its own).
 pub(super) fn geo_keys_for(projection: &Projection) -> (Vec<u16>, Vec<f64>, String) {
     let r = projection.radius_m();
     let (citation, ct) = match *projection {
@@ -21,7 +63,11 @@ pub(super) fn geo_keys_for(projection: &Projection) -> (Vec<u16>, Vec<f64>, Stri
             CT_EQUIRECTANGULAR,
         ),
     };
-    let mut entries = projected_on_sphere(citation, r, ct);
+    let (citation, geog) = match iau_2015_crs(projection) {
+        Some((_, name)) => (name.to_string(), IAU_2015_GEOG_CITATION.to_string()),
+        None => (citation, sphere_geog_citation(r)),
+    };
+    let mut entries = projected_on_sphere(citation, geog, r, ct);
     match *projection {
         Projection::PolarStereographic {
             south,
@@ -78,6 +124,7 @@ pub fn orthographic_model_tags(
         format!(
             "Orthographic on the lunar sphere R={r} m centred at lat {lat0_deg} lon {lon0_deg} (penumbra model space)"
         ),
+        IAU_2015_GEOG_CITATION.to_string(),
         r,
         CT_ORTHOGRAPHIC,
     );
@@ -112,20 +159,26 @@ pub fn orthographic_model_tags(
     (transform, dir, doubles, ascii)
 }
 
+/// The geographic citation GDAL writes for the IAU Moon (2015) sphere.
+const IAU_2015_GEOG_CITATION: &str = "GCS Name = Moon (2015) - Sphere / Ocentric|Datum = Moon (2015) - Sphere|Ellipsoid = Moon (2015) - Sphere|Primem = Reference Meridian";
+
+/// The geographic citation of penumbra's sphere of radius `r` metres (other radii than the IAU's).
+fn sphere_geog_citation(r: f64) -> String {
+    format!(
+        "GCS Name = Moon sphere R={r} m|Datum = Moon|Ellipsoid = Moon sphere|Primem = Reference meridian"
+    )
+}
+
 /// The GeoKeys shared by every CRS penumbra writes: a user-defined projected CRS (`citation`,
-/// coordinate transformation `ct`, metres) on a user-defined sphere of radius `r` metres.
-fn projected_on_sphere(citation: String, r: f64, ct: u16) -> Vec<(u16, GeoKeyValue)> {
+/// coordinate transformation `ct`, metres) on a user-defined sphere of radius `r` metres (`geog`:
+/// its citation).
+fn projected_on_sphere(citation: String, geog: String, r: f64, ct: u16) -> Vec<(u16, GeoKeyValue)> {
     vec![
         (KEY_MODEL_TYPE, GeoKeyValue::Short(1)),
         (KEY_RASTER_TYPE, GeoKeyValue::Short(1)),
         (KEY_GT_CITATION, GeoKeyValue::Ascii(citation)),
         (KEY_GEOGRAPHIC_TYPE, GeoKeyValue::Short(USER_DEFINED)),
-        (
-            KEY_GEOG_CITATION,
-            GeoKeyValue::Ascii(format!(
-                "GCS Name = Moon sphere R={r} m|Datum = Moon|Ellipsoid = Moon sphere|Primem = Reference meridian"
-            )),
-        ),
+        (KEY_GEOG_CITATION, GeoKeyValue::Ascii(geog)),
         (KEY_GEOG_DATUM, GeoKeyValue::Short(USER_DEFINED)),
         (KEY_GEOG_ANGULAR_UNITS, GeoKeyValue::Short(EPSG_DEGREE)),
         (KEY_GEOG_ELLIPSOID, GeoKeyValue::Short(USER_DEFINED)),
