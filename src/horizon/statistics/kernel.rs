@@ -15,13 +15,14 @@
     reason = "indexed loops over several equal-length arrays are what autovectorises here"
 )]
 
-use super::lookup::{AzimuthLookup, ChordTable};
+use super::lookup::{AzimuthLookup, ChordTable, atan2_deg};
+use super::sectors::{BodySectors, Entry, SECTORS as PSI_SECTORS};
 use crate::illum::polyline_visible_fraction_uniform;
 
 /// Epochs per chunk (the chunk's arrays stay in L1 while a task's cells run over it).
 pub(super) const CHUNK: usize = 512;
 /// Azimuth sectors of the per-cell horizon bounds (one set per body).
-pub(super) const SECTORS: usize = 128;
+pub(super) const BOUND_SECTORS: usize = 128;
 /// Largest half-span in azimuth of the Sun's disc the Sun's sector bounds cover, degrees (each
 /// sector's bounds take in the horizon this far beyond its edges): `0.272° / cos(el)` up to 39°
 /// of elevation.
@@ -39,6 +40,9 @@ pub(super) struct Epochs {
     pub sun_normal_w_m2: Vec<f32>,
     pub earth: [Vec<f32>; 3],
     pub earth_radius_deg: Vec<f32>,
+    /// The bodies in the grid centre's frame, for the shared sector classification.
+    pub sun_sectors: BodySectors,
+    pub earth_sectors: BodySectors,
 }
 
 impl Epochs {
@@ -59,6 +63,10 @@ pub(super) struct CellGeom {
     pub grid_north: [f32; 3],
     /// Observer's distance from the Moon's centre, km.
     pub r_obs_km: f32,
+    /// `up · U₀`, the grid centre's up (the shared sector classification).
+    pub up_ref: f32,
+    /// Up, grid east and grid north in f64 (to build the cell's sector tables).
+    pub frame: [nalgebra::Vector3<f64>; 3],
     /// Where the cell's rays leave the outermost layer (the below-sphere count).
     pub beyond: super::BeyondDem,
     /// Whether the Sun and the Earth are seen at all, always whole, or sometimes cut, by bounds
@@ -117,6 +125,7 @@ impl Default for Scratch {
             sun: Box::default(),
             earth: Box::default(),
             partial: Box::new([0; CHUNK]),
+            undecided: Box::new([false; CHUNK]),
         }
     }
 }
@@ -133,104 +142,121 @@ impl Default for Seen {
     }
 }
 
-/// `atan(a)` for `a` in [0, 1]: a least-squares minimax polynomial in `a²` (degree 7), error
-/// < 4e-8 rad (2.2e-6°; `tests::atan2_deg_matches_f64`).
-#[inline(always)]
-fn atan_unit(a: f32) -> f32 {
-    const C: [f32; 8] = [
-        9.999_993_4e-1,
-        -3.332_986e-1,
-        1.994_656e-1,
-        -1.390_860_7e-1,
-        9.642_142e-2,
-        -5.591_159e-2,
-        2.186_245_7e-2,
-        -4.054_43e-3,
-    ];
-    // Plain multiply-adds: `mul_add` is a libm call without the FMA target feature.
-    let t = a * a;
-    let p = C[7];
-    let p = p * t + C[6];
-    let p = p * t + C[5];
-    let p = p * t + C[4];
-    let p = p * t + C[3];
-    let p = p * t + C[2];
-    let p = p * t + C[1];
-    let p = p * t + C[0];
-    a * p
-}
-
-/// `atan2(y, x)` in degrees, in [−180, 180], branch-free (0 for `(0, 0)`).
-#[inline(always)]
-pub(super) fn atan2_deg(y: f32, x: f32) -> f32 {
-    let (ax, ay) = (x.abs(), y.abs());
-    let lo = ax.min(ay);
-    let hi = ax.max(ay).max(f32::MIN_POSITIVE);
-    let r = atan_unit(lo / hi);
-    let r = if ay > ax {
-        std::f32::consts::FRAC_PI_2 - r
-    } else {
-        r
-    };
-    let r = if x < 0.0 { std::f32::consts::PI - r } else { r };
-    let r = if y < 0.0 { -r } else { r };
-    r * (180.0 / std::f32::consts::PI)
-}
-
 #[inline(always)]
 fn dot(a: [f32; 3], x: f32, y: f32, z: f32) -> f32 {
     a[0] * x + a[1] * y + a[2] * z
 }
 
+/// The body at `(bx, by, bz)` (km from the Moon's centre) from `cell`: `(vz, hxy, 1 / |v|, vx,
+/// vy)` of the vector from the observer, in the cell's (grid east, grid north, up) frame.
+#[inline(always)]
+fn local(cell: &CellGeom, bx: f32, by: f32, bz: f32) -> (f32, f32, f32, f32, f32) {
+    let vz = dot(cell.up, bx, by, bz) - cell.r_obs_km;
+    let vx = dot(cell.grid_east, bx, by, bz);
+    let vy = dot(cell.grid_north, bx, by, bz);
+    let hxy = (vx * vx + vy * vy).sqrt();
+    let inv_len = 1.0 / (hxy * hxy + vz * vz).sqrt();
+    (vz, hxy, inv_len, vx, vy)
+}
+
+/// Elevation and grid azimuth (degrees, azimuth in [0, 360)) from [`local`]'s values.
+#[inline(always)]
+fn el_az_deg(vz: f32, hxy: f32, vx: f32, vy: f32) -> (f32, f32) {
+    let a = atan2_deg(vx, vy);
+    (atan2_deg(vz, hxy), if a < 0.0 { a + 360.0 } else { a })
+}
+
 /// Pass 1: the direction of the body at `pos` (km, relative to the Moon's centre) from `cell`
-/// for epochs `range` of the chunk.
+/// for the epochs of the chunk.
 #[inline(always)]
 fn geometry(cell: &CellGeom, pos: [&[f32]; 3], out: &mut Seen) {
     let n = pos[0].len().min(CHUNK);
     let (px, py, pz) = (&pos[0][..n], &pos[1][..n], &pos[2][..n]);
     let (el, az) = (&mut out.el_deg[..n], &mut out.az_deg[..n]);
     let (sin_el, cos_el) = (&mut out.sin_el[..n], &mut out.cos_el[..n]);
-    let r = cell.r_obs_km;
     for j in 0..n {
-        let (bx, by, bz) = (px[j], py[j], pz[j]);
-        let vz = dot(cell.up, bx, by, bz) - r;
-        let vx = dot(cell.grid_east, bx, by, bz);
-        let vy = dot(cell.grid_north, bx, by, bz);
-        let hxy = (vx * vx + vy * vy).sqrt();
-        let inv_len = 1.0 / (hxy * hxy + vz * vz).sqrt();
+        let (vz, hxy, inv_len, vx, vy) = local(cell, px[j], py[j], pz[j]);
         sin_el[j] = vz * inv_len;
         cos_el[j] = hxy * inv_len;
-        el[j] = atan2_deg(vz, hxy);
-        let a = atan2_deg(vx, vy);
-        az[j] = if a < 0.0 { a + 360.0 } else { a };
+        (el[j], az[j]) = el_az_deg(vz, hxy, vx, vy);
     }
 }
 
-/// Pass 2: the visible fraction of a disc of `radius_deg` (per epoch) for the directions in
-/// `seen`, above the cell's horizon `h` (`n + 1` band values) with its sector bounds. First a
-/// branch-free classification against the sector bounds (a disc entirely above or below the
-/// horizon of its sector is 1 or 0), which lists the other epochs; then the circular segment for
-/// those only.
+/// [`geometry`]'s sine and cosine of the elevation only (the irradiance needs them at every
+/// epoch; the angles are only needed where a disc is cut).
 #[inline(always)]
-#[allow(clippy::too_many_arguments, reason = "the kernel's inputs")]
-fn fractions(
-    h: &[f32],
+fn geometry_sin_cos(cell: &CellGeom, pos: [&[f32]; 3], out: &mut Seen) {
+    let n = pos[0].len().min(CHUNK);
+    let (px, py, pz) = (&pos[0][..n], &pos[1][..n], &pos[2][..n]);
+    let (sin_el, cos_el) = (&mut out.sin_el[..n], &mut out.cos_el[..n]);
+    for j in 0..n {
+        let (vz, hxy, inv_len, _, _) = local(cell, px[j], py[j], pz[j]);
+        sin_el[j] = vz * inv_len;
+        cos_el[j] = hxy * inv_len;
+    }
+}
+
+/// [`geometry`] at epoch `j` of the chunk only.
+#[inline(always)]
+fn geometry_at(cell: &CellGeom, pos: [&[f32]; 3], j: usize, out: &mut Seen) {
+    let (vz, hxy, inv_len, vx, vy) = local(cell, pos[0][j], pos[1][j], pos[2][j]);
+    out.sin_el[j] = vz * inv_len;
+    out.cos_el[j] = hxy * inv_len;
+    (out.el_deg[j], out.az_deg[j]) = el_az_deg(vz, hxy, vx, vy);
+}
+
+/// Pass 1 from the shared sector classification ([`super::sectors`]): a disc decided full (or
+/// visible) or dark for every `ψ` of its sector gets 1 or 0 without any geometry; the other
+/// epochs are listed in `partial` (their count returned).
+#[inline(always)]
+fn classify_sectors(
+    table: &[Entry],
+    up_ref: f32,
+    (sector, cos_e, sin_e): (&[u16], &[f32], &[f32]),
+    fraction: &mut [f32; CHUNK],
+    undecided: &mut [bool; CHUNK],
+    partial: &mut [u16; CHUNK],
+) -> usize {
+    let n = sector.len().min(CHUNK);
+    let (sector, cos_e, sin_e) = (&sector[..n], &cos_e[..n], &sin_e[..n]);
+    let table = &table[..PSI_SECTORS];
+    // Without a dependence between epochs (so that it pipelines), then the list.
+    for j in 0..n {
+        let [a_lo, s_hi, a_hi, s_lo] = table[usize::from(sector[j]) % PSI_SECTORS];
+        let cs = up_ref * sin_e[j];
+        let full = cos_e[j] * a_lo + cs >= s_hi;
+        let dark = cos_e[j] * a_hi + cs <= s_lo;
+        fraction[j] = if full { 1.0 } else { 0.0 };
+        undecided[j] = !(full | dark);
+    }
+    let mut count = 0;
+    for (j, &u) in undecided[..n].iter().enumerate() {
+        if u {
+            partial[count] = j as u16;
+            count += 1;
+        }
+    }
+    count
+}
+
+/// Pass 2 by the per-cell bounds: a branch-free classification of the directions in `seen`
+/// against the cell's sector bounds (a disc entirely above or below the horizon of its sector is
+/// 1 or 0), listing the other epochs in `partial` (their count returned).
+#[inline(always)]
+fn classify_bounds(
     bounds: &[[f32; 2]],
     margin_deg: f32,
-    lookup: &AzimuthLookup,
-    chord: &ChordTable,
-    exact_uniform: bool,
     radius_deg: &[f32],
     seen: &mut Seen,
     partial: &mut [u16; CHUNK],
-) {
+) -> usize {
     let n = radius_deg.len().min(CHUNK);
-    let sector_per_deg = SECTORS as f32 / 360.0;
-    let bounds = &bounds[..SECTORS];
+    let sector_per_deg = BOUND_SECTORS as f32 / 360.0;
+    let bounds = &bounds[..BOUND_SECTORS];
     let mut count = 0;
     for j in 0..n {
         let (el, az, r) = (seen.el_deg[j], seen.az_deg[j], radius_deg[j]);
-        let s = ((az * sector_per_deg) as usize).min(SECTORS - 1);
+        let s = ((az * sector_per_deg) as usize).min(BOUND_SECTORS - 1);
         let [lo, hi] = bounds[s];
         // Within the sector bounds only while the disc's half-span fits the margin.
         let fits = r <= margin_deg * seen.cos_el[j];
@@ -240,7 +266,24 @@ fn fractions(
         partial[count] = j as u16;
         count += usize::from(!(full | dark));
     }
-    for &j in &partial[..count] {
+    count
+}
+
+/// The visible fraction of a disc of `radius_deg` (per epoch) above the cell's horizon `h`
+/// (`n + 1` band values) at the `partial` epochs of `seen` (directions known there): the
+/// circular segment under the horizon's chord across the disc, or for `exact_uniform` the
+/// polyline itself ([`polyline_fraction`]).
+#[inline(always)]
+fn partial_fractions(
+    h: &[f32],
+    lookup: &AzimuthLookup,
+    chord: &ChordTable,
+    exact_uniform: bool,
+    radius_deg: &[f32],
+    seen: &mut Seen,
+    partial: &[u16],
+) {
+    for &j in partial {
         let j = usize::from(j);
         let (el, az, r) = (seen.el_deg[j], seen.az_deg[j], radius_deg[j]);
         let cos_el = seen.cos_el[j];
@@ -294,10 +337,9 @@ pub(super) fn polyline_fraction(
     let u_per_deg = r / half_span;
     let mut k = (k0 + 1) % nb;
     while n < MAX_POINTS {
-        let mut d = band_az[k] - from;
-        if d < 0.0 {
-            d += 360.0;
-        }
+        // Degrees from the disc's left edge, in [0, 360): `from` may be below 0 or past 360
+        // (a disc across grid azimuth 0).
+        let d = (band_az[k] - from).rem_euclid(360.0);
         if d >= 2.0 * half_span || k == k0 {
             break;
         }
@@ -354,7 +396,7 @@ pub(super) fn polyline_fraction(
     polyline_visible_fraction_uniform(&poly[..n + 2], r64) as f32
 }
 
-/// Appends to `out` the horizon bounds of each of the [`SECTORS`] azimuth sectors of a cell (with
+/// Appends to `out` the horizon bounds of each of the [`BOUND_SECTORS`] azimuth sectors of a cell (with
 /// `margin_deg` on both sides) from its `n + 1` band values at `lookup`'s azimuths.
 pub(super) fn sector_bounds(
     h: &[f32],
@@ -363,9 +405,9 @@ pub(super) fn sector_bounds(
     out: &mut Vec<[f32; 2]>,
 ) {
     let base = out.len();
-    out.resize(base + SECTORS, [f32::INFINITY, f32::NEG_INFINITY]);
+    out.resize(base + BOUND_SECTORS, [f32::INFINITY, f32::NEG_INFINITY]);
     let out = &mut out[base..];
-    let width = 360.0 / SECTORS as f32;
+    let width = 360.0 / BOUND_SECTORS as f32;
     let n = band_az_deg.len();
     for (k, &a) in band_az_deg.iter().enumerate() {
         // The band and the segment to the next one: the horizon on [a, a_next] lies between
@@ -378,10 +420,10 @@ pub(super) fn sector_bounds(
         let (v0, v1) = (h[k], h[k + 1]);
         let (lo, hi) = (v0.min(v1), v0.max(v1));
         // Band azimuths are in [0, 360): shift by a whole turn so that truncation floors.
-        let first = ((a - margin_deg + 360.0) / width) as i64 - SECTORS as i64;
-        let last = ((a_next + margin_deg + 360.0) / width) as i64 - SECTORS as i64;
+        let first = ((a - margin_deg + 360.0) / width) as i64 - BOUND_SECTORS as i64;
+        let last = ((a_next + margin_deg + 360.0) / width) as i64 - BOUND_SECTORS as i64;
         for s in first..=last {
-            let b = &mut out[s.rem_euclid(SECTORS as i64) as usize];
+            let b = &mut out[s.rem_euclid(BOUND_SECTORS as i64) as usize];
             b[0] = b[0].min(lo);
             b[1] = b[1].max(hi);
         }
@@ -393,9 +435,10 @@ pub(super) struct Scratch {
     sun: Box<Seen>,
     earth: Box<Seen>,
     partial: Box<[u16; CHUNK]>,
+    undecided: Box<[bool; CHUNK]>,
 }
 
-/// Runs `cells` (each with its `stride = n + 1` horizon values and 2 × [`SECTORS`] bounds, the
+/// Runs `cells` (each with its `stride = n + 1` horizon values and 2 × [`BOUND_SECTORS`] bounds, the
 /// Sun's then the Earth's) over
 /// epochs `range` (in time order), updating `acc`.
 #[allow(
@@ -407,6 +450,7 @@ pub(super) fn run_cells(
     cells: &[CellGeom],
     horizons: &[f32],
     bounds: &[[f32; 2]],
+    tables: &[Entry],
     stride: usize,
     epochs: &Epochs,
     range: std::ops::Range<usize>,
@@ -422,9 +466,22 @@ pub(super) fn run_cells(
         sun,
         earth,
         partial,
+        undecided,
     } = scratch;
     fn sl(v: &[Vec<f32>; 3], range: std::ops::Range<usize>) -> [&[f32]; 3] {
         [&v[0][range.clone()], &v[1][range.clone()], &v[2][range]]
+    }
+    fn sectors_of(
+        s: &BodySectors,
+        range: std::ops::Range<usize>,
+    ) -> Option<(&[u16], &[f32], &[f32])> {
+        s.enabled.then(|| {
+            (
+                &s.sector[range.clone()],
+                &s.cos_e[range.clone()],
+                &s.sin_e[range],
+            )
+        })
     }
     let (sun_pos, earth_pos) = (
         sl(&epochs.sun, range.clone()),
@@ -434,17 +491,38 @@ pub(super) fn run_cells(
     let earth_r = &epochs.earth_radius_deg[range.clone()];
     let sun_w = &epochs.sun_normal_w_m2[range.clone()];
     let n = sun_r.len();
-    for (((cell, h), b), a) in cells
+    // Tables of both bodies per cell, or none (the per-cell path for every epoch).
+    let per_cell = if tables.is_empty() {
+        0
+    } else {
+        2 * PSI_SECTORS
+    };
+    let sectors = [
+        sectors_of(&epochs.sun_sectors, range.clone()).filter(|_| per_cell > 0),
+        sectors_of(&epochs.earth_sectors, range.clone()).filter(|_| per_cell > 0),
+    ];
+    for (i, ((cell, h), a)) in cells
         .iter()
         .zip(horizons.chunks_exact(stride))
-        .zip(bounds.chunks_exact(2 * SECTORS))
         .zip(acc.iter_mut())
+        .enumerate()
     {
+        let table = if per_cell > 0 {
+            &tables[i * per_cell..(i + 1) * per_cell]
+        } else {
+            &[][..]
+        };
+        // Per-cell bounds (absent when both bodies have tables).
+        let (b_sun, b_earth) = if bounds.is_empty() {
+            (&[][..], &[][..])
+        } else {
+            bounds[i * 2 * BOUND_SECTORS..(i + 1) * 2 * BOUND_SECTORS].split_at(BOUND_SECTORS)
+        };
         // The Earth's disc is uniform and wide (1.9°): its partial epochs get the exact strip
         // integral over the horizon polyline; the Sun's (limb-darkened, 0.53°) the segment.
-        let (b_sun, b_earth) = b.split_at(SECTORS);
-        for (reach, pos, radius, chord, exact, (b, margin), seen) in [
+        for (body, reach, pos, radius, chord, exact, (b, margin), seen) in [
             (
+                0,
                 cell.sun,
                 sun_pos,
                 sun_r,
@@ -454,6 +532,7 @@ pub(super) fn run_cells(
                 &mut **sun,
             ),
             (
+                1,
                 cell.earth,
                 earth_pos,
                 earth_r,
@@ -463,16 +542,39 @@ pub(super) fn run_cells(
                 &mut **earth,
             ),
         ] {
+            // Only the Sun's elevation is needed at every epoch it may light (irradiance).
+            let is_sun = body == 0;
             match reach {
-                // The Sun's elevation still feeds the irradiance and the below-sphere count.
                 Reach::Never => seen.fraction[..n].fill(0.0),
                 Reach::Always => {
-                    geometry(cell, pos, seen);
+                    if is_sun {
+                        geometry_sin_cos(cell, pos, seen);
+                    }
                     seen.fraction[..n].fill(1.0);
                 }
                 Reach::Varies => {
-                    geometry(cell, pos, seen);
-                    fractions(h, b, margin, lookup, chord, exact, radius, seen, partial);
+                    let count = if let Some(sec) = sectors[body] {
+                        if is_sun {
+                            geometry_sin_cos(cell, pos, seen);
+                        }
+                        let t = &table[body * PSI_SECTORS..(body + 1) * PSI_SECTORS];
+                        let count = classify_sectors(
+                            t,
+                            cell.up_ref,
+                            sec,
+                            &mut seen.fraction,
+                            undecided,
+                            partial,
+                        );
+                        for &j in &partial[..count] {
+                            geometry_at(cell, pos, usize::from(j), seen);
+                        }
+                        count
+                    } else {
+                        geometry(cell, pos, seen);
+                        classify_bounds(b, margin, radius, seen, partial)
+                    };
+                    partial_fractions(h, lookup, chord, exact, radius, seen, &partial[..count]);
                 }
             }
         }
@@ -495,14 +597,17 @@ pub(super) fn run_cells(
             s.dark_max = s.dark_max.max(s.dark_run);
             s.earth_hidden_run = if earth_up { 0 } else { s.earth_hidden_run + 1 };
             s.earth_hidden_max = s.earth_hidden_max.max(s.earth_hidden_run);
-            if sun_up
-                && sun.el_deg[j] < 0.0
-                && cell.beyond.may_meet_sphere(sun.el_deg[j])
-                && cell
-                    .beyond
-                    .meets_sphere(edges, sun.az_deg[j], sun.el_deg[j])
-            {
-                s.below_sphere += 1;
+            // Lit from below the local horizontal, and below the observer's geometric horizon
+            // on the sphere (its sine, with room for f32): the ray may meet the sphere.
+            if sun_up && sun.sin_el[j] < cell.beyond.sin_dip_bound() {
+                let (vz, hxy, _, vx, vy) = local(cell, sun_pos[0][j], sun_pos[1][j], sun_pos[2][j]);
+                let (el, az) = el_az_deg(vz, hxy, vx, vy);
+                if el < 0.0
+                    && cell.beyond.may_meet_sphere(el)
+                    && cell.beyond.meets_sphere(edges, az, el)
+                {
+                    s.below_sphere += 1;
+                }
             }
         }
         // Chunk sums in f32 (≤ CHUNK terms), the running totals in f64.
@@ -520,6 +625,7 @@ pub(super) struct RunCells<'a> {
     pub cells: &'a [CellGeom],
     pub horizons: &'a [f32],
     pub bounds: &'a [[f32; 2]],
+    pub tables: &'a [Entry],
     pub stride: usize,
     pub epochs: &'a Epochs,
     pub range: std::ops::Range<usize>,
@@ -541,6 +647,7 @@ impl pulp::WithSimd for RunCells<'_> {
             self.cells,
             self.horizons,
             self.bounds,
+            self.tables,
             self.stride,
             self.epochs,
             self.range,

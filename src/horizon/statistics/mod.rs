@@ -39,12 +39,13 @@
 mod blocks;
 mod kernel;
 mod lookup;
+mod sectors;
 mod source;
 
 use rayon::prelude::*;
 
 pub use blocks::{BlockStore, NoStore};
-use kernel::{CellAcc, CellGeom, Epochs, SECTORS, Scratch, Thresholds};
+use kernel::{BOUND_SECTORS, CellAcc, CellGeom, Epochs, Scratch, Thresholds};
 pub use lookup::{AzimuthLookup, ChordTable};
 pub use source::{
     HORIZON_NODATA_I16, HORIZON_PRODUCT, HorizonFile, HorizonRows, InMemoryHorizons,
@@ -123,6 +124,9 @@ pub(crate) struct BeyondDem {
     /// Elevation of the observer's geometric horizon on the reference sphere, `−acos(R / r0)`
     /// (0 when the observer is inside the sphere: then every descending ray meets it).
     dip_deg: f32,
+    /// `sin(dip)` plus room for f32 rounding: a Sun whose sine of elevation is at least this
+    /// is above the observer's geometric horizon (no elevation needs computing).
+    sin_dip_bound: f32,
 }
 
 /// The layers' map extents and the projection, shared by every pixel's [`BeyondDem`].
@@ -139,6 +143,12 @@ impl BeyondDem {
     #[inline]
     fn may_meet_sphere(&self, el_deg: f32) -> bool {
         el_deg < self.dip_deg
+    }
+
+    /// See [`BeyondDem::sin_dip_bound`]'s field.
+    #[inline]
+    fn sin_dip_bound(&self) -> f32 {
+        self.sin_dip_bound
     }
 
     /// Whether a ray at grid azimuth `grid_az_deg` and elevation `el_deg` (< 0), once past the
@@ -292,6 +302,22 @@ impl BodyBounds {
     }
 }
 
+/// Radial up and the map's +x ("grid east") and +y ("grid north") directions on the sphere at
+/// map point `(x, y)` (unit vectors in `MOON_ME`).
+fn map_frame(projector: &UnitProjector, x: f64, y: f64) -> sectors::Reference {
+    let up = projector.unit_from_xy(x, y);
+    let tangent = |d: nalgebra::Vector3<f64>| {
+        let t = d - up * up.dot(&d);
+        t / t.norm()
+    };
+    let eps_m = 1.0;
+    sectors::Reference {
+        up,
+        east: tangent(projector.unit_from_xy(x + eps_m, y) - projector.unit_from_xy(x - eps_m, y)),
+        north: tangent(projector.unit_from_xy(x, y + eps_m) - projector.unit_from_xy(x, y - eps_m)),
+    }
+}
+
 /// Cells per parallel task (their horizons stay in L1/L2 while the epochs stream).
 const CELLS_PER_TASK: usize = 16;
 /// Bytes of horizons read per block of rows.
@@ -306,6 +332,9 @@ pub struct StatisticsEngine<'a> {
     /// Whether cells that never (or always) see a body skip it (off only to test that the
     /// bounds never change a result).
     skip_unseen: bool,
+    /// Whether the shared sector classification decides most epochs (off only to test that it
+    /// never changes a result).
+    sector_tables: bool,
 }
 
 impl<'a> StatisticsEngine<'a> {
@@ -316,6 +345,7 @@ impl<'a> StatisticsEngine<'a> {
             stack,
             params,
             skip_unseen: true,
+            sector_tables: true,
         })
     }
 
@@ -432,16 +462,34 @@ impl<'a> StatisticsEngine<'a> {
             soa.earth_radius_deg.push(e.earth_radius_deg as f32);
         }
         // The bodies' paths over every epoch, from the grid centre.
-        let (centre_up, reach_m) = {
+        let (reference, reach_m) = {
             let projector = UnitProjector::new(&fine.projection);
             let (cx, cy) =
                 g.xy_from_row_col((g.rows as f64 - 1.0) / 2.0, (g.cols as f64 - 1.0) / 2.0);
             let (x0, y0, x1, y1) = g.bounds_m();
             (
-                projector.unit_from_xy(cx, cy),
+                map_frame(&projector, cx, cy),
                 (x1 - x0).hypot(y1 - y0) / 2.0,
             )
         };
+        let centre_up = reference.up;
+        soa.sun_sectors = sectors::BodySectors::new(
+            epochs,
+            |e| (e.sun_in_moon_me_km, e.sun_radius_deg),
+            &reference,
+        );
+        soa.earth_sectors = sectors::BodySectors::new(
+            epochs,
+            |e| (e.earth_in_moon_me_km, e.earth_radius_deg),
+            &reference,
+        );
+        let sector_edges = sectors::edges();
+        // The Earth's statistics need only "any part visible".
+        let earth_visible_only =
+            self.params.visible_min_fraction < sectors::VISIBLE_ONLY_MAX_FRACTION;
+        // The per-cell bounds serve a body without tables.
+        let need_bounds =
+            !self.sector_tables || !soa.sun_sectors.enabled || !soa.earth_sectors.enabled;
         let centre_km = centre_up * (MOON_RADIUS_M / 1000.0);
         let body_bounds = [
             BodyBounds::new(
@@ -501,7 +549,10 @@ impl<'a> StatisticsEngine<'a> {
                     let mut pixels = Vec::with_capacity(hi - lo);
                     let mut cells = Vec::with_capacity(hi - lo);
                     let mut horizons = Vec::with_capacity((hi - lo) * (n + 1));
-                    let mut bounds = Vec::with_capacity((hi - lo) * 2 * SECTORS);
+                    let mut bounds = Vec::with_capacity((hi - lo) * 2 * BOUND_SECTORS);
+                    let mut tables = Vec::new();
+                    let mut hbins = sectors::HorizonBins::default();
+                    let mut tscratch = sectors::TableScratch::default();
                     for i in lo..hi {
                         let px = first_px + i;
                         let start = horizons.len();
@@ -510,15 +561,42 @@ impl<'a> StatisticsEngine<'a> {
                             h_obs_m,
                             (&block, block_px, i, n),
                             &mut horizons,
-                            (&body_bounds, centre_up, &lookup),
+                            (&body_bounds, &reference, &lookup),
                         ) {
-                            for margin in [kernel::SUN_MARGIN_DEG, kernel::EARTH_MARGIN_DEG] {
-                                kernel::sector_bounds(
-                                    &horizons[start..],
-                                    lookup.band_az_deg(),
-                                    margin,
-                                    &mut bounds,
-                                );
+                            if need_bounds {
+                                for margin in [kernel::SUN_MARGIN_DEG, kernel::EARTH_MARGIN_DEG] {
+                                    kernel::sector_bounds(
+                                        &horizons[start..],
+                                        lookup.band_az_deg(),
+                                        margin,
+                                        &mut bounds,
+                                    );
+                                }
+                            }
+                            if self.sector_tables {
+                                arch.dispatch(sectors::CellTables {
+                                    bodies: [
+                                        (
+                                            &soa.sun_sectors,
+                                            false,
+                                            cell.sun == kernel::Reach::Varies,
+                                        ),
+                                        (
+                                            &soa.earth_sectors,
+                                            earth_visible_only,
+                                            cell.earth == kernel::Reach::Varies,
+                                        ),
+                                    ],
+                                    reference: &reference,
+                                    edges: &sector_edges,
+                                    frame: (cell.frame[0], cell.frame[1], cell.frame[2]),
+                                    r_obs_km: f64::from(cell.r_obs_km),
+                                    h: &horizons[start..],
+                                    lookup: &lookup,
+                                    bins: &mut hbins,
+                                    scratch: &mut tscratch,
+                                    out: &mut tables,
+                                });
                             }
                             pixels.push(px);
                             cells.push(cell);
@@ -535,6 +613,7 @@ impl<'a> StatisticsEngine<'a> {
                             cells: &cells,
                             horizons: &horizons,
                             bounds: &bounds,
+                            tables: &tables,
                             stride: n + 1,
                             epochs: &soa,
                             range: j0..j1,
@@ -596,8 +675,9 @@ impl<'a> StatisticsEngine<'a> {
         h_obs_m: f64,
         (block, block_px, i, n): (&[i16], usize, usize, usize),
         horizons: &mut Vec<f32>,
-        (bodies, centre_up, lookup): (&[BodyBounds; 2], nalgebra::Vector3<f64>, &AzimuthLookup),
+        (bodies, reference, lookup): (&[BodyBounds; 2], &sectors::Reference, &AzimuthLookup),
     ) -> Option<CellGeom> {
+        let centre_up = reference.up;
         let fine = self.fine();
         let ground_m = f64::from(fine.heights_m[px]);
         if ground_m.is_nan() {
@@ -615,16 +695,7 @@ impl<'a> StatisticsEngine<'a> {
         let (row, col) = ((px / g.cols) as f64, (px % g.cols) as f64);
         let (x, y) = g.xy_from_row_col(row, col);
         let projector = UnitProjector::new(&fine.projection);
-        let up = projector.unit_from_xy(x, y);
-        let tangent = |d: nalgebra::Vector3<f64>| {
-            let t = d - up * up.dot(&d);
-            t / t.norm()
-        };
-        let eps_m = 1.0;
-        let east =
-            tangent(projector.unit_from_xy(x + eps_m, y) - projector.unit_from_xy(x - eps_m, y));
-        let north =
-            tangent(projector.unit_from_xy(x, y + eps_m) - projector.unit_from_xy(x, y - eps_m));
+        let sectors::Reference { up, east, north } = map_frame(&projector, x, y);
         let r0_m = MOON_RADIUS_M + ground_m + h_obs_m;
         let v32 = |v: nalgebra::Vector3<f64>| [v.x as f32, v.y as f32, v.z as f32];
         let h = &horizons[start..];
@@ -644,8 +715,15 @@ impl<'a> StatisticsEngine<'a> {
                 .to_degrees();
             b.reach(h, lookup, tilt_deg, az.rem_euclid(360.0))
         };
+        let dip_deg = if r0_m > MOON_RADIUS_M {
+            -((MOON_RADIUS_M / r0_m).acos().to_degrees() as f32)
+        } else {
+            0.0
+        };
         Some(CellGeom {
             up: v32(up),
+            up_ref: up.dot(&reference.up) as f32,
+            frame: [up, east, north],
             grid_east: v32(east),
             grid_north: v32(north),
             r_obs_km: (r0_m / 1000.0) as f32,
@@ -656,11 +734,8 @@ impl<'a> StatisticsEngine<'a> {
                 y_m: y,
                 up: [up.x, up.y, up.z],
                 r0_m,
-                dip_deg: if r0_m > MOON_RADIUS_M {
-                    -((MOON_RADIUS_M / r0_m).acos().to_degrees() as f32)
-                } else {
-                    0.0
-                },
+                dip_deg,
+                sin_dip_bound: (f64::from(dip_deg).to_radians().sin() + 1e-5) as f32,
             },
         })
     }

@@ -1,4 +1,4 @@
-use super::kernel::atan2_deg;
+use super::lookup::atan2_deg;
 use super::*;
 use crate::terrain::TerrainStack;
 
@@ -104,11 +104,9 @@ fn chord_table_matches_the_strip_integral() {
     }
 }
 
-/// Cells that never (or always) see a body skip it: the bounds must never change a result. On a
-/// rough synthetic DEM (crater floors that never see the Sun, slopes that never see the Earth),
-/// every statistic with the skip equals the one without, bit for bit.
-#[test]
-fn skipping_unseen_bodies_changes_nothing() {
+/// A rough synthetic DEM (72² px of 150 m round the pole, crater floors that never see the Sun,
+/// slopes that never see the Earth), its sweep (180 azimuths) and the bodies every 5 h of 2027.
+fn rough_terrain_year() -> (TerrainStack, InMemoryHorizons, Vec<EpochBodies>) {
     use crate::horizon::{HorizonSweep, SweepParams};
     let dem = crate::terrain::synth::south_polar_dem(&crate::terrain::synth::SynthParams {
         size_px: 72,
@@ -126,7 +124,7 @@ fn skipping_unseen_bodies_changes_nothing() {
         },
     )
     .unwrap();
-    let mut horizons = InMemoryHorizons::sweep(&sweep, |_| true).unwrap();
+    let horizons = InMemoryHorizons::sweep(&sweep, |_| true).unwrap();
     let kernels =
         crate::ephem::Kernels::load(&crate::ephem::kernels::default_kernel_dir()).unwrap();
     let epochs = crate::ephem::time::epoch_range(
@@ -152,6 +150,15 @@ fn skipping_unseen_bodies_changes_nothing() {
             earth_radius_deg: v.earth.radius_deg,
         })
         .collect();
+    (stack, horizons, bodies)
+}
+
+/// Cells that never (or always) see a body skip it: the bounds must never change a result. On a
+/// rough synthetic DEM (crater floors that never see the Sun, slopes that never see the Earth),
+/// every statistic with the skip equals the one without, bit for bit.
+#[test]
+fn skipping_unseen_bodies_changes_nothing() {
+    let (stack, mut horizons, bodies) = rough_terrain_year();
     let params = StatisticsParams {
         limb: LimbDarkening::EDDINGTON,
         visible_min_fraction: 1e-6,
@@ -258,6 +265,118 @@ fn polyline_fraction_matches_the_exact_strip_integral() {
     );
     assert!(whole_off * 1000 <= cases as usize, "{whole_off}");
     assert!(mean < 5e-3, "{mean}");
+}
+
+/// A disc across grid azimuth 0 sees the bands on both sides of it: the same horizon turned by
+/// 180° gives the same fraction for the same disc turned by 180°, and both match the exact strip
+/// integral. (Before, a disc whose left edge was below 0° skipped the bands inside it and took
+/// the straight chord between its edges: up to 26 epochs a year of the Earth's visibility at
+/// LOLA pixels, where the Earth stands near grid azimuth 0.)
+#[test]
+fn polyline_fraction_is_the_same_across_grid_azimuth_zero() {
+    use crate::illum::{Disc, DiscMethod, HorizonProfile, visible_fraction};
+    let n = 720;
+    let az: Vec<f64> = (0..n).map(|k| k as f64 * 360.0 / n as f64).collect();
+    // A notch 0.6° wide and 1.5° deep centred on grid azimuth 0 in a flat 1° horizon.
+    let notch = |a: f64| {
+        let d = (a + 180.0).rem_euclid(360.0) - 180.0;
+        if d.abs() <= 0.3 { -0.5 } else { 1.0 }
+    };
+    let h0: Vec<f64> = az.iter().map(|&a| notch(a)).collect();
+    let h180: Vec<f64> = az.iter().map(|&a| notch(a - 180.0)).collect();
+    let f32s = |h: &[f64]| {
+        let mut v: Vec<f32> = h.iter().map(|&x| x as f32).collect();
+        v.push(v[0]);
+        v
+    };
+    let (h0_32, h180_32) = (f32s(&h0), f32s(&h180));
+    let lookup = AzimuthLookup::new(&az).unwrap();
+    let chord = ChordTable::new(&LimbDarkening::UNIFORM);
+    let profile = HorizonProfile::new(&h0).unwrap();
+    let mut seen_through_notch = 0;
+    for i in 0..=40 {
+        // The disc's top (0.75°) is below the flat horizon: only the notch shows it.
+        let disc = Disc {
+            az_deg: -0.8 + 1.6 * f64::from(i) / 40.0,
+            el_deg: -0.2,
+            radius_deg: 0.95,
+        };
+        let half_span = (disc.radius_deg / disc.el_deg.to_radians().cos()) as f32;
+        let at = |h: &[f32], a: f64| {
+            super::kernel::polyline_fraction(
+                h,
+                &lookup,
+                disc.el_deg as f32,
+                a.rem_euclid(360.0) as f32,
+                disc.radius_deg as f32,
+                half_span,
+                &chord,
+            )
+        };
+        let (across, turned) = (at(&h0_32, disc.az_deg), at(&h180_32, disc.az_deg + 180.0));
+        let want = visible_fraction(&profile, &disc, DiscMethod::Exact, &LimbDarkening::UNIFORM);
+        assert!(
+            (across - turned).abs() < 1e-4,
+            "disc at {:.2}°: {across} across 0°, {turned} turned by 180°",
+            disc.az_deg
+        );
+        // Only the decision matters for the Earth (any part visible).
+        assert_eq!(
+            across > 1e-6,
+            want > 1e-6,
+            "disc at {:.2}°: {across} against the strip integral's {want}",
+            disc.az_deg
+        );
+        seen_through_notch += usize::from(want > 1e-6);
+    }
+    assert!(seen_through_notch >= 30, "{seen_through_notch}");
+}
+
+/// The shared sector classification decides most epochs without any per-cell geometry: it must
+/// never change a result. On a rough synthetic DEM, Sun and Earth every 5 h for a year, every
+/// statistic with the tables equals the one without, bit for bit.
+#[test]
+fn sector_tables_change_nothing() {
+    let (stack, mut horizons, bodies) = rough_terrain_year();
+    let params = StatisticsParams {
+        limb: LimbDarkening::EDDINGTON,
+        visible_min_fraction: 1e-6,
+        full_min_fraction: 0.999,
+    };
+    let mut engine = StatisticsEngine::new(&stack, params).unwrap();
+    let with = engine.run(&mut horizons, &bodies, |_| true).unwrap();
+    engine.sector_tables = false;
+    let without = engine.run(&mut horizons, &bodies, |_| true).unwrap();
+    let sometimes = with
+        .sun_visible_count
+        .iter()
+        .zip(&with.earth_visible_count)
+        .filter(|(s, e)| **s > 0 && **e > 0 && (**s as usize) < bodies.len())
+        .count();
+    assert!(
+        sometimes > 100,
+        "the test needs cells where both bodies vary"
+    );
+    assert_eq!(with.nodata, without.nodata);
+    assert_eq!(with.sun_visible_count, without.sun_visible_count);
+    assert_eq!(with.sun_full_count, without.sun_full_count);
+    assert_eq!(with.earth_visible_count, without.earth_visible_count);
+    assert_eq!(with.sun_and_earth_count, without.sun_and_earth_count);
+    assert_eq!(with.longest_dark_epochs, without.longest_dark_epochs);
+    assert_eq!(
+        with.longest_earth_hidden_epochs,
+        without.longest_earth_hidden_epochs
+    );
+    assert_eq!(with.sun_fraction_sum, without.sun_fraction_sum);
+    assert_eq!(
+        with.irradiance_horizontal_sum_w_m2,
+        without.irradiance_horizontal_sum_w_m2
+    );
+    assert_eq!(
+        with.irradiance_tracking_sum_w_m2,
+        without.irradiance_tracking_sum_w_m2
+    );
+    assert_eq!(with.below_sphere, without.below_sphere);
 }
 
 /// A store that keeps every block.
