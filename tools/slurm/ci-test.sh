@@ -28,7 +28,9 @@ cleanup() {
     tail -n 5 "$work"/maps.parts/logs/*.out "$state"/log/*.log 2>/dev/null >&2 || true
     echo "slurm test: FAILED (exit $status; files kept in $work)"
   elif [ "${KEEP:-0}" != 1 ]; then
-    rm -rf "$work"
+    # A daemon still finishing its state files must not turn a passed test into a failure.
+    rm -rf "$work" 2>/dev/null || { sleep 2; rm -rf "$work" 2>/dev/null; } ||
+      echo "slurm test: note: could not remove $work" >&2
   fi
 }
 trap cleanup EXIT

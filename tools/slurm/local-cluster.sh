@@ -63,10 +63,22 @@ CONF
   exit 1
   ;;
 stop)
+  pids=()
   for d in slurmd slurmctld; do
     if [ -f "$state/$d.pid" ]; then
-      kill "$(cat "$state/$d.pid")" 2>/dev/null || true
+      pid=$(cat "$state/$d.pid")
+      kill "$pid" 2>/dev/null && pids+=("$pid")
     fi
+  done
+  # Wait (up to 30 s) until the daemons have exited: slurmctld writes its state files while it
+  # shuts down, and a caller that deletes STATE_DIR at once races with it.
+  for _ in $(seq 300); do
+    alive=0
+    for pid in "${pids[@]}"; do
+      kill -0 "$pid" 2>/dev/null && alive=1
+    done
+    [ "$alive" = 0 ] && break
+    sleep 0.1
   done
   ;;
 *)
