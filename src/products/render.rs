@@ -536,13 +536,22 @@ impl FrameStore for NoFrameStore {
     }
 }
 
+/// A frame's lights from an epoch's.
+fn frame_lights(l: &crate::model::EpochLights) -> crate::render::Lights {
+    crate::render::Lights {
+        sun: l.sun,
+        sun_radius_rad: l.sun_radius_rad,
+        earth: l.earth,
+        earth_radius_rad: l.earth_radius_rad,
+    }
+}
+
 /// [`render_frames`], skipping the frames `store` has and telling it each frame rendered.
 pub fn render_frames_kept(
     opts: &RenderOptions,
     frames: &[(Epoch, crate::render::path::CameraPose)],
     store: &mut dyn FrameStore,
 ) -> anyhow::Result<RenderRun> {
-    use crate::render::Lights;
     let t0 = std::time::Instant::now();
     if frames.is_empty() {
         anyhow::bail!("no frames to render");
@@ -595,13 +604,7 @@ pub fn render_frames_kept(
             let h = ((u64::from(opts.height) * u64::from(w) / u64::from(opts.width)) as u32).max(1);
             let mut brightest: Option<f64> = None;
             for (l, placed) in lights_all.iter().zip(&placed) {
-                let lights = Lights {
-                    sun: l.sun,
-                    sun_radius_rad: l.sun_radius_rad,
-                    earth: l.earth,
-                    earth_radius_rad: l.earth_radius_rad,
-                };
-                let scene = job.fractions.scene(lights)?.with_brdf(job.brdf);
+                let scene = job.fractions.scene(frame_lights(l))?.with_brdf(job.brdf);
                 let samples = crate::compute::render::render_samples(
                     job.backend,
                     &scene,
@@ -630,14 +633,14 @@ pub fn render_frames_kept(
             files.extend(kept);
             continue;
         }
-        let lights = Lights {
-            sun: l.sun,
-            sun_radius_rad: l.sun_radius_rad,
-            earth: l.earth,
-            earth_radius_rad: l.earth_radius_rad,
-        };
-        let (written, sun_el_deg) =
-            render_one_frame(&job, placed, *epoch, lights, many.then_some(k), exposure)?;
+        let (written, sun_el_deg) = render_one_frame(
+            &job,
+            placed,
+            *epoch,
+            frame_lights(l),
+            many.then_some(k),
+            exposure,
+        )?;
         store.finished(k, &written)?;
         progress.inc(1);
         if let (false, Some(out)) = (many, written.last()) {

@@ -399,9 +399,40 @@ impl Dem {
         }
         let r = row.clamp(0.0, rows - 1.0);
         let c = col.clamp(0.0, cols - 1.0);
-        let r0 = (r.floor() as isize).min(self.grid.rows as isize - 2).max(0);
-        let c0 = (c.floor() as isize).min(self.grid.cols as isize - 2).max(0);
+        // r, c >= 0: truncation is the floor (and no call into libm's `floor`).
+        let r0 = (r as isize).min(self.grid.rows as isize - 2).max(0);
+        let c0 = (c as isize).min(self.grid.cols as isize - 2).max(0);
         let (fr, fc) = (r - r0 as f64, c - c0 as f64);
+        let weights = [
+            (1.0 - fr) * (1.0 - fc),
+            (1.0 - fr) * fc,
+            fr * (1.0 - fc),
+            fr * fc,
+        ];
+        // The common case, all four cells with data (then the nearest centre too): the same sum
+        // as below, without a branch (a zero weight adds a zero).
+        if let (Ok(r0u), Ok(c0u)) = (usize::try_from(r0), usize::try_from(c0))
+            && r0u + 1 < self.grid.rows
+            && c0u + 1 < self.grid.cols
+        {
+            let i = r0u * self.grid.cols + c0u;
+            let h = &self.heights_m;
+            let cells = [
+                h[i],
+                h[i + 1],
+                h[i + self.grid.cols],
+                h[i + self.grid.cols + 1],
+            ];
+            if !cells.iter().any(|v| v.is_nan()) {
+                let mut sum = 0.0;
+                let mut wsum = 0.0;
+                for (w, v) in weights.into_iter().zip(cells) {
+                    sum += w * f64::from(v);
+                    wsum += w;
+                }
+                return Some(sum / wsum);
+            }
+        }
         // Nearest centre must be valid.
         let nearest = self.cell_height_m(
             row.round().clamp(0.0, rows - 1.0) as isize,
@@ -410,16 +441,13 @@ impl Dem {
         nearest?;
         let mut sum = 0.0;
         let mut wsum = 0.0;
-        for (dr, wr) in [(0, 1.0 - fr), (1, fr)] {
-            for (dc, wc) in [(0, 1.0 - fc), (1, fc)] {
-                let w = wr * wc;
-                if w <= 0.0 {
-                    continue;
-                }
-                if let Some(h) = self.cell_height_m(r0 + dr, c0 + dc) {
-                    sum += w * f64::from(h);
-                    wsum += w;
-                }
+        for (k, w) in weights.into_iter().enumerate() {
+            if w <= 0.0 {
+                continue;
+            }
+            if let Some(h) = self.cell_height_m(r0 + (k / 2) as isize, c0 + (k % 2) as isize) {
+                sum += w * f64::from(h);
+                wsum += w;
             }
         }
         (wsum > 0.0).then(|| sum / wsum)

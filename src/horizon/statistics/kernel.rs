@@ -16,7 +16,7 @@
 )]
 
 use super::lookup::{AzimuthLookup, ChordTable, atan2_deg};
-use super::sectors::{BodySectors, Entry, SECTORS as PSI_SECTORS};
+use super::sectors::{BodySectors, Entry, MapFrame, SECTORS as PSI_SECTORS};
 use crate::illum::polyline_visible_fraction_uniform;
 
 /// Epochs per chunk (the chunk's arrays stay in L1 while a task's cells run over it).
@@ -65,8 +65,9 @@ pub(super) struct CellGeom {
     pub r_obs_km: f32,
     /// `up · U₀`, the grid centre's up (the shared sector classification).
     pub up_ref: f32,
-    /// Up, grid east and grid north in f64 (to build the cell's sector tables).
-    pub frame: [nalgebra::Vector3<f64>; 3],
+    /// The cell's frame in f64, to build its sector tables (`up`, `grid_east` and `grid_north`
+    /// above are its f32 copies for the per-epoch geometry).
+    pub frame: MapFrame,
     /// Where the cell's rays leave the outermost layer (the below-sphere count).
     pub beyond: super::BeyondDem,
     /// Whether the Sun and the Earth are seen at all, always whole, or sometimes cut, by bounds

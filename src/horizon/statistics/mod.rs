@@ -47,6 +47,7 @@ use rayon::prelude::*;
 pub use blocks::{BlockStore, NoStore};
 use kernel::{BOUND_SECTORS, CellAcc, CellGeom, Epochs, Scratch, Thresholds};
 pub use lookup::{AzimuthLookup, ChordTable};
+use sectors::MapFrame;
 pub use source::{
     HORIZON_NODATA_I16, HORIZON_PRODUCT, HorizonFile, HorizonRows, InMemoryHorizons,
     horizon_centideg,
@@ -302,16 +303,15 @@ impl BodyBounds {
     }
 }
 
-/// Radial up and the map's +x ("grid east") and +y ("grid north") directions on the sphere at
-/// map point `(x, y)` (unit vectors in `MOON_ME`).
-fn map_frame(projector: &UnitProjector, x: f64, y: f64) -> sectors::Reference {
+/// The [`MapFrame`] at map point `(x, y)`.
+fn map_frame(projector: &UnitProjector, x: f64, y: f64) -> MapFrame {
     let up = projector.unit_from_xy(x, y);
     let tangent = |d: nalgebra::Vector3<f64>| {
         let t = d - up * up.dot(&d);
         t / t.norm()
     };
     let eps_m = 1.0;
-    sectors::Reference {
+    MapFrame {
         up,
         east: tangent(projector.unit_from_xy(x + eps_m, y) - projector.unit_from_xy(x - eps_m, y)),
         north: tangent(projector.unit_from_xy(x, y + eps_m) - projector.unit_from_xy(x, y - eps_m)),
@@ -589,7 +589,7 @@ impl<'a> StatisticsEngine<'a> {
                                     ],
                                     reference: &reference,
                                     edges: &sector_edges,
-                                    frame: (cell.frame[0], cell.frame[1], cell.frame[2]),
+                                    frame: &cell.frame,
                                     r_obs_km: f64::from(cell.r_obs_km),
                                     h: &horizons[start..],
                                     lookup: &lookup,
@@ -675,7 +675,7 @@ impl<'a> StatisticsEngine<'a> {
         h_obs_m: f64,
         (block, block_px, i, n): (&[i16], usize, usize, usize),
         horizons: &mut Vec<f32>,
-        (bodies, reference, lookup): (&[BodyBounds; 2], &sectors::Reference, &AzimuthLookup),
+        (bodies, reference, lookup): (&[BodyBounds; 2], &MapFrame, &AzimuthLookup),
     ) -> Option<CellGeom> {
         let centre_up = reference.up;
         let fine = self.fine();
@@ -695,7 +695,8 @@ impl<'a> StatisticsEngine<'a> {
         let (row, col) = ((px / g.cols) as f64, (px % g.cols) as f64);
         let (x, y) = g.xy_from_row_col(row, col);
         let projector = UnitProjector::new(&fine.projection);
-        let sectors::Reference { up, east, north } = map_frame(&projector, x, y);
+        let frame = map_frame(&projector, x, y);
+        let MapFrame { up, east, north } = frame;
         let r0_m = MOON_RADIUS_M + ground_m + h_obs_m;
         let v32 = |v: nalgebra::Vector3<f64>| [v.x as f32, v.y as f32, v.z as f32];
         let h = &horizons[start..];
@@ -723,7 +724,7 @@ impl<'a> StatisticsEngine<'a> {
         Some(CellGeom {
             up: v32(up),
             up_ref: up.dot(&reference.up) as f32,
-            frame: [up, east, north],
+            frame,
             grid_east: v32(east),
             grid_north: v32(north),
             r_obs_km: (r0_m / 1000.0) as f32,

@@ -56,9 +56,11 @@ pub(super) type Entry = [f32; 4];
 /// An entry that decides nothing (every epoch of the sector takes the exact path).
 const UNDECIDED: Entry = [0.0, f32::INFINITY, 0.0, f32::NEG_INFINITY];
 
-/// The grid centre's frame, in `MOON_ME`.
+/// Radial up and the map's +x ("grid east") and +y ("grid north") directions on the sphere at a
+/// map point, unit vectors in `MOON_ME` (the grid centre's is the reference of the shared
+/// classification).
 #[derive(Debug, Clone, Copy)]
-pub(super) struct Reference {
+pub(super) struct MapFrame {
     pub east: Vector3<f64>,
     pub north: Vector3<f64>,
     pub up: Vector3<f64>,
@@ -99,7 +101,7 @@ impl BodySectors {
     pub fn new(
         epochs: &[EpochBodies],
         body: impl Fn(&EpochBodies) -> ([f64; 3], f64),
-        reference: &Reference,
+        reference: &MapFrame,
     ) -> Self {
         let mut s = BodySectors {
             enabled: true,
@@ -160,15 +162,16 @@ impl BodySectors {
     #[inline(always)]
     pub fn append_entries(
         &self,
-        reference: &Reference,
+        reference: &MapFrame,
         edges: &[(f32, f32)],
-        (up, east, north): (Vector3<f64>, Vector3<f64>, Vector3<f64>),
+        cell: &MapFrame,
         r_obs_km: f64,
         bins: &HorizonBins,
         visible_only: bool,
         scratch: &mut TableScratch,
         out: &mut Vec<Entry>,
     ) {
+        let MapFrame { up, east, north } = *cell;
         let base = out.len();
         out.resize(base + SECTORS, UNDECIDED);
         let out = &mut out[base..];
@@ -276,9 +279,10 @@ pub(super) struct CellTables<'a> {
     /// Each body's path, whether only "any part visible" matters, and whether the cell needs
     /// its table at all (a body it never or always sees needs none: the entries stay undecided).
     pub bodies: [(&'a BodySectors, bool, bool); 2],
-    pub reference: &'a Reference,
+    pub reference: &'a MapFrame,
     pub edges: &'a [(f32, f32)],
-    pub frame: (Vector3<f64>, Vector3<f64>, Vector3<f64>),
+    /// The cell's own frame.
+    pub frame: &'a MapFrame,
     pub r_obs_km: f64,
     pub h: &'a [f32],
     pub lookup: &'a AzimuthLookup,

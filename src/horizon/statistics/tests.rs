@@ -153,18 +153,67 @@ fn rough_terrain_year() -> (TerrainStack, InMemoryHorizons, Vec<EpochBodies>) {
     (stack, horizons, bodies)
 }
 
+/// The statistics parameters of the rough-terrain checks.
+fn rough_terrain_params() -> StatisticsParams {
+    StatisticsParams {
+        limb: LimbDarkening::EDDINGTON,
+        visible_min_fraction: 1e-6,
+        full_min_fraction: 0.999,
+    }
+}
+
+/// Every statistic of `a` equals that of `b`, bit for bit (each field named on failure).
+fn assert_statistics_equal(a: &HorizonStatistics, b: &HorizonStatistics) {
+    assert_eq!(a.epochs, b.epochs, "epochs");
+    assert_eq!(a.nodata, b.nodata, "nodata");
+    assert_eq!(
+        a.sun_visible_count, b.sun_visible_count,
+        "sun_visible_count"
+    );
+    assert_eq!(a.sun_full_count, b.sun_full_count, "sun_full_count");
+    assert_eq!(
+        a.earth_visible_count, b.earth_visible_count,
+        "earth_visible_count"
+    );
+    assert_eq!(
+        a.sun_and_earth_count, b.sun_and_earth_count,
+        "sun_and_earth_count"
+    );
+    assert_eq!(
+        a.longest_dark_epochs, b.longest_dark_epochs,
+        "longest_dark_epochs"
+    );
+    assert_eq!(
+        a.longest_earth_hidden_epochs, b.longest_earth_hidden_epochs,
+        "longest_earth_hidden_epochs"
+    );
+    // Bit for bit: compared as bits, so that a NaN in both also counts as equal.
+    let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    assert_eq!(
+        bits(&a.sun_fraction_sum),
+        bits(&b.sun_fraction_sum),
+        "sun_fraction_sum"
+    );
+    assert_eq!(
+        bits(&a.irradiance_horizontal_sum_w_m2),
+        bits(&b.irradiance_horizontal_sum_w_m2),
+        "irradiance_horizontal_sum_w_m2"
+    );
+    assert_eq!(
+        bits(&a.irradiance_tracking_sum_w_m2),
+        bits(&b.irradiance_tracking_sum_w_m2),
+        "irradiance_tracking_sum_w_m2"
+    );
+    assert_eq!(a.below_sphere, b.below_sphere, "below_sphere");
+}
+
 /// Cells that never (or always) see a body skip it: the bounds must never change a result. On a
 /// rough synthetic DEM (crater floors that never see the Sun, slopes that never see the Earth),
 /// every statistic with the skip equals the one without, bit for bit.
 #[test]
 fn skipping_unseen_bodies_changes_nothing() {
     let (stack, mut horizons, bodies) = rough_terrain_year();
-    let params = StatisticsParams {
-        limb: LimbDarkening::EDDINGTON,
-        visible_min_fraction: 1e-6,
-        full_min_fraction: 0.999,
-    };
-    let mut engine = StatisticsEngine::new(&stack, params).unwrap();
+    let mut engine = StatisticsEngine::new(&stack, rough_terrain_params()).unwrap();
     let with = engine.run(&mut horizons, &bodies, |_| true).unwrap();
     stored_blocks_are_taken_back(&engine, &mut horizons, &bodies, &with);
     engine.skip_unseen = false;
@@ -186,21 +235,7 @@ fn skipping_unseen_bodies_changes_nothing() {
         never_sun > 50 && never_earth > 50,
         "the test needs cells that skip"
     );
-    assert_eq!(with.sun_visible_count, without.sun_visible_count);
-    assert_eq!(with.sun_full_count, without.sun_full_count);
-    assert_eq!(with.earth_visible_count, without.earth_visible_count);
-    assert_eq!(with.sun_and_earth_count, without.sun_and_earth_count);
-    assert_eq!(with.longest_dark_epochs, without.longest_dark_epochs);
-    assert_eq!(
-        with.longest_earth_hidden_epochs,
-        without.longest_earth_hidden_epochs
-    );
-    assert_eq!(with.sun_fraction_sum, without.sun_fraction_sum);
-    assert_eq!(
-        with.irradiance_horizontal_sum_w_m2,
-        without.irradiance_horizontal_sum_w_m2
-    );
-    assert_eq!(with.below_sphere, without.below_sphere);
+    assert_statistics_equal(&with, &without);
 }
 
 /// The Earth's partial discs: the kernel's fraction over the band polyline (segment where it is
@@ -338,12 +373,7 @@ fn polyline_fraction_is_the_same_across_grid_azimuth_zero() {
 #[test]
 fn sector_tables_change_nothing() {
     let (stack, mut horizons, bodies) = rough_terrain_year();
-    let params = StatisticsParams {
-        limb: LimbDarkening::EDDINGTON,
-        visible_min_fraction: 1e-6,
-        full_min_fraction: 0.999,
-    };
-    let mut engine = StatisticsEngine::new(&stack, params).unwrap();
+    let mut engine = StatisticsEngine::new(&stack, rough_terrain_params()).unwrap();
     let with = engine.run(&mut horizons, &bodies, |_| true).unwrap();
     engine.sector_tables = false;
     let without = engine.run(&mut horizons, &bodies, |_| true).unwrap();
@@ -357,26 +387,7 @@ fn sector_tables_change_nothing() {
         sometimes > 100,
         "the test needs cells where both bodies vary"
     );
-    assert_eq!(with.nodata, without.nodata);
-    assert_eq!(with.sun_visible_count, without.sun_visible_count);
-    assert_eq!(with.sun_full_count, without.sun_full_count);
-    assert_eq!(with.earth_visible_count, without.earth_visible_count);
-    assert_eq!(with.sun_and_earth_count, without.sun_and_earth_count);
-    assert_eq!(with.longest_dark_epochs, without.longest_dark_epochs);
-    assert_eq!(
-        with.longest_earth_hidden_epochs,
-        without.longest_earth_hidden_epochs
-    );
-    assert_eq!(with.sun_fraction_sum, without.sun_fraction_sum);
-    assert_eq!(
-        with.irradiance_horizontal_sum_w_m2,
-        without.irradiance_horizontal_sum_w_m2
-    );
-    assert_eq!(
-        with.irradiance_tracking_sum_w_m2,
-        without.irradiance_tracking_sum_w_m2
-    );
-    assert_eq!(with.below_sphere, without.below_sphere);
+    assert_statistics_equal(&with, &without);
 }
 
 /// A store that keeps every block.

@@ -37,6 +37,9 @@ impl LineGeometry {
 /// long dependency chains of `atan` and `sin_cos`.
 pub(super) struct ArcTracker<'g> {
     geom: &'g LineGeometry,
+    /// `1 / L` and `2 ρc`.
+    inv_l: f64,
+    two_rho_c: f64,
     t_a: f64,
     tau_a: f64,
     psi_a: f64,
@@ -51,6 +54,8 @@ impl<'g> ArcTracker<'g> {
     pub(super) fn new(geom: &'g LineGeometry) -> Self {
         let mut a = ArcTracker {
             geom,
+            inv_l: 1.0 / geom.l_m,
+            two_rho_c: 2.0 * geom.rho_c,
             t_a: f64::NAN,
             tau_a: 0.0,
             psi_a: 0.0,
@@ -63,7 +68,7 @@ impl<'g> ArcTracker<'g> {
 
     fn anchor(&mut self, t_m: f64) {
         self.t_a = t_m;
-        self.tau_a = t_m / self.geom.l_m;
+        self.tau_a = t_m * self.inv_l;
         self.psi_a = self.geom.psi_rad(t_m);
         (self.sin_a, self.cos_a) = sin_cos_small(self.psi_a);
     }
@@ -74,14 +79,15 @@ impl<'g> ArcTracker<'g> {
         if (t_m - self.t_a).abs() > ANCHOR_SPAN_M {
             self.anchor(t_m);
         }
-        let tau = t_m / self.geom.l_m;
+        // Multiplications by constant reciprocals: a division costs several multiply-adds.
+        let tau = t_m * self.inv_l;
         let x = (tau - self.tau_a) / (1.0 + tau * self.tau_a);
         let x2 = x * x;
-        let atan_x = x * (1.0 - x2 * (1.0 / 3.0 - x2 * (1.0 / 5.0 - x2 / 7.0)));
-        let d = 2.0 * self.geom.rho_c * atan_x;
+        let atan_x = x * (1.0 - x2 * (1.0 / 3.0 - x2 * (1.0 / 5.0 - x2 * (1.0 / 7.0))));
+        let d = self.two_rho_c * atan_x;
         let d2 = d * d;
-        let sin_d = d * (1.0 - d2 / 6.0 * (1.0 - d2 / 20.0));
-        let cos_d = 1.0 - d2 / 2.0 * (1.0 - d2 / 12.0 * (1.0 - d2 / 30.0));
+        let sin_d = d * (1.0 - d2 * (1.0 / 6.0) * (1.0 - d2 * (1.0 / 20.0)));
+        let cos_d = 1.0 - d2 * 0.5 * (1.0 - d2 * (1.0 / 12.0) * (1.0 - d2 * (1.0 / 30.0)));
         (
             self.psi_a + d,
             self.sin_a * cos_d + self.cos_a * sin_d,

@@ -234,11 +234,22 @@ struct Scratch {
     template: Vec<TemplateEntry>,
     template_for: Option<(i32, i32)>,
     raw: Vec<(f64, f64, Option<usize>, bool)>,
-    fine: Vec<(f64, f64, Option<usize>)>,
     samples: Vec<Sample>,
     far: Vec<(f64, f64)>,
+    /// The t-ranges of the layers already sampled, and [`push_segment_samples`]' piece ends.
+    covered: Vec<(f64, f64)>,
+    ts: Vec<f64>,
     observers: Vec<LineObserver>,
-    hull: Vec<usize>,
+    hull: Vec<HullVertex>,
+}
+
+/// A vertex of a look's hull: the sample's plane coordinates (mirrored for the backward look),
+/// kept beside its index so that the hull's orientation tests read one array.
+#[derive(Debug, Clone, Copy)]
+struct HullVertex {
+    x_m: f64,
+    y_m: f64,
+    sample: usize,
 }
 
 /// A canonical line direction and the bands it serves forward and backward.
@@ -546,14 +557,14 @@ impl<'a> HorizonSweep<'a> {
         let Scratch {
             template,
             raw,
-            fine: fine_samples,
             samples,
             far,
+            covered,
+            ts,
             observers,
             ..
         } = scratch;
         raw.clear();
-        fine_samples.clear();
         samples.clear();
         observers.clear();
         far.clear();
@@ -574,24 +585,6 @@ impl<'a> HorizonSweep<'a> {
                 raw.push((t, h, (j == 0).then_some(base as usize), !e.crossing));
             }
         }
-        // Concave pieces get more samples (see `refine_piece`).
-        for (i, &(t, h, pixel, mid)) in raw.iter().enumerate() {
-            if mid {
-                match (i.checked_sub(1).map(|k| raw[k]), raw.get(i + 1)) {
-                    (Some((ta, ha, _, false)), Some(&(tb, hb, _, false))) => {
-                        refine_piece((ta, ha), h, (tb, hb), |t, h| {
-                            fine_samples.push((t, h, None))
-                        });
-                    }
-                    _ => fine_samples.push((t, h, None)),
-                }
-            } else {
-                fine_samples.push((t, h, pixel));
-            }
-        }
-        if fine_samples.is_empty() {
-            return None;
-        }
         let t_fine = (
             t0_m.min(t0_m + (m1 - m0) as f64 * step_m),
             t0_m.max(t0_m + (m1 - m0) as f64 * step_m),
@@ -599,19 +592,23 @@ impl<'a> HorizonSweep<'a> {
         // The finest layer's border beyond its outermost centres on this line (edge values
         // extended, as in `Dem::height_at_row_col`), then every coarser layer outside the
         // extents of the finer ones.
-        let mut covered = vec![t_fine];
+        covered.clear();
+        covered.push(t_fine);
         if let Some(((lo, hi), in_grid)) = extent_range(fine, &geom) {
-            push_segment_samples(fine, in_grid, (lo, t_fine.0), &covered, far);
-            push_segment_samples(fine, in_grid, (t_fine.1, hi), &covered, far);
+            push_segment_samples(fine, in_grid, (lo, t_fine.0), covered, ts, far);
+            push_segment_samples(fine, in_grid, (t_fine.1, hi), covered, ts, far);
             covered.push((lo, hi));
         }
         for dem in &self.stack.layers[1..] {
             if let Some((range, in_grid)) = extent_range(dem, &geom) {
-                push_segment_samples(dem, in_grid, range, &covered, far);
+                push_segment_samples(dem, in_grid, range, covered, ts, far);
                 covered.push(range);
             }
         }
         far.sort_by(|a, b| a.0.total_cmp(&b.0));
+        // The samples in increasing t (the arc tracker's order): the far ones before the finest
+        // layer's, its own (concave pieces get more samples, see `refine_piece`), the far ones
+        // after it.
         let mut arc = ArcTracker::new(&geom);
         let mut push = |samples: &mut Vec<Sample>, t: f64, h: f64| {
             let (psi, s, c) = arc.at(t);
@@ -627,14 +624,27 @@ impl<'a> HorizonSweep<'a> {
         for &(t, h) in far.iter().filter(|s| s.0 < t_fine.0) {
             push(samples, t, h);
         }
-        for &(t, h, pixel) in fine_samples.iter() {
-            if let Some(p) = pixel {
-                observers.push(LineObserver {
-                    sample: samples.len(),
-                    pixel: p,
-                });
+        let n_before = samples.len();
+        for (i, &(t, h, pixel, mid)) in raw.iter().enumerate() {
+            if mid {
+                match (i.checked_sub(1).map(|k| raw[k]), raw.get(i + 1)) {
+                    (Some((ta, ha, _, false)), Some(&(tb, hb, _, false))) => {
+                        refine_piece((ta, ha), h, (tb, hb), |t, h| push(samples, t, h));
+                    }
+                    _ => push(samples, t, h),
+                }
+            } else {
+                if let Some(p) = pixel {
+                    observers.push(LineObserver {
+                        sample: samples.len(),
+                        pixel: p,
+                    });
+                }
+                push(samples, t, h);
             }
-            push(samples, t, h);
+        }
+        if samples.len() == n_before {
+            return None;
         }
         for &(t, h) in far.iter().filter(|s| s.0 > t_fine.1) {
             push(samples, t, h);
@@ -692,18 +702,20 @@ impl<'a> HorizonSweep<'a> {
             while next < n && sign * samples[at(next)].psi_rad >= psi_o + theta_min_rad {
                 let q = at(next);
                 let (qx, qy) = xy(&samples[q]);
-                while hull.len() >= 2 {
-                    let b = xy(&samples[hull[hull.len() - 1]]);
-                    let c = xy(&samples[hull[hull.len() - 2]]);
+                while let [.., c, b] = hull.as_slice() {
                     // q, b, c in increasing psi: b stays if q → b → c turns clockwise.
-                    let cross = (b.0 - qx) * (c.1 - b.1) - (b.1 - qy) * (c.0 - b.0);
+                    let cross = (b.x_m - qx) * (c.y_m - b.y_m) - (b.y_m - qy) * (c.x_m - b.x_m);
                     if cross >= 0.0 {
                         hull.pop();
                     } else {
                         break;
                     }
                 }
-                hull.push(q);
+                hull.push(HullVertex {
+                    x_m: qx,
+                    y_m: qy,
+                    sample: q,
+                });
                 next += 1;
             }
             // The observer's own piece: from half a pixel out (where the per-site scan starts) to
@@ -754,9 +766,8 @@ impl<'a> HorizonSweep<'a> {
             let oy = r0 * c0;
             let higher = |i: usize| {
                 // Is hull[i - 1] (farther) above the ray observer → hull[i]?
-                let v = xy(&samples[hull[i]]);
-                let w = xy(&samples[hull[i - 1]]);
-                (v.0 - ox) * (w.1 - oy) - (v.1 - oy) * (w.0 - ox) > 0.0
+                let (v, w) = (hull[i], hull[i - 1]);
+                (v.x_m - ox) * (w.y_m - oy) - (v.y_m - oy) * (w.x_m - ox) > 0.0
             };
             let (mut lo, mut hi) = (0, hull.len() - 1);
             while lo < hi {
@@ -769,19 +780,19 @@ impl<'a> HorizonSweep<'a> {
             }
             // Exact 3-D elevation of the tangent vertex, and of a hull neighbour when it is within
             // NEAR_TIE_RAD of it in the plane (where the unrolling could swap them).
-            let tangent = samples[hull[lo]];
+            let v = hull[lo];
+            let tangent = samples[v.sample];
             offer(tangent.t_m, tangent.r_m, tangent.psi_rad);
-            let v = xy(&tangent);
-            let (vx, vy) = (v.0 - ox, v.1 - oy);
-            let v_len = vx.hypot(vy);
+            let (vx, vy) = (v.x_m - ox, v.y_m - oy);
+            // (No overflow or underflow to guard against: plain square roots, not `hypot`.)
+            let v_len = (vx * vx + vy * vy).sqrt();
             for i in [lo.wrapping_sub(1), lo + 1] {
-                let Some(&j) = hull.get(i) else { continue };
-                let w = xy(&samples[j]);
-                let (wx, wy) = (w.0 - ox, w.1 - oy);
+                let Some(&w) = hull.get(i) else { continue };
+                let (wx, wy) = (w.x_m - ox, w.y_m - oy);
                 // Sine of the angle by which w lies below the tangent ray.
-                let below = (wx * vy - wy * vx) / (v_len * wx.hypot(wy));
+                let below = (wx * vy - wy * vx) / (v_len * (wx * wx + wy * wy).sqrt());
                 if below.abs() < NEAR_TIE_RAD {
-                    let s = samples[j];
+                    let s = samples[w.sample];
                     offer(s.t_m, s.r_m, s.psi_rad);
                 }
             }

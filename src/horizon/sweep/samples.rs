@@ -100,12 +100,13 @@ pub(super) fn extent_range(dem: &Dem, geom: &LineGeometry) -> Option<((f64, f64)
 /// Pushes `(t, h)` samples of `dem` along the line for `t` in `[t_lo, t_hi]`: both ends, every
 /// crossing with a line through cell centres, and the midpoint of every piece between them
 /// (the per-site scan's samples but the in-patch tangent points), skipping `t` inside a
-/// `covered` range (closed).
+/// `covered` range (closed). `ts` is scratch space.
 pub(super) fn push_segment_samples(
     dem: &Dem,
     line_in_grid: [f64; 4],
     (t_lo, t_hi): (f64, f64),
     covered: &[(f64, f64)],
+    ts: &mut Vec<f64>,
     out: &mut Vec<(f64, f64)>,
 ) {
     if t_hi <= t_lo {
@@ -113,7 +114,8 @@ pub(super) fn push_segment_samples(
     }
     let [row_0, rb, col_0, cb] = line_in_grid;
     let (rows, cols) = (dem.grid.rows as f64, dem.grid.cols as f64);
-    let mut ts = vec![t_lo, t_hi];
+    ts.clear();
+    ts.extend([t_lo, t_hi]);
     for (a, b, n) in [(row_0, rb, rows), (col_0, cb, cols)] {
         if b.abs() < 1e-15 {
             continue;
@@ -150,20 +152,21 @@ pub(super) fn push_segment_samples(
         let (row, col) = (edge(row_0 + t * rb, rows), edge(col_0 + t * cb, cols));
         dem.height_at_row_col(row, col).map(|h| (t, h))
     };
+    // Each piece end is sampled once (the next piece starts where this one ends).
+    let mut here = ts.first().and_then(|&t| sample(t));
     for (i, &t) in ts.iter().enumerate() {
-        let here = sample(t);
         if let Some(p) = here {
             out.push(p);
         }
-        if let Some(&next) = ts.get(i + 1) {
-            let Some(mid) = sample(0.5 * (t + next)) else {
-                continue;
-            };
-            match (here, sample(next)) {
+        let Some(&next) = ts.get(i + 1) else { break };
+        let there = sample(next);
+        if let Some(mid) = sample(0.5 * (t + next)) {
+            match (here, there) {
                 (Some(a), Some(b)) => refine_piece(a, mid.1, b, |t, h| out.push((t, h))),
                 _ => out.push(mid),
             }
         }
+        here = there;
     }
 }
 
