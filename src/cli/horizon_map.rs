@@ -71,6 +71,12 @@ pub struct HorizonSweepArgs {
     /// Also write the distance to the horizon point (one float16 band per direction, km).
     #[arg(long, value_name = "FILE")]
     pub distance_out: Option<PathBuf>,
+    /// Compute backend: `cpu` (the rayon sweep, f64, exact 3-D elevations; the default until
+    /// the GPU path is timed on a hardware GPU), `gpu` (lines built on the CPU, hulls and
+    /// tangents in shaders/line_sweep.wgsl, f32; within 0.01 deg of the CPU sweep, docs/gpu.md)
+    /// or `auto` (the GPU when a hardware adapter exists, else the CPU with one warning line).
+    #[arg(long, value_enum, default_value_t = BackendArg::Cpu)]
+    pub backend: BackendArg,
 }
 
 /// Runs `penumbra horizon-map …`.
@@ -94,6 +100,7 @@ pub fn run(command: HorizonMapCommand) -> anyhow::Result<()> {
                 max_step: args.max_step,
                 out: args.out,
                 distance_out: args.distance_out,
+                backend: args.backend.into(),
             })
         }
         HorizonMapCommand::Info { file } => {

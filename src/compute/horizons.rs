@@ -1,6 +1,6 @@
 //! Horizons on the resolved backend: one site's profile, and a whole-grid Fourier horizon map.
 
-use crate::horizon::{Horizon, HorizonEngine, HorizonParams};
+use crate::horizon::{Horizon, HorizonEngine, HorizonParams, HorizonSweep, SweepBand};
 use crate::shadow::fourier::{HorizonMap, HorizonMapParams};
 use crate::terrain::{HeightField, TerrainStack};
 
@@ -48,6 +48,25 @@ pub fn horizon_map(
         ResolvedBackend::Gpu(ctx) => {
             Ok(crate::gpu::fourier::build_horizon_map_gpu(ctx, hf, params)?)
         }
+        #[cfg(not(feature = "gpu"))]
+        ResolvedBackend::Gpu(ctx) => match **ctx {},
+    }
+}
+
+/// The whole-grid line sweep on the resolved backend: the CPU sweep (f64, exact 3-D
+/// elevations), or its looks on the GPU (`shaders/line_sweep.wgsl`, f32: lines built and packed
+/// on the CPU, hulls and tangents on the GPU; within 0.01° of the CPU sweep, docs/gpu.md). Bands
+/// go to `sink` in the same order and layout either way.
+pub fn run_sweep(
+    backend: &ResolvedBackend,
+    sweep: &HorizonSweep,
+    sink: impl FnMut(SweepBand<'_>) -> anyhow::Result<()>,
+    progress: impl FnMut(usize),
+) -> anyhow::Result<()> {
+    match backend {
+        ResolvedBackend::Cpu => sweep.run(sink, progress),
+        #[cfg(feature = "gpu")]
+        ResolvedBackend::Gpu(ctx) => crate::gpu::line_sweep::sweep_gpu(ctx, sweep, sink, progress),
         #[cfg(not(feature = "gpu"))]
         ResolvedBackend::Gpu(ctx) => match **ctx {},
     }

@@ -211,10 +211,14 @@ pub fn horizon_statistics_rows(
                 "penumbra: horizons [{bar:40}] {pos}/{len} directions, {elapsed} (eta {eta})",
             );
             let total = sweep.directions().len();
-            let h = InMemoryHorizons::sweep(&sweep, |done| {
-                progress.set_position(done as u64);
-                report(done, total)
-            })?;
+            let h = InMemoryHorizons::sweep_with::<anyhow::Error>(
+                &sweep,
+                |sink| super::horizons::run_sweep(backend, &sweep, sink, |_| {}),
+                |done| {
+                    progress.set_position(done as u64);
+                    report(done, total)
+                },
+            )?;
             progress.finish_and_clear();
             crate::note!(
                 "penumbra: horizons of {} x {} px toward {} directions in {:.1} s ({:.0} MB)",
@@ -264,13 +268,18 @@ pub fn horizon_statistics_rows(
             format!("line sweep in memory ({azimuths} azimuths requested, max step {max_step})")
         }
     };
-    let cpu_note = match backend {
-        ResolvedBackend::Cpu => "",
-        ResolvedBackend::Gpu(_) => " (the horizons engine has no GPU kernel yet)",
+    let ran = match (backend, &map.horizons) {
+        (ResolvedBackend::Gpu(_), HorizonsFrom::Sweep { .. }) => {
+            "gpu (the line sweep's hulls and tangents; statistics on the CPU)"
+        }
+        (ResolvedBackend::Gpu(_), HorizonsFrom::File(_)) => {
+            "cpu (the statistics reduction has no GPU kernel yet)"
+        }
+        (ResolvedBackend::Cpu, _) => "cpu",
     };
     let note = format!(
-        "cpu{cpu_note}: horizons engine ({from}; {} limb darkening; each pixel's own Sun and \
-         Earth directions)",
+        "{ran}: horizons engine ({from}; {} limb darkening; each pixel's own Sun and Earth \
+         directions)",
         map.limb.name()
     );
     Ok((stats, note))

@@ -26,6 +26,8 @@ pub mod fourier;
 #[cfg(feature = "gpu")]
 pub mod horizon;
 #[cfg(feature = "gpu")]
+pub mod line_sweep;
+#[cfg(feature = "gpu")]
 pub mod render;
 #[cfg(feature = "gpu")]
 pub mod shadow_march;

@@ -43,7 +43,7 @@ pub mod sweep;
 
 pub use io::{write_csv, write_json};
 pub use scan::HorizonEngine;
-pub use sweep::{HorizonSweep, SweepBand, SweepDirection, SweepParams};
+pub use sweep::{HorizonSweep, SweepBand, SweepDirection, SweepParams, SweepScratch, SweptLine};
 
 use serde::Serialize;
 

@@ -72,6 +72,8 @@ pub struct HorizonSweepRequest {
     pub out: PathBuf,
     /// Optional GeoTIFF of the distance to the horizon point: one float16 band per direction, km.
     pub distance_out: Option<PathBuf>,
+    /// Compute backend: the CPU sweep, or its looks on the GPU.
+    pub backend: Backend,
 }
 
 pub use crate::horizon::statistics::HORIZON_NODATA_I16;
@@ -90,6 +92,7 @@ pub fn sweep(req: &HorizonSweepRequest) -> anyhow::Result<()> {
     use crate::terrain::geotiff::{BandSample, MultiBandTiff};
 
     let (stack, _) = req.terrain.load()?;
+    let backend = crate::compute::resolve(req.backend)?;
     let params = SweepParams {
         observer_height_m: req.observer_height_m,
         azimuths: req.azimuths,
@@ -158,7 +161,9 @@ pub fn sweep(req: &HorizonSweepRequest) -> anyhow::Result<()> {
         dirs.len(),
         "penumbra: sweep [{bar:40}] {pos}/{len} bands, {elapsed} (eta {eta})",
     );
-    sweep.run(
+    crate::compute::horizons::run_sweep(
+        &backend,
+        &sweep,
         |band| -> anyhow::Result<()> {
             let words: Vec<u16> = band
                 .elevation_deg
@@ -186,7 +191,7 @@ pub fn sweep(req: &HorizonSweepRequest) -> anyhow::Result<()> {
     let secs = t0.elapsed().as_secs_f64();
     let pixel_az = (dem.grid.rows * dem.grid.cols * dirs.len()) as f64;
     crate::note!(
-        "penumbra: horizons {} x {} x {} directions (requested {}, max step {}, largest miss {:.2} deg) in {:.1} s ({:.2} M pixel-azimuths/s) -> {}",
+        "penumbra: horizons {} x {} x {} directions (requested {}, max step {}, largest miss {:.2} deg) in {:.1} s ({:.2} M pixel-azimuths/s, {}) -> {}",
         dem.grid.rows,
         dem.grid.cols,
         dirs.len(),
@@ -195,6 +200,7 @@ pub fn sweep(req: &HorizonSweepRequest) -> anyhow::Result<()> {
         worst_miss,
         secs,
         pixel_az / secs / 1e6,
+        backend.describe(),
         req.out.display()
     );
     Ok(())

@@ -9,6 +9,7 @@ mod gpu;
 mod gpu_dp;
 mod gpu_fourier;
 mod gpu_horizon;
+mod gpu_line_sweep;
 mod gpu_tiles;
 mod horizon;
 mod horizon_sweep;

@@ -4,7 +4,7 @@
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 
-use super::super::{HorizonError, HorizonSweep};
+use super::super::{HorizonError, HorizonSweep, SweepBand};
 use crate::terrain::geotiff::{BandSample, MultiBandTiffReader};
 use crate::terrain::{GridGeometry, Projection};
 
@@ -51,27 +51,34 @@ impl InMemoryHorizons {
     /// when it returns `false` the sweep stops with [`HorizonError::Interrupted`].
     pub fn sweep(
         sweep: &HorizonSweep<'_>,
-        mut progress: impl FnMut(usize) -> bool,
+        progress: impl FnMut(usize) -> bool,
     ) -> Result<Self, HorizonError> {
+        Self::sweep_with(sweep, |sink| sweep.run(sink, |_| {}), progress)
+    }
+
+    /// As [`Self::sweep`], with the bands produced by `run` (which hands every band of `sweep`
+    /// to the sink it gets: the CPU sweep, or its looks on the GPU).
+    pub fn sweep_with<E: From<HorizonError>>(
+        sweep: &HorizonSweep<'_>,
+        run: impl FnOnce(&mut dyn FnMut(SweepBand<'_>) -> Result<(), E>) -> Result<(), E>,
+        mut progress: impl FnMut(usize) -> bool,
+    ) -> Result<Self, E> {
         let dirs = sweep.directions();
         let mut bands = vec![Vec::new(); dirs.len()];
         let mut done = 0;
-        sweep.run(
-            |band| {
-                bands[band.index] = band
-                    .elevation_deg
-                    .iter()
-                    .map(|&e| horizon_centideg(e))
-                    .collect();
-                done += 1;
-                if progress(done) {
-                    Ok(())
-                } else {
-                    Err(HorizonError::Interrupted)
-                }
-            },
-            |_| {},
-        )?;
+        run(&mut |band| {
+            bands[band.index] = band
+                .elevation_deg
+                .iter()
+                .map(|&e| horizon_centideg(e))
+                .collect();
+            done += 1;
+            if progress(done) {
+                Ok(())
+            } else {
+                Err(E::from(HorizonError::Interrupted))
+            }
+        })?;
         Ok(InMemoryHorizons {
             grid: sweep.grid_dem().grid,
             grid_az_deg: dirs.iter().map(|d| d.grid_az_deg).collect(),

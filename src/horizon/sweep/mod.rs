@@ -208,33 +208,53 @@ pub struct HorizonSweep<'a> {
 
 /// One terrain sample along a line.
 #[derive(Debug, Clone, Copy)]
-struct Sample {
+pub struct LineSample {
     /// Map distance along the line from its foot, metres.
-    t_m: f64,
-    /// Arc on the unrolled cone, radians (≈ ground angle).
-    psi_rad: f64,
+    pub t_m: f64,
+    /// Arc on the unrolled cone, radians (≈ ground angle), 0 at the line's foot.
+    pub psi_rad: f64,
     /// Distance from the Moon's centre, metres.
-    r_m: f64,
-    /// Unrolled-cone plane coordinates `(r sin ψ, r cos ψ)`, metres.
-    x_m: f64,
-    y_m: f64,
+    pub r_m: f64,
+    /// Unrolled-cone plane coordinate `r sin ψ`, metres.
+    pub x_m: f64,
+    /// Unrolled-cone plane coordinate `r cos ψ`, metres.
+    pub y_m: f64,
 }
 
-/// An observer on a line: its sample and pixel.
+/// An observer on a line: its sample (index into the line's samples) and pixel (row-major
+/// index on the finest layer).
 #[derive(Debug, Clone, Copy)]
-struct LineObserver {
-    sample: usize,
-    pixel: usize,
+pub struct LineObserver {
+    /// Index into the line's samples.
+    pub sample: usize,
+    /// Row-major pixel index on the finest layer.
+    pub pixel: usize,
 }
 
-/// Per-thread buffers.
+/// One line of a sweep direction as the CPU sweep samples it (see [`HorizonSweep::with_line`]):
+/// what the GPU kernel of `crate::twins::line_sweep` receives, packed in f32.
+#[derive(Debug, Clone, Copy)]
+pub struct SweptLine<'s> {
+    /// `ρc` of the module docs (the cone's unrolling factor; 1 through the pole).
+    pub rho_c: f64,
+    /// `L` of the module docs, metres (`ψ = 2 ρc atan(t / L)`).
+    pub l_m: f64,
+    /// Map direction of increasing `t` (unit vector, map x and y).
+    pub ell: (f64, f64),
+    /// The samples in increasing `t` (all layers).
+    pub samples: &'s [LineSample],
+    /// Every pixel centre on the line (kept rows or not), in increasing `t`.
+    pub observers: &'s [LineObserver],
+}
+
+/// Per-thread buffers of the sweep (reused from line to line).
 #[derive(Default)]
-struct Scratch {
+pub struct SweepScratch {
     /// The step template of the direction being swept (see [`step_template`]).
     template: Vec<TemplateEntry>,
     template_for: Option<(i32, i32)>,
     raw: Vec<(f64, f64, Option<usize>, bool)>,
-    samples: Vec<Sample>,
+    samples: Vec<LineSample>,
     far: Vec<(f64, f64)>,
     /// The t-ranges of the layers already sampled, and [`push_segment_samples`]' piece ends.
     covered: Vec<(f64, f64)>,
@@ -253,7 +273,7 @@ struct HullVertex {
 }
 
 /// A canonical line direction and the bands it serves forward and backward.
-type LineDirection = ((i32, i32), Option<usize>, Option<usize>);
+pub type LineDirection = ((i32, i32), Option<usize>, Option<usize>);
 
 /// One look of one observer: `(pixel, elevation deg, distance m)`.
 type Look = (u32, f32, f32);
@@ -396,7 +416,7 @@ impl<'a> HorizonSweep<'a> {
         let grid = &self.grid_dem().grid;
         let (d_row, d_col) = (-canonical.1 as i64, canonical.0 as i64);
         let key = col as i64 * d_row - row as i64 * d_col;
-        let mut scratch = Scratch::default();
+        let mut scratch = SweepScratch::default();
         let mut looks = Vec::new();
         if forward {
             self.sweep_line(canonical, key, &mut scratch, Some(&mut looks), None);
@@ -412,7 +432,7 @@ impl<'a> HorizonSweep<'a> {
 
     /// The canonical line directions (`dcol > 0`, or `dcol == 0` and `dnorth > 0`) with the bands
     /// they serve forward (`+step`) and backward (`−step`).
-    fn line_directions(&self) -> Vec<LineDirection> {
+    pub fn line_directions(&self) -> Vec<LineDirection> {
         let mut out: Vec<LineDirection> = Vec::new();
         for (i, d) in self.directions.iter().enumerate() {
             let (canonical, forward) = canonical_of(d.dcol, d.dnorth);
@@ -432,13 +452,9 @@ impl<'a> HorizonSweep<'a> {
         out
     }
 
-    /// All lines of one canonical direction: the looks forward and backward.
-    fn sweep_direction(
-        &self,
-        canonical: (i32, i32),
-        forward: bool,
-        backward: bool,
-    ) -> (Vec<Look>, Vec<Look>) {
+    /// The keys of the lines of one canonical direction that cross the kept rows (see
+    /// [`Self::with_line`]).
+    pub fn line_keys(&self, canonical: (i32, i32)) -> std::ops::RangeInclusive<i64> {
         let g = &self.grid_dem().grid;
         let (d_row, d_col) = (-canonical.1 as i64, canonical.0 as i64);
         let key_of = |r: i64, c: i64| c * d_row - r * d_col;
@@ -450,16 +466,52 @@ impl<'a> HorizonSweep<'a> {
             key_of(r1, 0),
             key_of(r1, g.cols as i64 - 1),
         ];
-        let (k0, k1) = (
-            *corners.iter().min().expect("four corners"),
-            *corners.iter().max().expect("four corners"),
-        );
-        let n_keys = usize::try_from(k1 - k0 + 1).expect("key range fits");
+        let k0 = *corners.iter().min().expect("four corners");
+        let k1 = *corners.iter().max().expect("four corners");
+        k0..=k1
+    }
+
+    /// Builds line `key` of a canonical direction (from [`Self::line_directions`] and
+    /// [`Self::line_keys`]) exactly as the CPU sweep samples it and hands it to `f`; `None` when
+    /// the line holds no pixel centre with data.
+    pub fn with_line<R>(
+        &self,
+        canonical: (i32, i32),
+        key: i64,
+        scratch: &mut SweepScratch,
+        f: impl FnOnce(SweptLine<'_>) -> R,
+    ) -> Option<R> {
+        let geom = self.build_line(canonical, key, scratch)?;
+        Some(f(SweptLine {
+            rho_c: geom.rho_c,
+            l_m: geom.l_m,
+            ell: geom.ell,
+            samples: &scratch.samples,
+            observers: &scratch.observers,
+        }))
+    }
+
+    /// Half a pixel of the finest layer as a ground angle, radians: terrain closer to an
+    /// observer than this is not part of its horizon (as in the per-site scan).
+    pub fn theta_min_rad(&self) -> f64 {
+        0.5 * self.grid_dem().px_m() / MOON_RADIUS_M
+    }
+
+    /// All lines of one canonical direction: the looks forward and backward.
+    fn sweep_direction(
+        &self,
+        canonical: (i32, i32),
+        forward: bool,
+        backward: bool,
+    ) -> (Vec<Look>, Vec<Look>) {
+        let keys = self.line_keys(canonical);
+        let k0 = *keys.start();
+        let n_keys = usize::try_from(keys.end() - k0 + 1).expect("key range fits");
         let chunks: Vec<(Vec<Look>, Vec<Look>)> = (0..n_keys)
             .into_par_iter()
             .with_min_len(16)
             .fold(
-                || (Scratch::default(), Vec::new(), Vec::new()),
+                || (SweepScratch::default(), Vec::new(), Vec::new()),
                 |(mut scratch, mut f, mut b), i| {
                     let key = k0 + i as i64;
                     self.sweep_line(
@@ -489,14 +541,14 @@ impl<'a> HorizonSweep<'a> {
         &self,
         canonical: (i32, i32),
         key: i64,
-        scratch: &mut Scratch,
+        scratch: &mut SweepScratch,
         forward: Option<&mut Vec<Look>>,
         backward: Option<&mut Vec<Look>>,
     ) {
         let Some(geom) = self.build_line(canonical, key, scratch) else {
             return;
         };
-        let theta_min_rad = 0.5 * self.grid_dem().px_m() / MOON_RADIUS_M;
+        let theta_min_rad = self.theta_min_rad();
         if let Some(out) = forward {
             self.look(&geom, scratch, theta_min_rad, 1.0, out);
         }
@@ -511,7 +563,7 @@ impl<'a> HorizonSweep<'a> {
         &self,
         canonical: (i32, i32),
         key: i64,
-        scratch: &mut Scratch,
+        scratch: &mut SweepScratch,
     ) -> Option<LineGeometry> {
         let fine = self.grid_dem();
         let g = &fine.grid;
@@ -554,7 +606,7 @@ impl<'a> HorizonSweep<'a> {
             scratch.template = step_template(d_row, d_col, cols);
             scratch.template_for = Some(canonical);
         }
-        let Scratch {
+        let SweepScratch {
             template,
             raw,
             samples,
@@ -610,10 +662,10 @@ impl<'a> HorizonSweep<'a> {
         // layer's, its own (concave pieces get more samples, see `refine_piece`), the far ones
         // after it.
         let mut arc = ArcTracker::new(&geom);
-        let mut push = |samples: &mut Vec<Sample>, t: f64, h: f64| {
+        let mut push = |samples: &mut Vec<LineSample>, t: f64, h: f64| {
             let (psi, s, c) = arc.at(t);
             let r = MOON_RADIUS_M + h;
-            samples.push(Sample {
+            samples.push(LineSample {
                 t_m: t,
                 psi_rad: psi,
                 r_m: r,
@@ -656,12 +708,12 @@ impl<'a> HorizonSweep<'a> {
     fn look(
         &self,
         geom: &LineGeometry,
-        scratch: &mut Scratch,
+        scratch: &mut SweepScratch,
         theta_min_rad: f64,
         sign: f64,
         out: &mut Vec<Look>,
     ) {
-        let Scratch {
+        let SweepScratch {
             samples,
             observers,
             hull,
@@ -679,7 +731,7 @@ impl<'a> HorizonSweep<'a> {
             }
         };
         // Mirrored plane coordinates for the backward look.
-        let xy = |s: &Sample| (sign * s.x_m, s.y_m);
+        let xy = |s: &LineSample| (sign * s.x_m, s.y_m);
         let mut next = 0;
         let h_obs = self.params.observer_height_m;
         // The kept pixels (the kept rows): the rows along a line are monotonic, so the walk
