@@ -2,7 +2,9 @@
 //! the hard-shadow march (one Sun direction, 1.5° elevation) and the epoch sweep (32 epochs)
 //! on synthetic hills of 128² and 256² cells. Throughput is cells (march) or cell-epochs (sweep).
 //! Also `dp_soft` (one soft map) and `fourier_build` / `fourier_eval` (Fourier horizon maps,
-//! CPU engine vs GPU; throughput rays = cells × azimuths, and cells).
+//! CPU engine vs GPU; throughput rays = cells × azimuths, and cells), and `line_sweep` (the
+//! whole-grid line sweep: the f64 CPU sweep, the twin and the GPU path end to end, and the looks
+//! alone on one packed batch, twin vs GPU; throughput pixel-azimuths).
 //!
 //! Run: `WGPU_BACKEND=vulkan cargo bench --bench gpu` (GPU part skipped with a printed reason
 //! when no adapter exists). On a GPU machine without cargo: `tools/gpu-bench.sh`.
@@ -279,6 +281,87 @@ fn bench_dp_tiled(c: &mut Criterion, ctx: Option<&GpuContext>) {
     group.finish();
 }
 
+/// The line sweep on a 256² × 100 m polar DEM 60 km from the pole (hills and 15 m roughness),
+/// 64 requested azimuths, max step 8.
+fn bench_line_sweep(c: &mut Criterion, ctx: Option<&GpuContext>) {
+    use penumbra::horizon::{HorizonSweep, SweepParams, SweepScratch};
+    use penumbra::terrain::TerrainStack;
+    use penumbra::twins::line_sweep::{
+        LineBatch, SweepGrid, TWIN_BATCH_SAMPLES, line_sweep_twin, sweep_twin,
+    };
+    let n = 256;
+    let dem = penumbra::terrain::synth::square_dem_at(n, 100.0, (40e3, -45e3), "hills", |x, y| {
+        let hash = ((x * 12.9898 + y * 78.233).sin() * 43758.5453).fract();
+        800.0 * (x / 9_000.0).sin() * (y / 7_000.0).cos() + 15.0 * hash
+    });
+    let stack = TerrainStack::new(vec![dem]);
+    let params = SweepParams {
+        observer_height_m: 2.0,
+        azimuths: 64,
+        max_step: 8,
+    };
+    let sweep = HorizonSweep::new(&stack, params).expect("sweep");
+    let n_dirs = sweep.directions().len();
+    let mut group = c.benchmark_group("line_sweep");
+    group
+        .sample_size(10)
+        .measurement_time(Duration::from_secs(8));
+    group.throughput(Throughput::Elements((n * n * n_dirs) as u64));
+    let sink = |_: penumbra::horizon::SweepBand<'_>| -> Result<(), String> { Ok(()) };
+    group.bench_function(BenchmarkId::new("cpu_f64", n), |b| {
+        b.iter(|| sweep.run(sink, |_| {}).expect("cpu sweep"))
+    });
+    group.bench_function(BenchmarkId::new("twin", n), |b| {
+        b.iter(|| sweep_twin(&sweep, sink, |_| {}).expect("twin sweep"))
+    });
+    if let Some(ctx) = ctx {
+        group.bench_function(BenchmarkId::new("gpu", n), |b| {
+            b.iter(|| {
+                penumbra::gpu::line_sweep::sweep_gpu::<penumbra::gpu::GpuError>(
+                    ctx,
+                    &sweep,
+                    |_| Ok(()),
+                    |_| {},
+                )
+                .expect("gpu sweep")
+            })
+        });
+    }
+    // The looks alone: every line of as many directions as one batch of at most
+    // `TWIN_BATCH_SAMPLES` holds (lavapipe's binding limit).
+    let grid = SweepGrid::new(&sweep);
+    let cols = sweep.grid_dem().grid.cols;
+    let kept = 0..sweep.grid_dem().grid.rows * cols;
+    let mut batch = LineBatch::default();
+    let mut scratch = SweepScratch::default();
+    let mut looks = 0;
+    for (canonical, f, bwd) in sweep.line_directions() {
+        let wanted = u32::from(f.is_some()) | (u32::from(bwd.is_some()) << 1);
+        let mut dir_batch = LineBatch::default();
+        for key in sweep.line_keys(canonical) {
+            sweep.with_line(canonical, key, &mut scratch, |line| {
+                dir_batch.push_line(&line, wanted, &kept)
+            });
+        }
+        if batch.samples.len() + dir_batch.samples.len() > TWIN_BATCH_SAMPLES {
+            break;
+        }
+        batch.append(&dir_batch);
+        looks += usize::from(f.is_some()) + usize::from(bwd.is_some());
+    }
+    group.throughput(Throughput::Elements((n * n * looks) as u64));
+    group.bench_function(BenchmarkId::new("looks_twin", n), |b| {
+        b.iter(|| line_sweep_twin(&grid, &batch))
+    });
+    if let Some(ctx) = ctx {
+        let runner = penumbra::gpu::line_sweep::GpuLineSweep::new(ctx, &grid).expect("runner");
+        group.bench_function(BenchmarkId::new("looks_gpu", n), |b| {
+            b.iter(|| runner.run_batch(ctx, &batch).expect("gpu looks"))
+        });
+    }
+    group.finish();
+}
+
 fn bench_gpu(c: &mut Criterion) {
     let ctx = context();
     bench_march(c, ctx.as_ref());
@@ -286,6 +369,7 @@ fn bench_gpu(c: &mut Criterion) {
     bench_dp_soft(c, ctx.as_ref());
     bench_fourier(c, ctx.as_ref());
     bench_dp_tiled(c, ctx.as_ref());
+    bench_line_sweep(c, ctx.as_ref());
 }
 
 criterion_group!(benches, bench_gpu);

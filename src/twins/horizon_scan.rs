@@ -364,42 +364,9 @@ impl Scan<'_> {
 
     fn height_at(&self, l: usize, row: f32, col: f32) -> f32 {
         let layer = &self.params.layers[l];
-        let rows = layer.rows as f32;
-        let cols = layer.cols as f32;
-        if !(row >= -0.5 && col >= -0.5 && row <= rows - 0.5 && col <= cols - 0.5) {
-            return NO_SAMPLE;
-        }
-        let r = row.clamp(0.0, rows - 1.0);
-        let c = col.clamp(0.0, cols - 1.0);
-        let r0 = (r.floor() as i32).min(layer.rows as i32 - 2).max(0);
-        let c0 = (c.floor() as i32).min(layer.cols as i32 - 2).max(0);
-        let fr = r - r0 as f32;
-        let fc = c - c0 as f32;
-        let rn = (row + 0.5).floor().clamp(0.0, rows - 1.0) as i32;
-        let cn = (col + 0.5).floor().clamp(0.0, cols - 1.0) as i32;
-        if self.cell_height(l, rn, cn) < HOLE_TEST_M {
-            return NO_SAMPLE;
-        }
-        let mut sum = 0.0;
-        let mut wsum = 0.0;
-        for dr in 0..2 {
-            let wr = if dr == 1 { fr } else { 1.0 - fr };
-            for dc in 0..2 {
-                let w = wr * if dc == 1 { fc } else { 1.0 - fc };
-                if w <= 0.0 {
-                    continue;
-                }
-                let h = self.cell_height(l, r0 + dr, c0 + dc);
-                if h >= HOLE_TEST_M {
-                    sum += w * h;
-                    wsum += w;
-                }
-            }
-        }
-        if wsum > 0.0 {
-            return sum / wsum;
-        }
-        NO_SAMPLE
+        super::bilinear_with_holes(layer.rows, layer.cols, row, col, |r, c| {
+            self.cell_height(l, r, c)
+        })
     }
 
     fn row_col(&self, l: usize, u: [f32; 3]) -> [f32; 2] {

@@ -313,45 +313,12 @@ fn cell_height(params: &LineSweepParams, heights: &[f32], row: i32, col: i32) ->
     heights[row as usize * params.cols as usize + col as usize]
 }
 
-/// Nodata-aware bilinear height at fractional (row, col) of the finest layer (as
-/// `Dem::height_at_row_col`; the same function as `height_at` of horizon_scan.wgsl, one layer).
+/// Nodata-aware bilinear height at fractional (row, col) of the finest layer (`height_at` of
+/// line_sweep.wgsl).
 fn height_at(params: &LineSweepParams, heights: &[f32], row: f32, col: f32) -> f32 {
-    let rows = params.rows as f32;
-    let cols = params.cols as f32;
-    if !(row >= -0.5 && col >= -0.5 && row <= rows - 0.5 && col <= cols - 0.5) {
-        return NO_SAMPLE;
-    }
-    let r = row.clamp(0.0, rows - 1.0);
-    let c = col.clamp(0.0, cols - 1.0);
-    let r0 = (r.floor() as i32).min(params.rows as i32 - 2).max(0);
-    let c0 = (c.floor() as i32).min(params.cols as i32 - 2).max(0);
-    let fr = r - r0 as f32;
-    let fc = c - c0 as f32;
-    let rn = (row + 0.5).floor().clamp(0.0, rows - 1.0) as i32;
-    let cn = (col + 0.5).floor().clamp(0.0, cols - 1.0) as i32;
-    if cell_height(params, heights, rn, cn) < HOLE_TEST_M {
-        return NO_SAMPLE;
-    }
-    let mut sum = 0.0;
-    let mut wsum = 0.0;
-    for dr in 0..2 {
-        let wr = if dr == 1 { fr } else { 1.0 - fr };
-        for dc in 0..2 {
-            let w = wr * if dc == 1 { fc } else { 1.0 - fc };
-            if w <= 0.0 {
-                continue;
-            }
-            let h = cell_height(params, heights, r0 + dr, c0 + dc);
-            if h >= HOLE_TEST_M {
-                sum += w * h;
-                wsum += w;
-            }
-        }
-    }
-    if wsum > 0.0 {
-        return sum / wsum;
-    }
-    NO_SAMPLE
+    super::bilinear_with_holes(params.rows, params.cols, row, col, |r, c| {
+        cell_height(params, heights, r, c)
+    })
 }
 
 /// One hull vertex: `(x, y)` in the (mirrored) hull frame and the sample index.
@@ -647,6 +614,9 @@ pub fn sweep_batched<E>(
     Ok(())
 }
 
+/// Largest batch of [`sweep_twin`], samples (as lavapipe's, 128 MiB / 32 B).
+pub const TWIN_BATCH_SAMPLES: usize = 1 << 22;
+
 /// The whole sweep through the twin: [`sweep_batched`] with [`line_sweep_twin`] (the GPU
 /// kernel's arithmetic on the CPU; the parity oracle of the GPU runner).
 pub fn sweep_twin<E>(
@@ -657,7 +627,7 @@ pub fn sweep_twin<E>(
     let grid = SweepGrid::new(sweep);
     sweep_batched(
         sweep,
-        1 << 22,
+        TWIN_BATCH_SAMPLES,
         |batch| Ok(line_sweep_twin(&grid, batch)),
         sink,
         progress,

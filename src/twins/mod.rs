@@ -47,3 +47,52 @@ pub(crate) const FAR_CELLS: f32 = 1.0e30;
 pub const HOLE_COEFF: f32 = HOLE_Z_M;
 /// "No sample" for the horizon scan's heights and best tangent.
 pub const NO_SAMPLE: f32 = HOLE_Z_M;
+
+/// The kernels' nodata-aware bilinear height at fractional (`row`, `col`) of a `rows` × `cols`
+/// layer whose cells `cell(row, col)` reads (holes below [`HOLE_TEST_M`], [`NO_SAMPLE`] outside):
+/// [`NO_SAMPLE`] outside the outer cell edges, when the nearest centre is a hole, or with no valid
+/// corner; else the weighted mean of the valid corners (as `Dem::height_at_row_col`). The twin of
+/// `height_at` in horizon_scan.wgsl and line_sweep.wgsl.
+pub(crate) fn bilinear_with_holes(
+    rows: u32,
+    cols: u32,
+    row: f32,
+    col: f32,
+    cell: impl Fn(i32, i32) -> f32,
+) -> f32 {
+    let (n_rows, n_cols) = (rows as f32, cols as f32);
+    if !(row >= -0.5 && col >= -0.5 && row <= n_rows - 0.5 && col <= n_cols - 0.5) {
+        return NO_SAMPLE;
+    }
+    let r = row.clamp(0.0, n_rows - 1.0);
+    let c = col.clamp(0.0, n_cols - 1.0);
+    let r0 = (r.floor() as i32).min(rows as i32 - 2).max(0);
+    let c0 = (c.floor() as i32).min(cols as i32 - 2).max(0);
+    let fr = r - r0 as f32;
+    let fc = c - c0 as f32;
+    let rn = (row + 0.5).floor().clamp(0.0, n_rows - 1.0) as i32;
+    let cn = (col + 0.5).floor().clamp(0.0, n_cols - 1.0) as i32;
+    if cell(rn, cn) < HOLE_TEST_M {
+        return NO_SAMPLE;
+    }
+    let mut sum = 0.0;
+    let mut wsum = 0.0;
+    for dr in 0..2 {
+        let wr = if dr == 1 { fr } else { 1.0 - fr };
+        for dc in 0..2 {
+            let w = wr * if dc == 1 { fc } else { 1.0 - fc };
+            if w <= 0.0 {
+                continue;
+            }
+            let h = cell(r0 + dr, c0 + dc);
+            if h >= HOLE_TEST_M {
+                sum += w * h;
+                wsum += w;
+            }
+        }
+    }
+    if wsum > 0.0 {
+        return sum / wsum;
+    }
+    NO_SAMPLE
+}
