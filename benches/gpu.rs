@@ -1,7 +1,7 @@
 //! GPU vs CPU twin, side by side in one criterion group per kernel (anise `crit_*` layout):
 //! the hard-shadow march (one Sun direction, 1.5° elevation) and the epoch sweep (32 epochs)
 //! on synthetic hills of 128² and 256² cells. Throughput is cells (march) or cell-epochs (sweep).
-//! Also `dp_soft` (one soft map) and `fourier_build` / `fourier_eval` (Fourier horizon maps,
+//! Also `dp_soft` (one soft map, from the cells and from the same observers as point records) and `fourier_build` / `fourier_eval` (Fourier horizon maps,
 //! CPU engine vs GPU; throughput rays = cells × azimuths, and cells), and `line_sweep` (the
 //! whole-grid line sweep: the f64 CPU sweep, the twin and the GPU path end to end, and the looks
 //! alone on one packed batch, twin vs GPU; throughput pixel-azimuths).
@@ -162,11 +162,39 @@ fn bench_dp_soft(c: &mut Criterion, ctx: Option<&GpuContext>) {
         group.bench_with_input(BenchmarkId::new("cpu_twin", n), &grid, |b, grid| {
             b.iter(|| twins::dp_visible(grid, &mip, &[light], 0, RowBand::whole(grid)))
         });
+        // The same observers as point records (a map's DEM pixels take this path,
+        // `dp_points.wgsl`), the own half cell left out.
+        let points: Vec<[f32; 4]> = (0..grid.rows)
+            .flat_map(|row| (0..grid.cols).map(move |col| (row, col)))
+            .map(|(row, col)| {
+                let o = twins::dp_observer(&grid, row, col);
+                [o.u0, o.v0, o.z0, 0.5]
+            })
+            .collect();
+        group.bench_with_input(BenchmarkId::new("cpu_twin_points", n), &grid, |b, grid| {
+            b.iter(|| twins::dp_points(grid, &mip, &points, light))
+        });
         if let Some(ctx) = ctx {
             let gpu_grid = GpuDpGrid::upload(ctx, &grid, &mip).expect("upload");
             group.bench_with_input(BenchmarkId::new("gpu", n), &gpu_grid, |b, gpu_grid| {
                 b.iter(|| dp_visible_gpu(ctx, gpu_grid, light, DEFAULT_BAND_BYTES).expect("gpu dp"))
             });
+            group.bench_with_input(
+                BenchmarkId::new("gpu_points", n),
+                &gpu_grid,
+                |b, gpu_grid| {
+                    b.iter(|| {
+                        penumbra::gpu::dp::dp_points_gpu(
+                            ctx,
+                            gpu_grid,
+                            &points,
+                            light,
+                            DEFAULT_BAND_BYTES,
+                        )
+                        .expect("gpu dp points")
+                    })
+                },
+            );
         }
     }
     group.finish();

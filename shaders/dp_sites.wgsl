@@ -51,7 +51,7 @@ fn dp_sites(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     let site = dp_step.band_row0 + gid.y;
     let o = site_observers[site];
-    let obs = DpObserver(o.x, o.y, o.z, vec3<f32>(0.0, 0.0, 1.0));
+    let obs = dp_point_observer(o);
     let index = site * dp_step.count + k;
     out[index] = dp_site_horizon_tan(obs, dp_lights[index], o.w);
 }

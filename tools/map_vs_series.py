@@ -98,6 +98,8 @@ def main():
     ap.add_argument("--seed", type=int, default=7)
     ap.add_argument("--extra-site", action="append", default=[],
                     help="NAME,LAT,LON: also compare the pixel containing this point")
+    ap.add_argument("--backend", default="cpu", choices=["cpu", "gpu"],
+                    help="the map's backend (the series always runs on the CPU)")
     ap.add_argument("--map-arg", action="append", default=[],
                     help="an extra argument for `penumbra map` (repeat), e.g. --map-arg=--horizons=h.tif")
     ap.add_argument("--series-limb", default="none",
@@ -140,7 +142,7 @@ def main():
 
     limb = ["--limb-darkening", args.series_limb] if args.engine == "horizons" else []
     t_map = run([args.penumbra, "map", *terrain, *epochs, "--engine", args.engine, *limb,
-                 *args.map_arg, "--backend", "cpu", "--out-dir", os.path.join(work, "map")]).stderr
+                 *args.map_arg, "--backend", args.backend, "--out-dir", os.path.join(work, "map")]).stderr
     site_args = sum((["--site", f"{n},{lat:.10f},{lon:.10f},2"] for n, _, _, lat, lon in sites), [])
     run([args.penumbra, "series", *terrain, *site_args, *epochs, "--no-plots",
          "--limb-darkening", args.series_limb,

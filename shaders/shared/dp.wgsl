@@ -323,6 +323,21 @@ fn dp_fraction(obs: DpObserver, light: vec4<f32>) -> f32 {
     return dp_fraction_of_cost(obs, light, j);
 }
 
+// The observer of a point record (col, row, z relative to z_ref in m, min_s in cells) of
+// dp_sites.wgsl, dp_points.wgsl and dp_points_sweep.wgsl: a fractional position, not a cell
+// centre (e.g. a DEM pixel's own surface point in the model grid).
+fn dp_point_observer(o: vec4<f32>) -> DpObserver {
+    return DpObserver(o.x, o.y, o.z, vec3<f32>(0.0, 0.0, 1.0));
+}
+
+// Visible fraction of the disc `light` from `obs`, the crossings within `min_s` cells of the
+// observer left out and the surface at exactly min_s sampled first (dp_cost_beyond): the
+// observer's own half pixel is its ground, as in the per-site horizon engine.
+fn dp_fraction_beyond(obs: DpObserver, light: vec4<f32>, min_s: f32) -> f32 {
+    let j = dp_cost_beyond(obs, light.xyz, dp_cap(light), DP_FAR, min_s);
+    return dp_fraction_of_cost(obs, light, j);
+}
+
 // Whether cell (row, col) is a hole.
 fn dp_is_hole(row: u32, col: u32) -> bool {
     return dp_heights[row * dp_grid.cols + col] < DP_HOLE_TEST_M;

@@ -128,10 +128,10 @@ pub struct MapArgs {
     /// binding or 4 GiB; docs/gpu.md, "Large grids").
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(2..))]
     pub gpu_tile_cells: Option<u32>,
-    /// Where the rays start: `pixels` = at each DEM pixel's own surface point (the CPU default;
-    /// the same point as a `series` site at the pixel centre), `cells` = at the cells of the
-    /// resampled model grid (the GPU's method, resampled back onto the DEM grid). Default: the
-    /// backend's own (`pixels` on the CPU, `cells` on the GPU, which has no other).
+    /// Where the rays start: `pixels` (default) = at each DEM pixel's own surface point (the
+    /// same point as a `series` site at the pixel centre), `cells` = at the cells of the
+    /// resampled model grid, resampled back onto the DEM grid. On the GPU the Fourier engine and
+    /// grids that need 2-D tiles always use `cells` (with a warning for the tiles).
     #[arg(long, value_enum)]
     pub observers: Option<ObserversArg>,
     /// `--engine horizons`: read the whole-grid horizons from this GeoTIFF (written by

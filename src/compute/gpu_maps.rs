@@ -5,7 +5,7 @@
 use anyhow::Context as _;
 use nalgebra::Vector3;
 
-use crate::map::{MapEngine, SweepStats};
+use crate::map::{MapEngine, ObserverPlacement, SweepStats};
 use crate::model::{EpochLights, MapGrid};
 use crate::terrain::HeightField;
 
@@ -27,17 +27,9 @@ pub fn sweep_gpu_soft(
 ) -> anyhow::Result<SweepStats> {
     use crate::gpu::dp::{DpSweepOptions, GpuDpGrid, dp_sweep_gpu};
     use crate::gpu::tiles::{DpTileSweepOptions, dp_sweep_tiled_gpu};
-    use crate::twins::{DpMip, MarchGrid, disc_light_to_f32};
+    use crate::twins::{DpMip, MarchGrid};
     let march = MarchGrid::from_height_field(&grid.hf, observer_height_m)?;
-    let table: Vec<[f32; 4]> = lights
-        .iter()
-        .flat_map(|l| {
-            [
-                disc_light_to_f32(&Vector3::from(l.sun), l.sun_radius_rad),
-                disc_light_to_f32(&Vector3::from(l.earth), l.earth_radius_rad),
-            ]
-        })
-        .collect();
+    let table = light_table(lights);
     let stats = match tiling.resolve_sweep(ctx, &march)? {
         Some(tile_cells) => {
             dp_sweep_tiled_gpu(ctx, &march, &table, DpTileSweepOptions::new(tile_cells))?.0
@@ -48,8 +40,32 @@ pub fn sweep_gpu_soft(
             dp_sweep_gpu(ctx, &on_gpu, &table, DpSweepOptions::default())?
         }
     };
-    Ok(SweepStats {
-        epochs: lights.len(),
+    Ok(sweep_stats(&stats, lights.len(), step_h, false))
+}
+
+/// The DP sweep kernels' light table: per epoch the Sun's then the Earth's disc.
+fn light_table(lights: &[EpochLights]) -> Vec<[f32; 4]> {
+    use crate::twins::disc_light_to_f32;
+    lights
+        .iter()
+        .flat_map(|l| {
+            [
+                disc_light_to_f32(&Vector3::from(l.sun), l.sun_radius_rad),
+                disc_light_to_f32(&Vector3::from(l.earth), l.earth_radius_rad),
+            ]
+        })
+        .collect()
+}
+
+/// The map statistics of the GPU sweeps' per-cell (or per-pixel, `on_dem_grid`) statistics.
+fn sweep_stats(
+    stats: &[crate::twins::DpCellStats],
+    epochs: usize,
+    step_h: f64,
+    on_dem_grid: bool,
+) -> SweepStats {
+    SweepStats {
+        epochs,
         step_h,
         sun_fraction_sum: stats
             .iter()
@@ -60,9 +76,20 @@ pub fn sweep_gpu_soft(
         earth_visible_count: stats.iter().map(|c| c.earth_visible_epochs).collect(),
         sun_and_earth_count: Some(stats.iter().map(|c| c.sun_and_earth_epochs).collect()),
         below_sphere: None,
-        on_dem_grid: false,
+        on_dem_grid,
         extra: None,
-    })
+    }
+}
+
+/// A hard-mask fraction (1 / 0, `NaN` nodata) as a mask byte.
+fn mask_of_fraction(f: f32) -> u8 {
+    if f.is_nan() {
+        crate::shadow::MASK_NODATA
+    } else if f > 0.5 {
+        crate::shadow::MASK_LIT
+    } else {
+        crate::shadow::MASK_SHADOW
+    }
 }
 
 /// A soft-shadow kernel output as a fraction: `NaN` for a hole
@@ -199,15 +226,140 @@ pub fn hard_mask_gpu(
     Ok(
         visible_fraction_gpu(ctx, hf, observer_height_m, light_in_model, 0.0, tiling)?
             .into_iter()
-            .map(|f| {
-                if f.is_nan() {
-                    crate::shadow::MASK_NODATA
-                } else if f > 0.5 {
-                    crate::shadow::MASK_LIT
-                } else {
-                    crate::shadow::MASK_SHADOW
-                }
-            })
+            .map(mask_of_fraction)
             .collect(),
     )
+}
+
+/// A map grid on the GPU with its DEM pixels' own observers ([`MapGrid::pixel_observers`]):
+/// one-light DP maps and the soft sweep per DEM pixel (`shaders/dp_points.wgsl`,
+/// `dp_points_sweep.wgsl`), each ray starting at the pixel's own surface point with its own half
+/// pixel left out, as the CPU engines and a series site at the pixel centre (issue 13). The
+/// heights, the mipmap and the observers go up once.
+pub struct GpuPixelMaps {
+    grid: crate::gpu::dp::GpuDpGrid,
+    /// Point records of the pixels with data, and the DEM pixel of each.
+    points: Vec<[f32; 4]>,
+    pixel_of_point: Vec<usize>,
+    pixels: usize,
+}
+
+impl GpuPixelMaps {
+    /// Uploads `grid` and the pixels' `observers`; `None` when the grid needs the 2-D tiled
+    /// kernels (the whole grid does not fit one storage binding, see
+    /// [`crate::gpu::tiles::DpTiling`]), which start their rays at the model cells.
+    pub fn new(
+        ctx: &crate::gpu::GpuContext,
+        grid: &MapGrid,
+        observers: &[Option<crate::shadow::Observer>],
+        observer_height_m: f64,
+        tiling: crate::gpu::tiles::DpTiling,
+    ) -> anyhow::Result<Option<Self>> {
+        use crate::twins::{DpMip, MarchGrid, pixel_point_records};
+        let march = MarchGrid::from_height_field(&grid.hf, observer_height_m)?;
+        if tiling.resolve(ctx, &march)?.is_some() {
+            return Ok(None);
+        }
+        let mip = DpMip::build(&march);
+        let on_gpu = crate::gpu::dp::GpuDpGrid::upload(ctx, &march, &mip)?;
+        let (pixel_of_point, points) = pixel_point_records(&march, observers);
+        Ok(Some(GpuPixelMaps {
+            grid: on_gpu,
+            points,
+            pixel_of_point,
+            pixels: observers.len(),
+        }))
+    }
+
+    /// [`GpuPixelMaps::new`] for a map whose rays start at `placement`: `(None, Cells)` when
+    /// asked for the cells, or, with one warning line, when the grid needs the 2-D tiles;
+    /// `(Some, Pixels)` otherwise. The second value is where the rays really start.
+    pub fn for_placement(
+        ctx: &crate::gpu::GpuContext,
+        grid: &MapGrid,
+        observers: &[Option<crate::shadow::Observer>],
+        observer_height_m: f64,
+        tiling: crate::gpu::tiles::DpTiling,
+        placement: ObserverPlacement,
+    ) -> anyhow::Result<(Option<Self>, ObserverPlacement)> {
+        if placement == ObserverPlacement::Cells {
+            return Ok((None, ObserverPlacement::Cells));
+        }
+        match Self::new(ctx, grid, observers, observer_height_m, tiling)? {
+            Some(maps) => Ok((Some(maps), ObserverPlacement::Pixels)),
+            None => {
+                eprintln!(
+                    "penumbra: warning: the map grid needs the GPU's 2-D tiled kernels, which \
+                     start their rays at the model grid's cells (resampled onto the DEM grid); \
+                     --backend cpu starts them at the DEM pixels' own surface points"
+                );
+                Ok((None, ObserverPlacement::Cells))
+            }
+        }
+    }
+
+    /// Per DEM pixel, `per_point` scattered back (`nodata` where a pixel has no data).
+    fn scatter<T: Copy>(&self, per_point: &[T], nodata: T) -> Vec<T> {
+        let mut out = vec![nodata; self.pixels];
+        for (&pixel, &v) in self.pixel_of_point.iter().zip(per_point) {
+            out[pixel] = v;
+        }
+        out
+    }
+
+    /// The visible fraction of a disc of angular radius `radius_rad` toward `light_in_model`
+    /// per DEM pixel (`NaN` for nodata); radius 0 gives 1 / 0.
+    pub fn fraction(
+        &self,
+        ctx: &crate::gpu::GpuContext,
+        light_in_model: [f64; 3],
+        radius_rad: f64,
+    ) -> anyhow::Result<Vec<f32>> {
+        use crate::gpu::shadow_march::DEFAULT_BAND_BYTES;
+        let light = crate::twins::disc_light_to_f32(&Vector3::from(light_in_model), radius_rad);
+        let values = crate::gpu::dp::dp_points_gpu(
+            ctx,
+            &self.grid,
+            &self.points,
+            light,
+            DEFAULT_BAND_BYTES,
+        )?;
+        let values: Vec<f32> = values.into_iter().map(|f| f.clamp(0.0, 1.0)).collect();
+        Ok(self.scatter(&values, f32::NAN))
+    }
+
+    /// The hard mask of the disc centre toward `light_in_model` per DEM pixel: 1 lit, 0 shadow,
+    /// 255 nodata.
+    pub fn mask(
+        &self,
+        ctx: &crate::gpu::GpuContext,
+        light_in_model: [f64; 3],
+    ) -> anyhow::Result<Vec<u8>> {
+        Ok(self
+            .fraction(ctx, light_in_model, 0.0)?
+            .into_iter()
+            .map(mask_of_fraction)
+            .collect())
+    }
+
+    /// The soft sweep's statistics of `lights` per DEM pixel (as [`sweep_gpu_soft`], on the DEM
+    /// grid; zero statistics for nodata).
+    pub fn sweep(
+        &self,
+        ctx: &crate::gpu::GpuContext,
+        lights: &[EpochLights],
+        step_h: f64,
+    ) -> anyhow::Result<SweepStats> {
+        use crate::gpu::dp::{DpSweepOptions, dp_points_sweep_gpu};
+        let table = light_table(lights);
+        let per_point = dp_points_sweep_gpu(
+            ctx,
+            &self.grid,
+            &self.points,
+            &table,
+            DpSweepOptions::default(),
+        )?;
+        let stats = self.scatter(&per_point, crate::twins::DpCellStats::default());
+        Ok(sweep_stats(&stats, lights.len(), step_h, true))
+    }
 }

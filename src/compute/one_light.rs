@@ -1,9 +1,11 @@
 //! One-light maps (the visible fraction of a disc, the hard mask of its centre) on the DEM's own
 //! grid, on the resolved backend.
 //!
-//! The CPU runs the chosen engine from each DEM pixel's own surface point (or the model cells,
-//! resampled); the GPU runs the DP max-mipmap kernel for every engine but Fourier, whose horizon
-//! map is built and evaluated by the Fourier kernels (docs/gpu.md), always at the model cells.
+//! Both backends start the rays at each DEM pixel's own surface point by default (or at the
+//! model cells, resampled): the CPU runs the chosen engine, the GPU its DP max-mipmap kernel for
+//! every engine but Fourier, whose horizon map is built and evaluated by the Fourier kernels
+//! (docs/gpu.md), always at the model cells. A grid that needs the GPU's 2-D tiles is mapped
+//! from its model cells on the GPU (with a warning).
 
 use crate::map::{MapEngine, MapEngineKind, ObserverPlacement};
 use crate::model::MapGrid;
@@ -11,21 +13,10 @@ use crate::shadow::Observer;
 
 use super::ResolvedBackend;
 
-/// Where the rays of a map start on `backend` when `requested` (`None`: the backend's own,
-/// pixels on the CPU, cells on the GPU). Pixels on the GPU is an error.
-pub fn placement(
-    backend: &ResolvedBackend,
-    requested: Option<ObserverPlacement>,
-) -> anyhow::Result<ObserverPlacement> {
-    Ok(match (backend, requested) {
-        (ResolvedBackend::Gpu(_), Some(ObserverPlacement::Pixels)) => anyhow::bail!(
-            "--observers pixels needs --backend cpu: the GPU kernels start their rays at the \
-             model grid's cells (--observers cells)"
-        ),
-        (_, Some(o)) => o,
-        (ResolvedBackend::Cpu, None) => ObserverPlacement::Pixels,
-        (ResolvedBackend::Gpu(_), None) => ObserverPlacement::Cells,
-    })
+/// Where the rays of a map start when `requested` (`None`: the DEM pixels' own surface points,
+/// on either backend).
+pub fn placement(requested: Option<ObserverPlacement>) -> ObserverPlacement {
+    requested.unwrap_or(ObserverPlacement::Pixels)
 }
 
 /// A map grid ready for one-light maps on a backend (engine built, a GPU horizon map uploaded).
@@ -40,6 +31,9 @@ pub struct OneLightMaps<'a> {
     gpu_fourier: Option<crate::gpu::fourier::GpuHorizonMap>,
     #[cfg(feature = "gpu")]
     tiling: crate::gpu::tiles::DpTiling,
+    /// The DP kernels from the DEM pixels (GPU, placement pixels, an untiled grid).
+    #[cfg(feature = "gpu")]
+    gpu_pixels: Option<super::gpu_maps::GpuPixelMaps>,
 }
 
 impl<'a> OneLightMaps<'a> {
@@ -76,21 +70,49 @@ impl<'a> OneLightMaps<'a> {
             }),
             _ => None,
         };
+        // Each DEM pixel's own observer (where the engines start their rays by default).
+        let pixel_observers = grid.pixel_observers(h_m);
+        #[cfg(feature = "gpu")]
+        let tiling = crate::gpu::tiles::DpTiling {
+            tile_cells: gpu_tile_cells,
+        };
+        #[cfg(feature = "gpu")]
+        let (gpu_pixels, placement) = match backend {
+            ResolvedBackend::Gpu(ctx) if gpu_fourier.is_none() => {
+                super::gpu_maps::GpuPixelMaps::for_placement(
+                    ctx,
+                    grid,
+                    &pixel_observers,
+                    h_m,
+                    tiling,
+                    placement,
+                )?
+            }
+            _ => (None, placement),
+        };
         Ok(OneLightMaps {
             backend,
             grid,
             observer_height_m: h_m,
             placement,
             engine,
-            // Each DEM pixel's own observer (where the CPU engines start their rays by default).
-            pixel_observers: grid.pixel_observers(h_m),
+            pixel_observers,
             #[cfg(feature = "gpu")]
             gpu_fourier,
             #[cfg(feature = "gpu")]
-            tiling: crate::gpu::tiles::DpTiling {
-                tile_cells: gpu_tile_cells,
-            },
+            tiling,
+            #[cfg(feature = "gpu")]
+            gpu_pixels,
         })
+    }
+
+    /// Where the rays start: the model cells for the Fourier engine (its horizon map is per
+    /// model cell) and on the GPU for a grid that needs tiles, else as asked.
+    pub fn placement(&self) -> ObserverPlacement {
+        match self.engine {
+            MapEngine::Fourier(_) => ObserverPlacement::Cells,
+            MapEngine::Direct(_) => self.placement,
+        }
     }
 
     /// The observer of each DEM pixel (`None` for nodata pixels).
@@ -106,6 +128,10 @@ impl<'a> OneLightMaps<'a> {
     /// per DEM pixel (`NaN` for nodata).
     pub fn fraction(&self, light_in_model: [f64; 3], radius_rad: f64) -> anyhow::Result<Vec<f32>> {
         let (grid, h_m) = (self.grid, self.observer_height_m);
+        #[cfg(feature = "gpu")]
+        if let (ResolvedBackend::Gpu(ctx), Some(pixels)) = (self.backend, &self.gpu_pixels) {
+            return pixels.fraction(ctx, light_in_model, radius_rad);
+        }
         match self.backend {
             ResolvedBackend::Cpu => self.engine.visible_fraction_on_dem(
                 grid,
@@ -114,7 +140,7 @@ impl<'a> OneLightMaps<'a> {
                 light_in_model,
                 radius_rad,
             ),
-            // The GPU kernels run per model cell: resampled onto the DEM grid.
+            // The GPU kernels per model cell: resampled onto the DEM grid.
             #[cfg(feature = "gpu")]
             ResolvedBackend::Gpu(ctx) => Ok(grid.to_output_f32(&match &self.gpu_fourier {
                 Some(on_gpu) => {
@@ -138,6 +164,10 @@ impl<'a> OneLightMaps<'a> {
     /// shadow, 255 nodata.
     pub fn mask(&self, light_in_model: [f64; 3]) -> anyhow::Result<Vec<u8>> {
         let (grid, h_m) = (self.grid, self.observer_height_m);
+        #[cfg(feature = "gpu")]
+        if let (ResolvedBackend::Gpu(ctx), Some(pixels)) = (self.backend, &self.gpu_pixels) {
+            return pixels.mask(ctx, light_in_model);
+        }
         match self.backend {
             ResolvedBackend::Cpu => {
                 self.engine

@@ -345,30 +345,48 @@ pub fn map_sweep(
                 step_h,
                 progress,
             )?;
+            // The Fourier horizon map is per model cell whatever the placement.
+            let rays = match engine {
+                MapEngine::Fourier(_) => ObserverPlacement::Cells,
+                MapEngine::Direct(_) => placement,
+            };
             let note = format!(
                 "cpu: {} soft shadows of the discs, rays from the {}",
                 engine.describe(),
-                placement.describe()
+                rays.describe()
             );
             Ok((stats, note))
         }
         #[cfg(feature = "gpu")]
         ResolvedBackend::Gpu(ctx) => {
-            let stats = super::gpu_maps::sweep_gpu_soft(
+            let tiling = crate::gpu::tiles::DpTiling {
+                tile_cells: gpu_tile_cells,
+            };
+            let (pixels, placement) = super::gpu_maps::GpuPixelMaps::for_placement(
                 ctx,
                 grid,
+                &grid.pixel_observers(observer_height_m),
                 observer_height_m,
-                lights,
-                step_h,
-                crate::gpu::tiles::DpTiling {
-                    tile_cells: gpu_tile_cells,
-                },
+                tiling,
+                placement,
             )?;
+            let stats = match pixels {
+                Some(pixels) => pixels.sweep(ctx, lights, step_h)?,
+                None => super::gpu_maps::sweep_gpu_soft(
+                    ctx,
+                    grid,
+                    observer_height_m,
+                    lights,
+                    step_h,
+                    tiling,
+                )?,
+            };
             progress.inc(lights.len() as u64);
             let note = format!(
                 "{}: DP max-mipmap soft shadows of the Sun and Earth discs \
-                 (GPU-resident sweep; --engine is not used on the GPU)",
-                backend.describe()
+                 (GPU-resident sweep; --engine is not used on the GPU), rays from the {}",
+                backend.describe(),
+                placement.describe()
             );
             Ok((stats, note))
         }

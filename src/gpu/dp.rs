@@ -2,8 +2,10 @@
 //! fraction of one disc per cell, radius 0 = hard mask), `shaders/dp_sweep.wgsl` (the soft
 //! epoch sweep: Sun and Earth fractions folded into per-cell statistics, GPU-resident) and
 //! `shaders/dp_sites.wgsl` (per-site horizons along a table of discs: the GPU path of
-//! `series --engine smap-dp`, [`dp_sites_gpu`]). All share `shaders/shared/dp.wgsl`; CPU twins:
-//! `dp_visible`, `dp_sweep`, `dp_sites` in [`crate::twins`].
+//! `series --engine smap-dp`, [`dp_sites_gpu`]), `shaders/dp_points.wgsl` and
+//! `dp_points_sweep.wgsl` (one map and the soft sweep from given observers, a map's DEM pixels:
+//! [`dp_points_gpu`], [`dp_points_sweep_gpu`]). All share `shaders/shared/dp.wgsl`; CPU twins:
+//! `dp_visible`, `dp_sweep`, `dp_sites`, `dp_points`, `dp_points_sweep` in [`crate::twins`].
 //!
 //! The heights and every mipmap level are uploaded once ([`GpuDpGrid::upload`]: 4 B/cell + about
 //! 4/3 × 4 B/cell), the light table once per map or sweep. Outputs are computed in row bands
@@ -44,6 +46,16 @@ const DP_SITES_WGSL: &str = include_str!(concat!(
 ));
 /// Workgroup size of `shaders/dp_sites.wgsl` (along the entries). Keep in sync.
 const SITES_WORKGROUP_SIZE_X: u32 = 64;
+const DP_POINTS_WGSL: &str = include_str!(concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/shaders/dp_points.wgsl"
+));
+const DP_POINTS_SWEEP_WGSL: &str = include_str!(concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/shaders/dp_points_sweep.wgsl"
+));
+/// Workgroup size of `shaders/dp_points.wgsl` and `dp_points_sweep.wgsl`. Keep in sync.
+const POINTS_WORKGROUP_SIZE_X: u32 = 64;
 const DP_TILE_COST_WGSL: &str = include_str!(concat!(
     env!("CARGO_MANIFEST_DIR"),
     "/shaders/dp_tile_cost.wgsl"
@@ -120,6 +132,8 @@ pub(crate) struct DpPipelines {
     visible: wgpu::ComputePipeline,
     sweep: wgpu::ComputePipeline,
     sites: wgpu::ComputePipeline,
+    points: wgpu::ComputePipeline,
+    points_sweep: wgpu::ComputePipeline,
     /// Layout of the tiled kernels: the DP bindings 0..6 plus 7 (the output tile's heights); also
     /// the layout of `sites` (7 = the site observers).
     pub(crate) tile_layout: wgpu::BindGroupLayout,
@@ -247,6 +261,16 @@ impl super::context::Pipelines for DpPipelines {
         let sweep = compute_pipeline(device, &layout, "dp_sweep", &sweep_src, "dp_sweep");
         let sites_src = format!("{SHARED_DP_WGSL}{DP_SITES_WGSL}");
         let sites = compute_pipeline(device, &tile_layout, "dp_sites", &sites_src, "dp_sites");
+        let points_src = format!("{SHARED_DP_WGSL}{DP_POINTS_WGSL}");
+        let points = compute_pipeline(device, &tile_layout, "dp_points", &points_src, "dp_points");
+        let points_sweep_src = format!("{SHARED_DP_WGSL}{DP_POINTS_SWEEP_WGSL}");
+        let points_sweep = compute_pipeline(
+            device,
+            &tile_layout,
+            "dp_points_sweep",
+            &points_sweep_src,
+            "dp_points_sweep",
+        );
         let tile_cost = compute_pipeline(
             device,
             &tile_layout,
@@ -266,6 +290,8 @@ impl super::context::Pipelines for DpPipelines {
             visible,
             sweep,
             sites,
+            points,
+            points_sweep,
             tile_layout,
             tile_cost,
             tile_fraction,
@@ -455,6 +481,202 @@ pub fn dp_visible_gpu(
     Ok(map)
 }
 
+/// Checks point records (`[col, row, z − z_ref, min_s]`) for `kernel`: inside the lattice, with
+/// a finite height and a finite, non-negative nearest distance.
+fn check_points(
+    grid: &GpuDpGrid,
+    points: &[[f32; 4]],
+    kernel: &'static str,
+) -> Result<(), GpuError> {
+    let (rows, cols) = (f64::from(grid.rows - 1), f64::from(grid.cols - 1));
+    for o in points {
+        let (col, row, z, min_s) = (f64::from(o[0]), f64::from(o[1]), o[2], o[3]);
+        if !((0.0..=cols).contains(&col)
+            && (0.0..=rows).contains(&row)
+            && z.is_finite()
+            && min_s.is_finite()
+            && min_s >= 0.0)
+        {
+            return Err(GpuError::InvalidInput {
+                kernel,
+                message: format!(
+                    "observer {o:?} is not inside the lattice (col, row) with a finite height and \
+                     min distance"
+                ),
+            });
+        }
+    }
+    Ok(())
+}
+
+/// Points per chunk of a points kernel: `budget_bytes` of `bytes_per_point` outputs, at least 1
+/// and at most one dispatch.
+fn points_per_chunk(ctx: &GpuContext, budget_bytes: u64, bytes_per_point: u64) -> u32 {
+    let by_dispatch = u64::from(ctx.limits().max_compute_workgroups_per_dimension)
+        * u64::from(POINTS_WORKGROUP_SIZE_X);
+    (budget_bytes / bytes_per_point)
+        .clamp(1, by_dispatch)
+        .min(u64::from(u32::MAX)) as u32
+}
+
+/// GPU `dp_points`: per point record (`points[i]` from [`crate::twins::site_observer_to_f32`],
+/// e.g. a DEM pixel's own observer) the visible fraction of the disc `light` (from
+/// [`crate::twins::disc_light_to_f32`]; radius 0: 1 lit / 0 shadow), the observer's own
+/// `min_s` cells left out; in chunks of at most `band_bytes` of output. Twin:
+/// [`crate::twins::dp_points`].
+pub fn dp_points_gpu(
+    ctx: &GpuContext,
+    grid: &GpuDpGrid,
+    points: &[[f32; 4]],
+    light: [f32; 4],
+    band_bytes: u64,
+) -> Result<Vec<f32>, GpuError> {
+    let dp = ctx.pipelines::<DpPipelines>()?;
+    check_light(light, "dp_points")?;
+    check_points(grid, points, "dp_points")?;
+    if points.is_empty() {
+        return Ok(Vec::new());
+    }
+    let chunk = points_per_chunk(ctx, band_bytes, 4);
+    let n = u32::try_from(points.len()).map_err(|_| GpuError::InvalidInput {
+        kernel: "dp_points",
+        message: format!("{} points exceed 2^32", points.len()),
+    })?;
+    let scope = ErrorScope::push(&ctx.device);
+    let lights = storage_init(
+        ctx,
+        "penumbra dp points light",
+        bytemuck::cast_slice(&[light]),
+    );
+    let obs = storage_init(ctx, "penumbra dp points", bytemuck::cast_slice(points));
+    let slots = slot_buffer(ctx, 1);
+    let out = band_buffer(
+        ctx,
+        "penumbra dp points out",
+        u64::from(chunk.min(n)),
+        wgpu::BufferUsages::empty(),
+    );
+    let bind_group = DpBindings {
+        params: &grid.params,
+        heights: &grid.heights,
+        mip: &grid.mip,
+        levels: &grid.levels,
+        lights: &lights,
+        slots: &slots,
+        out: &out,
+        extra: &[&obs],
+    }
+    .bind_group(ctx, "penumbra dp points bind group", &dp.tile_layout);
+    let mut values = Vec::with_capacity(points.len());
+    let mut first = 0;
+    while first < n {
+        let count = chunk.min(n - first);
+        write_dp_steps(
+            ctx,
+            &slots,
+            &[DpStep::whole(grid.rows, grid.cols, 0, 1, (first, count))],
+        );
+        let mut encoder = ctx
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("dp_points"),
+            });
+        {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("dp_points"),
+                timestamp_writes: None,
+            });
+            pass.set_pipeline(&dp.points);
+            pass.set_bind_group(0, &bind_group, &[0]);
+            pass.dispatch_workgroups(count.div_ceil(POINTS_WORKGROUP_SIZE_X), 1, 1);
+        }
+        ctx.queue.submit([encoder.finish()]);
+        let bytes = ctx.read_back(&out, u64::from(count) * 4, "DP fractions of points")?;
+        values.extend_from_slice(bytemuck::cast_slice(&bytes));
+        first += count;
+    }
+    scope.pop("running dp_points")?;
+    Ok(values)
+}
+
+/// GPU soft epoch sweep from point records (`shaders/dp_points_sweep.wgsl`): the
+/// [`DpCellStats`] of every point (as [`dp_sweep_gpu`] per cell) over the epochs of `lights`
+/// (two discs per epoch, Sun then Earth, in time order). The table and the points are uploaded
+/// once; each chunk of points (at most `options.band_bytes` of statistics) is read back after
+/// its last epoch. Twin: [`crate::twins::dp_points_sweep`].
+pub fn dp_points_sweep_gpu(
+    ctx: &GpuContext,
+    grid: &GpuDpGrid,
+    points: &[[f32; 4]],
+    lights: &[[f32; 4]],
+    options: DpSweepOptions,
+) -> Result<Vec<DpCellStats>, GpuError> {
+    let dp = ctx.pipelines::<DpPipelines>()?;
+    let epochs = check_sweep_table(lights, options, "dp_points_sweep")?;
+    check_points(grid, points, "dp_points_sweep")?;
+    if points.is_empty() {
+        return Ok(Vec::new());
+    }
+    let n = u32::try_from(points.len()).map_err(|_| GpuError::InvalidInput {
+        kernel: "dp_points_sweep",
+        message: format!("{} points exceed 2^32", points.len()),
+    })?;
+    let stats_bytes = size_of::<DpCellStats>() as u64;
+    let chunk = points_per_chunk(ctx, options.band_bytes, stats_bytes).min(n);
+    let scope = ErrorScope::push(&ctx.device);
+    let table = storage_init(
+        ctx,
+        "penumbra dp points light table",
+        bytemuck::cast_slice(lights),
+    );
+    let obs = storage_init(
+        ctx,
+        "penumbra dp sweep points",
+        bytemuck::cast_slice(points),
+    );
+    let slots = slot_buffer(ctx, options.dispatches_per_submit);
+    let stats = stats_buffer(ctx, "penumbra dp points sweep stats", u64::from(chunk));
+    let bind_group = DpBindings {
+        params: &grid.params,
+        heights: &grid.heights,
+        mip: &grid.mip,
+        levels: &grid.levels,
+        lights: &table,
+        slots: &slots,
+        out: &stats,
+        extra: &[&obs],
+    }
+    .bind_group(ctx, "penumbra dp points sweep bind group", &dp.tile_layout);
+    let mut all = Vec::with_capacity(points.len());
+    let mut point0 = 0;
+    while point0 < n {
+        let count = chunk.min(n - point0);
+        let band = (point0, count);
+        run_sweep_batches(
+            ctx,
+            &stats,
+            &slots,
+            epochs,
+            options,
+            |first, epochs_here| DpStep::whole(grid.rows, grid.cols, first, epochs_here, band),
+            |pass, j| {
+                pass.set_pipeline(&dp.points_sweep);
+                pass.set_bind_group(0, &bind_group, &[j * STEP_SLOT_BYTES as u32]);
+                pass.dispatch_workgroups(count.div_ceil(POINTS_WORKGROUP_SIZE_X), 1, 1);
+            },
+        );
+        let bytes = ctx.read_back(
+            &stats,
+            u64::from(count) * stats_bytes,
+            "DP sweep statistics of points",
+        )?;
+        all.extend_from_slice(bytemuck::cast_slice(&bytes));
+        point0 += count;
+    }
+    scope.pop("running the DP epoch sweep of points")?;
+    Ok(all)
+}
+
 /// Options of [`dp_sweep_gpu`].
 #[derive(Debug, Clone, Copy)]
 pub struct DpSweepOptions {
@@ -488,100 +710,135 @@ pub fn dp_sweep_gpu(
     options: DpSweepOptions,
 ) -> Result<Vec<DpCellStats>, GpuError> {
     let dp = ctx.pipelines::<DpPipelines>()?;
-    if lights.is_empty()
-        || !lights.len().is_multiple_of(2)
-        || options.epochs_per_dispatch == 0
-        || options.dispatches_per_submit == 0
-    {
-        return Err(GpuError::InvalidInput {
-            kernel: "dp_sweep",
-            message: "the light table needs Sun and Earth discs for at least one epoch (and \
-                      non-zero epochs per dispatch / dispatches per submit)"
-                .into(),
-        });
-    }
-    for &l in lights {
-        check_light(l, "dp_sweep")?;
-    }
-    let epochs = u32::try_from(lights.len() / 2).map_err(|_| GpuError::InvalidInput {
-        kernel: "dp_sweep",
-        message: format!("{} epochs exceed 2^32", lights.len() / 2),
-    })?;
+    let epochs = check_sweep_table(lights, options, "dp_sweep")?;
     let stats_bytes = size_of::<DpCellStats>() as u64;
     let band_rows = grid.band_rows(ctx, options.band_bytes, stats_bytes);
     let cols = u64::from(grid.cols);
-    let per_submit = options.dispatches_per_submit;
     let scope = ErrorScope::push(&ctx.device);
     // Uploaded once for the whole sweep.
     let table = storage_init(ctx, "penumbra dp light table", bytemuck::cast_slice(lights));
-    let slots = slot_buffer(ctx, per_submit);
+    let slots = slot_buffer(ctx, options.dispatches_per_submit);
     let band_cells = u64::from(band_rows) * cols;
-    let stats = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("penumbra dp sweep stats"),
-        size: band_cells.max(1) * stats_bytes,
-        usage: wgpu::BufferUsages::STORAGE
-            | wgpu::BufferUsages::COPY_SRC
-            | wgpu::BufferUsages::COPY_DST,
-        mapped_at_creation: false,
-    });
+    let stats = stats_buffer(ctx, "penumbra dp sweep stats", band_cells);
     let bind_group = grid.bind_group(ctx, &dp.layout, &table, &slots, &stats);
     let mut all: Vec<DpCellStats> = Vec::with_capacity(grid.rows as usize * grid.cols as usize);
     let mut row0 = 0;
     while row0 < grid.rows {
         let rows = band_rows.min(grid.rows - row0);
         let cells = u64::from(rows) * cols;
-        let mut clear = ctx
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("penumbra dp sweep clear"),
-            });
-        clear.clear_buffer(&stats, 0, None);
-        ctx.queue.submit([clear.finish()]);
-        let mut first = 0_u32;
-        while first < epochs {
-            let mut steps = Vec::with_capacity(per_submit as usize);
-            while first < epochs && steps.len() < per_submit as usize {
-                let count = options.epochs_per_dispatch.min(epochs - first);
-                steps.push(DpStep::whole(
-                    grid.rows,
-                    grid.cols,
-                    first,
-                    count,
-                    (row0, rows),
-                ));
-                first += count;
-            }
-            write_dp_steps(ctx, &slots, &steps);
-            let mut encoder = ctx
-                .device
-                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                    label: Some("penumbra dp sweep batch"),
-                });
-            {
-                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                    label: Some("penumbra dp sweep batch"),
-                    timestamp_writes: None,
-                });
+        run_sweep_batches(
+            ctx,
+            &stats,
+            &slots,
+            epochs,
+            options,
+            |first, count| DpStep::whole(grid.rows, grid.cols, first, count, (row0, rows)),
+            |pass, j| {
                 pass.set_pipeline(&dp.sweep);
-                for j in 0..steps.len() as u32 {
-                    pass.set_bind_group(0, &bind_group, &[j * STEP_SLOT_BYTES as u32]);
-                    pass.dispatch_workgroups(
-                        grid.cols.div_ceil(WORKGROUP_SIZE_XY),
-                        rows.div_ceil(WORKGROUP_SIZE_XY),
-                        1,
-                    );
-                }
-            }
-            ctx.queue.submit([encoder.finish()]);
-            // Reclaim finished submissions without waiting, so staging memory stays bounded.
-            ctx.device.poll(wgpu::PollType::Poll).ok();
-        }
+                pass.set_bind_group(0, &bind_group, &[j * STEP_SLOT_BYTES as u32]);
+                pass.dispatch_workgroups(
+                    grid.cols.div_ceil(WORKGROUP_SIZE_XY),
+                    rows.div_ceil(WORKGROUP_SIZE_XY),
+                    1,
+                );
+            },
+        );
         let bytes = ctx.read_back(&stats, cells * stats_bytes, "DP sweep statistics")?;
         all.extend_from_slice(bytemuck::cast_slice(&bytes));
         row0 += rows;
     }
     scope.pop("running the DP epoch sweep")?;
     Ok(all)
+}
+
+/// Checks the light table of a soft sweep (Sun and Earth discs for at least one epoch, each a
+/// valid disc) and `options`; the number of epochs.
+fn check_sweep_table(
+    lights: &[[f32; 4]],
+    options: DpSweepOptions,
+    kernel: &'static str,
+) -> Result<u32, GpuError> {
+    if lights.is_empty()
+        || !lights.len().is_multiple_of(2)
+        || options.epochs_per_dispatch == 0
+        || options.dispatches_per_submit == 0
+    {
+        return Err(GpuError::InvalidInput {
+            kernel,
+            message: "the light table needs Sun and Earth discs for at least one epoch (and \
+                      non-zero epochs per dispatch / dispatches per submit)"
+                .into(),
+        });
+    }
+    for &l in lights {
+        check_light(l, kernel)?;
+    }
+    u32::try_from(lights.len() / 2).map_err(|_| GpuError::InvalidInput {
+        kernel,
+        message: format!("{} epochs exceed 2^32", lights.len() / 2),
+    })
+}
+
+/// A statistics buffer of `cells` [`DpCellStats`] (at least one).
+fn stats_buffer(ctx: &GpuContext, label: &str, cells: u64) -> wgpu::Buffer {
+    ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size: cells.max(1) * size_of::<DpCellStats>() as u64,
+        usage: wgpu::BufferUsages::STORAGE
+            | wgpu::BufferUsages::COPY_SRC
+            | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    })
+}
+
+/// Runs one band of a soft sweep: clears `stats`, then folds all `epochs` in, in dispatches of
+/// `options.epochs_per_dispatch` epochs (`step(first, count)` their [`DpStep`], `dispatch(pass,
+/// slot)` sets the pipeline and bind group at that slot and dispatches), submitted
+/// `options.dispatches_per_submit` at a time; nothing is read back.
+fn run_sweep_batches(
+    ctx: &GpuContext,
+    stats: &wgpu::Buffer,
+    slots: &wgpu::Buffer,
+    epochs: u32,
+    options: DpSweepOptions,
+    step: impl Fn(u32, u32) -> DpStep,
+    dispatch: impl Fn(&mut wgpu::ComputePass<'_>, u32),
+) {
+    let per_submit = options.dispatches_per_submit as usize;
+    let mut clear = ctx
+        .device
+        .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+            label: Some("penumbra dp sweep clear"),
+        });
+    clear.clear_buffer(stats, 0, None);
+    ctx.queue.submit([clear.finish()]);
+    let mut first = 0_u32;
+    while first < epochs {
+        let mut steps = Vec::with_capacity(per_submit);
+        while first < epochs && steps.len() < per_submit {
+            let count = options.epochs_per_dispatch.min(epochs - first);
+            steps.push(step(first, count));
+            first += count;
+        }
+        write_dp_steps(ctx, slots, &steps);
+        let mut encoder = ctx
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("penumbra dp sweep batch"),
+            });
+        {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("penumbra dp sweep batch"),
+                timestamp_writes: None,
+            });
+            for j in 0..steps.len() as u32 {
+                dispatch(&mut pass, j);
+            }
+        }
+        ctx.queue.submit([encoder.finish()]);
+        // Reclaim finished submissions without waiting, so staging memory stays bounded.
+        ctx.device.poll(wgpu::PollType::Poll).ok();
+    }
 }
 
 /// GPU `dp_sites`: for every site `i` (`observers[i]` from
@@ -611,21 +868,7 @@ pub fn dp_sites_gpu(
             observers.len()
         )));
     }
-    let (rows, cols) = (f64::from(grid.rows - 1), f64::from(grid.cols - 1));
-    for o in observers {
-        let (col, row, z, min_s) = (f64::from(o[0]), f64::from(o[1]), o[2], o[3]);
-        if !((0.0..=cols).contains(&col)
-            && (0.0..=rows).contains(&row)
-            && z.is_finite()
-            && min_s.is_finite()
-            && min_s >= 0.0)
-        {
-            return Err(invalid(format!(
-                "site observer {o:?} is not inside the lattice (col, row) with a finite height and \
-                 min distance"
-            )));
-        }
-    }
+    check_points(grid, observers, "dp_sites")?;
     for &l in lights {
         let norm2 = l[0] * l[0] + l[1] * l[1] + l[2] * l[2];
         if !(l.iter().all(|c| c.is_finite()) && (norm2 - 1.0).abs() < 1e-3 && l[3] < 1.5) {

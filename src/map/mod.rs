@@ -110,7 +110,8 @@ impl SweepStats {
 pub enum ObserverPlacement {
     /// At each DEM pixel's own surface point ([`MapGrid::pixel_observers`]); results per pixel.
     Pixels,
-    /// At the model grid's cells; results resampled back onto the DEM grid (the GPU's method).
+    /// At the model grid's cells; results resampled back onto the DEM grid (the GPU's 2-D tiled
+    /// kernels and the Fourier engine always).
     Cells,
 }
 

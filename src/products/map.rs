@@ -158,7 +158,7 @@ pub fn run(req: &MapRequest) -> anyhow::Result<()> {
     } else {
         crate::compute::resolve(req.backend)?
     };
-    let placement = crate::compute::one_light::placement(&backend, req.observers)?;
+    let placement = crate::compute::one_light::placement(req.observers);
     let kernels = if epochs.is_empty() {
         None
     } else {
@@ -383,7 +383,7 @@ pub fn run(req: &MapRequest) -> anyhow::Result<()> {
         req.gpu_tile_cells,
     )?;
     // The light and the run's parameters, in every file's metadata.
-    let items = one_light_metadata(
+    let mut items = one_light_metadata(
         &grid,
         engine_kind,
         req.observer_height_m,
@@ -391,6 +391,7 @@ pub fn run(req: &MapRequest) -> anyhow::Result<()> {
         earth.map(|(dir, _)| dir),
         kernels.as_ref().map(|_| (epochs[0], abcorr)),
     );
+    items.push(("rays_from".into(), maps.placement().describe().to_string()));
     let info = |description| crate::model::RasterInfo {
         description,
         unit: "",

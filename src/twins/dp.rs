@@ -1,5 +1,5 @@
 //! CPU twins of the DP / maximum-mipmap kernels (`shaders/shared/dp.wgsl`, `dp_visible.wgsl`,
-//! `dp_sweep.wgsl`, `dp_sites.wgsl`).
+//! `dp_sweep.wgsl`, `dp_sites.wgsl`, `dp_points.wgsl`, `dp_points_sweep.wgsl`).
 
 // ---------------------------------------------------------------------------------------------
 // DP / maximum-mipmap kernels (`shaders/shared/dp.wgsl`, `dp_visible.wgsl`, `dp_sweep.wgsl`).
@@ -611,15 +611,93 @@ pub fn dp_sites(
         .zip(observers.par_iter())
         .enumerate()
         .for_each(|(i, (out_site, o))| {
-            let obs = DpObserver {
-                u0: o[0],
-                v0: o[1],
-                z0: o[2],
-                up: [0.0, 0.0, 1.0],
-            };
+            let obs = dp_point_observer(o);
             for (k, t) in out_site.iter_mut().enumerate() {
                 *t = dp_site_horizon_tan(grid, mip, &obs, lights[i * per_site + k], o[3]);
             }
         });
     out
+}
+
+/// Twin of `dp_point_observer` in `shaders/shared/dp.wgsl`: the observer of a point record
+/// `[col, row, z_m − z_ref_m, min_s]` ([`site_observer_to_f32`]).
+pub fn dp_point_observer(o: &[f32; 4]) -> DpObserver {
+    DpObserver {
+        u0: o[0],
+        v0: o[1],
+        z0: o[2],
+        up: [0.0, 0.0, 1.0],
+    }
+}
+
+/// Twin of `dp_fraction_beyond` in `shaders/shared/dp.wgsl`: [`dp_fraction`] leaving out the
+/// crossings within `min_s` cells of the observer (its own ground) and sampling the surface at
+/// exactly `min_s` first.
+pub fn dp_fraction_beyond(
+    grid: &MarchGrid,
+    mip: &DpMip,
+    obs: &DpObserver,
+    light: [f32; 4],
+    min_s: f32,
+) -> f32 {
+    let l = [light[0], light[1], light[2]];
+    let j = dp_cost_beyond(grid, mip, obs, l, dp_cap(light), min_s);
+    dp_fraction_of_cost(obs, light, j)
+}
+
+// ---------------------------------------------------------------------------------------------
+// DP maps and sweeps from given observers (`shaders/dp_points.wgsl`, `dp_points_sweep.wgsl`: a
+// map's DEM pixels on the GPU).
+// ---------------------------------------------------------------------------------------------
+
+/// The point records of a map's DEM pixels ([`crate::model::MapGrid::pixel_observers`]) for
+/// [`dp_points`] / `dp_points.wgsl`: `(pixel index, record)` of every pixel with data, its own
+/// half pixel ([`crate::shadow::OWN_HALF_PIXEL_CELLS`]) left out as the CPU engines do.
+pub fn pixel_point_records(
+    grid: &MarchGrid,
+    observers: &[Option<crate::shadow::Observer>],
+) -> (Vec<usize>, Vec<[f32; 4]>) {
+    let min_s = crate::shadow::OWN_HALF_PIXEL_CELLS;
+    observers
+        .iter()
+        .enumerate()
+        .filter_map(|(i, o)| {
+            let o = o.as_ref()?;
+            Some((i, site_observer_to_f32(grid, o.row, o.col, o.z_m, min_s)))
+        })
+        .unzip()
+}
+
+/// Twin of `shaders/dp_points.wgsl`: per point record ([`site_observer_to_f32`]) the visible
+/// fraction of the disc `light` ([`disc_light_to_f32`]; radius 0: 1 lit / 0 shadow). Rayon over
+/// points.
+pub fn dp_points(grid: &MarchGrid, mip: &DpMip, points: &[[f32; 4]], light: [f32; 4]) -> Vec<f32> {
+    points
+        .par_iter()
+        .map(|o| dp_fraction_beyond(grid, mip, &dp_point_observer(o), light, o[3]))
+        .collect()
+}
+
+/// Twin of `shaders/dp_points_sweep.wgsl` over the whole table: per point record the
+/// [`DpCellStats`] of `lights` (two discs per epoch, Sun at `2e`, Earth at `2e + 1`, folded in
+/// time order). Rayon over points.
+pub fn dp_points_sweep(
+    grid: &MarchGrid,
+    mip: &DpMip,
+    points: &[[f32; 4]],
+    lights: &[[f32; 4]],
+) -> Vec<DpCellStats> {
+    points
+        .par_iter()
+        .map(|o| {
+            let obs = dp_point_observer(o);
+            let mut s = DpCellStats::default();
+            for pair in lights.chunks_exact(2) {
+                let fs = dp_fraction_beyond(grid, mip, &obs, pair[0], o[3]);
+                let fe = dp_fraction_beyond(grid, mip, &obs, pair[1], o[3]);
+                dp_sweep_accumulate(fs, fe, &mut s);
+            }
+            s
+        })
+        .collect()
 }

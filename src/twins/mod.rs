@@ -11,7 +11,7 @@
 //! | file | shaders |
 //! |---|---|
 //! | [`march`] | `shared/march.wgsl`, `shadow_march.wgsl`, `shadow_march_soft.wgsl`, `sweep_accumulate.wgsl` |
-//! | [`dp`] | `shared/dp.wgsl`, `dp_visible.wgsl`, `dp_sweep.wgsl`, `dp_sites.wgsl` |
+//! | [`dp`] | `shared/dp.wgsl`, `dp_visible.wgsl`, `dp_sweep.wgsl`, `dp_sites.wgsl`, `dp_points.wgsl`, `dp_points_sweep.wgsl` |
 //! | [`dp_tiles`] | `dp_tile_cost.wgsl`, `dp_tile_fraction.wgsl`, `dp_tile_sweep_cost.wgsl`, `dp_tile_sweep_accumulate.wgsl` |
 //! | [`fourier`] | `fourier_build.wgsl`, `fourier_eval.wgsl` |
 //! | [`horizon_scan`] | `horizon_scan.wgsl` |

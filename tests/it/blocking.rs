@@ -249,7 +249,8 @@ fn sharp_dem(cx_m: f64, cy_m: f64) -> penumbra::terrain::Dem {
     }
 }
 
-/// Per engine, the share of "stable" pixels (the oracle's answer is the same for the light and
+/// Per engine (the CPU engines from the model cells, the CPU DP and the GPU DP kernel's twin
+/// from the DEM pixels), the share of "stable" pixels (the oracle's answer is the same for the light and
 /// for the light moved by ±0.5° in azimuth and in elevation) whose hard mask differs from an
 /// exact ray cast on the DEM's own surface (the per-site horizon engine toward the pixel's own
 /// azimuth of the light, exact method), over 10 lights; every 3rd pixel.
@@ -280,7 +281,16 @@ fn sharp_mask_errors(dem: penumbra::terrain::Dem) -> Vec<(&'static str, f64, usi
         ("dp", Engine::Dp),
         ("combined", Engine::Combined),
     ];
-    let mut wrong = vec![0usize; engines.len()];
+    // The GPU's DP kernel from the DEM pixels (`dp_points.wgsl`) through its f32 twin, and the
+    // CPU DP from the pixels (the maps' default on both backends).
+    let observers = grid.pixel_observers(2.0);
+    let march = penumbra::twins::MarchGrid::from_height_field(&grid.hf, 2.0).unwrap();
+    let mip = penumbra::twins::DpMip::build(&march);
+    let (pixel_of_point, points) = penumbra::twins::pixel_point_records(&march, &observers);
+    let dp_engine =
+        penumbra::map::MapEngine::new(penumbra::map::MapEngineKind::Direct(Engine::Dp), &grid, 2.0)
+            .unwrap();
+    let mut wrong = vec![0usize; engines.len() + 2];
     let mut stable = 0usize;
     for az in [20.0, 95.0, 160.0, 250.0, 330.0] {
         for el in [1.0, 3.0] {
@@ -307,8 +317,25 @@ fn sharp_mask_errors(dem: penumbra::terrain::Dem) -> Vec<(&'static str, f64, usi
                 .collect();
             stable += oracle.iter().flatten().count();
             let light = grid.light_from_moon_me(&dir(0.0, 0.0));
-            for (k, (_, e)) in engines.iter().enumerate() {
-                let mask = grid.to_output_u8(&e.hard_mask(&grid.hf, 2.0, light).unwrap());
+            let mut masks: Vec<Vec<u8>> = engines
+                .iter()
+                .map(|(_, e)| grid.to_output_u8(&e.hard_mask(&grid.hf, 2.0, light).unwrap()))
+                .collect();
+            masks.push(
+                dp_engine
+                    .hard_mask_on_dem(&grid, Some(&observers), 2.0, light)
+                    .unwrap(),
+            );
+            let hard = penumbra::twins::disc_light_to_f32(&light.into(), 0.0);
+            let mut twin = vec![255_u8; observers.len()];
+            for (&p, &f) in pixel_of_point
+                .iter()
+                .zip(&penumbra::twins::dp_points(&march, &mip, &points, hard))
+            {
+                twin[p] = u8::from(f > 0.5);
+            }
+            masks.push(twin);
+            for (k, mask) in masks.iter().enumerate() {
                 wrong[k] += pixels
                     .iter()
                     .zip(&oracle)
@@ -319,8 +346,10 @@ fn sharp_mask_errors(dem: penumbra::terrain::Dem) -> Vec<(&'static str, f64, usi
     }
     engines
         .iter()
+        .map(|(name, _)| *name)
+        .chain(["dp (pixels)", "gpu dp twin (pixels)"])
         .zip(wrong)
-        .map(|((name, _), w)| (*name, 100.0 * w as f64 / stable as f64, stable))
+        .map(|(name, w)| (name, 100.0 * w as f64 / stable as f64, stable))
         .collect()
 }
 

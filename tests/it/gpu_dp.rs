@@ -254,10 +254,11 @@ mod on_gpu {
 }
 
 /// `penumbra map` over 2027-02-01..05 step 12h (9 epochs) on the synthetic DEM with
-/// `--engine dp --backend B`, in `cwd/B`.
+/// `--engine dp --backend B --observers O`, in `cwd/B-O`.
 #[cfg(feature = "gpu")]
-fn map_range_dp(cwd: &std::path::Path, backend: &str) -> std::process::Output {
+fn map_range_dp(cwd: &std::path::Path, backend: &str, observers: &str) -> std::process::Output {
     let k = crate::util::kernels_dir();
+    let out_dir = format!("{backend}-{observers}");
     std::process::Command::new(env!("CARGO_BIN_EXE_penumbra"))
         .args([
             "map",
@@ -271,14 +272,13 @@ fn map_range_dp(cwd: &std::path::Path, backend: &str) -> std::process::Output {
             "--engine",
             "dp",
             "--out-dir",
-            backend,
+            &out_dir,
             "--kernels",
             k.to_str().unwrap(),
             "--backend",
             backend,
-            // The GPU's method on both backends (the CPU default starts at the DEM's own pixels).
             "--observers",
-            "cells",
+            observers,
         ])
         .current_dir(cwd)
         .env("XDG_RUNTIME_DIR", "/tmp")
@@ -288,8 +288,9 @@ fn map_range_dp(cwd: &std::path::Path, backend: &str) -> std::process::Output {
 }
 
 /// The soft GPU sweep against the CPU `map::sweep` (engine DP, f64) with the same definitions:
-/// every statistic map of `--backend gpu` vs `--backend cpu` on the synthetic DEM, same nodata,
-/// max / mean |Δ| per map within the bounds measured on lavapipe (docs/VALIDATION.md).
+/// every statistic map of `--backend gpu` vs `--backend cpu` on the synthetic DEM, rays from the
+/// model cells and (the default) from the DEM pixels, same nodata, max / mean |Δ| per map within
+/// the bounds measured on lavapipe (docs/VALIDATION.md).
 #[cfg(feature = "gpu")]
 #[test]
 fn map_sweep_gpu_soft_matches_cpu_sweep() {
@@ -300,58 +301,79 @@ fn map_sweep_gpu_soft_matches_cpu_sweep() {
         return;
     }
     let dir = tempfile::tempdir().unwrap();
-    for backend in ["cpu", "gpu"] {
-        let out = map_range_dp(dir.path(), backend);
-        assert!(
-            out.status.success(),
-            "--backend {backend}: {}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-    }
-    let read = |b: &str, name: &str| {
-        penumbra::terrain::read_geotiff(&dir.path().join(b).join(format!("{name}.tif")))
+    let mut failures = 0;
+    for observers in ["cells", "pixels"] {
+        for backend in ["cpu", "gpu"] {
+            let out = map_range_dp(dir.path(), backend, observers);
+            assert!(
+                out.status.success(),
+                "--backend {backend} --observers {observers}: {}",
+                String::from_utf8_lossy(&out.stderr)
+            );
+            let run = std::fs::read_to_string(
+                dir.path()
+                    .join(format!("{backend}-{observers}"))
+                    .join("run.json"),
+            )
+            .unwrap();
+            let words = match observers {
+                "cells" => penumbra::map::ObserverPlacement::Cells,
+                _ => penumbra::map::ObserverPlacement::Pixels,
+            }
+            .describe();
+            assert!(
+                run.contains(words),
+                "{backend} {observers}: run.json does not say \"{words}\""
+            );
+        }
+        let read = |b: &str, name: &str| {
+            penumbra::terrain::read_geotiff(
+                &dir.path()
+                    .join(format!("{b}-{observers}"))
+                    .join(format!("{name}.tif")),
+            )
             .unwrap()
             .heights_m
-    };
-    let mut failures = 0;
-    // (map, a difference that counts (in the map's unit), mean |Δ| bound). One epoch is 11.1 %
-    // or 12 h. Measured on lavapipe since the CPU DP fix (shadow::dp, missed occluders next to
-    // the nodata margin; test dp_twin_vs_cpu_dp_on_synthetic_dem, docs/VALIDATION.md):
-    // sun_illumination_pct mean |Δ| 1.7e-4 % (0 pixels > 1 %), longest_dark_h 1.5e-4 h (2 pixels
-    // > 0.5 h: f32 vs f64 fractions at the edge of 0), psr_mask, earth and sun-and-earth 0.
-    // Before the fix: 3.3e-3 % (94 px), 3.8e-3 h (73 px), psr_mask 8 px.
-    for (name, counts_m, mean_bound) in [
-        ("sun_illumination_pct", 1.0, 2e-3),
-        ("longest_dark_h", 0.5, 2e-3),
-        ("psr_mask", 0.5, 1e-4),
-        ("earth_visible_pct", 1.0, 2e-3),
-        ("sun_and_earth_pct", 1.0, 2e-3),
-    ] {
-        let (cpu, gpu) = (read("cpu", name), read("gpu", name));
-        assert_eq!(cpu.len(), gpu.len());
-        let nodata = |v: f32| v.is_nan() || (name == "psr_mask" && v == 255.0);
-        let (mut valid, mut differ, mut max, mut sum) = (0usize, 0usize, 0.0_f64, 0.0_f64);
-        let mut worst = (0usize, 0.0_f32, 0.0_f32);
-        for (k, (&c, &g)) in cpu.iter().zip(&gpu).enumerate() {
-            assert_eq!(nodata(c), nodata(g), "{name}: nodata masks differ");
-            if nodata(c) {
-                continue;
+        };
+        // (map, a difference that counts (in the map's unit), mean |Δ| bound). One epoch is 11.1 %
+        // or 12 h. Measured on lavapipe since the CPU DP fix (shadow::dp, missed occluders next to
+        // the nodata margin; test dp_twin_vs_cpu_dp_on_synthetic_dem, docs/VALIDATION.md):
+        // sun_illumination_pct mean |Δ| 1.7e-4 % (0 pixels > 1 %), longest_dark_h 1.5e-4 h (2 pixels
+        // > 0.5 h: f32 vs f64 fractions at the edge of 0), psr_mask, earth and sun-and-earth 0.
+        // Before the fix: 3.3e-3 % (94 px), 3.8e-3 h (73 px), psr_mask 8 px.
+        for (name, counts_m, mean_bound) in [
+            ("sun_illumination_pct", 1.0, 2e-3),
+            ("longest_dark_h", 0.5, 2e-3),
+            ("psr_mask", 0.5, 1e-4),
+            ("earth_visible_pct", 1.0, 2e-3),
+            ("sun_and_earth_pct", 1.0, 2e-3),
+        ] {
+            let (cpu, gpu) = (read("cpu", name), read("gpu", name));
+            assert_eq!(cpu.len(), gpu.len());
+            let nodata = |v: f32| v.is_nan() || (name == "psr_mask" && v == 255.0);
+            let (mut valid, mut differ, mut max, mut sum) = (0usize, 0usize, 0.0_f64, 0.0_f64);
+            let mut worst = (0usize, 0.0_f32, 0.0_f32);
+            for (k, (&c, &g)) in cpu.iter().zip(&gpu).enumerate() {
+                assert_eq!(nodata(c), nodata(g), "{name}: nodata masks differ");
+                if nodata(c) {
+                    continue;
+                }
+                valid += 1;
+                let d = f64::from((c - g).abs());
+                differ += usize::from(d > counts_m);
+                if d > max {
+                    worst = (k, c, g);
+                }
+                max = max.max(d);
+                sum += d;
             }
-            valid += 1;
-            let d = f64::from((c - g).abs());
-            differ += usize::from(d > counts_m);
-            if d > max {
-                worst = (k, c, g);
-            }
-            max = max.max(d);
-            sum += d;
+            let mean = sum / valid as f64;
+            eprintln!(
+                "map sweep gpu vs cpu (dp, observers {observers}) {name}: {valid} valid, max |Δ| {max:.3e}, mean |Δ| {mean:.3e}, {differ} pixels differ > {counts_m}, worst (index, cpu, gpu) {worst:?}"
+            );
+            failures += usize::from(mean > mean_bound || differ as f64 > 1e-4 * valid as f64);
+            assert!(valid > 10_000);
         }
-        let mean = sum / valid as f64;
-        eprintln!(
-            "map sweep gpu vs cpu (dp) {name}: {valid} valid, max |Δ| {max:.3e}, mean |Δ| {mean:.3e}, {differ} pixels differ > {counts_m}, worst (index, cpu, gpu) {worst:?}"
-        );
-        failures += usize::from(mean > mean_bound || differ as f64 > 1e-4 * valid as f64);
-        assert!(valid > 10_000);
     }
     assert_eq!(failures, 0, "maps out of bounds (see stderr)");
 }
@@ -465,8 +487,9 @@ fn dp_twin_vs_cpu_dp_on_synthetic_dem() {
 }
 
 /// One-light maps: `penumbra map --synthetic --sun-az-deg 151 --sun-el-deg 1.5 --engine dp
-/// --out-fraction/--out-mask` with `--backend gpu` vs `--backend cpu`: same nodata, fraction
-/// mean |Δ| ≤ 1e-3 and ≤ 0.1 % of pixels off by > 0.01, masks differ on ≤ 0.1 % of pixels.
+/// --out-fraction/--out-mask` with `--backend gpu` vs `--backend cpu`, rays from the model cells
+/// and (the default) from the DEM pixels: same nodata, fraction mean |Δ| ≤ 1e-3 and ≤ 0.1 % of
+/// pixels off by > 0.01, masks differ on ≤ 0.1 % of pixels.
 #[cfg(feature = "gpu")]
 #[test]
 fn map_one_light_gpu_matches_cpu() {
@@ -477,62 +500,241 @@ fn map_one_light_gpu_matches_cpu() {
         return;
     }
     let dir = tempfile::tempdir().unwrap();
-    for backend in ["cpu", "gpu"] {
-        let out = std::process::Command::new(env!("CARGO_BIN_EXE_penumbra"))
-            .args([
-                "map",
-                "--synthetic",
-                "--sun-az-deg",
-                "151",
-                "--sun-el-deg",
-                "1.5",
-                "--engine",
-                "dp",
-                "--out-fraction",
-                &format!("f_{backend}.tif"),
-                "--out-mask",
-                &format!("m_{backend}.tif"),
-                "--backend",
-                backend,
-                // The GPU's method on both backends (the CPU default: the DEM's own pixels).
-                "--observers",
-                "cells",
-            ])
-            .current_dir(dir.path())
-            .env("XDG_RUNTIME_DIR", "/tmp")
-            .output_within()
-            .unwrap();
-        assert!(
-            out.status.success(),
-            "{backend}: {}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-    }
-    let read = |f: &str| {
-        penumbra::terrain::read_geotiff(&dir.path().join(f))
-            .unwrap()
-            .heights_m
-    };
-    let (fc, fg) = (read("f_cpu.tif"), read("f_gpu.tif"));
-    let (mut n, mut sum, mut off) = (0usize, 0.0_f64, 0usize);
-    for (&c, &g) in fc.iter().zip(&fg) {
-        assert_eq!(c.is_nan(), g.is_nan());
-        if c.is_nan() {
-            continue;
+    for observers in ["cells", "pixels"] {
+        for backend in ["cpu", "gpu"] {
+            let out = std::process::Command::new(env!("CARGO_BIN_EXE_penumbra"))
+                .args([
+                    "map",
+                    "--synthetic",
+                    "--sun-az-deg",
+                    "151",
+                    "--sun-el-deg",
+                    "1.5",
+                    "--engine",
+                    "dp",
+                    "--out-fraction",
+                    &format!("f_{backend}.tif"),
+                    "--out-mask",
+                    &format!("m_{backend}.tif"),
+                    "--backend",
+                    backend,
+                    "--observers",
+                    observers,
+                ])
+                .current_dir(dir.path())
+                .env("XDG_RUNTIME_DIR", "/tmp")
+                .output_within()
+                .unwrap();
+            assert!(
+                out.status.success(),
+                "{backend}: {}",
+                String::from_utf8_lossy(&out.stderr)
+            );
         }
-        n += 1;
-        let d = f64::from((c - g).abs());
-        sum += d;
-        off += usize::from(d > 0.01);
+        let read = |f: &str| {
+            penumbra::terrain::read_geotiff(&dir.path().join(f))
+                .unwrap()
+                .heights_m
+        };
+        let (fc, fg) = (read("f_cpu.tif"), read("f_gpu.tif"));
+        let (mut n, mut sum, mut off) = (0usize, 0.0_f64, 0usize);
+        for (&c, &g) in fc.iter().zip(&fg) {
+            assert_eq!(c.is_nan(), g.is_nan());
+            if c.is_nan() {
+                continue;
+            }
+            n += 1;
+            let d = f64::from((c - g).abs());
+            sum += d;
+            off += usize::from(d > 0.01);
+        }
+        let (mc, mg) = (read("m_cpu.tif"), read("m_gpu.tif"));
+        let mask_differ = mc.iter().zip(&mg).filter(|(a, b)| a != b).count();
+        eprintln!(
+            "one-light gpu vs cpu (dp, observers {observers}): {n} px, fraction mean |Δ| {:.2e}, {off} px off > 0.01, masks differ {mask_differ}",
+            sum / n as f64
+        );
+        assert!(n > 10_000);
+        assert!(sum / n as f64 <= 1e-3);
+        assert!(off as f64 <= 1e-3 * n as f64);
+        assert!(mask_differ as f64 <= 1e-3 * mc.len() as f64);
     }
-    let (mc, mg) = (read("m_cpu.tif"), read("m_gpu.tif"));
-    let mask_differ = mc.iter().zip(&mg).filter(|(a, b)| a != b).count();
-    eprintln!(
-        "one-light gpu vs cpu (dp): {n} px, fraction mean |Δ| {:.2e}, {off} px off > 0.01, masks differ {mask_differ}",
-        sum / n as f64
-    );
-    assert!(n > 10_000);
-    assert!(sum / n as f64 <= 1e-3);
-    assert!(off as f64 <= 1e-3 * n as f64);
-    assert!(mask_differ as f64 <= 1e-3 * mc.len() as f64);
+}
+
+/// The built-in synthetic DEM's map grid, its DEM pixels' own observers and their point records
+/// (the kernels' inputs of `dp_points.wgsl` / `dp_points_sweep.wgsl`, issue 13).
+struct PixelCase {
+    grid: penumbra::model::MapGrid,
+    observers: Vec<Option<penumbra::shadow::Observer>>,
+    march: MarchGrid,
+    mip: DpMip,
+    pixel_of_point: Vec<usize>,
+    points: Vec<[f32; 4]>,
+}
+
+fn pixel_case() -> PixelCase {
+    let (stack, _) =
+        penumbra::products::synthetic_stack(&penumbra::terrain::synth::SynthParams::default())
+            .unwrap();
+    let grid = penumbra::model::MapGrid::new(&stack).unwrap();
+    let observers = grid.pixel_observers(OBSERVER_M);
+    let march = MarchGrid::from_height_field(&grid.hf, OBSERVER_M).unwrap();
+    let mip = DpMip::build(&march);
+    let (pixel_of_point, points) = twins::pixel_point_records(&march, &observers);
+    PixelCase {
+        grid,
+        observers,
+        march,
+        mip,
+        pixel_of_point,
+        points,
+    }
+}
+
+/// Oracle: the f64 CPU DP engine started from the same DEM pixels (`MapEngine::
+/// visible_fraction_on_dem` with the pixels' observers, the CPU maps' default). The f32 twin of
+/// `dp_points.wgsl` on the built-in synthetic DEM (404² pixels), a low Sun from three azimuths
+/// and one below the map centre's horizontal (the rims see it): soft fractions and hard masks.
+#[test]
+fn dp_points_twin_matches_the_cpu_dp_engine_from_the_pixels() {
+    use penumbra::map::{MapEngine, MapEngineKind};
+    let c = pixel_case();
+    let engine = MapEngine::new(MapEngineKind::Direct(Engine::Dp), &c.grid, OBSERVER_M).unwrap();
+    assert!(c.points.len() > 100_000);
+    for (az, el) in [(40.0, 1.0), (151.0, 1.5), (262.0, 0.5), (300.0, -0.3)] {
+        let dir = sun_dir(az, el);
+        for radius in [SUN_ANGULAR_RADIUS_RAD, 0.0] {
+            let cpu = engine
+                .visible_fraction_on_dem(
+                    &c.grid,
+                    Some(&c.observers),
+                    OBSERVER_M,
+                    dir.into(),
+                    radius,
+                )
+                .unwrap();
+            let light = twins::disc_light_to_f32(&dir, radius);
+            let per_point = twins::dp_points(&c.march, &c.mip, &c.points, light);
+            let mut twin = vec![f32::NAN; cpu.len()];
+            for (&p, &v) in c.pixel_of_point.iter().zip(&per_point) {
+                twin[p] = v;
+            }
+            let (max, mean, one_sided) = deltas(&cpu, &twin);
+            let differ = cpu
+                .iter()
+                .zip(&twin)
+                .filter(|(a, b)| !a.is_nan() && (*a - *b).abs() > 0.01)
+                .count();
+            let lit = cpu.iter().filter(|&&f| f > 0.5).count();
+            eprintln!(
+                "dp_points twin vs cpu dp from pixels, az {az} el {el} radius {radius:.4}: max |Δ| {max:.2e}, mean {mean:.2e}, {differ} of {} px > 0.01, {lit} lit",
+                c.points.len()
+            );
+            assert_eq!(one_sided, 0, "nodata differs");
+            assert!(
+                lit > 1000 && lit < c.points.len(),
+                "a case with light and shadow"
+            );
+            // f32 vs f64 at grazing ties: at most 1e-4 of the pixels.
+            assert!(differ as f64 <= 1e-4 * c.points.len() as f64);
+            assert!(mean < 2e-5, "mean {mean}");
+        }
+    }
+}
+
+#[cfg(feature = "gpu")]
+mod points_on_gpu {
+    use super::*;
+    use crate::util::gpu;
+    use penumbra::gpu::dp::{DpSweepOptions, GpuDpGrid, dp_points_gpu, dp_points_sweep_gpu};
+
+    /// `dp_points.wgsl` against its twin, in chunks of 7,777 points (several dispatches, a
+    /// partial last one): soft and hard.
+    #[test]
+    fn dp_points_gpu_matches_twin() {
+        let Some(ctx) = gpu() else { return };
+        let c = pixel_case();
+        let on_gpu = GpuDpGrid::upload(ctx, &c.march, &c.mip).unwrap();
+        for (az, el, radius) in [
+            (151.0, 1.5, SUN_ANGULAR_RADIUS_RAD),
+            (300.0, -0.3, SUN_ANGULAR_RADIUS_RAD),
+            (262.0, 0.5, 0.0),
+        ] {
+            let light = twins::disc_light_to_f32(&sun_dir(az, el), radius);
+            let gpu_values = dp_points_gpu(ctx, &on_gpu, &c.points, light, 4 * 7_777).unwrap();
+            let twin = twins::dp_points(&c.march, &c.mip, &c.points, light);
+            // No nodata among points (a fraction may round to -1e-7, which `deltas` would take
+            // for nodata): every point compared.
+            assert_eq!(gpu_values.len(), twin.len());
+            let d: Vec<f64> = twin
+                .iter()
+                .zip(&gpu_values)
+                .map(|(a, b)| f64::from((a - b).abs()))
+                .collect();
+            let (max, mean) = (
+                d.iter().copied().fold(0.0, f64::max),
+                d.iter().sum::<f64>() / d.len() as f64,
+            );
+            let identical = d.iter().filter(|&&x| x == 0.0).count();
+            eprintln!(
+                "dp_points gpu vs twin az {az} el {el} radius {radius:.4}: {identical}/{} identical, max |Δ| {max:.2e}, mean {mean:.2e}",
+                twin.len()
+            );
+            assert!(max <= 2e-4 && mean <= 2e-6);
+        }
+        // Bad input is an error, not a wrong map.
+        let mut off = c.points[..3].to_vec();
+        off[1][0] = -1.0;
+        let light = twins::disc_light_to_f32(&sun_dir(151.0, 1.5), 0.0);
+        assert!(dp_points_gpu(ctx, &on_gpu, &off, light, 1 << 20).is_err());
+    }
+
+    /// `dp_points_sweep.wgsl` against its twin over 24 epochs, chunks of 5,000 points, 5 epochs
+    /// per dispatch and 2 dispatches per submit.
+    #[test]
+    fn dp_points_sweep_gpu_matches_twin() {
+        let Some(ctx) = gpu() else { return };
+        let c = pixel_case();
+        let on_gpu = GpuDpGrid::upload(ctx, &c.march, &c.mip).unwrap();
+        let lights = sweep_lights(24);
+        let options = DpSweepOptions {
+            epochs_per_dispatch: 5,
+            dispatches_per_submit: 2,
+            band_bytes: 32 * 5_000,
+        };
+        let gpu_stats = dp_points_sweep_gpu(ctx, &on_gpu, &c.points, &lights, options).unwrap();
+        let twin = twins::dp_points_sweep(&c.march, &c.mip, &c.points, &lights);
+        assert_eq!(gpu_stats.len(), twin.len());
+        let equal = gpu_stats
+            .iter()
+            .zip(&twin)
+            .filter(|(g, t)| {
+                g.sun_visible_epochs == t.sun_visible_epochs
+                    && g.longest_dark_run_epochs == t.longest_dark_run_epochs
+                    && g.earth_visible_epochs == t.earth_visible_epochs
+                    && g.sun_and_earth_epochs == t.sun_and_earth_epochs
+            })
+            .count();
+        let max_sum = gpu_stats
+            .iter()
+            .zip(&twin)
+            .map(|(g, t)| f64::from((g.sun_fraction_sum - t.sun_fraction_sum).abs()))
+            .fold(0.0, f64::max);
+        let longest = twin
+            .iter()
+            .map(|s| s.longest_dark_run_epochs)
+            .max()
+            .unwrap();
+        eprintln!(
+            "dp_points_sweep gpu vs twin × 24: {equal}/{} points with equal counts, max |Δ sun_fraction_sum| {max_sum:.2e}, longest dark {longest}",
+            twin.len()
+        );
+        assert!(
+            twin.iter()
+                .any(|s| s.longest_dark_run_epochs > 1 && s.longest_dark_run_epochs < 24),
+            "fixture must have dark runs that end"
+        );
+        assert!(equal as f64 >= 0.999 * twin.len() as f64);
+        assert!(max_sum <= 24.0 * 2e-4);
+    }
 }

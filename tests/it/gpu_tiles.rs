@@ -451,6 +451,9 @@ mod on_gpu {
                     name,
                     "--kernels",
                     k.to_str().unwrap(),
+                    // The tiled kernels start at the model cells (docs/gpu.md).
+                    "--observers",
+                    "cells",
                 ])
                 .args(extra)
                 .current_dir(dir.path())
@@ -493,7 +496,8 @@ mod on_gpu {
     }
 
     /// `penumbra map --gpu-tile-cells 64` writes the same fraction and mask GeoTIFFs as the
-    /// untiled GPU map (synthetic DEM, Sun at 1° elevation).
+    /// untiled GPU map from the model cells (synthetic DEM, Sun at 1° elevation); without
+    /// `--observers cells` the tiled map falls back to the cells with a warning line.
     #[test]
     fn map_cli_tiled_equals_untiled() {
         if gpu().is_none() {
@@ -526,14 +530,25 @@ mod on_gpu {
                 "{name}: {}",
                 String::from_utf8_lossy(&out.stderr)
             );
+            String::from_utf8_lossy(&out.stderr).into_owned()
         };
-        run("whole", &[]);
-        run("tiled", &["--gpu-tile-cells", "64"]);
+        const WARNING: &str = "needs the GPU's 2-D tiled kernels";
+        assert!(!run("whole", &["--observers", "cells"]).contains(WARNING));
+        assert!(
+            !run("tiled", &["--gpu-tile-cells", "64", "--observers", "cells"]).contains(WARNING)
+        );
+        let fallback = run("fallback", &["--gpu-tile-cells", "64"]);
+        assert!(fallback.contains(WARNING), "{fallback}");
         let read = |f: &str| penumbra::terrain::read_geotiff(&dir.path().join(f)).unwrap();
-        for suffix in ["f", "m"] {
+        for (suffix, other) in [
+            ("f", "tiled"),
+            ("m", "tiled"),
+            ("f", "fallback"),
+            ("m", "fallback"),
+        ] {
             let (a, b) = (
                 read(&format!("whole_{suffix}.tif")),
-                read(&format!("tiled_{suffix}.tif")),
+                read(&format!("{other}_{suffix}.tif")),
             );
             let same = a
                 .heights_m
@@ -542,7 +557,7 @@ mod on_gpu {
                 .filter(|(x, y)| x == y || (x.is_nan() && y.is_nan()))
                 .count();
             eprintln!(
-                "map --gpu-tile-cells 64 ({suffix}): {same}/{} pixels equal",
+                "map --gpu-tile-cells 64 ({other}, {suffix}): {same}/{} pixels equal",
                 a.heights_m.len()
             );
             assert_eq!(same, a.heights_m.len());

@@ -217,13 +217,13 @@ fn fourier_engine_map_agrees_with_brute_force() {
 }
 
 #[test]
-fn gpu_maps_refuse_pixel_observers_cleanly() {
-    // The GPU kernels start their rays at the model cells only: asking for pixel observers on the
-    // GPU is one error line (or, without an adapter, the adapter's error line).
+fn gpu_maps_start_at_the_pixels_and_say_so() {
+    // On the GPU too the rays start at the DEM pixels by default (`dp_points.wgsl`), and the
+    // GeoTIFF's metadata says where they started; `--observers cells` still gives the model
+    // cells. Without an adapter: the adapter's one error line and no file.
     let dir = tempfile::tempdir().unwrap();
-    let out = crate::util::penumbra(
-        dir.path(),
-        &[
+    let map = |observers: &[&str], name: &str| {
+        let mut args = vec![
             "map",
             "--synthetic",
             "--sun-az-deg",
@@ -231,13 +231,29 @@ fn gpu_maps_refuse_pixel_observers_cleanly() {
             "--sun-el-deg",
             "3",
             "--out-mask",
-            "m.tif",
+            name,
             "--backend",
             "gpu",
-            "--observers",
-            "pixels",
-        ],
+        ];
+        args.extend_from_slice(observers);
+        crate::util::penumbra(dir.path(), &args)
+    };
+    let out = map(&[], "m.tif");
+    if !out.status.success() {
+        crate::util::assert_clean_error(&out, "--backend");
+        assert!(!dir.path().join("m.tif").exists());
+        return;
+    }
+    let text = |name: &str| {
+        String::from_utf8_lossy(&std::fs::read(dir.path().join(name)).unwrap()).into_owned()
+    };
+    let words = |p: penumbra::map::ObserverPlacement| p.describe().to_string();
+    assert!(text("m.tif").contains(&words(penumbra::map::ObserverPlacement::Pixels)));
+    let out = map(&["--observers", "cells"], "c.tif");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
     );
-    crate::util::assert_clean_error(&out, "--backend");
-    assert!(!dir.path().join("m.tif").exists());
+    assert!(text("c.tif").contains(&words(penumbra::map::ObserverPlacement::Cells)));
 }

@@ -922,6 +922,7 @@ fn every_geotiff_output_is_a_cloud_optimized_geotiff_with_its_metadata() {
                 assert_eq!(md["epoch_utc"], "2025-01-20T06:00:00Z", "{name}");
                 for item in [
                     "engine",
+                    "rays_from",
                     "observer_height_m",
                     "sun_az_deg_at_map_centre",
                     "sun_el_deg_at_map_centre",
