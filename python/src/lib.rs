@@ -880,6 +880,7 @@ fn map_light<'py>(
                 &grid,
                 kind,
                 observer_height_m,
+                maps.placement(),
                 (sun, radius),
                 earth.map(|(dir, _)| dir),
                 light.map(|e| (e, ab)),

@@ -383,15 +383,15 @@ pub fn run(req: &MapRequest) -> anyhow::Result<()> {
         req.gpu_tile_cells,
     )?;
     // The light and the run's parameters, in every file's metadata.
-    let mut items = one_light_metadata(
+    let items = one_light_metadata(
         &grid,
         engine_kind,
         req.observer_height_m,
+        maps.placement(),
         (sun, sun_radius_rad),
         earth.map(|(dir, _)| dir),
         kernels.as_ref().map(|_| (epochs[0], abcorr)),
     );
-    items.push(("rays_from".into(), maps.placement().describe().to_string()));
     let info = |description| crate::model::RasterInfo {
         description,
         unit: "",
@@ -419,13 +419,14 @@ pub fn run(req: &MapRequest) -> anyhow::Result<()> {
 }
 
 /// The metadata items of a one-light map's GeoTIFFs: the epoch (when the light comes from the
-/// ephemeris), the engine, the observer height, the Sun's azimuth and elevation at the map centre,
+/// ephemeris), the engine, where the rays start, the observer height, the Sun's azimuth and elevation at the map centre,
 /// the Sun's angular radius, the aberration correction (with an epoch) and the Earth's azimuth
 /// and elevation at the map centre (with an Earth direction).
 pub fn one_light_metadata(
     grid: &crate::model::MapGrid,
     engine: MapEngineKind,
     observer_height_m: f64,
+    placement: crate::map::ObserverPlacement,
     (sun, sun_radius_rad): ([f64; 3], f64),
     earth: Option<[f64; 3]>,
     epoch: Option<(hifitime::Epoch, crate::ephem::AbCorr)>,
@@ -437,6 +438,7 @@ pub fn one_light_metadata(
     }
     items.extend([
         ("engine", engine.name().to_string()),
+        ("rays_from", placement.describe().to_string()),
         ("observer_height_m", format!("{observer_height_m}")),
         ("sun_az_deg_at_map_centre", format!("{sun_az_deg:.6}")),
         ("sun_el_deg_at_map_centre", format!("{sun_el_deg:.6}")),
