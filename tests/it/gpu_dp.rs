@@ -123,7 +123,7 @@ const TWIN_VS_DP_MEAN: f64 = 5e-6;
 const TWIN_VS_BRUTE_HARD_FRACTION: f64 = 1e-3;
 
 #[cfg(feature = "gpu")]
-mod on_gpu {
+pub(crate) mod on_gpu {
     use penumbra::gpu::dp::{DpSweepOptions, GpuDpGrid, dp_sweep_gpu, dp_visible_gpu};
     use penumbra::twins::DpCellStats;
 
@@ -183,6 +183,30 @@ mod on_gpu {
         }
     }
 
+    /// Of two sweeps' statistics: how many cells have all four counts equal, and the largest
+    /// |Δ| of the Sun's fraction sum.
+    pub(crate) fn stats_agreement(a: &[DpCellStats], b: &[DpCellStats]) -> (usize, f64) {
+        let counts = |s: &DpCellStats| {
+            (
+                s.sun_visible_epochs,
+                s.longest_dark_run_epochs,
+                s.earth_visible_epochs,
+                s.sun_and_earth_epochs,
+            )
+        };
+        let equal = a
+            .iter()
+            .zip(b)
+            .filter(|(x, y)| counts(x) == counts(y))
+            .count();
+        let max_sum = a
+            .iter()
+            .zip(b)
+            .map(|(x, y)| f64::from((x.sun_fraction_sum - y.sun_fraction_sum).abs()))
+            .fold(0.0, f64::max);
+        (equal, max_sum)
+    }
+
     /// Bounds measured on lavapipe (docs/VALIDATION.md).
     const GPU_VS_TWIN_MAX: f64 = 2e-4;
     const GPU_VS_TWIN_MEAN: f64 = 2e-6;
@@ -220,24 +244,7 @@ mod on_gpu {
             band_bytes: 9 * n as u64 * 32,
         };
         let gpu_stats = dp_sweep_gpu(ctx, &on_gpu, &lights, options).unwrap();
-        let counts = |s: &DpCellStats| {
-            (
-                s.sun_visible_epochs,
-                s.longest_dark_run_epochs,
-                s.earth_visible_epochs,
-                s.sun_and_earth_epochs,
-            )
-        };
-        let equal = twin
-            .iter()
-            .zip(&gpu_stats)
-            .filter(|(a, b)| counts(a) == counts(b))
-            .count();
-        let max_sum = twin
-            .iter()
-            .zip(&gpu_stats)
-            .map(|(a, b)| f64::from((a.sun_fraction_sum - b.sun_fraction_sum).abs()))
-            .fold(0.0, f64::max);
+        let (equal, max_sum) = stats_agreement(&twin, &gpu_stats);
         let longest = twin
             .iter()
             .map(|s| s.longest_dark_run_epochs)
@@ -645,6 +652,7 @@ fn dp_points_twin_matches_the_cpu_dp_engine_from_the_pixels() {
 #[cfg(feature = "gpu")]
 mod points_on_gpu {
     use super::*;
+    use crate::gpu_dp::on_gpu::stats_agreement;
     use crate::util::gpu;
     use penumbra::gpu::dp::{DpSweepOptions, GpuDpGrid, dp_points_gpu, dp_points_sweep_gpu};
 
@@ -705,21 +713,7 @@ mod points_on_gpu {
         let gpu_stats = dp_points_sweep_gpu(ctx, &on_gpu, &c.points, &lights, options).unwrap();
         let twin = twins::dp_points_sweep(&c.march, &c.mip, &c.points, &lights);
         assert_eq!(gpu_stats.len(), twin.len());
-        let equal = gpu_stats
-            .iter()
-            .zip(&twin)
-            .filter(|(g, t)| {
-                g.sun_visible_epochs == t.sun_visible_epochs
-                    && g.longest_dark_run_epochs == t.longest_dark_run_epochs
-                    && g.earth_visible_epochs == t.earth_visible_epochs
-                    && g.sun_and_earth_epochs == t.sun_and_earth_epochs
-            })
-            .count();
-        let max_sum = gpu_stats
-            .iter()
-            .zip(&twin)
-            .map(|(g, t)| f64::from((g.sun_fraction_sum - t.sun_fraction_sum).abs()))
-            .fold(0.0, f64::max);
+        let (equal, max_sum) = stats_agreement(&twin, &gpu_stats);
         let longest = twin
             .iter()
             .map(|s| s.longest_dark_run_epochs)
