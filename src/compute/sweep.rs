@@ -133,7 +133,8 @@ pub fn range_statistics(
 }
 
 /// The horizons engine: whole-grid horizons (from a file or a sweep in memory), then every
-/// epoch per pixel ([`crate::horizon::statistics`]). CPU only.
+/// epoch per pixel ([`crate::horizon::statistics`]; the epoch loop on the GPU with the GPU
+/// backend).
 #[allow(clippy::too_many_arguments, reason = "range_statistics' arguments")]
 fn horizon_statistics(
     backend: &ResolvedBackend,
@@ -247,10 +248,29 @@ pub fn horizon_statistics_rows(
         "penumbra: statistics [{bar:40}] {pos}/{len} rows, {elapsed} (eta {eta})",
     );
     let rows_total = rows.len();
-    let stats = engine.run_rows(source.as_mut(), &bodies, store, rows.clone(), |done| {
-        progress.set_position(done as u64);
-        report(done, rows_total)
-    })?;
+    // The epoch loop on the GPU (`shaders/horizon_stats.wgsl`) with the GPU backend.
+    #[cfg(feature = "gpu")]
+    let mut gpu_kernel = match backend {
+        ResolvedBackend::Gpu(ctx) => Some(crate::gpu::horizon_stats::GpuHorizonStats::new(ctx)?),
+        ResolvedBackend::Cpu => None,
+    };
+    #[cfg(feature = "gpu")]
+    let kernel = gpu_kernel
+        .as_mut()
+        .map(|k| k as &mut dyn crate::horizon::statistics::CellKernel);
+    #[cfg(not(feature = "gpu"))]
+    let kernel = None;
+    let stats = engine.run_rows_on(
+        source.as_mut(),
+        &bodies,
+        store,
+        rows.clone(),
+        kernel,
+        |done| {
+            progress.set_position(done as u64);
+            report(done, rows_total)
+        },
+    )?;
     progress.finish_and_clear();
     let secs = t1.elapsed().as_secs_f64();
     let cell_epochs = (rows.len() * fine.grid.cols) as f64 * epochs.len() as f64;
@@ -270,11 +290,9 @@ pub fn horizon_statistics_rows(
     };
     let ran = match (backend, &map.horizons) {
         (ResolvedBackend::Gpu(_), HorizonsFrom::Sweep { .. }) => {
-            "gpu (the line sweep's hulls and tangents; statistics on the CPU)"
+            "gpu (the line sweep's hulls and tangents, and the statistics' epoch loop)"
         }
-        (ResolvedBackend::Gpu(_), HorizonsFrom::File(_)) => {
-            "cpu (the statistics reduction has no GPU kernel yet)"
-        }
+        (ResolvedBackend::Gpu(_), HorizonsFrom::File(_)) => "gpu (the statistics' epoch loop)",
         (ResolvedBackend::Cpu, _) => "cpu",
     };
     let note = format!(

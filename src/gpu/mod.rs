@@ -26,6 +26,8 @@ pub mod fourier;
 #[cfg(feature = "gpu")]
 pub mod horizon;
 #[cfg(feature = "gpu")]
+pub mod horizon_stats;
+#[cfg(feature = "gpu")]
 pub mod line_sweep;
 #[cfg(feature = "gpu")]
 pub mod render;

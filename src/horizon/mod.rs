@@ -124,6 +124,9 @@ pub enum HorizonError {
     /// The caller's progress callback asked to stop.
     #[error("interrupted")]
     Interrupted,
+    /// The kernel the statistics ran on elsewhere (the GPU) failed.
+    #[error("statistics kernel: {0}")]
+    Kernel(String),
     /// Keeping a finished block for a resumed run failed.
     #[error("checkpoint: {0}")]
     Checkpoint(String),

@@ -15,6 +15,7 @@
 //! | [`dp_tiles`] | `dp_tile_cost.wgsl`, `dp_tile_fraction.wgsl`, `dp_tile_sweep_cost.wgsl`, `dp_tile_sweep_accumulate.wgsl` |
 //! | [`fourier`] | `fourier_build.wgsl`, `fourier_eval.wgsl` |
 //! | [`horizon_scan`] | `horizon_scan.wgsl` |
+//! | [`horizon_stats`] | `horizon_stats.wgsl` |
 //! | [`line_sweep`] | `line_sweep.wgsl` |
 //!
 //! The sentinels the kernels share (hole markers, "lit"/"shadow" codes) are defined here once.
@@ -23,6 +24,7 @@ pub mod dp;
 pub mod dp_tiles;
 pub mod fourier;
 pub mod horizon_scan;
+pub mod horizon_stats;
 pub mod line_sweep;
 pub mod march;
 

@@ -52,25 +52,8 @@ const SYNTH_SITES: [(f64, f64); 4] = [(-90.0, 0.0), (-89.9, 45.0), (-89.8, 200.0
 /// The shader's structs have the sizes of their Rust mirrors (naga's layouter); never skipped.
 #[test]
 fn horizon_scan_struct_layout_matches_rust() {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("shaders/horizon_scan.wgsl");
-    let src = std::fs::read_to_string(path).unwrap();
-    let module = naga::front::wgsl::parse_str(&src).unwrap();
-    naga::valid::Validator::new(
-        naga::valid::ValidationFlags::all(),
-        naga::valid::Capabilities::all(),
-    )
-    .validate(&module)
-    .unwrap();
-    let mut layouter = naga::proc::Layouter::default();
-    layouter.update(module.to_ctx()).unwrap();
-    let size = |name: &str| {
-        let (h, _) = module
-            .types
-            .iter()
-            .find(|(_, t)| t.name.as_deref() == Some(name))
-            .unwrap_or_else(|| panic!("no struct {name}"));
-        layouter[h].size as usize
-    };
+    let sizes = crate::util::wgsl_struct_sizes("horizon_scan.wgsl");
+    let size = |name: &str| sizes[name];
     assert_eq!(size("ScanParams"), size_of::<ScanParams>());
     assert_eq!(size("Site"), size_of::<SiteParams>());
     assert_eq!(size("Layer"), size_of::<horizon_scan::LayerParams>());

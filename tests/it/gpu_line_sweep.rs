@@ -6,8 +6,6 @@
 //! adapter (lavapipe in CI: `WGPU_BACKEND=vulkan`) the GPU against the twin and the f64 sweep.
 //! No adapter: the GPU tests are skipped with a printed reason, unless `PENUMBRA_REQUIRE_GPU=1`.
 
-use std::path::Path;
-
 use penumbra::horizon::sweep::grid_convergence_deg;
 use penumbra::horizon::{HorizonEngine, HorizonMethod, HorizonParams, HorizonSweep, SweepParams};
 use penumbra::terrain::{Dem, TerrainStack};
@@ -109,25 +107,8 @@ const TWO_LAYER_PARAMS: SweepParams = SweepParams {
 /// The shader's structs have the sizes of their Rust mirrors (naga's layouter); never skipped.
 #[test]
 fn line_sweep_struct_layout_matches_rust() {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("shaders/line_sweep.wgsl");
-    let src = std::fs::read_to_string(path).unwrap();
-    let module = naga::front::wgsl::parse_str(&src).unwrap();
-    naga::valid::Validator::new(
-        naga::valid::ValidationFlags::all(),
-        naga::valid::Capabilities::all(),
-    )
-    .validate(&module)
-    .unwrap();
-    let mut layouter = naga::proc::Layouter::default();
-    layouter.update(module.to_ctx()).unwrap();
-    let size = |name: &str| {
-        let (h, _) = module
-            .types
-            .iter()
-            .find(|(_, t)| t.name.as_deref() == Some(name))
-            .unwrap_or_else(|| panic!("no struct {name}"));
-        layouter[h].size as usize
-    };
+    let sizes = crate::util::wgsl_struct_sizes("line_sweep.wgsl");
+    let size = |name: &str| sizes[name];
     assert_eq!(size("Params"), size_of::<line_sweep::LineSweepParams>());
     assert_eq!(size("Line"), size_of::<line_sweep::LineRecord>());
     assert_eq!(size("Sample"), size_of::<line_sweep::SampleRecord>());
@@ -356,7 +337,8 @@ mod on_gpu {
         );
     }
 
-    /// The command line: `map --engine horizons --backend gpu` (the sweep's looks on the GPU)
+    /// The command line: `map --engine horizons --backend gpu` (the sweep's looks and the
+    /// statistics' epoch loop on the GPU)
     /// against `--backend cpu` on a 64² synthetic DEM over a month at 3 h: the same story per
     /// pixel (every statistic within the bounds below), and the run names what ran.
     #[test]
@@ -406,7 +388,10 @@ mod on_gpu {
             notes.push(String::from_utf8_lossy(&out.stderr).to_string());
         }
         let run_json = std::fs::read_to_string(d.join("gpu/run.json")).unwrap();
-        assert!(run_json.contains("line sweep's hulls"), "{run_json}");
+        assert!(
+            run_json.contains("hulls and tangents, and the statistics' epoch loop"),
+            "{run_json}"
+        );
         for (name, tol) in [
             ("sun_illumination_pct.tif", 0.5),
             ("sun_visible_pct.tif", 0.5),

@@ -12,6 +12,7 @@ mod gpu_horizon;
 mod gpu_line_sweep;
 mod gpu_tiles;
 mod horizon;
+mod horizon_stats;
 mod horizon_sweep;
 mod illum;
 mod map;

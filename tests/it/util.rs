@@ -266,3 +266,23 @@ pub fn sweep_lights(epochs: usize) -> Vec<[f32; 4]> {
         })
         .collect()
 }
+
+/// The sizes naga's layouter gives the named structs of `shaders/<file>` (the shader parsed
+/// and validated first), for the tests that check a shader's structs against their Rust mirrors.
+pub fn wgsl_struct_sizes(file: &str) -> std::collections::HashMap<String, usize> {
+    let src = std::fs::read_to_string(root().join("shaders").join(file)).unwrap();
+    let module = naga::front::wgsl::parse_str(&src).unwrap();
+    naga::valid::Validator::new(
+        naga::valid::ValidationFlags::all(),
+        naga::valid::Capabilities::all(),
+    )
+    .validate(&module)
+    .unwrap();
+    let mut layouter = naga::proc::Layouter::default();
+    layouter.update(module.to_ctx()).unwrap();
+    module
+        .types
+        .iter()
+        .filter_map(|(h, t)| Some((t.name.clone()?, layouter[h].size as usize)))
+        .collect()
+}

@@ -24,6 +24,15 @@ pub struct AzimuthLookup {
     bins_per_deg: f32,
 }
 
+/// [`AzimuthLookup`]'s arrays (see its fields).
+pub(super) struct LookupParts<'a> {
+    pub rel_deg: &'a [f32],
+    pub inv_width: &'a [f32],
+    pub index: &'a [u32],
+    pub a0_deg: f32,
+    pub bins_per_deg: f32,
+}
+
 impl AzimuthLookup {
     /// A lookup over bands at `grid_az_deg` (strictly increasing, in [0, 360)); `None` if they
     /// are not.
@@ -74,6 +83,17 @@ impl AzimuthLookup {
     /// Number of bands.
     pub fn n_bands(&self) -> usize {
         self.inv_width.len()
+    }
+
+    /// The lookup's arrays, for a kernel that mirrors [`AzimuthLookup::segment`] elsewhere.
+    pub(super) fn parts(&self) -> LookupParts<'_> {
+        LookupParts {
+            rel_deg: &self.rel_deg,
+            inv_width: &self.inv_width,
+            index: &self.index,
+            a0_deg: self.a0_deg,
+            bins_per_deg: self.bins_per_deg,
+        }
     }
 
     /// The bands' grid azimuths, degrees.
@@ -176,6 +196,11 @@ impl ChordTable {
         ChordTable { values }
     }
 
+    /// The table's `CHORD_BINS + 1` values over `x` in [−1, 1].
+    pub(super) fn values(&self) -> &[f32] {
+        &self.values
+    }
+
     /// The fraction at `x = d / r` (positive: chord above the centre); branch-free.
     #[inline(always)]
     pub fn fraction(&self, x: f32) -> f32 {
@@ -216,7 +241,7 @@ fn atan_unit(a: f32) -> f32 {
 
 /// `atan2(y, x)` in degrees, in [−180, 180], branch-free (0 for `(0, 0)`).
 #[inline(always)]
-pub(super) fn atan2_deg(y: f32, x: f32) -> f32 {
+pub fn atan2_deg(y: f32, x: f32) -> f32 {
     let (ax, ay) = (x.abs(), y.abs());
     let lo = ax.min(ay);
     let hi = ax.max(ay).max(f32::MIN_POSITIVE);

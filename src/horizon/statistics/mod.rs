@@ -39,6 +39,7 @@
 mod blocks;
 mod kernel;
 mod lookup;
+mod offload;
 mod sectors;
 mod source;
 
@@ -46,7 +47,8 @@ use rayon::prelude::*;
 
 pub use blocks::{BlockStore, NoStore};
 use kernel::{BOUND_SECTORS, CellAcc, CellGeom, Epochs, Scratch, Thresholds};
-pub use lookup::{AzimuthLookup, ChordTable};
+pub use lookup::{AzimuthLookup, ChordTable, atan2_deg};
+pub use offload::{CellKernel, EPOCH_CHUNK, KernelAcc, KernelCell, KernelEpoch, KernelShared};
 use sectors::MapFrame;
 pub use source::{
     HORIZON_NODATA_I16, HORIZON_PRODUCT, HorizonFile, HorizonRows, InMemoryHorizons,
@@ -262,23 +264,34 @@ impl BodyBounds {
 
     /// Whether the body never, always or sometimes clears the horizon `h` (`n + 1` band values
     /// at `lookup`'s azimuths) of a cell whose radial `up` is `tilt_deg` from the grid centre's, and
-    /// whose grid azimuth of `mean_dir` is `mean_az_deg`.
+    /// where `mean_dir` has grid azimuth `mean_az_deg` and elevation `mean_el_deg`.
     fn reach(
         &self,
         h: &[f32],
         lookup: &AzimuthLookup,
         tilt_deg: f64,
-        mean_az_deg: f64,
+        (mean_az_deg, mean_el_deg): (f64, f64),
     ) -> kernel::Reach {
         // Elevation range at the cell: the tilt of its vertical and the parallax move a
         // direction's sine of elevation by at most their angle, the elevation by that over cos.
         let steep = (self.el_lo_deg.abs().max(self.el_hi_deg.abs()) + tilt_deg).min(89.0);
         let grow = (tilt_deg + self.parallax_deg) / steep.to_radians().cos();
         let (el_lo, el_hi) = (self.el_lo_deg - grow, self.el_hi_deg + grow);
-        // The azimuths the disc can cover.
-        let half_width =
-            (self.spread_deg + tilt_deg + self.parallax_deg + self.radius_max_deg + 0.1)
-                / (el_hi.abs().max(el_lo.abs()).min(89.0)).to_radians().cos();
+        // The azimuths the disc can cover: directions within `rho` of the mean direction (at
+        // elevation `mean_el_deg` here). A cap that holds the zenith or the nadir covers every
+        // azimuth; else its azimuths reach `asin(sin rho / cos e)` from the mean's. (Dividing
+        // `rho` by the cosine of the bodies' elevations instead missed the whole circle when
+        // the mean direction of a month of a polar Sun points near the nadir: cells that see
+        // the Sun low over the DEM's edge were marked "never", found by the GPU kernel.)
+        let rho = self.spread_deg + tilt_deg + self.parallax_deg + self.radius_max_deg + 0.1;
+        let half_width = if rho >= 90.0 - mean_el_deg.abs() {
+            180.0
+        } else {
+            ((rho.to_radians().sin() / mean_el_deg.to_radians().cos()).min(1.0))
+                .asin()
+                .to_degrees()
+                + 0.1
+        };
         let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
         let mut take = |k: usize| {
             lo = lo.min(h[k].min(h[k + 1]));
@@ -425,6 +438,22 @@ impl<'a> StatisticsEngine<'a> {
         epochs: &[EpochBodies],
         store: &mut dyn BlockStore,
         rows: std::ops::Range<usize>,
+        progress: impl FnMut(usize) -> bool,
+    ) -> Result<HorizonStatistics, HorizonError> {
+        self.run_rows_on(source, epochs, store, rows, None, progress)
+    }
+
+    /// [`Self::run_rows`] with the per-cell epoch loop on `kernel` (the GPU, or its CPU twin;
+    /// `statistics/offload.rs` says what differs from the CPU engine), or on the CPU when `None`.
+    /// The geometry of the cells, the blocks, the store and the below-sphere tally are the
+    /// CPU engine's.
+    pub fn run_rows_on(
+        &self,
+        source: &mut dyn HorizonRows,
+        epochs: &[EpochBodies],
+        store: &mut dyn BlockStore,
+        rows: std::ops::Range<usize>,
+        mut kernel: Option<&mut dyn CellKernel>,
         mut progress: impl FnMut(usize) -> bool,
     ) -> Result<HorizonStatistics, HorizonError> {
         self.check_source(source)?;
@@ -519,6 +548,25 @@ impl<'a> StatisticsEngine<'a> {
             projector: UnitProjector::new(&fine.projection),
         };
 
+        if let Some(k) = kernel.as_deref_mut() {
+            let kernel_epochs = (0..soa.len())
+                .map(|j| KernelEpoch {
+                    sun_km: [soa.sun[0][j], soa.sun[1][j], soa.sun[2][j]],
+                    sun_radius_deg: soa.sun_radius_deg[j],
+                    earth_km: [soa.earth[0][j], soa.earth[1][j], soa.earth[2][j]],
+                    earth_radius_deg: soa.earth_radius_deg[j],
+                    sun_normal_w_m2: soa.sun_normal_w_m2[j],
+                    pad: [0.0; 3],
+                })
+                .collect();
+            k.begin(&KernelShared::new(
+                kernel_epochs,
+                &lookup,
+                (&chord_sun, &chord_earth),
+                (th.visible_min, th.full_min),
+            ))?;
+        }
+
         let mut out = HorizonStatistics::empty(n_px, epochs.len());
         let arch = pulp::Arch::new();
         // At least MIN_BLOCKS blocks: the units a killed run keeps.
@@ -541,95 +589,104 @@ impl<'a> StatisticsEngine<'a> {
                 continue;
             }
             source.read_rows(row0..row1, &mut block)?;
-            let results: Vec<(usize, CellAcc)> = (0..block_px.div_ceil(CELLS_PER_TASK))
-                .into_par_iter()
-                .flat_map_iter(|task| {
-                    let lo = task * CELLS_PER_TASK;
-                    let hi = (lo + CELLS_PER_TASK).min(block_px);
-                    let mut pixels = Vec::with_capacity(hi - lo);
-                    let mut cells = Vec::with_capacity(hi - lo);
-                    let mut horizons = Vec::with_capacity((hi - lo) * (n + 1));
-                    let mut bounds = Vec::with_capacity((hi - lo) * 2 * BOUND_SECTORS);
-                    let mut tables = Vec::new();
-                    let mut hbins = sectors::HorizonBins::default();
-                    let mut tscratch = sectors::TableScratch::default();
-                    for i in lo..hi {
-                        let px = first_px + i;
-                        let start = horizons.len();
-                        if let Some(cell) = self.cell(
-                            px,
-                            h_obs_m,
-                            (&block, block_px, i, n),
-                            &mut horizons,
-                            (&body_bounds, &reference, &lookup),
-                        ) {
-                            if need_bounds {
-                                for margin in [kernel::SUN_MARGIN_DEG, kernel::EARTH_MARGIN_DEG] {
-                                    kernel::sector_bounds(
-                                        &horizons[start..],
-                                        lookup.band_az_deg(),
-                                        margin,
-                                        &mut bounds,
-                                    );
-                                }
+            // The CPU engine on pixels `indices` of the block.
+            let on_cpu = |indices: &[usize]| {
+                let mut pixels = Vec::with_capacity(indices.len());
+                let mut cells = Vec::with_capacity(indices.len());
+                let mut horizons = Vec::with_capacity(indices.len() * (n + 1));
+                let mut bounds = Vec::with_capacity(indices.len() * 2 * BOUND_SECTORS);
+                let mut tables = Vec::new();
+                let mut hbins = sectors::HorizonBins::default();
+                let mut tscratch = sectors::TableScratch::default();
+                for &i in indices {
+                    let px = first_px + i;
+                    let start = horizons.len();
+                    if let Some(cell) = self.cell(
+                        px,
+                        h_obs_m,
+                        (&block, block_px, i, n),
+                        &mut horizons,
+                        (&body_bounds, &reference, &lookup),
+                    ) {
+                        if need_bounds {
+                            for margin in [kernel::SUN_MARGIN_DEG, kernel::EARTH_MARGIN_DEG] {
+                                kernel::sector_bounds(
+                                    &horizons[start..],
+                                    lookup.band_az_deg(),
+                                    margin,
+                                    &mut bounds,
+                                );
                             }
-                            if self.sector_tables {
-                                arch.dispatch(sectors::CellTables {
-                                    bodies: [
-                                        (
-                                            &soa.sun_sectors,
-                                            false,
-                                            cell.sun == kernel::Reach::Varies,
-                                        ),
-                                        (
-                                            &soa.earth_sectors,
-                                            earth_visible_only,
-                                            cell.earth == kernel::Reach::Varies,
-                                        ),
-                                    ],
-                                    reference: &reference,
-                                    edges: &sector_edges,
-                                    frame: &cell.frame,
-                                    r_obs_km: f64::from(cell.r_obs_km),
-                                    h: &horizons[start..],
-                                    lookup: &lookup,
-                                    bins: &mut hbins,
-                                    scratch: &mut tscratch,
-                                    out: &mut tables,
-                                });
-                            }
-                            pixels.push(px);
-                            cells.push(cell);
                         }
+                        if self.sector_tables {
+                            arch.dispatch(sectors::CellTables {
+                                bodies: [
+                                    (&soa.sun_sectors, false, cell.sun == kernel::Reach::Varies),
+                                    (
+                                        &soa.earth_sectors,
+                                        earth_visible_only,
+                                        cell.earth == kernel::Reach::Varies,
+                                    ),
+                                ],
+                                reference: &reference,
+                                edges: &sector_edges,
+                                frame: &cell.frame,
+                                r_obs_km: f64::from(cell.r_obs_km),
+                                h: &horizons[start..],
+                                lookup: &lookup,
+                                bins: &mut hbins,
+                                scratch: &mut tscratch,
+                                out: &mut tables,
+                            });
+                        }
+                        pixels.push(px);
+                        cells.push(cell);
                     }
-                    let mut acc = vec![CellAcc::default(); cells.len()];
-                    let mut scratch = Scratch::default();
-                    let mut j0 = 0;
-                    while j0 < soa.len() {
-                        let j1 = (j0 + kernel::CHUNK).min(soa.len());
-                        // The kernel compiled for the best SIMD level of this CPU (AVX2 + FMA
-                        // where present) by autovectorisation, chosen at run time.
-                        arch.dispatch(kernel::RunCells {
-                            cells: &cells,
-                            horizons: &horizons,
-                            bounds: &bounds,
-                            tables: &tables,
-                            stride: n + 1,
-                            epochs: &soa,
-                            range: j0..j1,
-                            lookup: &lookup,
-                            chord_sun: &chord_sun,
-                            chord_earth: &chord_earth,
-                            th,
-                            edges: &edges,
-                            scratch: &mut scratch,
-                            acc: &mut acc,
-                        });
-                        j0 = j1;
-                    }
-                    pixels.into_iter().zip(acc)
-                })
-                .collect();
+                }
+                let mut acc = vec![CellAcc::default(); cells.len()];
+                let mut scratch = Scratch::default();
+                let mut j0 = 0;
+                while j0 < soa.len() {
+                    let j1 = (j0 + kernel::CHUNK).min(soa.len());
+                    // The kernel compiled for the best SIMD level of this CPU (AVX2 + FMA
+                    // where present) by autovectorisation, chosen at run time.
+                    arch.dispatch(kernel::RunCells {
+                        cells: &cells,
+                        horizons: &horizons,
+                        bounds: &bounds,
+                        tables: &tables,
+                        stride: n + 1,
+                        epochs: &soa,
+                        range: j0..j1,
+                        lookup: &lookup,
+                        chord_sun: &chord_sun,
+                        chord_earth: &chord_earth,
+                        th,
+                        edges: &edges,
+                        scratch: &mut scratch,
+                        acc: &mut acc,
+                    });
+                    j0 = j1;
+                }
+                pixels.into_iter().zip(acc)
+            };
+            let results: Vec<(usize, CellAcc)> = match kernel.as_deref_mut() {
+                None => (0..block_px.div_ceil(CELLS_PER_TASK))
+                    .into_par_iter()
+                    .flat_map_iter(|task| {
+                        let lo = task * CELLS_PER_TASK;
+                        let hi = (lo + CELLS_PER_TASK).min(block_px);
+                        on_cpu(&(lo..hi).collect::<Vec<_>>())
+                    })
+                    .collect(),
+                Some(k) => self.block_on_kernel(
+                    k,
+                    (first_px, h_obs_m),
+                    (&block, block_px, n),
+                    (&body_bounds, &reference, &lookup),
+                    &on_cpu,
+                )?,
+            };
             let mut below = (0u64, 0u64);
             for (px, a) in results {
                 let px = px - base_px;
@@ -663,6 +720,99 @@ impl<'a> StatisticsEngine<'a> {
         }
         out.below_sphere.cells_total = out.nodata.iter().filter(|&&nd| !nd).count() as u64;
         Ok(out)
+    }
+
+    /// One block of pixels with the epoch loop on `kernel`: the cells' geometry here (in
+    /// parallel), the loop there, and the cells with below-sphere candidates once more through
+    /// `on_cpu` for the exact tally.
+    fn block_on_kernel<I: Iterator<Item = (usize, CellAcc)>>(
+        &self,
+        kernel: &mut dyn CellKernel,
+        (first_px, h_obs_m): (usize, f64),
+        (block, block_px, n): (&[i16], usize, usize),
+        bodies: (&[BodyBounds; 2], &MapFrame, &AzimuthLookup),
+        on_cpu: &(dyn Fn(&[usize]) -> I + Sync),
+    ) -> Result<Vec<(usize, CellAcc)>, HorizonError> {
+        const TASK: usize = 256;
+        let parts: Vec<(Vec<usize>, Vec<KernelCell>, Vec<f32>)> = (0..block_px.div_ceil(TASK))
+            .into_par_iter()
+            .map(|task| {
+                let (lo, hi) = (task * TASK, ((task + 1) * TASK).min(block_px));
+                let mut part = (Vec::new(), Vec::new(), Vec::new());
+                for i in lo..hi {
+                    let start = part.2.len();
+                    let Some(c) = self.cell(
+                        first_px + i,
+                        h_obs_m,
+                        (block, block_px, i, n),
+                        &mut part.2,
+                        bodies,
+                    ) else {
+                        continue;
+                    };
+                    let h = &part.2[start..];
+                    part.0.push(i);
+                    part.1.push(KernelCell {
+                        up: c.up,
+                        r_obs_km: c.r_obs_km,
+                        grid_east: c.grid_east,
+                        h_min_deg: h.iter().copied().fold(f32::INFINITY, f32::min),
+                        grid_north: c.grid_north,
+                        h_max_deg: h.iter().copied().fold(f32::NEG_INFINITY, f32::max),
+                        sin_dip_bound: c.beyond.sin_dip_bound(),
+                        pad: [0.0; 3],
+                    });
+                }
+                part
+            })
+            .collect();
+        let (mut index, mut cells, mut horizons) = (Vec::new(), Vec::new(), Vec::new());
+        for (i, c, h) in parts {
+            index.extend(i);
+            cells.extend(c);
+            horizons.extend(h);
+        }
+        let accs = kernel.run(&cells, &horizons)?;
+        if accs.len() != cells.len() {
+            return Err(HorizonError::Kernel(format!(
+                "{} returned {} cells of {}",
+                kernel.name(),
+                accs.len(),
+                cells.len()
+            )));
+        }
+        let candidates: Vec<usize> = index
+            .iter()
+            .zip(&accs)
+            .filter(|(_, a)| a.low_lit > 0)
+            .map(|(&i, _)| i)
+            .collect();
+        let exact: std::collections::HashMap<usize, u32> = candidates
+            .par_chunks(CELLS_PER_TASK)
+            .flat_map_iter(|c| on_cpu(c).map(|(px, a)| (px, a.below_sphere)))
+            .collect();
+        Ok(index
+            .into_iter()
+            .zip(accs)
+            .map(|(i, a)| {
+                let px = first_px + i;
+                let acc = CellAcc {
+                    sun_fraction_sum: f64::from(a.sun_fraction_sum),
+                    irradiance_horizontal_sum: f64::from(a.irradiance_horizontal_sum),
+                    irradiance_tracking_sum: f64::from(a.irradiance_tracking_sum),
+                    sun_visible: a.sun_visible,
+                    sun_full: a.sun_full,
+                    earth_visible: a.earth_visible,
+                    sun_and_earth: a.sun_and_earth,
+                    dark_run: a.dark_run,
+                    dark_max: a.dark_max,
+                    earth_hidden_run: a.earth_hidden_run,
+                    earth_hidden_max: a.earth_hidden_max,
+                    below_sphere: exact.get(&px).copied().unwrap_or(0),
+                };
+                (px, acc)
+            })
+            .collect())
     }
 
     /// The geometry of pixel `px` (index `i` of a block of `block_px` pixels of `n` bands),
@@ -714,7 +864,8 @@ impl<'a> StatisticsEngine<'a> {
                 .dot(&east)
                 .atan2(b.mean_dir.dot(&north))
                 .to_degrees();
-            b.reach(h, lookup, tilt_deg, az.rem_euclid(360.0))
+            let el = b.mean_dir.dot(&up).clamp(-1.0, 1.0).asin().to_degrees();
+            b.reach(h, lookup, tilt_deg, (az.rem_euclid(360.0), el))
         };
         let dip_deg = if r0_m > MOON_RADIUS_M {
             -((MOON_RADIUS_M / r0_m).acos().to_degrees() as f32)

@@ -1,0 +1,223 @@
+//! GPU runner of `shaders/horizon_stats.wgsl`: the horizons engine's per-cell epoch loop, one
+//! invocation per cell, epochs in batches of [`EPOCHS_PER_BATCH`] with the statistics resident
+//! on the GPU between them (the algorithm and the f32 twin: [`crate::twins::horizon_stats`]).
+//!
+//! [`GpuHorizonStats`] is a [`CellKernel`]: [`CellKernel::begin`] uploads the epochs and the
+//! tables once per run; [`CellKernel::run`] uploads a block's cells and horizons (in chunks that
+//! fit one storage binding), runs every batch of epochs and reads the statistics back once.
+
+use wgpu::util::DeviceExt as _;
+
+use super::GpuError;
+use super::context::{ErrorScope, GpuContext, layout_entry, whole};
+use super::shadow_march::compute_pipeline;
+use crate::horizon::HorizonError;
+use crate::horizon::statistics::{CellKernel, KernelAcc, KernelCell, KernelShared};
+use crate::twins::horizon_stats::{
+    EPOCHS_PER_BATCH, HorizonStatsParams, WORKGROUP_SIZE, packed_tables,
+};
+
+const HORIZON_STATS_WGSL: &str = include_str!(concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/shaders/horizon_stats.wgsl"
+));
+
+/// What a run shares, resident on the GPU.
+struct Resident {
+    shared: KernelShared,
+    epochs: wgpu::Buffer,
+    tables: wgpu::Buffer,
+    index: wgpu::Buffer,
+}
+
+/// The statistics kernel on a GPU.
+pub struct GpuHorizonStats<'a> {
+    ctx: &'a GpuContext,
+    layout: wgpu::BindGroupLayout,
+    pipeline: wgpu::ComputePipeline,
+    params_buf: wgpu::Buffer,
+    resident: Option<Resident>,
+}
+
+impl From<GpuError> for HorizonError {
+    fn from(e: GpuError) -> Self {
+        HorizonError::Kernel(e.to_string())
+    }
+}
+
+impl<'a> GpuHorizonStats<'a> {
+    /// Builds the pipeline.
+    pub fn new(ctx: &'a GpuContext) -> Result<Self, GpuError> {
+        let scope = ErrorScope::push(&ctx.device);
+        let storage = |read_only| wgpu::BufferBindingType::Storage { read_only };
+        let layout = ctx
+            .device
+            .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                label: Some("penumbra horizon_stats layout"),
+                entries: &[
+                    layout_entry(0, wgpu::BufferBindingType::Uniform),
+                    layout_entry(1, storage(true)),
+                    layout_entry(2, storage(true)),
+                    layout_entry(3, storage(true)),
+                    layout_entry(4, storage(true)),
+                    layout_entry(5, storage(true)),
+                    layout_entry(6, storage(false)),
+                ],
+            });
+        let pipeline = compute_pipeline(
+            &ctx.device,
+            &layout,
+            "horizon_stats",
+            HORIZON_STATS_WGSL,
+            "horizon_stats",
+        );
+        let params_buf = ctx.uniform_buffer(
+            "penumbra horizon_stats params",
+            size_of::<HorizonStatsParams>() as u64,
+        );
+        scope.pop("building the horizon_stats pipeline")?;
+        Ok(GpuHorizonStats {
+            ctx,
+            layout,
+            pipeline,
+            params_buf,
+            resident: None,
+        })
+    }
+
+    fn storage(&self, label: &str, contents: &[u8]) -> wgpu::Buffer {
+        self.ctx
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents,
+                usage: wgpu::BufferUsages::STORAGE,
+            })
+    }
+
+    /// Every batch of epochs for `cells` (fits one binding and one dispatch's grid).
+    fn run_chunk(
+        &self,
+        r: &Resident,
+        cells: &[KernelCell],
+        horizons: &[f32],
+    ) -> Result<Vec<KernelAcc>, GpuError> {
+        let ctx = self.ctx;
+        let scope = ErrorScope::push(&ctx.device);
+        let cells_buf = self.storage("penumbra horizon_stats cells", bytemuck::cast_slice(cells));
+        let horizons_buf = self.storage(
+            "penumbra horizon_stats horizons",
+            bytemuck::cast_slice(horizons),
+        );
+        let acc_bytes = (cells.len() * size_of::<KernelAcc>()) as u64;
+        // wgpu zero-initialises new buffers: the statistics start empty.
+        let acc = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("penumbra horizon_stats acc"),
+            size: acc_bytes,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let bind_group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("penumbra horizon_stats bind group"),
+            layout: &self.layout,
+            entries: &[
+                whole(0, &self.params_buf),
+                whole(1, &cells_buf),
+                whole(2, &horizons_buf),
+                whole(3, &r.epochs),
+                whole(4, &r.tables),
+                whole(5, &r.index),
+                whole(6, &acc),
+            ],
+        });
+        let groups = (cells.len() as u32).div_ceil(WORKGROUP_SIZE);
+        let groups_x = groups.min(ctx.limits().max_compute_workgroups_per_dimension);
+        let groups_y = groups.div_ceil(groups_x);
+        let n = r.shared.epochs.len();
+        for begin in (0..n).step_by(EPOCHS_PER_BATCH) {
+            let params = HorizonStatsParams {
+                groups_x,
+                ..HorizonStatsParams::new(
+                    &r.shared,
+                    cells.len(),
+                    begin,
+                    (begin + EPOCHS_PER_BATCH).min(n),
+                )
+            };
+            ctx.queue
+                .write_buffer(&self.params_buf, 0, bytemuck::bytes_of(&params));
+            ctx.dispatch(
+                "horizon_stats",
+                &self.pipeline,
+                &bind_group,
+                &[],
+                [groups_x, groups_y, 1],
+            );
+        }
+        let bytes = ctx.read_back(&acc, acc_bytes, "the horizon statistics")?;
+        scope.pop("running horizon_stats")?;
+        Ok(bytemuck::cast_slice(&bytes).to_vec())
+    }
+}
+
+impl CellKernel for GpuHorizonStats<'_> {
+    fn begin(&mut self, shared: &KernelShared) -> Result<(), HorizonError> {
+        let scope = ErrorScope::push(&self.ctx.device);
+        // A run without epochs still binds a non-empty buffer.
+        let epochs: &[u8] = if shared.epochs.is_empty() {
+            &[0; 48]
+        } else {
+            bytemuck::cast_slice(&shared.epochs)
+        };
+        let max = self.ctx.max_storage_binding_bytes();
+        if epochs.len() as u64 > max {
+            return Err(HorizonError::Kernel(format!(
+                "{} epochs exceed the GPU's storage binding limit ({max} B)",
+                shared.epochs.len()
+            )));
+        }
+        self.resident = Some(Resident {
+            epochs: self.storage("penumbra horizon_stats epochs", epochs),
+            tables: self.storage(
+                "penumbra horizon_stats tables",
+                bytemuck::cast_slice(&packed_tables(shared)),
+            ),
+            index: self.storage(
+                "penumbra horizon_stats index",
+                bytemuck::cast_slice(&shared.index),
+            ),
+            shared: shared.clone(),
+        });
+        scope.pop("uploading the horizon_stats epochs")?;
+        Ok(())
+    }
+
+    fn run(
+        &mut self,
+        cells: &[KernelCell],
+        horizons: &[f32],
+    ) -> Result<Vec<KernelAcc>, HorizonError> {
+        let r = self
+            .resident
+            .as_ref()
+            .ok_or_else(|| HorizonError::Kernel("horizon_stats ran before begin".into()))?;
+        let stride = r.shared.n_bands() + 1;
+        // Cells per chunk: their horizons within one binding, their groups within a 2-D grid.
+        let max_binding = self.ctx.max_storage_binding_bytes() as usize;
+        let per_chunk = (max_binding / (4 * stride))
+            .min(max_binding / size_of::<KernelAcc>())
+            .clamp(1, 1 << 24);
+        let mut out = Vec::with_capacity(cells.len());
+        for (c, h) in cells
+            .chunks(per_chunk)
+            .zip(horizons.chunks(per_chunk * stride))
+        {
+            out.extend(self.run_chunk(r, c, h)?);
+        }
+        Ok(out)
+    }
+
+    fn name(&self) -> String {
+        format!("horizon_stats.wgsl on {}", self.ctx.adapter_name())
+    }
+}
