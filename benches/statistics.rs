@@ -13,8 +13,9 @@
 )]
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
-use penumbra::compute::sweep::epoch_bodies;
-use penumbra::horizon::statistics::{InMemoryHorizons, StatisticsEngine, StatisticsParams};
+use penumbra::horizon::statistics::{
+    EpochBodies, InMemoryHorizons, StatisticsEngine, StatisticsParams,
+};
 use penumbra::horizon::{HorizonSweep, SweepParams};
 use penumbra::illum::LimbDarkening;
 use penumbra::map::{MapEngine, MapEngineKind, ObserverPlacement};
@@ -49,7 +50,8 @@ fn bench_statistics(c: &mut Criterion) {
         hifitime::Duration::from_hours(6.0),
     )
     .unwrap();
-    let bodies = epoch_bodies(&dem, &kernels, &epochs, penumbra::ephem::AbCorr::LtS).unwrap();
+    let bodies =
+        EpochBodies::over_dem(&dem, &kernels, &epochs, penumbra::ephem::AbCorr::LtS).unwrap();
     let engine = StatisticsEngine::new(
         &stack,
         StatisticsParams {

@@ -7,7 +7,7 @@ use std::path::PathBuf;
 use anyhow::Context as _;
 use hifitime::Epoch;
 
-use crate::ephem::{self, AbCorr, Kernels};
+use crate::ephem::{AbCorr, Kernels};
 use crate::horizon::statistics::{
     BlockStore, EpochBodies, HorizonFile, HorizonRows, InMemoryHorizons, StatisticsEngine,
     StatisticsParams,
@@ -241,7 +241,7 @@ pub fn horizon_statistics_rows(
             map.observer_height_m
         );
     }
-    let bodies = epoch_bodies(fine, kernels, epochs, abcorr)?;
+    let bodies = EpochBodies::over_dem(fine, kernels, epochs, abcorr)?;
     let t1 = std::time::Instant::now();
     let progress = crate::output::progress_bar(
         rows.len(),
@@ -301,35 +301,6 @@ pub fn horizon_statistics_rows(
         map.limb.name()
     );
     Ok((stats, note))
-}
-
-/// The Sun and the Earth at every epoch, seen from the centre of `dem` (positions relative to
-/// the Moon's centre; the engine moves them to each pixel).
-pub fn epoch_bodies(
-    dem: &crate::terrain::Dem,
-    kernels: &Kernels,
-    epochs: &[Epoch],
-    abcorr: AbCorr,
-) -> anyhow::Result<Vec<EpochBodies>> {
-    let g = dem.grid;
-    let (cx, cy) = g.xy_from_row_col((g.rows as f64 - 1.0) / 2.0, (g.cols as f64 - 1.0) / 2.0);
-    let (lat, lon) = dem.projection.lat_lon_from_xy(cx, cy);
-    let site = ephem::Site::new(lat, lon, 0.0)?;
-    let sky = ephem::sun_earth_series(kernels, &[site], epochs, abcorr)?;
-    let at = |rel: nalgebra::Vector3<f64>| {
-        let p = site.pos_in_moon_me_km + rel;
-        [p.x, p.y, p.z]
-    };
-    Ok(sky[0]
-        .iter()
-        .map(|v| EpochBodies {
-            sun_in_moon_me_km: at(v.sun.pos_in_moon_me_km),
-            sun_range_km: v.sun.range_km,
-            sun_radius_deg: v.sun.radius_deg,
-            earth_in_moon_me_km: at(v.earth.pos_in_moon_me_km),
-            earth_radius_deg: v.earth.radius_deg,
-        })
-        .collect())
 }
 
 /// The statistics of `lights` (one entry per epoch, `step_h` hours apart) over `grid`, and a

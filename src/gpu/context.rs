@@ -11,6 +11,8 @@ use std::any::{Any, TypeId};
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex, mpsc};
 
+use wgpu::util::DeviceExt as _;
+
 use super::GpuError;
 
 /// A kernel family's pipelines and layouts, built once per device on first use.
@@ -352,4 +354,76 @@ pub fn adapter_report() -> Vec<AdapterSummary> {
             }
         })
         .collect()
+}
+
+/// What one binding of a kernel's bind group holds ([`slots_layout`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Slot {
+    /// A uniform buffer.
+    Uniform,
+    /// A read-only storage buffer.
+    Read,
+    /// A read-write storage buffer.
+    ReadWrite,
+}
+
+/// The bind group layout of a kernel whose bindings `0, 1, …` are the plain buffers `slots`
+/// (no dynamic offsets), for the compute stage.
+pub(crate) fn slots_layout(
+    device: &wgpu::Device,
+    label: &str,
+    slots: &[Slot],
+) -> wgpu::BindGroupLayout {
+    let entries: Vec<_> = (0..)
+        .zip(slots)
+        .map(|(binding, slot)| {
+            let ty = match slot {
+                Slot::Uniform => wgpu::BufferBindingType::Uniform,
+                Slot::Read => wgpu::BufferBindingType::Storage { read_only: true },
+                Slot::ReadWrite => wgpu::BufferBindingType::Storage { read_only: false },
+            };
+            layout_entry(binding, ty)
+        })
+        .collect();
+    device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some(label),
+        entries: &entries,
+    })
+}
+
+/// The compute pipeline of `entry_point` in the WGSL `source` with the one bind group `layout`.
+pub(crate) fn compute_pipeline(
+    device: &wgpu::Device,
+    layout: &wgpu::BindGroupLayout,
+    label: &str,
+    source: &str,
+    entry_point: &str,
+) -> wgpu::ComputePipeline {
+    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some(label),
+        source: wgpu::ShaderSource::Wgsl(source.into()),
+    });
+    let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: Some(label),
+        bind_group_layouts: &[Some(layout)],
+        immediate_size: 0,
+    });
+    device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+        label: Some(label),
+        layout: Some(&pipeline_layout),
+        module: &module,
+        entry_point: Some(entry_point),
+        compilation_options: Default::default(),
+        cache: None,
+    })
+}
+
+/// Uploads `data` as a read-only storage buffer.
+pub(crate) fn storage_init(ctx: &GpuContext, label: &str, data: &[u8]) -> wgpu::Buffer {
+    ctx.device
+        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some(label),
+            contents: data,
+            usage: wgpu::BufferUsages::STORAGE,
+        })
 }

@@ -14,11 +14,11 @@
 use bytemuck::{Pod, Zeroable};
 
 use super::GpuError;
-use super::context::{ErrorScope, GpuContext, buffer_layout_entry, layout_entry, sized, whole};
-use super::shadow_march::{
-    STEP_SLOT_BYTES, band_buffer, check_dispatch_cols, compute_pipeline, grid_params_buffer,
-    storage_init,
+use super::context::{
+    ErrorScope, GpuContext, buffer_layout_entry, compute_pipeline, layout_entry, sized,
+    storage_init, whole,
 };
+use super::shadow_march::{STEP_SLOT_BYTES, band_buffer, check_dispatch_cols, grid_params_buffer};
 use crate::twins::{DpCellStats, DpMip, MarchGrid};
 
 /// Workgroup size of the DP kernels. Keep in sync with shaders/dp_*.wgsl.

@@ -22,10 +22,10 @@
 use wgpu::util::DeviceExt as _;
 
 use super::GpuError;
-use super::context::{ErrorScope, GpuContext, layout_entry, whole};
-use super::shadow_march::{
-    GpuMarchGrid, band_buffer, check_dispatch_cols, compute_pipeline, storage_init,
+use super::context::{
+    ErrorScope, GpuContext, Slot, compute_pipeline, layout_entry, slots_layout, storage_init, whole,
 };
+use super::shadow_march::{GpuMarchGrid, band_buffer, check_dispatch_cols};
 use crate::shadow::ShadowError;
 use crate::shadow::fourier::{HorizonMap, HorizonMapMeta, HorizonMapParams};
 use crate::terrain::HeightField;
@@ -102,14 +102,11 @@ impl super::context::Pipelines for FourierPipelines {
             &build_src,
             "fourier_build",
         );
-        let eval_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("penumbra fourier_eval layout"),
-            entries: &[
-                layout_entry(0, Uniform),
-                layout_entry(1, Storage { read_only: true }),
-                layout_entry(2, Storage { read_only: false }),
-            ],
-        });
+        let eval_layout = slots_layout(
+            device,
+            "penumbra fourier_eval layout",
+            &[Slot::Uniform, Slot::Read, Slot::ReadWrite],
+        );
         let eval = compute_pipeline(
             device,
             &eval_layout,

@@ -8,11 +8,10 @@
 //! [`SITES_PER_DISPATCH`] sites, so that one submit stays short) and reads the `(tan el, ground
 //! angle)` pairs back once. [`horizons_gpu`] is the whole path from sites to [`Horizon`]s.
 
-use wgpu::util::DeviceExt as _;
-
 use super::GpuError;
-use super::context::{ErrorScope, GpuContext, layout_entry, whole};
-use super::shadow_march::compute_pipeline;
+use super::context::{
+    ErrorScope, GpuContext, Slot, compute_pipeline, slots_layout, storage_init, whole,
+};
 use crate::horizon::{Horizon, HorizonEngine, HorizonError};
 use crate::terrain::TerrainStack;
 use crate::twins::horizon_scan::{
@@ -70,19 +69,17 @@ impl GpuHorizonScan {
             });
         }
         let scope = ErrorScope::push(&ctx.device);
-        let storage = |read_only| wgpu::BufferBindingType::Storage { read_only };
-        let layout = ctx
-            .device
-            .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-                label: Some("penumbra horizon_scan layout"),
-                entries: &[
-                    layout_entry(0, wgpu::BufferBindingType::Uniform),
-                    layout_entry(1, storage(true)),
-                    layout_entry(2, storage(true)),
-                    layout_entry(3, storage(true)),
-                    layout_entry(4, storage(false)),
-                ],
-            });
+        let layout = slots_layout(
+            &ctx.device,
+            "penumbra horizon_scan layout",
+            &[
+                Slot::Uniform,
+                Slot::Read,
+                Slot::Read,
+                Slot::Read,
+                Slot::ReadWrite,
+            ],
+        );
         let pipeline = compute_pipeline(
             &ctx.device,
             &layout,
@@ -94,13 +91,11 @@ impl GpuHorizonScan {
             "penumbra horizon_scan params",
             size_of::<ScanParams>() as u64,
         );
-        let heights = ctx
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("penumbra horizon_scan heights"),
-                contents: bytemuck::cast_slice(&terrain.heights_m),
-                usage: wgpu::BufferUsages::STORAGE,
-            });
+        let heights = storage_init(
+            ctx,
+            "penumbra horizon_scan heights",
+            bytemuck::cast_slice(&terrain.heights_m),
+        );
         scope.pop("building the horizon_scan pipeline")?;
         Ok(GpuHorizonScan {
             layout,
@@ -131,20 +126,16 @@ impl GpuHorizonScan {
             });
         }
         let scope = ErrorScope::push(&ctx.device);
-        let site_buf = ctx
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("penumbra horizon_scan sites"),
-                contents: bytemuck::cast_slice(sites),
-                usage: wgpu::BufferUsages::STORAGE,
-            });
-        let az_buf = ctx
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("penumbra horizon_scan azimuths"),
-                contents: bytemuck::cast_slice(azimuths),
-                usage: wgpu::BufferUsages::STORAGE,
-            });
+        let site_buf = storage_init(
+            ctx,
+            "penumbra horizon_scan sites",
+            bytemuck::cast_slice(sites),
+        );
+        let az_buf = storage_init(
+            ctx,
+            "penumbra horizon_scan azimuths",
+            bytemuck::cast_slice(azimuths),
+        );
         let out = ctx.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("penumbra horizon_scan out"),
             size: n_out * 8,

@@ -6,11 +6,12 @@
 //! tables once per run; [`CellKernel::run`] uploads a block's cells and horizons (in chunks that
 //! fit one storage binding), runs every batch of epochs and reads the statistics back once.
 
-use wgpu::util::DeviceExt as _;
+use std::sync::Arc;
 
 use super::GpuError;
-use super::context::{ErrorScope, GpuContext, layout_entry, whole};
-use super::shadow_march::compute_pipeline;
+use super::context::{
+    ErrorScope, GpuContext, Slot, compute_pipeline, slots_layout, storage_init, whole,
+};
 use crate::horizon::HorizonError;
 use crate::horizon::statistics::{CellKernel, KernelAcc, KernelCell, KernelShared};
 use crate::twins::horizon_stats::{
@@ -24,7 +25,7 @@ const HORIZON_STATS_WGSL: &str = include_str!(concat!(
 
 /// What a run shares, resident on the GPU.
 struct Resident {
-    shared: KernelShared,
+    shared: Arc<KernelShared>,
     epochs: wgpu::Buffer,
     tables: wgpu::Buffer,
     index: wgpu::Buffer,
@@ -49,21 +50,20 @@ impl<'a> GpuHorizonStats<'a> {
     /// Builds the pipeline.
     pub fn new(ctx: &'a GpuContext) -> Result<Self, GpuError> {
         let scope = ErrorScope::push(&ctx.device);
-        let storage = |read_only| wgpu::BufferBindingType::Storage { read_only };
-        let layout = ctx
-            .device
-            .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-                label: Some("penumbra horizon_stats layout"),
-                entries: &[
-                    layout_entry(0, wgpu::BufferBindingType::Uniform),
-                    layout_entry(1, storage(true)),
-                    layout_entry(2, storage(true)),
-                    layout_entry(3, storage(true)),
-                    layout_entry(4, storage(true)),
-                    layout_entry(5, storage(true)),
-                    layout_entry(6, storage(false)),
-                ],
-            });
+        // params, cells, horizons, epochs, tables, azimuth index; the statistics.
+        let layout = slots_layout(
+            &ctx.device,
+            "penumbra horizon_stats layout",
+            &[
+                Slot::Uniform,
+                Slot::Read,
+                Slot::Read,
+                Slot::Read,
+                Slot::Read,
+                Slot::Read,
+                Slot::ReadWrite,
+            ],
+        );
         let pipeline = compute_pipeline(
             &ctx.device,
             &layout,
@@ -85,16 +85,6 @@ impl<'a> GpuHorizonStats<'a> {
         })
     }
 
-    fn storage(&self, label: &str, contents: &[u8]) -> wgpu::Buffer {
-        self.ctx
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some(label),
-                contents,
-                usage: wgpu::BufferUsages::STORAGE,
-            })
-    }
-
     /// Every batch of epochs for `cells` (fits one binding and one dispatch's grid).
     fn run_chunk(
         &self,
@@ -104,8 +94,13 @@ impl<'a> GpuHorizonStats<'a> {
     ) -> Result<Vec<KernelAcc>, GpuError> {
         let ctx = self.ctx;
         let scope = ErrorScope::push(&ctx.device);
-        let cells_buf = self.storage("penumbra horizon_stats cells", bytemuck::cast_slice(cells));
-        let horizons_buf = self.storage(
+        let cells_buf = storage_init(
+            ctx,
+            "penumbra horizon_stats cells",
+            bytemuck::cast_slice(cells),
+        );
+        let horizons_buf = storage_init(
+            ctx,
             "penumbra horizon_stats horizons",
             bytemuck::cast_slice(horizons),
         );
@@ -161,7 +156,7 @@ impl<'a> GpuHorizonStats<'a> {
 }
 
 impl CellKernel for GpuHorizonStats<'_> {
-    fn begin(&mut self, shared: &KernelShared) -> Result<(), HorizonError> {
+    fn begin(&mut self, shared: Arc<KernelShared>) -> Result<(), HorizonError> {
         let scope = ErrorScope::push(&self.ctx.device);
         // A run without epochs still binds a non-empty buffer.
         let epochs: &[u8] = if shared.epochs.is_empty() {
@@ -177,16 +172,18 @@ impl CellKernel for GpuHorizonStats<'_> {
             )));
         }
         self.resident = Some(Resident {
-            epochs: self.storage("penumbra horizon_stats epochs", epochs),
-            tables: self.storage(
+            epochs: storage_init(self.ctx, "penumbra horizon_stats epochs", epochs),
+            tables: storage_init(
+                self.ctx,
                 "penumbra horizon_stats tables",
-                bytemuck::cast_slice(&packed_tables(shared)),
+                bytemuck::cast_slice(&packed_tables(&shared)),
             ),
-            index: self.storage(
+            index: storage_init(
+                self.ctx,
                 "penumbra horizon_stats index",
                 bytemuck::cast_slice(&shared.index),
             ),
-            shared: shared.clone(),
+            shared,
         });
         scope.pop("uploading the horizon_stats epochs")?;
         Ok(())

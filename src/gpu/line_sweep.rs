@@ -7,11 +7,10 @@
 //! pairs back; [`sweep_gpu`] is a whole sweep, bands handed out as
 //! [`HorizonSweep::run`] does.
 
-use wgpu::util::DeviceExt as _;
-
 use super::GpuError;
-use super::context::{ErrorScope, GpuContext, layout_entry, whole};
-use super::shadow_march::compute_pipeline;
+use super::context::{
+    ErrorScope, GpuContext, Slot, compute_pipeline, slots_layout, storage_init, whole,
+};
 use crate::horizon::{HorizonSweep, SweepBand};
 use crate::twins::line_sweep::{
     LineBatch, LineSweepParams, SweepGrid, WORKGROUP_SIZE, sweep_batched,
@@ -55,21 +54,19 @@ impl GpuLineSweep {
             .unwrap_or(usize::MAX)
             .min(MAX_BATCH_SAMPLES);
         let scope = ErrorScope::push(&ctx.device);
-        let storage = |read_only| wgpu::BufferBindingType::Storage { read_only };
-        let layout = ctx
-            .device
-            .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-                label: Some("penumbra line_sweep layout"),
-                entries: &[
-                    layout_entry(0, wgpu::BufferBindingType::Uniform),
-                    layout_entry(1, storage(true)),
-                    layout_entry(2, storage(true)),
-                    layout_entry(3, storage(true)),
-                    layout_entry(4, storage(true)),
-                    layout_entry(5, storage(false)),
-                    layout_entry(6, storage(false)),
-                ],
-            });
+        let layout = slots_layout(
+            &ctx.device,
+            "penumbra line_sweep layout",
+            &[
+                Slot::Uniform,
+                Slot::Read,
+                Slot::Read,
+                Slot::Read,
+                Slot::Read,
+                Slot::ReadWrite,
+                Slot::ReadWrite,
+            ],
+        );
         let pipeline = compute_pipeline(
             &ctx.device,
             &layout,
@@ -81,13 +78,11 @@ impl GpuLineSweep {
             "penumbra line_sweep params",
             size_of::<LineSweepParams>() as u64,
         );
-        let heights = ctx
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("penumbra line_sweep heights"),
-                contents: bytemuck::cast_slice(&grid.heights_m),
-                usage: wgpu::BufferUsages::STORAGE,
-            });
+        let heights = storage_init(
+            ctx,
+            "penumbra line_sweep heights",
+            bytemuck::cast_slice(&grid.heights_m),
+        );
         scope.pop("building the line_sweep pipeline")?;
         Ok(GpuLineSweep {
             layout,
@@ -136,14 +131,7 @@ impl GpuLineSweep {
             ..self.params
         };
         let scope = ErrorScope::push(&ctx.device);
-        let init = |label: &str, contents: &[u8]| {
-            ctx.device
-                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                    label: Some(label),
-                    contents,
-                    usage: wgpu::BufferUsages::STORAGE,
-                })
-        };
+        let init = |label: &str, contents: &[u8]| storage_init(ctx, label, contents);
         let lines = init(
             "penumbra line_sweep lines",
             bytemuck::cast_slice(&batch.lines),

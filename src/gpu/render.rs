@@ -16,8 +16,10 @@ use bytemuck::{Pod, Zeroable};
 use wgpu::util::DeviceExt as _;
 
 use super::GpuError;
-use super::context::{ErrorScope, GpuContext, layout_entry, whole};
-use super::shadow_march::{DEFAULT_BAND_BYTES, compute_pipeline, storage_init};
+use super::context::{
+    ErrorScope, GpuContext, Slot, compute_pipeline, slots_layout, storage_init, whole,
+};
+use super::shadow_march::DEFAULT_BAND_BYTES;
 use crate::render::{Camera, Sample, Scene};
 
 /// Workgroup size (x and y). Keep in sync with shaders/render.wgsl.
@@ -76,18 +78,18 @@ impl super::context::Pipelines for RenderPipeline {
     const WHAT: &'static str = "building the render pipeline";
 
     fn build(device: &wgpu::Device) -> Self {
-        let ro = wgpu::BufferBindingType::Storage { read_only: true };
-        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("penumbra render layout"),
-            entries: &[
-                layout_entry(0, wgpu::BufferBindingType::Uniform),
-                layout_entry(1, ro),
-                layout_entry(2, ro),
-                layout_entry(3, ro),
-                layout_entry(4, ro),
-                layout_entry(5, wgpu::BufferBindingType::Storage { read_only: false }),
+        let layout = slots_layout(
+            device,
+            "penumbra render layout",
+            &[
+                Slot::Uniform,
+                Slot::Read,
+                Slot::Read,
+                Slot::Read,
+                Slot::Read,
+                Slot::ReadWrite,
             ],
-        });
+        );
         let pipeline = compute_pipeline(device, &layout, "render", RENDER_WGSL, "render");
         RenderPipeline { layout, pipeline }
     }

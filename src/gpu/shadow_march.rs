@@ -14,7 +14,10 @@ use bytemuck::{Pod, Zeroable};
 use wgpu::util::DeviceExt as _;
 
 use super::GpuError;
-use super::context::{ErrorScope, GpuContext, buffer_layout_entry, layout_entry, sized, whole};
+use super::context::{
+    ErrorScope, GpuContext, buffer_layout_entry, compute_pipeline, layout_entry, sized,
+    storage_init, whole,
+};
 use crate::twins::MarchGrid;
 
 /// Output bytes per row band by default (64 MiB): small against any GPU, large enough that a
@@ -103,32 +106,6 @@ pub(crate) struct MarchPipelines {
     pub(crate) layout: wgpu::BindGroupLayout,
     pub(crate) hard: wgpu::ComputePipeline,
     pub(crate) soft: wgpu::ComputePipeline,
-}
-
-pub(crate) fn compute_pipeline(
-    device: &wgpu::Device,
-    layout: &wgpu::BindGroupLayout,
-    label: &str,
-    source: &str,
-    entry_point: &str,
-) -> wgpu::ComputePipeline {
-    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-        label: Some(label),
-        source: wgpu::ShaderSource::Wgsl(source.into()),
-    });
-    let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-        label: Some(label),
-        bind_group_layouts: &[Some(layout)],
-        immediate_size: 0,
-    });
-    device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-        label: Some(label),
-        layout: Some(&pipeline_layout),
-        module: &module,
-        entry_point: Some(entry_point),
-        compilation_options: Default::default(),
-        cache: None,
-    })
 }
 
 impl super::context::Pipelines for MarchPipelines {
@@ -250,16 +227,6 @@ pub(crate) fn check_dispatch_cols(
         });
     }
     Ok(())
-}
-
-/// Uploads `data` as a read-only storage buffer.
-pub(crate) fn storage_init(ctx: &GpuContext, label: &str, data: &[u8]) -> wgpu::Buffer {
-    ctx.device
-        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some(label),
-            contents: data,
-            usage: wgpu::BufferUsages::STORAGE,
-        })
 }
 
 /// A uniform buffer of `slots` [`StepParams`] slots, [`STEP_SLOT_BYTES`] apart.

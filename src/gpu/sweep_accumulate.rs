@@ -11,10 +11,12 @@
 use bytemuck::{Pod, Zeroable};
 
 use super::GpuError;
-use super::context::{ErrorScope, GpuContext, sized, whole};
+use super::context::{
+    ErrorScope, GpuContext, Slot, compute_pipeline, sized, slots_layout, storage_init, whole,
+};
 use super::shadow_march::{
-    GpuMarchGrid, MarchPipelines, STEP_SLOT_BYTES, band_buffer, compute_pipeline, march_bind_group,
-    step_slots, storage_init, write_steps,
+    GpuMarchGrid, MarchPipelines, STEP_SLOT_BYTES, band_buffer, march_bind_group, step_slots,
+    write_steps,
 };
 use crate::twins::CellStats;
 
@@ -58,20 +60,11 @@ impl super::context::Pipelines for AccumulatePipeline {
     const WHAT: &'static str = "building the sweep-accumulate pipeline";
 
     fn build(device: &wgpu::Device) -> Self {
-        let entry = |binding, read_only| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility: wgpu::ShaderStages::COMPUTE,
-            ty: wgpu::BindingType::Buffer {
-                ty: wgpu::BufferBindingType::Storage { read_only },
-                has_dynamic_offset: false,
-                min_binding_size: None,
-            },
-            count: None,
-        };
-        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("penumbra accumulate layout"),
-            entries: &[entry(0, true), entry(1, false)],
-        });
+        let layout = slots_layout(
+            device,
+            "penumbra accumulate layout",
+            &[Slot::Read, Slot::ReadWrite],
+        );
         let pipeline = compute_pipeline(
             device,
             &layout,

@@ -16,10 +16,11 @@ use std::collections::HashMap;
 use std::rc::Rc;
 
 use super::GpuError;
+use super::context::storage_init;
 use super::context::{ErrorScope, GpuContext};
 use super::dp::gpu_data::DpStep;
 use super::dp::{DpBindings, check_light, slot_buffer, write_dp_steps};
-use super::shadow_march::{STEP_SLOT_BYTES, band_buffer, grid_params_buffer, storage_init};
+use super::shadow_march::{STEP_SLOT_BYTES, band_buffer, grid_params_buffer};
 pub use crate::twins::dp_tiles::{DEFAULT_RESIDENT_BUDGET_BYTES, DEFAULT_TILE_CELLS};
 use crate::twins::dp_tiles::{
     TileBlock, TileLimits, TilePlan, TileRect, choose_tile_cells, sources_for, sources_for_batch,

@@ -11,6 +11,8 @@
 //! `atan2` is the engine's polynomial ([`atan2_deg`]), written out in the WGSL too, so both
 //! sides round alike.
 
+use std::sync::Arc;
+
 use rayon::prelude::*;
 
 use crate::horizon::HorizonError;
@@ -384,12 +386,13 @@ pub const EPOCHS_PER_BATCH: usize = 8 * EPOCH_CHUNK;
 /// The twin as a [`CellKernel`]: cells in parallel (rayon), epochs in the GPU's batches.
 #[derive(Debug, Default)]
 pub struct TwinKernel {
-    shared: Option<(KernelShared, Vec<f32>)>,
+    shared: Option<(Arc<KernelShared>, Vec<f32>)>,
 }
 
 impl CellKernel for TwinKernel {
-    fn begin(&mut self, shared: &KernelShared) -> Result<(), HorizonError> {
-        self.shared = Some((shared.clone(), packed_tables(shared)));
+    fn begin(&mut self, shared: Arc<KernelShared>) -> Result<(), HorizonError> {
+        let tables = packed_tables(&shared);
+        self.shared = Some((shared, tables));
         Ok(())
     }
 

@@ -1,47 +1,20 @@
 //! The horizons engine's epoch loop on a kernel (`shaders/horizon_stats.wgsl` and its f32 CPU
 //! twin) against the CPU engine, and the GPU against the twin.
 
-use penumbra::compute::sweep::epoch_bodies;
 use penumbra::horizon::statistics::{
     CellKernel, EpochBodies, HorizonStatistics, InMemoryHorizons, StatisticsEngine,
     StatisticsParams,
 };
-use penumbra::horizon::{HorizonSweep, SweepParams};
 use penumbra::illum::LimbDarkening;
 use penumbra::terrain::TerrainStack;
 use penumbra::twins::horizon_stats::TwinKernel;
 
 use crate::util::kernels_dir;
 
-/// A rough synthetic DEM (the demo's generator, 96² px of 150 m round the pole), its sweep
-/// (180 azimuths) and the bodies every 7 h of 2027 (1,252 epochs: three batches of the kernel).
+/// A rough synthetic DEM (96² px of 150 m round the pole), its sweep (180 azimuths) and the
+/// bodies every 7 h of 2027 (1,252 epochs: three batches of the kernel).
 fn rough_terrain() -> (TerrainStack, InMemoryHorizons, Vec<EpochBodies>) {
-    let dem = penumbra::terrain::synth::south_polar_dem(&penumbra::terrain::synth::SynthParams {
-        size_px: 96,
-        px_m: 150.0,
-        seed: 11,
-    })
-    .unwrap();
-    let stack = TerrainStack::new(vec![dem]);
-    let sweep = HorizonSweep::new(
-        &stack,
-        SweepParams {
-            observer_height_m: 2.0,
-            azimuths: 180,
-            max_step: 8,
-        },
-    )
-    .unwrap();
-    let horizons = InMemoryHorizons::sweep(&sweep, |_| true).unwrap();
-    let kernels = penumbra::ephem::Kernels::load(&kernels_dir()).unwrap();
-    let epochs = penumbra::ephem::time::epoch_range(
-        penumbra::ephem::time::parse_utc("2027-01-01").unwrap(),
-        penumbra::ephem::time::parse_utc("2027-12-31").unwrap(),
-        hifitime::Duration::from_hours(7.0),
-    )
-    .unwrap();
-    let bodies = epoch_bodies(&stack.layers[0], &kernels, &epochs, Default::default()).unwrap();
-    (stack, horizons, bodies)
+    penumbra::horizon::statistics::testing::rough_terrain_2027(96, 11, 7.0, &kernels_dir())
 }
 
 fn params() -> StatisticsParams {
@@ -273,7 +246,8 @@ fn a_month_over_the_dem_edge_agrees_with_the_twin() {
         hifitime::Duration::from_hours(3.0),
     )
     .unwrap();
-    let bodies = epoch_bodies(&stack.layers[0], &kernels, &epochs, Default::default()).unwrap();
+    let bodies =
+        EpochBodies::over_dem(&stack.layers[0], &kernels, &epochs, Default::default()).unwrap();
     let engine = StatisticsEngine::new(&stack, params()).unwrap();
     let go = |k: Option<&mut dyn CellKernel>| {
         let mut f = HorizonFile::open(&d.join("h.tif")).unwrap();

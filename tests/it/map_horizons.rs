@@ -5,7 +5,6 @@
 
 use std::path::Path;
 
-use penumbra::compute::sweep::epoch_bodies;
 use penumbra::horizon::statistics::{InMemoryHorizons, StatisticsEngine, StatisticsParams};
 use penumbra::horizon::{HorizonSweep, SweepParams};
 use penumbra::illum::LimbDarkening;
@@ -215,7 +214,13 @@ fn flat_sphere_statistics_follow_each_pixels_own_sky() {
         hifitime::Duration::from_hours(6.0),
     )
     .unwrap();
-    let bodies = epoch_bodies(&dem, &kernels, &epochs, penumbra::ephem::AbCorr::LtS).unwrap();
+    let bodies = penumbra::horizon::statistics::EpochBodies::over_dem(
+        &dem,
+        &kernels,
+        &epochs,
+        penumbra::ephem::AbCorr::LtS,
+    )
+    .unwrap();
     let limb = LimbDarkening::EDDINGTON;
     let engine = StatisticsEngine::new(
         &stack,

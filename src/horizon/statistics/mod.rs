@@ -42,6 +42,8 @@ mod lookup;
 mod offload;
 mod sectors;
 mod source;
+#[doc(hidden)]
+pub mod testing;
 
 use rayon::prelude::*;
 
@@ -75,6 +77,37 @@ pub struct EpochBodies {
     pub earth_in_moon_me_km: [f64; 3],
     /// The Earth's angular radius, degrees.
     pub earth_radius_deg: f64,
+}
+
+impl EpochBodies {
+    /// The Sun and the Earth at every epoch, seen from the centre of `dem` (positions relative
+    /// to the Moon's centre; the engine moves them to each pixel).
+    pub fn over_dem(
+        dem: &Dem,
+        kernels: &crate::ephem::Kernels,
+        epochs: &[hifitime::Epoch],
+        abcorr: crate::ephem::AbCorr,
+    ) -> Result<Vec<EpochBodies>, crate::ephem::EphemError> {
+        let g = dem.grid;
+        let (cx, cy) = g.xy_from_row_col((g.rows as f64 - 1.0) / 2.0, (g.cols as f64 - 1.0) / 2.0);
+        let (lat, lon) = dem.projection.lat_lon_from_xy(cx, cy);
+        let site = crate::ephem::Site::new(lat, lon, 0.0)?;
+        let sky = crate::ephem::sun_earth_series(kernels, &[site], epochs, abcorr)?;
+        let at = |rel: nalgebra::Vector3<f64>| {
+            let p = site.pos_in_moon_me_km + rel;
+            [p.x, p.y, p.z]
+        };
+        Ok(sky[0]
+            .iter()
+            .map(|v| EpochBodies {
+                sun_in_moon_me_km: at(v.sun.pos_in_moon_me_km),
+                sun_range_km: v.sun.range_km,
+                sun_radius_deg: v.sun.radius_deg,
+                earth_in_moon_me_km: at(v.earth.pos_in_moon_me_km),
+                earth_radius_deg: v.earth.radius_deg,
+            })
+            .collect())
+    }
 }
 
 /// Parameters of the statistics.
@@ -559,12 +592,12 @@ impl<'a> StatisticsEngine<'a> {
                     pad: [0.0; 3],
                 })
                 .collect();
-            k.begin(&KernelShared::new(
+            k.begin(std::sync::Arc::new(KernelShared::new(
                 kernel_epochs,
                 &lookup,
                 (&chord_sun, &chord_earth),
                 (th.visible_min, th.full_min),
-            ))?;
+            )))?;
         }
 
         let mut out = HorizonStatistics::empty(n_px, epochs.len());
@@ -683,7 +716,7 @@ impl<'a> StatisticsEngine<'a> {
                     k,
                     (first_px, h_obs_m),
                     (&block, block_px, n),
-                    (&body_bounds, &reference, &lookup),
+                    &reference,
                     &on_cpu,
                 )?,
             };
@@ -730,7 +763,7 @@ impl<'a> StatisticsEngine<'a> {
         kernel: &mut dyn CellKernel,
         (first_px, h_obs_m): (usize, f64),
         (block, block_px, n): (&[i16], usize, usize),
-        bodies: (&[BodyBounds; 2], &MapFrame, &AzimuthLookup),
+        reference: &MapFrame,
         on_cpu: &(dyn Fn(&[usize]) -> I + Sync),
     ) -> Result<Vec<(usize, CellAcc)>, HorizonError> {
         const TASK: usize = 256;
@@ -741,12 +774,12 @@ impl<'a> StatisticsEngine<'a> {
                 let mut part = (Vec::new(), Vec::new(), Vec::new());
                 for i in lo..hi {
                     let start = part.2.len();
-                    let Some(c) = self.cell(
+                    let Some(c) = self.cell_frame(
                         first_px + i,
                         h_obs_m,
                         (block, block_px, i, n),
                         &mut part.2,
-                        bodies,
+                        reference,
                     ) else {
                         continue;
                     };
@@ -787,15 +820,18 @@ impl<'a> StatisticsEngine<'a> {
             .filter(|(_, a)| a.low_lit > 0)
             .map(|(&i, _)| i)
             .collect();
-        let exact: std::collections::HashMap<usize, u32> = candidates
+        // In the order of `candidates` (ascending, as `index`): matched by a merge walk.
+        let exact: Vec<(usize, u32)> = candidates
             .par_chunks(CELLS_PER_TASK)
             .flat_map_iter(|c| on_cpu(c).map(|(px, a)| (px, a.below_sphere)))
             .collect();
+        let mut exact = exact.into_iter().peekable();
         Ok(index
             .into_iter()
             .zip(accs)
             .map(|(i, a)| {
                 let px = first_px + i;
+                let below_sphere = exact.next_if(|e| e.0 == px).map_or(0, |e| e.1);
                 let acc = CellAcc {
                     sun_fraction_sum: f64::from(a.sun_fraction_sum),
                     irradiance_horizontal_sum: f64::from(a.irradiance_horizontal_sum),
@@ -808,7 +844,7 @@ impl<'a> StatisticsEngine<'a> {
                     dark_max: a.dark_max,
                     earth_hidden_run: a.earth_hidden_run,
                     earth_hidden_max: a.earth_hidden_max,
-                    below_sphere: exact.get(&px).copied().unwrap_or(0),
+                    below_sphere,
                 };
                 (px, acc)
             })
@@ -823,11 +859,45 @@ impl<'a> StatisticsEngine<'a> {
         &self,
         px: usize,
         h_obs_m: f64,
-        (block, block_px, i, n): (&[i16], usize, usize, usize),
+        block: (&[i16], usize, usize, usize),
         horizons: &mut Vec<f32>,
         (bodies, reference, lookup): (&[BodyBounds; 2], &MapFrame, &AzimuthLookup),
     ) -> Option<CellGeom> {
-        let centre_up = reference.up;
+        let start = horizons.len();
+        let mut cell = self.cell_frame(px, h_obs_m, block, horizons, reference)?;
+        if self.skip_unseen {
+            let h = &horizons[start..];
+            let MapFrame { up, east, north } = cell.frame;
+            let tilt_deg = up
+                .cross(&reference.up)
+                .norm()
+                .atan2(up.dot(&reference.up))
+                .to_degrees();
+            let reach = |b: &BodyBounds| {
+                let az = b
+                    .mean_dir
+                    .dot(&east)
+                    .atan2(b.mean_dir.dot(&north))
+                    .to_degrees();
+                let el = b.mean_dir.dot(&up).clamp(-1.0, 1.0).asin().to_degrees();
+                b.reach(h, lookup, tilt_deg, (az.rem_euclid(360.0), el))
+            };
+            cell.sun = reach(&bodies[0]);
+            cell.earth = reach(&bodies[1]);
+        }
+        Some(cell)
+    }
+
+    /// [`Self::cell`] without the bounds: both bodies [`kernel::Reach::Varies`] (what a
+    /// [`CellKernel`] needs, which reads no bounds).
+    fn cell_frame(
+        &self,
+        px: usize,
+        h_obs_m: f64,
+        (block, block_px, i, n): (&[i16], usize, usize, usize),
+        horizons: &mut Vec<f32>,
+        reference: &MapFrame,
+    ) -> Option<CellGeom> {
         let fine = self.fine();
         let ground_m = f64::from(fine.heights_m[px]);
         if ground_m.is_nan() {
@@ -849,24 +919,6 @@ impl<'a> StatisticsEngine<'a> {
         let MapFrame { up, east, north } = frame;
         let r0_m = MOON_RADIUS_M + ground_m + h_obs_m;
         let v32 = |v: nalgebra::Vector3<f64>| [v.x as f32, v.y as f32, v.z as f32];
-        let h = &horizons[start..];
-        let tilt_deg = up
-            .cross(&centre_up)
-            .norm()
-            .atan2(up.dot(&centre_up))
-            .to_degrees();
-        let reach = |b: &BodyBounds| {
-            if !self.skip_unseen {
-                return kernel::Reach::Varies;
-            }
-            let az = b
-                .mean_dir
-                .dot(&east)
-                .atan2(b.mean_dir.dot(&north))
-                .to_degrees();
-            let el = b.mean_dir.dot(&up).clamp(-1.0, 1.0).asin().to_degrees();
-            b.reach(h, lookup, tilt_deg, (az.rem_euclid(360.0), el))
-        };
         let dip_deg = if r0_m > MOON_RADIUS_M {
             -((MOON_RADIUS_M / r0_m).acos().to_degrees() as f32)
         } else {
@@ -879,8 +931,8 @@ impl<'a> StatisticsEngine<'a> {
             grid_east: v32(east),
             grid_north: v32(north),
             r_obs_km: (r0_m / 1000.0) as f32,
-            sun: reach(&bodies[0]),
-            earth: reach(&bodies[1]),
+            sun: kernel::Reach::Varies,
+            earth: kernel::Reach::Varies,
             beyond: BeyondDem {
                 x_m: x,
                 y_m: y,

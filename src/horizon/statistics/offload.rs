@@ -15,6 +15,8 @@
 //! sphere, [`KernelCell::sin_dip_bound`]), and the engine re-runs the few cells with any on the
 //! CPU for the exact tally.
 
+use std::sync::Arc;
+
 use super::HorizonError;
 use super::kernel::CHUNK;
 use super::lookup::{AzimuthLookup, ChordTable};
@@ -156,8 +158,9 @@ impl KernelShared {
 
 /// Runs the per-cell epoch loop of blocks of cells.
 pub trait CellKernel {
-    /// Takes what every block of the run shares (called once, before any block).
-    fn begin(&mut self, shared: &KernelShared) -> Result<(), HorizonError>;
+    /// Takes what every block of the run shares (called once, before any block; the epochs
+    /// are ≈ 8 MB over 18.6 years hourly, so they are shared, not copied).
+    fn begin(&mut self, shared: Arc<KernelShared>) -> Result<(), HorizonError>;
 
     /// Every epoch of the run for `cells`, whose horizons are `horizons` (`n + 1` values per
     /// cell, degrees: the bands, then the first again): one accumulator per cell.

@@ -104,53 +104,10 @@ fn chord_table_matches_the_strip_integral() {
     }
 }
 
-/// A rough synthetic DEM (72² px of 150 m round the pole, crater floors that never see the Sun,
-/// slopes that never see the Earth), its sweep (180 azimuths) and the bodies every 5 h of 2027.
+/// A rough synthetic DEM (72² px of 150 m round the pole), its sweep (180 azimuths) and the
+/// bodies every 5 h of 2027.
 fn rough_terrain_year() -> (TerrainStack, InMemoryHorizons, Vec<EpochBodies>) {
-    use crate::horizon::{HorizonSweep, SweepParams};
-    let dem = crate::terrain::synth::south_polar_dem(&crate::terrain::synth::SynthParams {
-        size_px: 72,
-        px_m: 150.0,
-        seed: 5,
-    })
-    .unwrap();
-    let stack = TerrainStack::new(vec![dem]);
-    let sweep = HorizonSweep::new(
-        &stack,
-        SweepParams {
-            observer_height_m: 2.0,
-            azimuths: 180,
-            max_step: 8,
-        },
-    )
-    .unwrap();
-    let horizons = InMemoryHorizons::sweep(&sweep, |_| true).unwrap();
-    let kernels =
-        crate::ephem::Kernels::load(&crate::ephem::kernels::default_kernel_dir()).unwrap();
-    let epochs = crate::ephem::time::epoch_range(
-        crate::ephem::time::parse_utc("2027-01-01").unwrap(),
-        crate::ephem::time::parse_utc("2027-12-31").unwrap(),
-        hifitime::Duration::from_hours(5.0),
-    )
-    .unwrap();
-    let site = crate::ephem::Site::new(-90.0, 0.0, 0.0).unwrap();
-    let sky =
-        crate::ephem::sun_earth_series(&kernels, &[site], &epochs, Default::default()).unwrap();
-    let at = |rel: nalgebra::Vector3<f64>| {
-        let p = site.pos_in_moon_me_km + rel;
-        [p.x, p.y, p.z]
-    };
-    let bodies: Vec<EpochBodies> = sky[0]
-        .iter()
-        .map(|v| EpochBodies {
-            sun_in_moon_me_km: at(v.sun.pos_in_moon_me_km),
-            sun_range_km: v.sun.range_km,
-            sun_radius_deg: v.sun.radius_deg,
-            earth_in_moon_me_km: at(v.earth.pos_in_moon_me_km),
-            earth_radius_deg: v.earth.radius_deg,
-        })
-        .collect();
-    (stack, horizons, bodies)
+    super::testing::rough_terrain_2027(72, 5, 5.0, &crate::ephem::kernels::default_kernel_dir())
 }
 
 /// The statistics parameters of the rough-terrain checks.
