@@ -83,6 +83,14 @@ export WGPU_BACKEND=${WGPU_BACKEND:-vulkan}
 export XDG_RUNTIME_DIR=${XDG_RUNTIME_DIR:-/tmp}
 lola_hm="$dir/ldem75s_crop_240m_pm184km.tif"
 far_hs="$dir/ldem75s_far_1787m_pm457km_feathered.tif"
+# bounded SECONDS WHAT PATTERN CMD…: runs CMD for at most SECONDS (0 skips it), printing its
+# lines that match PATTERN (and errors, warnings); says so when it did not finish.
+bounded() {
+    local t=$1 what=$2 pattern=$3
+    shift 3
+    [[ "$t" == 0 ]] && return 0
+    timeout "$t" "$@" 2>&1 | grep -E "$pattern|error|warning" || echo "  $what did not finish within $t s"
+}
 
 if want parity; then
     echo "== penumbra gpu-info"
@@ -105,12 +113,9 @@ if want fourier; then
         tmp_hm=$(mktemp -d)
         "$dir/penumbra" horizon-map build --dem "$lola_hm" --azimuths 720 --backend gpu \
             --out "$tmp_hm/hm_gpu.tif" 2>&1 | grep -E "horizon map|error|warning" || true
-        cpu_timeout=${PENUMBRA_BENCH_FOURIER_CPU_TIMEOUT_S:-600}
-        if [[ "$cpu_timeout" != 0 ]]; then
-            timeout "$cpu_timeout" "$dir/penumbra" horizon-map build --dem "$lola_hm" --azimuths 720 \
-                --backend cpu --out "$tmp_hm/hm_cpu.tif" 2>&1 | grep -E "horizon map|error" ||
-                echo "  cpu build did not finish within ${cpu_timeout} s"
-        fi
+        bounded "${PENUMBRA_BENCH_FOURIER_CPU_TIMEOUT_S:-600}" "cpu build" "horizon map" \
+            "$dir/penumbra" horizon-map build --dem "$lola_hm" --azimuths 720 --backend cpu \
+            --out "$tmp_hm/hm_cpu.tif"
         rm -rf "$tmp_hm"
     else
         echo "gpu-bench: $lola_hm absent (run --prepare where ../shared/data exists); skipped"
@@ -128,11 +133,11 @@ if want sweep; then
             --out "$tmp_hs/hs_gpu.tif" 2>&1 | grep -E "horizons|error|warning" || true
         rm -f "$tmp_hs/hs_gpu.tif"
         for be in gpu cpu; do
-            t=${PENUMBRA_BENCH_SWEEP_CPU_TIMEOUT_S:-300}
-            [[ "$be" == cpu && "$t" == 0 ]] && continue
-            timeout "$t" "$dir/penumbra" horizon-map sweep --dem "$lola_hm" --dem "$far_hs" \
-                --azimuths 90 --backend "$be" --out "$tmp_hs/hs90_$be.tif" 2>&1 |
-                grep -E "horizons|error|warning" || echo "  $be sweep did not finish within $t s"
+            t=300
+            [[ "$be" == cpu ]] && t=${PENUMBRA_BENCH_SWEEP_CPU_TIMEOUT_S:-300}
+            bounded "$t" "$be sweep" "horizons" "$dir/penumbra" horizon-map sweep \
+                --dem "$lola_hm" --dem "$far_hs" --azimuths 90 --backend "$be" \
+                --out "$tmp_hs/hs90_$be.tif"
         done
         rm -rf "$tmp_hs"
     else
@@ -151,15 +156,13 @@ if want stats; then
         "$dir/penumbra" horizon-map sweep --dem "$lola_hm" --dem "$far_hs" --azimuths 90 \
             --backend gpu --out "$tmp_st/hz90.tif" 2>&1 | grep -E "horizons|error|warning" || true
         for be in gpu cpu; do
-            t=${PENUMBRA_BENCH_STATS_CPU_TIMEOUT_S:-300}
-            [[ "$be" == cpu && "$t" == 0 ]] && continue
-            [[ "$be" == gpu ]] && t=600
+            t=300
+            [[ "$be" == cpu ]] && t=${PENUMBRA_BENCH_STATS_CPU_TIMEOUT_S:-300}
             echo "  backend $be:"
-            timeout "$t" "$dir/penumbra" map \
-                --dem "$lola_hm" --dem "$far_hs" --engine horizons --horizons "$tmp_st/hz90.tif" \
+            bounded "$t" "$be map" "statistics" "$dir/penumbra" map --dem "$lola_hm" \
+                --dem "$far_hs" --engine horizons --horizons "$tmp_st/hz90.tif" \
                 --start 2025-01-01 --stop 2025-12-31T23:00 --step 1h --backend "$be" \
-                --out-dir "$tmp_st/m_$be" 2>&1 | grep -E "statistics|error|warning" ||
-                echo "  $be map did not finish within $t s"
+                --out-dir "$tmp_st/m_$be"
         done
         rm -rf "$tmp_st"
     else
