@@ -4,7 +4,8 @@
 //! Also `dp_soft` (one soft map, from the cells and from the same observers as point records) and `fourier_build` / `fourier_eval` (Fourier horizon maps,
 //! CPU engine vs GPU; throughput rays = cells × azimuths, and cells), and `line_sweep` (the
 //! whole-grid line sweep: the f64 CPU sweep, the twin and the GPU path end to end, and the looks
-//! alone on one packed batch, twin vs GPU; throughput pixel-azimuths).
+//! alone on one packed batch, twin vs GPU; throughput pixel-azimuths), and `horizon_stats` (the
+//! horizons engine's epoch loop: the CPU engine, the twin kernel and the GPU; pixel-epochs).
 //!
 //! Run: `WGPU_BACKEND=vulkan cargo bench --bench gpu` (GPU part skipped with a printed reason
 //! when no adapter exists). On a GPU machine without cargo: `tools/gpu-bench.sh`.
@@ -390,6 +391,52 @@ fn bench_line_sweep(c: &mut Criterion, ctx: Option<&GpuContext>) {
     group.finish();
 }
 
+/// The horizons engine's epoch loop (issue 15): the CPU engine (sector tables, SIMD), its f32
+/// twin kernel (rayon) and `horizon_stats.wgsl`, each over every pixel of a rough 128² × 150 m
+/// synthetic DEM round the pole (180-azimuth horizons in memory) and 2027 every 6 h (1,460
+/// epochs, Sun and Earth); the block geometry and the below-sphere re-runs are inside the timing,
+/// the sweep and the GPU pipeline outside. Throughput: pixel-epochs.
+fn bench_horizon_stats(c: &mut Criterion, ctx: Option<&GpuContext>) {
+    use penumbra::horizon::statistics::{
+        CellKernel, NoStore, StatisticsEngine, StatisticsParams, testing::rough_terrain_2027,
+    };
+    use penumbra::twins::horizon_stats::TwinKernel;
+    let n = 128;
+    let (stack, mut horizons, bodies) =
+        rough_terrain_2027(n, 1, 6.0, &penumbra::ephem::kernels::default_kernel_dir());
+    let engine = StatisticsEngine::new(
+        &stack,
+        StatisticsParams {
+            limb: penumbra::illum::LimbDarkening::EDDINGTON,
+            visible_min_fraction: 1e-6,
+            full_min_fraction: 0.999,
+        },
+    )
+    .expect("engine");
+    let mut group = c.benchmark_group("horizon_stats");
+    group
+        .sample_size(10)
+        .measurement_time(Duration::from_secs(8));
+    group.throughput(Throughput::Elements((n * n * bodies.len()) as u64));
+    let mut run = |kernel: Option<&mut dyn CellKernel>| {
+        engine
+            .run_rows_on(&mut horizons, &bodies, &mut NoStore, 0..n, kernel, |_| true)
+            .expect("statistics")
+            .sun_visible_count[n * n / 2]
+    };
+    group.bench_function(BenchmarkId::new("cpu_engine", n), |b| b.iter(|| run(None)));
+    group.bench_function(BenchmarkId::new("twin", n), |b| {
+        b.iter(|| run(Some(&mut TwinKernel::default())))
+    });
+    if let Some(ctx) = ctx {
+        let mut gpu = penumbra::gpu::horizon_stats::GpuHorizonStats::new(ctx).expect("pipeline");
+        group.bench_function(BenchmarkId::new("gpu", n), |b| {
+            b.iter(|| run(Some(&mut gpu)))
+        });
+    }
+    group.finish();
+}
+
 fn bench_gpu(c: &mut Criterion) {
     let ctx = context();
     bench_march(c, ctx.as_ref());
@@ -398,6 +445,7 @@ fn bench_gpu(c: &mut Criterion) {
     bench_fourier(c, ctx.as_ref());
     bench_dp_tiled(c, ctx.as_ref());
     bench_line_sweep(c, ctx.as_ref());
+    bench_horizon_stats(c, ctx.as_ref());
 }
 
 criterion_group!(benches, bench_gpu);
