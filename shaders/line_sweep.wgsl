@@ -6,12 +6,12 @@
 // orientation tests in the line-local frame x = r sin psi, y = r cos psi - R); the tangent from
 // the observer's eye is found by binary search on the elevations of the hull vertices, which,
 // like the two points of the observer's own half-pixel piece (bilinear reads of the finest
-// layer), are evaluated relative to the observer on the unrolled cone. Writes (tan el, dpsi) per observer
+// layer, else of the first coarser one: at the grid's edge the piece reaches past it), are evaluated relative to the observer on the unrolled cone. Writes (tan el, dpsi) per observer
 // and look; NO_SAMPLE where the look sees no terrain.
 // Dispatch: workgroups (groups_x, groups_y); invocation id = gid.x + gid.y * groups_x * 64,
 // line = id / 2, look = id % 2 (0 forward, toward increasing t; 1 backward).
-// Bindings: 0 params (uniform), 1 lines, 2 samples, 3 observers, 4 heights (finest layer,
-// holes as -1e30), 5 hull (read_write scratch: 2 * n_samples vertices, one slice per line and
+// Bindings: 0 params (uniform), 1 lines, 2 samples, 3 observers, 4 heights (finest layer, then
+// the first coarser layer, holes as -1e30), 5 hull (read_write scratch: 2 * n_samples vertices, one slice per line and
 // look), 6 out (2 per observer).
 
 const WORKGROUP_SIZE: u32 = 64u;
@@ -34,8 +34,15 @@ struct Params {
     observer_height_m: f32,
     px_m: f32,
     groups_x: u32,
-    _pad0: u32,
-    _pad1: u32,
+    // The first coarser layer (0 rows: none), stored in `heights` after the finest layer, and
+    // its fractional (row, col) as row0 + row * row_scale, col0 + col * col_scale of the
+    // finest layer's (row, col).
+    coarse_rows: u32,
+    coarse_cols: u32,
+    coarse_row0: f32,
+    coarse_col0: f32,
+    coarse_row_scale: f32,
+    coarse_col_scale: f32,
 }
 
 // Keep in sync with `LineRecord` in src/twins/line_sweep.rs.
@@ -122,30 +129,31 @@ fn offer(tan_el: f32, dpsi: f32) {
     }
 }
 
-fn cell_height(row: i32, col: i32) -> f32 {
-    if row < 0 || col < 0 || row >= i32(params.rows) || col >= i32(params.cols) {
+// Height of cell (row, col) of the layer stored at `base` with `rows` x `cols` cells.
+fn cell_height(base: u32, rows: u32, cols: u32, row: i32, col: i32) -> f32 {
+    if row < 0 || col < 0 || row >= i32(rows) || col >= i32(cols) {
         return NO_SAMPLE;
     }
-    return heights[u32(row) * params.cols + u32(col)];
+    return heights[base + u32(row) * cols + u32(col)];
 }
 
-// Nodata-aware bilinear height at fractional (row, col) of the finest layer (as
+// Nodata-aware bilinear height at fractional (row, col) of the layer stored at `base` (as
 // Dem::height_at_row_col and height_at of horizon_scan.wgsl).
-fn height_at(row: f32, col: f32) -> f32 {
-    let rows = f32(params.rows);
-    let cols = f32(params.cols);
+fn layer_height(base: u32, n_rows: u32, n_cols: u32, row: f32, col: f32) -> f32 {
+    let rows = f32(n_rows);
+    let cols = f32(n_cols);
     if !(row >= -0.5 && col >= -0.5 && row <= rows - 0.5 && col <= cols - 0.5) {
         return NO_SAMPLE;
     }
     let r = clamp(row, 0.0, rows - 1.0);
     let c = clamp(col, 0.0, cols - 1.0);
-    let r0 = max(min(i32(floor(r)), i32(params.rows) - 2), 0);
-    let c0 = max(min(i32(floor(c)), i32(params.cols) - 2), 0);
+    let r0 = max(min(i32(floor(r)), i32(n_rows) - 2), 0);
+    let c0 = max(min(i32(floor(c)), i32(n_cols) - 2), 0);
     let fr = r - f32(r0);
     let fc = c - f32(c0);
     let rn = i32(clamp(floor(row + 0.5), 0.0, rows - 1.0));
     let cn = i32(clamp(floor(col + 0.5), 0.0, cols - 1.0));
-    if cell_height(rn, cn) < HOLE_TEST_M {
+    if cell_height(base, n_rows, n_cols, rn, cn) < HOLE_TEST_M {
         return NO_SAMPLE;
     }
     var sum = 0.0;
@@ -157,7 +165,7 @@ fn height_at(row: f32, col: f32) -> f32 {
             if w <= 0.0 {
                 continue;
             }
-            let h = cell_height(r0 + dr, c0 + dc);
+            let h = cell_height(base, n_rows, n_cols, r0 + dr, c0 + dc);
             if h >= HOLE_TEST_M {
                 sum = sum + w * h;
                 wsum = wsum + w;
@@ -168,6 +176,22 @@ fn height_at(row: f32, col: f32) -> f32 {
         return sum / wsum;
     }
     return NO_SAMPLE;
+}
+
+// The stack's height at fractional (row, col) of the finest layer: the finest layer's, else
+// (outside it or in a hole) the first coarser layer's.
+fn height_at(row: f32, col: f32) -> f32 {
+    let h = layer_height(0u, params.rows, params.cols, row, col);
+    if h >= HOLE_TEST_M || params.coarse_rows == 0u {
+        return h;
+    }
+    return layer_height(
+        params.rows * params.cols,
+        params.coarse_rows,
+        params.coarse_cols,
+        params.coarse_row0 + row * params.coarse_row_scale,
+        params.coarse_col0 + col * params.coarse_col_scale,
+    );
 }
 
 @compute @workgroup_size(WORKGROUP_SIZE, 1, 1)

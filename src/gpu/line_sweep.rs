@@ -35,8 +35,8 @@ pub struct GpuLineSweep {
 }
 
 impl GpuLineSweep {
-    /// Builds the pipeline and uploads the finest layer of `grid`. Fails when the layer exceeds
-    /// the adapter's storage binding limit.
+    /// Builds the pipeline and uploads the layers of `grid` (the finest and the first coarser).
+    /// Fails when they exceed the adapter's storage binding limit.
     pub fn new(ctx: &GpuContext, grid: &SweepGrid) -> Result<Self, GpuError> {
         let max_binding = ctx.max_storage_binding_bytes();
         let bytes = grid.heights_m.len() as u64 * 4;
@@ -44,8 +44,8 @@ impl GpuLineSweep {
             return Err(GpuError::InvalidInput {
                 kernel: "line_sweep",
                 message: format!(
-                    "the finest layer ({bytes} B) exceeds the adapter's storage binding limit \
-                     ({max_binding} B)"
+                    "the finest and first coarser layers ({bytes} B) exceed the adapter's storage \
+                     binding limit ({max_binding} B)"
                 ),
             });
         }

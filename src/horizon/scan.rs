@@ -129,6 +129,8 @@ struct Buffers {
     ts: Vec<f64>,
     /// Finer layers reaching the segment.
     finer: Vec<usize>,
+    /// Where the segment crosses a finer layer's outer edge (a subset of `ts`).
+    edges: Vec<f64>,
 }
 
 /// The running maximum along one azimuth, kept as `tan(el)` (the ground angle stays in (0, pi/2)
@@ -380,6 +382,7 @@ impl<'a> HorizonEngine<'a> {
         let mut bufs = Buffers {
             ts: Vec::with_capacity(64),
             finer: Vec::with_capacity(self.layers.len()),
+            edges: Vec::with_capacity(8),
         };
         let mut start = self.segment_end(obs, &dir, obs.theta_min_rad);
         let mut end = start.clone();
@@ -432,7 +435,9 @@ impl<'a> HorizonEngine<'a> {
     /// Samples layer `li` along one segment: every crossing of a grid line (integer row or col:
     /// the edges of the bilinear patches) or of the layer's outer edge, and inside each patch
     /// piece the midpoint and the tangent point of the quadratic height profile. Samples where a
-    /// finer layer has a surface are left to that layer.
+    /// finer layer has a surface are left to that layer; where the segment crosses a finer
+    /// layer's outer edge this layer is sampled right at it (the limit of its surface just
+    /// outside: a coarser layer can rise there, within a pixel of an observer at the edge).
     #[expect(clippy::too_many_arguments, reason = "internal hot loop helper")]
     fn scan_layer_segment(
         &self,
@@ -444,7 +449,7 @@ impl<'a> HorizonEngine<'a> {
         bufs: &mut Buffers,
         best: &mut Best,
     ) {
-        let Buffers { ts, finer } = bufs;
+        let Buffers { ts, finer, edges } = bufs;
         let dem = self.layers[li].dem;
         let ((ra, ca), (rb, cb)) = (a.row_col[li], b.row_col[li]);
         let (rows, cols) = (dem.grid.rows as f64, dem.grid.cols as f64);
@@ -469,6 +474,14 @@ impl<'a> HorizonEngine<'a> {
         ts.push(0.0);
         push_crossings(ra, rb, rows, ts);
         push_crossings(ca, cb, cols, ts);
+        edges.clear();
+        for &k in finer.iter() {
+            let ((rka, cka), (rkb, ckb)) = (a.row_col[k], b.row_col[k]);
+            let g = &self.layers[k].dem.grid;
+            push_edge_crossings(rka, rkb, g.rows as f64, edges);
+            push_edge_crossings(cka, ckb, g.cols as f64, edges);
+        }
+        ts.extend_from_slice(edges);
         ts.push(1.0);
         ts.sort_unstable_by(f64::total_cmp);
         ts.dedup_by(|x, y| (*x - *y).abs() < 1e-12);
@@ -491,6 +504,20 @@ impl<'a> HorizonEngine<'a> {
                 snap_to_edge(ca + t * (cb - ca), cols),
             )?;
             Some((h, a.theta_rad + t * d_theta))
+        };
+        // At a finer layer's edge that layer has a surface (its border is clamped), so `sample`
+        // leaves the point to it: take this layer's height there too.
+        let sample = |t: f64| -> Option<(f64, f64)> {
+            sample(t).or_else(|| {
+                if !edges.iter().any(|&e| (e - t).abs() < 1e-12) {
+                    return None;
+                }
+                let h = dem.height_at_row_col(
+                    snap_to_edge(ra + t * (rb - ra), rows),
+                    snap_to_edge(ca + t * (cb - ca), cols),
+                )?;
+                Some((h, a.theta_rad + t * d_theta))
+            })
         };
         let mut prev = sample(0.0);
         if let (true, Some((h, th))) = (include_start, prev) {
@@ -614,7 +641,8 @@ fn snap_to_edge(v: f64, n: f64) -> f64 {
 
 /// Pushes the parameters `t` in (0, 1) where the coordinate going from `va` to `vb` crosses an
 /// integer in `[0, n - 1]` (a grid line through cell centres) or the outer edge `-0.5`/`n - 0.5`.
-fn push_crossings(va: f64, vb: f64, n: f64, ts: &mut Vec<f64>) {
+/// Parameters in (0, 1) where `va + t (vb - va)` crosses a grid's outer edge (-0.5 or n - 0.5).
+fn push_edge_crossings(va: f64, vb: f64, n: f64, ts: &mut Vec<f64>) {
     let dv = vb - va;
     if dv.abs() < 1e-12 {
         return;
@@ -625,6 +653,17 @@ fn push_crossings(va: f64, vb: f64, n: f64, ts: &mut Vec<f64>) {
             ts.push((edge - va) / dv);
         }
     }
+}
+
+/// Parameters in (0, 1) where `va + t (vb - va)` crosses a grid line (an integer in 0..n) or the
+/// grid's outer edge.
+fn push_crossings(va: f64, vb: f64, n: f64, ts: &mut Vec<f64>) {
+    let dv = vb - va;
+    if dv.abs() < 1e-12 {
+        return;
+    }
+    push_edge_crossings(va, vb, n, ts);
+    let (lo, hi) = (va.min(vb), va.max(vb));
     let k0 = lo.floor().max(-1.0) + 1.0;
     let k1 = hi.ceil().min(n) - 1.0;
     let mut k = k0.max(0.0);

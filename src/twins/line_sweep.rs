@@ -83,10 +83,20 @@ pub struct LineSweepParams {
     pub px_m: f32,
     /// Workgroups along x of the dispatch (invocation id = x + y · groups_x · 64).
     pub groups_x: u32,
-    /// Padding to 16 bytes.
-    pub _pad: [u32; 2],
+    /// Rows of the first coarser layer, stored in the heights after the finest layer (0: none).
+    pub coarse_rows: u32,
+    /// Columns of the first coarser layer.
+    pub coarse_cols: u32,
+    /// The coarser layer's fractional row at the finest layer's row 0.
+    pub coarse_row0: f32,
+    /// The coarser layer's fractional column at the finest layer's column 0.
+    pub coarse_col0: f32,
+    /// Coarser rows per finest row.
+    pub coarse_row_scale: f32,
+    /// Coarser columns per finest column.
+    pub coarse_col_scale: f32,
 }
-const _: () = assert!(size_of::<LineSweepParams>() == 48);
+const _: () = assert!(size_of::<LineSweepParams>() == 64);
 
 /// One line of a batch. Keep in sync with `Line` in shaders/line_sweep.wgsl.
 #[repr(C)]
@@ -142,37 +152,52 @@ pub struct ObserverRecord {
     pub pixel: u32,
 }
 
-/// The finest layer as the kernel reads it (the observers' own pieces) and the batch-independent
-/// uniform fields.
+/// The terrain the kernel reads for the observers' own pieces (the finest layer, then the first
+/// coarser one: at the grid's edge a piece reaches past the finest layer) and the
+/// batch-independent uniform fields.
+///
+/// The f64 sweep falls back to every coarser layer in turn; the kernel reads only the first.
+/// They differ only where that layer has a hole just outside the finest layer.
 pub struct SweepGrid {
     /// Uniform fields that do not depend on the batch.
     pub params: LineSweepParams,
-    /// The finest layer's heights, row-major, holes as [`HOLE_Z_M`].
+    /// The finest layer's heights, row-major, then the first coarser layer's; holes as
+    /// [`HOLE_Z_M`].
     pub heights_m: Vec<f32>,
 }
 
 impl SweepGrid {
-    /// The finest layer of `sweep`'s stack and its parameters.
+    /// The finest and first coarser layers of `sweep`'s stack and the parameters.
     pub fn new(sweep: &HorizonSweep) -> Self {
         let dem = sweep.grid_dem();
         let g = &dem.grid;
-        SweepGrid {
-            params: LineSweepParams {
-                rows: g.rows as u32,
-                cols: g.cols as u32,
-                px_x_m: g.px_x_m as f32,
-                px_y_m: g.px_y_m as f32,
-                theta_min_rad: sweep.theta_min_rad() as f32,
-                observer_height_m: sweep.params().observer_height_m as f32,
-                px_m: dem.px_m() as f32,
-                ..LineSweepParams::default()
-            },
-            heights_m: dem
-                .heights_m
-                .iter()
-                .map(|&h| if h.is_finite() { h } else { HOLE_Z_M })
-                .collect(),
+        let as_stored = |h: &f32| if h.is_finite() { *h } else { HOLE_Z_M };
+        let mut params = LineSweepParams {
+            rows: g.rows as u32,
+            cols: g.cols as u32,
+            px_x_m: g.px_x_m as f32,
+            px_y_m: g.px_y_m as f32,
+            theta_min_rad: sweep.theta_min_rad() as f32,
+            observer_height_m: sweep.params().observer_height_m as f32,
+            px_m: dem.px_m() as f32,
+            ..LineSweepParams::default()
+        };
+        let mut heights_m: Vec<f32> = dem.heights_m.iter().map(as_stored).collect();
+        // All layers share the map projection (checked by `HorizonSweep::new`), so a coarser
+        // layer's (row, col) is affine in the finest layer's, without rotation.
+        if let Some(coarse) = sweep.stack().layers.get(1) {
+            let c = &coarse.grid;
+            let (x0, y0) = g.xy_from_row_col(0.0, 0.0);
+            let (row0, col0) = c.row_col_from_xy(x0, y0);
+            params.coarse_rows = c.rows as u32;
+            params.coarse_cols = c.cols as u32;
+            params.coarse_row0 = row0 as f32;
+            params.coarse_col0 = col0 as f32;
+            params.coarse_row_scale = (g.px_y_m / c.px_y_m) as f32;
+            params.coarse_col_scale = (g.px_x_m / c.px_x_m) as f32;
+            heights_m.extend(coarse.heights_m.iter().map(as_stored));
         }
+        SweepGrid { params, heights_m }
     }
 }
 
@@ -306,19 +331,32 @@ fn dpsi_of(p: &SampleRecord, o: &SampleRecord) -> f32 {
     (p.psi_hi - o.psi_hi) + (p.psi_lo - o.psi_lo)
 }
 
-fn cell_height(params: &LineSweepParams, heights: &[f32], row: i32, col: i32) -> f32 {
-    if row < 0 || col < 0 || row >= params.rows as i32 || col >= params.cols as i32 {
-        return NO_SAMPLE;
-    }
-    heights[row as usize * params.cols as usize + col as usize]
+/// Nodata-aware bilinear height at fractional (row, col) of the layer stored from
+/// `heights[0]` with `rows` × `cols` cells (`layer_height` of line_sweep.wgsl).
+fn layer_height(heights: &[f32], rows: u32, cols: u32, row: f32, col: f32) -> f32 {
+    super::bilinear_with_holes(rows, cols, row, col, |r, c| {
+        if r < 0 || c < 0 || r >= rows as i32 || c >= cols as i32 {
+            return NO_SAMPLE;
+        }
+        heights[r as usize * cols as usize + c as usize]
+    })
 }
 
-/// Nodata-aware bilinear height at fractional (row, col) of the finest layer (`height_at` of
-/// line_sweep.wgsl).
+/// The stack's height at fractional (row, col) of the finest layer: the finest layer's, else
+/// (outside it or in a hole) the first coarser layer's (`height_at` of line_sweep.wgsl).
 fn height_at(params: &LineSweepParams, heights: &[f32], row: f32, col: f32) -> f32 {
-    super::bilinear_with_holes(params.rows, params.cols, row, col, |r, c| {
-        cell_height(params, heights, r, c)
-    })
+    let fine_len = params.rows as usize * params.cols as usize;
+    let h = layer_height(&heights[..fine_len], params.rows, params.cols, row, col);
+    if h >= HOLE_TEST_M || params.coarse_rows == 0 {
+        return h;
+    }
+    layer_height(
+        &heights[fine_len..],
+        params.coarse_rows,
+        params.coarse_cols,
+        params.coarse_row0 + row * params.coarse_row_scale,
+        params.coarse_col0 + col * params.coarse_col_scale,
+    )
 }
 
 /// One hull vertex: `(x, y)` in the (mirrored) hull frame and the sample index.

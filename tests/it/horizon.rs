@@ -117,6 +117,46 @@ fn flat_dem_edge_nearer_than_geometric_horizon() {
     assert!(max_err_deg < 1e-4, "{max_err_deg}");
 }
 
+/// Two layers: a flat finest layer at 0 m inside a coarser layer at H = 100 m everywhere. Past
+/// the finest layer's edge the surface is the coarser layer's plateau, whose nearest point is
+/// the highest seen: the horizon is the elevation of the point where the great circle leaves
+/// the finest layer (bisection as above), at radius R + H. (The scan once sampled the coarser
+/// layer only at its own grid lines, 1 km apart, and missed up to 0.1 deg here.)
+#[test]
+fn coarser_layer_is_seen_from_the_finer_layers_edge() {
+    let fine = square_dem(201, 50.0, 0.0, 0.0, |_, _| 0.0);
+    let grid = fine.grid;
+    let far =
+        penumbra::terrain::synth::square_dem_at(101, 1_000.0, (0.0, 0.0), "far", |_, _| 100.0);
+    let stack = TerrainStack::new(vec![fine, far]);
+    let (h_m, plateau_m) = (2.0, 100.0);
+    let (lat, lon) = (-89.99, 30.0);
+    let hz = horizon(&stack, lat, lon, &params(h_m, 0.5, HorizonMethod::Exact)).unwrap();
+    let mut max_err_deg: f64 = 0.0;
+    for (i, az) in hz.az_deg.iter().enumerate() {
+        let inside = |theta: f64| {
+            let (la, lo) = along(lat, lon, *az, theta);
+            let (x, y) = Projection::LOLA_SOUTH_POLAR.xy_from_lat_lon(la, lo);
+            grid.contains_xy(x, y)
+        };
+        let (mut lo_t, mut hi_t) = (0.0, 20_000.0 / R);
+        for _ in 0..60 {
+            let mid = 0.5 * (lo_t + hi_t);
+            if inside(mid) { lo_t = mid } else { hi_t = mid }
+        }
+        let expect_deg = el_rad(R + h_m, R + plateau_m, lo_t).to_degrees();
+        max_err_deg = max_err_deg.max((hz.elevation_deg[i] - expect_deg).abs());
+        assert!(
+            (hz.distance_m[i] - R * lo_t).abs() < 0.5,
+            "az {az}: distance {} vs {}",
+            hz.distance_m[i],
+            R * lo_t
+        );
+    }
+    println!("plateau past the finer layer: max |error| {max_err_deg:.2e} deg");
+    assert!(max_err_deg < 1e-4, "{max_err_deg}");
+}
+
 /// A ring wall: heights H for every cell centre at radius >= D from the pole, 0 inside, observer
 /// at the pole. Along the grid axes the path runs along a line of centres, the bilinear profile
 /// rises linearly from the last 0 centre to the first H centre (radius rho_k = the smallest

@@ -33,7 +33,23 @@
 //! `≈ s² ρ / (4 R²)` at distance `s`, `ρ` the map distance from the pole (40 m at 50 km, 150 m at
 //! 100 km on the 240 m LOLA crop's edge). Samples closer than half a pixel of the finest layer are
 //! skipped, as there; the finest layer's half-pixel border beyond its outermost cell centres is
-//! left to the coarser layer. The measured differences are in `docs/VALIDATION.md`.
+//! left to the coarser layer. The observer's own piece (from half a pixel out to the first
+//! shared sample) reads the stack, not only the finest layer: at the grid's edge it reaches past
+//! it, and a coarser layer rising there is the horizon (15–38° within 120 m at edge pixels of the
+//! LOLA crop, once missed). The measured differences are in `docs/VALIDATION.md`.
+//!
+//! **Samples inside a piece.** Between two crossings the bilinear surface along the line is a
+//! quadratic; a piece gets interior samples only where it rises above the 3-D chord between its
+//! ends (its own curvature plus the sphere's bulge `Δ²/8R`) by more than a tolerance, and then as
+//! many equal steps as bring each sub-piece under it (`samples::refine_piece`): 2 cm on the
+//! finest layer between the observers, and on the far side of every observer
+//! `max(2 cm, 1e-5 rad × distance to the nearest observer on the line)` (the coarser layers and
+//! the finest layer's border; a piece within a pixel of an observer keeps its midpoint, as one of
+//! its ends may lie in the half pixel the observer skips). A left-out sample lowers no horizon by
+//! more than its rise over its distance (the elevation along a straight chord peaks at an end):
+//! 1e-5 rad = 5.7e-4° beyond the finest layer. This cuts the samples by 40 % against every
+//! midpoint kept (55.9 → 33.5 per pixel and look on the 240 m LOLA grid + far field, counted
+//! before the midpoints near observers were kept; docs/PERFORMANCE.md).
 //!
 //! **Azimuths.** Bands are in *grid azimuth*: degrees from map +y (grid north), clockwise. The
 //! local azimuth (from true north, clockwise) of a band at a pixel is the grid azimuth plus
@@ -367,6 +383,11 @@ impl<'a> HorizonSweep<'a> {
         &self.directions
     }
 
+    /// The terrain stack swept.
+    pub fn stack(&self) -> &'a TerrainStack {
+        self.stack
+    }
+
     /// The finest layer: the output grid.
     pub fn grid_dem(&self) -> &'a Dem {
         &self.stack.layers[0]
@@ -644,16 +665,20 @@ impl<'a> HorizonSweep<'a> {
         // The finest layer's border beyond its outermost centres on this line (edge values
         // extended, as in `Dem::height_at_row_col`), then every coarser layer outside the
         // extents of the finer ones.
+        let near = ObserverSpan {
+            t_m: t_fine,
+            near_m: fine.px_m(),
+        };
         covered.clear();
         covered.push(t_fine);
         if let Some(((lo, hi), in_grid)) = extent_range(fine, &geom) {
-            push_segment_samples(fine, in_grid, (lo, t_fine.0), covered, ts, far);
-            push_segment_samples(fine, in_grid, (t_fine.1, hi), covered, ts, far);
+            push_segment_samples(fine, in_grid, (lo, t_fine.0), near, covered, ts, far);
+            push_segment_samples(fine, in_grid, (t_fine.1, hi), near, covered, ts, far);
             covered.push((lo, hi));
         }
         for dem in &self.stack.layers[1..] {
             if let Some((range, in_grid)) = extent_range(dem, &geom) {
-                push_segment_samples(dem, in_grid, range, covered, ts, far);
+                push_segment_samples(dem, in_grid, range, near, covered, ts, far);
                 covered.push(range);
             }
         }
@@ -681,7 +706,9 @@ impl<'a> HorizonSweep<'a> {
             if mid {
                 match (i.checked_sub(1).map(|k| raw[k]), raw.get(i + 1)) {
                     (Some((ta, ha, _, false)), Some(&(tb, hb, _, false))) => {
-                        refine_piece((ta, ha), h, (tb, hb), |t, h| push(samples, t, h));
+                        refine_piece((ta, ha), h, (tb, hb), SAG_TOLERANCE_M, |t, h| {
+                            push(samples, t, h)
+                        });
                     }
                     _ => push(samples, t, h),
                 }
@@ -796,8 +823,15 @@ impl<'a> HorizonSweep<'a> {
                 };
                 let t_mid = 0.5 * (t_start + t_first);
                 for t in [t_start, t_mid] {
+                    // The stack's height there: at the fine grid's edge the piece reaches past
+                    // it, onto the next layer (all layers share the map, checked in `new`).
                     let (x, y) = geom.point(t);
-                    if let Some(h) = bilinear_m(self.grid_dem(), x, y) {
+                    let h = bilinear_m(self.grid_dem(), x, y).or_else(|| {
+                        self.stack.layers[1..]
+                            .iter()
+                            .find_map(|dem| dem.height_at_xy_m(x, y))
+                    });
+                    if let Some(h) = h {
                         offer(t, MOON_RADIUS_M + h, geom.psi_rad(t));
                     }
                 }

@@ -97,14 +97,26 @@ pub(super) fn extent_range(dem: &Dem, geom: &LineGeometry) -> Option<((f64, f64)
     (lo <= hi).then_some(((lo, hi), [row_0, rb, col_0, cb]))
 }
 
+/// Where the observers of a line stand, for the tolerance of the samples outside their span.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct ObserverSpan {
+    /// The first and last observer's `t`, map metres.
+    pub(super) t_m: (f64, f64),
+    /// Pieces closer than this to an observer keep their midpoint whatever its rise: an end of
+    /// the piece may lie within the half pixel an observer skips, and the chord that bounds
+    /// what leaving the midpoint out costs is then not there (one pixel of the finest layer).
+    pub(super) near_m: f64,
+}
+
 /// Pushes `(t, h)` samples of `dem` along the line for `t` in `[t_lo, t_hi]`: both ends, every
-/// crossing with a line through cell centres, and the midpoint of every piece between them
-/// (the per-site scan's samples but the in-patch tangent points), skipping `t` inside a
-/// `covered` range (closed). `ts` is scratch space.
+/// crossing with a line through cell centres, and inside every piece between them the samples
+/// [`refine_piece`] asks for at the piece's distance from the line's observers, skipping `t`
+/// inside a `covered` range (closed). `ts` is scratch space.
 pub(super) fn push_segment_samples(
     dem: &Dem,
     line_in_grid: [f64; 4],
     (t_lo, t_hi): (f64, f64),
+    observers: ObserverSpan,
     covered: &[(f64, f64)],
     ts: &mut Vec<f64>,
     out: &mut Vec<(f64, f64)>,
@@ -162,7 +174,18 @@ pub(super) fn push_segment_samples(
         let there = sample(next);
         if let Some(mid) = sample(0.5 * (t + next)) {
             match (here, there) {
-                (Some(a), Some(b)) => refine_piece(a, mid.1, b, |t, h| out.push((t, h))),
+                (Some(a), Some(b)) => {
+                    let (first, last) = observers.t_m;
+                    let gap_m = (first - b.0).max(a.0 - last).max(0.0);
+                    if gap_m < observers.near_m {
+                        refine_piece(a, mid.1, b, SAG_TOLERANCE_M, |t, h| out.push((t, h)));
+                        if !out.last().is_some_and(|s| s.0 > a.0) {
+                            out.push(mid);
+                        }
+                    } else {
+                        refine_piece(a, mid.1, b, sag_tolerance_m(gap_m), |t, h| out.push((t, h)));
+                    }
+                }
                 _ => out.push(mid),
             }
         }
@@ -173,27 +196,47 @@ pub(super) fn push_segment_samples(
 /// Offset (map metres) of the first coarser-layer sample beyond a finer layer's edge.
 pub(super) const EDGE_STEP_M: f64 = 1e-3;
 
-/// Largest sag (m) of a concave piece's height between two samples: inside one bilinear patch the
-/// height along a straight line is the quadratic `h(u) = h_a + p u + q u²` through the piece's
-/// ends and midpoint, which lies up to `|q| / (4 n²)` above the chords of `n` equal sub-pieces.
+/// Largest height (m) by which the terrain inside a piece may rise above the straight 3-D chord
+/// between the piece's samples near an observer: inside one bilinear patch the height along a
+/// straight line is the quadratic `h(u) = h_a + p u + q u²` through the piece's ends and
+/// midpoint, and on the sphere a piece of length `Δ` rises `Δ² / 8R` more at its middle (the
+/// bulge of the ground over its chord); `n` equal sub-pieces each rise `1 / n²` of that.
 pub(super) const SAG_TOLERANCE_M: f64 = 0.02;
 
-/// Emits the interior samples of the piece from `a` to `b` (`(t, h)`) with midpoint height
-/// `h_mid`: the midpoint alone, or for a concave piece as many equal steps of the exact quadratic
-/// as keep its sag under [`SAG_TOLERANCE_M`] (the per-site scan samples the tangent point
-/// instead, which depends on the observer).
+/// Angular bound (radians) of what [`refine_piece`] may leave out of a sample far from every
+/// observer on its line: the tolerance grows with the distance to the nearest observer, so that
+/// no observer's horizon can drop by more than this (5.7e-4°), on top of [`SAG_TOLERANCE_M`].
+pub(super) const SAG_TOLERANCE_RAD: f64 = 1e-5;
+
+/// The sag tolerance (m) of a piece `gap_m` map metres from the nearest observer on its line:
+/// ground distances are shorter than map distances by at most the scale factor (≤ 1.02 on a
+/// ±457 km map), covered by the factor 0.95.
+pub(super) fn sag_tolerance_m(gap_m: f64) -> f64 {
+    SAG_TOLERANCE_M.max(0.95 * SAG_TOLERANCE_RAD * gap_m)
+}
+
+/// Emits the interior samples of the piece from `a` to `b` (`(t, h)`, t in map metres) with
+/// midpoint height `h_mid`: as many equal steps of the exact quadratic as keep the rise of each
+/// sub-piece over its chord (height and bulge, see [`SAG_TOLERANCE_M`]) under `tolerance_m`.
+/// None when the whole piece stays within it: a sample that rises less than `tolerance_m` above
+/// the chord of its neighbours changes no horizon by more than `tolerance_m` over its distance,
+/// as the elevation along a straight chord peaks at an end. The per-site scan samples the
+/// tangent point instead, which depends on the observer.
 pub(super) fn refine_piece(
     a: (f64, f64),
     h_mid: f64,
     b: (f64, f64),
+    tolerance_m: f64,
     mut emit: impl FnMut(f64, f64),
 ) {
     let q = 2.0 * (a.1 - 2.0 * h_mid + b.1);
-    let n = if q < 0.0 {
-        ((-q / (4.0 * SAG_TOLERANCE_M)).sqrt().ceil() as usize).clamp(2, 512)
-    } else {
-        2
-    };
+    let dt = b.0 - a.0;
+    // Rise of the middle over the 3-D chord (map metres overstate the ground's: conservative).
+    let rise = dt * dt / (8.0 * MOON_RADIUS_M) - 0.25 * q;
+    if rise <= tolerance_m {
+        return;
+    }
+    let n = ((rise / tolerance_m).sqrt().ceil() as usize).clamp(2, 512);
     if n == 2 {
         emit(0.5 * (a.0 + b.0), h_mid);
         return;

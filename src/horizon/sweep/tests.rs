@@ -168,3 +168,57 @@ fn psi_is_the_arc_of_the_circle() {
         assert!(((ua - ub).norm() - chord).abs() < 1e-12, "d {d_m}");
     }
 }
+
+/// The samples `refine_piece` keeps leave no point of the piece's exact curve (the bilinear
+/// quadratic on the sphere, in 3-D) more than the tolerance above the chord between the kept
+/// samples: checked by dense evaluation of the curve in the plane of the line, not by the
+/// function's own rise formula.
+#[test]
+fn refined_pieces_stay_within_the_tolerance_of_their_chords() {
+    let r_m = MOON_RADIUS_M;
+    let plane = |t: f64, h: f64| ((r_m + h) * (t / r_m).sin(), (r_m + h) * (t / r_m).cos());
+    let mut kept_fewer = 0;
+    for (len_m, ha, hm, hb, tol_m) in [
+        (170.0, 0.0, 0.0, 0.0, SAG_TOLERANCE_M),
+        (170.0, 10.0, 16.0, 20.0, SAG_TOLERANCE_M),
+        (170.0, 10.0, 14.0, 20.0, SAG_TOLERANCE_M),
+        (1_800.0, 0.0, 0.0, 0.0, SAG_TOLERANCE_M),
+        (1_800.0, 0.0, 0.0, 0.0, sag_tolerance_m(50_000.0)),
+        (2_500.0, 300.0, 420.0, 500.0, sag_tolerance_m(20_000.0)),
+        (2_500.0, 300.0, 380.0, 500.0, sag_tolerance_m(20_000.0)),
+        (1_200.0, -50.0, -40.0, -45.0, sag_tolerance_m(300_000.0)),
+    ] {
+        let (a, b) = ((1_000.0, ha), (1_000.0 + len_m, hb));
+        let mut kept = vec![a];
+        refine_piece(a, hm, b, tol_m, |t, h| kept.push((t, h)));
+        kept.push(b);
+        if kept.len() == 2 {
+            kept_fewer += 1;
+        }
+        // The exact curve: the quadratic through the ends and the midpoint.
+        let q = 2.0 * (ha - 2.0 * hm + hb);
+        let p = hb - ha - q;
+        let mut worst: f64 = 0.0;
+        for k in 0..=2000 {
+            let u = k as f64 / 2000.0;
+            let (t, h) = (a.0 + u * len_m, ha + p * u + q * u * u);
+            let (x, y) = plane(t, h);
+            let i = kept.partition_point(|s| s.0 <= t).clamp(1, kept.len() - 1);
+            let (p0, p1) = (
+                plane(kept[i - 1].0, kept[i - 1].1),
+                plane(kept[i].0, kept[i].1),
+            );
+            // Height of the curve point above the chord, along the chord's normal ("up").
+            let (dx, dy) = (p1.0 - p0.0, p1.1 - p0.1);
+            let above = (dx * (y - p0.1) - dy * (x - p0.0)) / dx.hypot(dy);
+            worst = worst.max(above);
+        }
+        assert!(
+            worst <= tol_m * 1.001 + 1e-6,
+            "piece {len_m} m ({ha}, {hm}, {hb}): {} samples leave {worst} m above the chords (tolerance {tol_m} m)",
+            kept.len()
+        );
+    }
+    // Some pieces need no interior sample at all (the point of the tolerance).
+    assert!(kept_fewer >= 3, "{kept_fewer}");
+}
