@@ -468,11 +468,14 @@ pub const EARTH_FRACTION_DESCRIPTION: &str = "visible fraction of the Earth's di
 /// The engine `--engine auto` runs for `n_epochs` epochs of a range on `backend`: the horizons
 /// engine when it is faster, else the per-epoch combined engine (the GPU's DP sweep on a GPU).
 ///
-/// Measured on the 2-core VM (`cargo bench --bench statistics`, docs/PERFORMANCE.md): a
-/// whole-grid sweep of 552–600 directions costs as much as ≈ 750 epochs of per-epoch combined maps
-/// on a single layer and ≈ 2,000 with the LOLA far field, after which each epoch costs the
-/// horizons engine ≈ 35× less; so the horizons engine is chosen from 1,000 epochs on (at once
-/// when the horizons are given as a file).
+/// Horizons given as a file (`--horizons`) are always used, on any backend: the sweep is paid
+/// for, and each epoch then costs the horizons engine ≈ 35× less than a combined map on the CPU
+/// (its epoch loop runs on the GPU too). Otherwise, on the CPU, measured on the 2-core VM
+/// (`cargo bench --bench statistics`, docs/PERFORMANCE.md): a whole-grid sweep of 552–600
+/// directions costs as much as ≈ 750 epochs of per-epoch combined maps on a single layer and
+/// ≈ 2,000 with the LOLA far field; so the horizons engine is chosen from 1,000 epochs on. On a
+/// GPU the per-epoch DP sweep stays the choice without a file: where a GPU's per-epoch maps
+/// overtake a CPU-built sweep has not been measured on a GPU (issue 15).
 pub fn auto_engine(
     backend: &crate::compute::ResolvedBackend,
     n_epochs: usize,
@@ -480,12 +483,10 @@ pub fn auto_engine(
 ) -> MapEngineKind {
     use crate::compute::sweep::HorizonsFrom;
     let combined = MapEngineKind::Direct(crate::shadow::Engine::Combined);
-    if matches!(backend, crate::compute::ResolvedBackend::Gpu(_)) {
-        return combined;
-    }
+    let on_gpu = matches!(backend, crate::compute::ResolvedBackend::Gpu(_));
     match horizons {
         HorizonsFrom::File(_) => MapEngineKind::Horizons,
-        HorizonsFrom::Sweep { .. } if n_epochs >= AUTO_HORIZONS_MIN_EPOCHS => {
+        HorizonsFrom::Sweep { .. } if !on_gpu && n_epochs >= AUTO_HORIZONS_MIN_EPOCHS => {
             MapEngineKind::Horizons
         }
         HorizonsFrom::Sweep { .. } => combined,

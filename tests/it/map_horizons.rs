@@ -377,6 +377,44 @@ fn horizons_from_a_file_equal_the_sweep_in_memory_and_bad_files_are_refused() {
     let psr_b = std::fs::read(d.join("in_memory/psr_mask.tif")).unwrap();
     assert_eq!(psr_a, psr_b);
 
+    // `--engine auto` with a horizons file uses it on the GPU too (it once ran a soft-shadow
+    // map per epoch there, ignoring the file): the same statistics as the CPU's.
+    #[cfg(feature = "gpu")]
+    if crate::util::gpu().is_some() {
+        let out = penumbra(
+            d,
+            &[
+                &[
+                    "map",
+                    "--dem",
+                    "a.tif",
+                    "--horizons",
+                    "h.tif",
+                    "--backend",
+                    "gpu",
+                ][..],
+                &epochs,
+                &["--out-dir", "auto_gpu", "--kernels", k],
+            ]
+            .concat(),
+        );
+        let note = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{note}");
+        assert!(note.contains("--engine auto: horizons"), "{note}");
+        let a = read_tif(&d.join("from_file"), "sun_visible_pct.tif").heights_m;
+        let b = read_tif(&d.join("auto_gpu"), "sun_visible_pct.tif").heights_m;
+        let worst = a
+            .iter()
+            .zip(&b)
+            .filter(|(x, y)| !(x.is_nan() && y.is_nan()))
+            .map(|(x, y)| (x - y).abs())
+            .fold(0.0_f32, f32::max);
+        assert!(
+            worst <= 0.5,
+            "Sun visible %: GPU vs CPU differ by {worst} pp"
+        );
+    }
+
     // Another grid, another observer height, not a horizon map, one light: clean errors.
     let out = penumbra(
         d,
