@@ -1,9 +1,11 @@
+// requires: shared/bilinear.wgsl
 // Per-site terrain horizons: one invocation per (azimuth, site) scans the great circle that leaves
 // the observer with that azimuth over every DEM layer of the stack (native polar stereographic
 // grids, finest layer with a surface wins) and writes the largest tan(elevation) and the ground
 // angle where it occurs. The same sampling as the CPU exact scan (src/horizon/scan.rs): every
-// crossing of a line through cell centres or of a layer's outer edge, and inside every bilinear
-// patch piece the midpoint and the tangent point of the piece's quadratic height profile.
+// crossing of a line through cell centres, of a layer's outer edge or of a finer layer's outer
+// edge, and inside every bilinear patch piece the midpoint and the tangent point of the piece's
+// quadratic height profile.
 // Dispatch: workgroups (ceil(n_az / 64), n_sites); gid.x = azimuth, gid.y = site - site0.
 // Bindings: 0 params (uniform), 1 heights (all layers, row-major, concatenated), 2 sites,
 // 3 azimuths (sin, cos) computed in f64 on the CPU, 4 out (tan el, ground angle rad) per
@@ -107,55 +109,10 @@ fn one_minus_cos_small(t: f32) -> f32 {
     return t2 / 2.0 * (1.0 - t2 / 12.0 * (1.0 - t2 / 30.0 * (1.0 - t2 / 56.0 * (1.0 - t2 / 90.0))));
 }
 
-fn cell_height(l: u32, row: i32, col: i32) -> f32 {
-    let layer = params.layers[l];
-    if row < 0 || col < 0 || row >= i32(layer.rows) || col >= i32(layer.cols) {
-        return NO_SAMPLE;
-    }
-    return heights[layer.offset + u32(row) * layer.cols + u32(col)];
-}
-
-// Nodata-aware bilinear height at fractional (row, col) of layer l (as Dem::height_at_row_col):
-// NO_SAMPLE outside the outer cell edges, when the nearest centre is a hole, or with no valid
-// corner; else the weighted mean of the valid corners.
+// Nodata-aware bilinear height at fractional (row, col) of layer l (shared/bilinear.wgsl).
 fn height_at(l: u32, row: f32, col: f32) -> f32 {
     let layer = params.layers[l];
-    let rows = f32(layer.rows);
-    let cols = f32(layer.cols);
-    if !(row >= -0.5 && col >= -0.5 && row <= rows - 0.5 && col <= cols - 0.5) {
-        return NO_SAMPLE;
-    }
-    let r = clamp(row, 0.0, rows - 1.0);
-    let c = clamp(col, 0.0, cols - 1.0);
-    let r0 = max(min(i32(floor(r)), i32(layer.rows) - 2), 0);
-    let c0 = max(min(i32(floor(c)), i32(layer.cols) - 2), 0);
-    let fr = r - f32(r0);
-    let fc = c - f32(c0);
-    let rn = i32(clamp(floor(row + 0.5), 0.0, rows - 1.0));
-    let cn = i32(clamp(floor(col + 0.5), 0.0, cols - 1.0));
-    if cell_height(l, rn, cn) < HOLE_TEST_M {
-        return NO_SAMPLE;
-    }
-    var sum = 0.0;
-    var wsum = 0.0;
-    for (var dr = 0; dr < 2; dr++) {
-        let wr = select(1.0 - fr, fr, dr == 1);
-        for (var dc = 0; dc < 2; dc++) {
-            let w = wr * select(1.0 - fc, fc, dc == 1);
-            if w <= 0.0 {
-                continue;
-            }
-            let h = cell_height(l, r0 + dr, c0 + dc);
-            if h >= HOLE_TEST_M {
-                sum = sum + w * h;
-                wsum = wsum + w;
-            }
-        }
-    }
-    if wsum > 0.0 {
-        return sum / wsum;
-    }
-    return NO_SAMPLE;
+    return layer_height(layer.offset, layer.rows, layer.cols, row, col);
 }
 
 // Fractional (row, col) on layer l of the unit radial vector u (polar stereographic, as
@@ -271,6 +228,29 @@ fn sample(l: u32, finer: u32, t: f32) -> f32 {
     return height_at(l, snap_to_edge(rc.x, f32(layer.rows)), snap_to_edge(rc.y, f32(layer.cols)));
 }
 
+// The first crossing after t (and before 1) of the outer edge of a finer layer (bit k of
+// `finer`), FAR_T when none: layer l's surface starts there, and is sampled right at it.
+fn next_finer_edge(l: u32, finer: u32, t: f32) -> f32 {
+    var best = FAR_T;
+    for (var k = 0u; k < l; k++) {
+        if (finer & (1u << k)) != 0u {
+            let va = seg_a[k];
+            let dv = seg_b[k] - va;
+            let n = vec2<f32>(f32(params.layers[k].rows), f32(params.layers[k].cols));
+            for (var axis = 0u; axis < 2u; axis++) {
+                for (var e = 0u; e < 2u; e++) {
+                    let edge = select(-0.5, n[axis] - 0.5, e == 1u);
+                    let te = line_t(edge, va[axis], dv[axis]);
+                    if te > t && te < 1.0 && te < best {
+                        best = te;
+                    }
+                }
+            }
+        }
+    }
+    return best;
+}
+
 // Samples layer l along the current segment (ground angles theta_a .. theta_b).
 fn scan_layer_segment(l: u32, theta_a: f32, theta_b: f32, include_start: bool) {
     if segment_misses(l) {
@@ -293,6 +273,7 @@ fn scan_layer_segment(l: u32, theta_a: f32, theta_b: f32, include_start: bool) {
     var line_c = next_line(va.y, dir.y, cols);
     var t_r = line_t(line_r, va.x, dv.x);
     var t_c = line_t(line_c, va.y, dv.y);
+    var t_e = next_finer_edge(l, finer, 0.0);
     var t0 = 0.0;
     var prev = sample(l, finer, 0.0);
     if include_start && prev >= HOLE_TEST_M {
@@ -306,6 +287,13 @@ fn scan_layer_segment(l: u32, theta_a: f32, theta_b: f32, include_start: bool) {
         if t_c < t1 {
             t1 = t_c;
         }
+        if t_e < t1 {
+            t1 = t_e;
+        }
+        let at_edge = t_e == t1;
+        if at_edge {
+            t_e = next_finer_edge(l, finer, t1);
+        }
         if t_r == t1 {
             line_r = next_line(line_r, dir.x, rows);
             t_r = line_t(line_r, va.x, dv.x);
@@ -315,7 +303,11 @@ fn scan_layer_segment(l: u32, theta_a: f32, theta_b: f32, include_start: bool) {
             t_c = line_t(line_c, va.y, dv.y);
         }
         if t1 > t0 {
-            let next = sample(l, finer, t1);
+            var next = sample(l, finer, t1);
+            if at_edge && next < HOLE_TEST_M {
+                // The finer layer's border is clamped, so it has a surface at its edge.
+                next = sample(l, 0u, t1);
+            }
             let th1 = theta_a + t1 * d_theta;
             if next >= HOLE_TEST_M {
                 offer(tan_elevation(next, th1), th1);

@@ -1,3 +1,4 @@
+// requires: shared/bilinear.wgsl
 // Whole-grid horizons, the looks of the line sweep: one invocation per (line, look). The CPU
 // builds every line's samples as its own sweep does (src/horizon/sweep/) and packs them in f32
 // (src/twins/line_sweep.rs, which also holds the CPU twin of this kernel, line by line, and the
@@ -127,55 +128,6 @@ fn offer(tan_el: f32, dpsi: f32) {
         best_tan = tan_el;
         best_dpsi = dpsi;
     }
-}
-
-// Height of cell (row, col) of the layer stored at `base` with `rows` x `cols` cells.
-fn cell_height(base: u32, rows: u32, cols: u32, row: i32, col: i32) -> f32 {
-    if row < 0 || col < 0 || row >= i32(rows) || col >= i32(cols) {
-        return NO_SAMPLE;
-    }
-    return heights[base + u32(row) * cols + u32(col)];
-}
-
-// Nodata-aware bilinear height at fractional (row, col) of the layer stored at `base` (as
-// Dem::height_at_row_col and height_at of horizon_scan.wgsl).
-fn layer_height(base: u32, n_rows: u32, n_cols: u32, row: f32, col: f32) -> f32 {
-    let rows = f32(n_rows);
-    let cols = f32(n_cols);
-    if !(row >= -0.5 && col >= -0.5 && row <= rows - 0.5 && col <= cols - 0.5) {
-        return NO_SAMPLE;
-    }
-    let r = clamp(row, 0.0, rows - 1.0);
-    let c = clamp(col, 0.0, cols - 1.0);
-    let r0 = max(min(i32(floor(r)), i32(n_rows) - 2), 0);
-    let c0 = max(min(i32(floor(c)), i32(n_cols) - 2), 0);
-    let fr = r - f32(r0);
-    let fc = c - f32(c0);
-    let rn = i32(clamp(floor(row + 0.5), 0.0, rows - 1.0));
-    let cn = i32(clamp(floor(col + 0.5), 0.0, cols - 1.0));
-    if cell_height(base, n_rows, n_cols, rn, cn) < HOLE_TEST_M {
-        return NO_SAMPLE;
-    }
-    var sum = 0.0;
-    var wsum = 0.0;
-    for (var dr = 0; dr < 2; dr++) {
-        let wr = select(1.0 - fr, fr, dr == 1);
-        for (var dc = 0; dc < 2; dc++) {
-            let w = wr * select(1.0 - fc, fc, dc == 1);
-            if w <= 0.0 {
-                continue;
-            }
-            let h = cell_height(base, n_rows, n_cols, r0 + dr, c0 + dc);
-            if h >= HOLE_TEST_M {
-                sum = sum + w * h;
-                wsum = wsum + w;
-            }
-        }
-    }
-    if wsum > 0.0 {
-        return sum / wsum;
-    }
-    return NO_SAMPLE;
 }
 
 // The stack's height at fractional (row, col) of the finest layer: the finest layer's, else

@@ -23,6 +23,10 @@ pub const SITES_PER_DISPATCH: u32 = 64;
 /// Workgroup size along the azimuths. Keep in sync with shaders/horizon_scan.wgsl.
 const WORKGROUP_SIZE: u32 = 64;
 
+const SHARED_BILINEAR_WGSL: &str = include_str!(concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/shaders/shared/bilinear.wgsl"
+));
 const HORIZON_SCAN_WGSL: &str = include_str!(concat!(
     env!("CARGO_MANIFEST_DIR"),
     "/shaders/horizon_scan.wgsl"
@@ -84,7 +88,7 @@ impl GpuHorizonScan {
             &ctx.device,
             &layout,
             "horizon_scan",
-            HORIZON_SCAN_WGSL,
+            &format!("{SHARED_BILINEAR_WGSL}{HORIZON_SCAN_WGSL}"),
             "horizon_scan",
         );
         let params_buf = ctx.uniform_buffer(

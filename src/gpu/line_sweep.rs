@@ -16,6 +16,10 @@ use crate::twins::line_sweep::{
     LineBatch, LineSweepParams, SweepGrid, WORKGROUP_SIZE, sweep_batched,
 };
 
+const SHARED_BILINEAR_WGSL: &str = include_str!(concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/shaders/shared/bilinear.wgsl"
+));
 const LINE_SWEEP_WGSL: &str = include_str!(concat!(
     env!("CARGO_MANIFEST_DIR"),
     "/shaders/line_sweep.wgsl"
@@ -71,7 +75,7 @@ impl GpuLineSweep {
             &ctx.device,
             &layout,
             "line_sweep",
-            LINE_SWEEP_WGSL,
+            &format!("{SHARED_BILINEAR_WGSL}{LINE_SWEEP_WGSL}"),
             "line_sweep",
         );
         let params_buf = ctx.uniform_buffer(

@@ -5,8 +5,9 @@
 //! The kernel runs over the same terrain as the CPU [`HorizonEngine`]: every layer of the
 //! [`TerrainStack`] in its own polar stereographic grid (at most [`MAX_LAYERS`]), the finest layer
 //! with a surface winning at each point, and samples the path like the exact scan (grid-line and
-//! outer-edge crossings, patch midpoints, tangent points of the quadratic profile), in segments
-//! of 8 cells of the finest layer at the segment start. What differs from the exact scan is the
+//! outer-edge crossings, finer layers' outer-edge crossings, patch midpoints, tangent points of
+//! the quadratic profile), in segments of 8 cells of the finest layer at the segment start.
+//! What differs from the exact scan is the
 //! arithmetic (f32, see the precision budget at the top of the shader) and three details: the
 //! sample parameters come from a DDA over the lines instead of a sorted list (pieces shorter than
 //! the f64 scan's 1e-12 dedup are kept; harmless), the nearest-centre test of the bilinear
@@ -438,6 +439,29 @@ impl Scan<'_> {
         )
     }
 
+    /// The first crossing after `t` (and before 1) of the outer edge of a finer layer (bit k of
+    /// `finer`), [`FAR_T`] when none (`next_finer_edge` of horizon_scan.wgsl).
+    fn next_finer_edge(&self, l: usize, finer: u32, t: f32) -> f32 {
+        let mut best = FAR_T;
+        for k in 0..l {
+            if finer & (1 << k) != 0 {
+                let (va, vb) = (self.seg_a[k], self.seg_b[k]);
+                let layer = &self.params.layers[k];
+                let n = [layer.rows as f32, layer.cols as f32];
+                for axis in 0..2 {
+                    let dv = vb[axis] - va[axis];
+                    for edge in [-0.5, n[axis] - 0.5] {
+                        let te = line_t(edge, va[axis], dv);
+                        if te > t && te < 1.0 && te < best {
+                            best = te;
+                        }
+                    }
+                }
+            }
+        }
+        best
+    }
+
     fn scan_layer_segment(&mut self, l: usize, theta_a: f32, theta_b: f32, include_start: bool) {
         if self.segment_misses(l) {
             return;
@@ -459,6 +483,7 @@ impl Scan<'_> {
         let mut line_c = next_line(va[1], dir[1], cols);
         let mut t_r = line_t(line_r, va[0], dv[0]);
         let mut t_c = line_t(line_c, va[1], dv[1]);
+        let mut t_e = self.next_finer_edge(l, finer, 0.0);
         let mut t0 = 0.0_f32;
         let mut prev = self.sample(l, finer, 0.0);
         if include_start && prev >= HOLE_TEST_M {
@@ -472,6 +497,13 @@ impl Scan<'_> {
             if t_c < t1 {
                 t1 = t_c;
             }
+            if t_e < t1 {
+                t1 = t_e;
+            }
+            let at_edge = t_e == t1;
+            if at_edge {
+                t_e = self.next_finer_edge(l, finer, t1);
+            }
             if t_r == t1 {
                 line_r = next_line(line_r, dir[0], rows);
                 t_r = line_t(line_r, va[0], dv[0]);
@@ -481,7 +513,11 @@ impl Scan<'_> {
                 t_c = line_t(line_c, va[1], dv[1]);
             }
             if t1 > t0 {
-                let next = self.sample(l, finer, t1);
+                let mut next = self.sample(l, finer, t1);
+                if at_edge && next < HOLE_TEST_M {
+                    // The finer layer's border is clamped, so it has a surface at its edge.
+                    next = self.sample(l, 0, t1);
+                }
                 let th1 = theta_a + t1 * d_theta;
                 if next >= HOLE_TEST_M {
                     self.offer(self.tan_elevation(next, th1), th1);

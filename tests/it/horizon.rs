@@ -121,7 +121,8 @@ fn flat_dem_edge_nearer_than_geometric_horizon() {
 /// the finest layer's edge the surface is the coarser layer's plateau, whose nearest point is
 /// the highest seen: the horizon is the elevation of the point where the great circle leaves
 /// the finest layer (bisection as above), at radius R + H. (The scan once sampled the coarser
-/// layer only at its own grid lines, 1 km apart, and missed up to 0.1 deg here.)
+/// layer only at its own grid lines, 1 km apart, and missed the edge: the twin without the edge
+/// samples is 0.23 deg low here, see tests/it/gpu_horizon.rs.)
 #[test]
 fn coarser_layer_is_seen_from_the_finer_layers_edge() {
     let fine = square_dem(201, 50.0, 0.0, 0.0, |_, _| 0.0);

@@ -270,7 +270,15 @@ pub fn sweep_lights(epochs: usize) -> Vec<[f32; 4]> {
 /// The sizes naga's layouter gives the named structs of `shaders/<file>` (the shader parsed
 /// and validated first), for the tests that check a shader's structs against their Rust mirrors.
 pub fn wgsl_struct_sizes(file: &str) -> std::collections::HashMap<String, usize> {
-    let src = std::fs::read_to_string(root().join("shaders").join(file)).unwrap();
+    let shaders = root().join("shaders");
+    let text = std::fs::read_to_string(shaders.join(file)).unwrap();
+    // The `// requires:` helpers first, as the Rust side prepends them.
+    let mut src: String = text
+        .lines()
+        .filter_map(|l| l.strip_prefix("// requires: "))
+        .map(|dep| std::fs::read_to_string(shaders.join(dep.trim())).unwrap())
+        .collect();
+    src.push_str(&text);
     let module = naga::front::wgsl::parse_str(&src).unwrap();
     naga::valid::Validator::new(
         naga::valid::ValidationFlags::all(),
