@@ -487,37 +487,30 @@ impl<'a> HorizonEngine<'a> {
         ts.dedup_by(|x, y| (*x - *y).abs() < 1e-12);
 
         let d_theta = b.theta_rad - a.theta_rad;
-        // Height (if this layer is the finest with a surface there) and ground angle at t.
-        let sample = |t: f64| -> Option<(f64, f64)> {
-            for &k in finer.iter() {
-                let ((rka, cka), (rkb, ckb)) = (a.row_col[k], b.row_col[k]);
-                let dk = self.layers[k].dem;
-                if dk
-                    .height_at_row_col(rka + t * (rkb - rka), cka + t * (ckb - cka))
-                    .is_some()
-                {
-                    return None;
-                }
-            }
+        // This layer's height and the ground angle at t.
+        let here = |t: f64| -> Option<(f64, f64)> {
             let h = dem.height_at_row_col(
                 snap_to_edge(ra + t * (rb - ra), rows),
                 snap_to_edge(ca + t * (cb - ca), cols),
             )?;
             Some((h, a.theta_rad + t * d_theta))
         };
-        // At a finer layer's edge that layer has a surface (its border is clamped), so `sample`
-        // leaves the point to it: take this layer's height there too.
+        // ... where this layer is the finest with a surface. At a finer layer's edge that layer
+        // has a surface too (its border is clamped), but this layer's starts there: take it.
         let sample = |t: f64| -> Option<(f64, f64)> {
-            sample(t).or_else(|| {
-                if !edges.iter().any(|&e| (e - t).abs() < 1e-12) {
-                    return None;
+            if !edges.iter().any(|&e| (e - t).abs() < 1e-12) {
+                for &k in finer.iter() {
+                    let ((rka, cka), (rkb, ckb)) = (a.row_col[k], b.row_col[k]);
+                    let dk = self.layers[k].dem;
+                    if dk
+                        .height_at_row_col(rka + t * (rkb - rka), cka + t * (ckb - cka))
+                        .is_some()
+                    {
+                        return None;
+                    }
                 }
-                let h = dem.height_at_row_col(
-                    snap_to_edge(ra + t * (rb - ra), rows),
-                    snap_to_edge(ca + t * (cb - ca), cols),
-                )?;
-                Some((h, a.theta_rad + t * d_theta))
-            })
+            }
+            here(t)
         };
         let mut prev = sample(0.0);
         if let (true, Some((h, th))) = (include_start, prev) {

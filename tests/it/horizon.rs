@@ -80,18 +80,16 @@ fn flat_dem_gives_the_geometric_dip() {
     }
 }
 
-/// Flat sphere, DEM edge nearer than the geometric horizon: the horizon is the angle to the
-/// farthest terrain point along each azimuth. Oracle: bisection on the ground angle at which the
-/// exact great circle leaves the DEM's outer edge (independent of the scan's segments).
-#[test]
-fn flat_dem_edge_nearer_than_geometric_horizon() {
-    // 50 m observer: geometric horizon at 13.2 km; DEM edge at 5.0 to 7.1 km.
-    let dem = square_dem(201, 50.0, 0.0, 0.0, |_, _| 0.0);
-    let grid = dem.grid;
-    let stack = TerrainStack::new(vec![dem]);
-    let h_m = 50.0;
-    let (lat, lon) = (-89.99, 30.0);
-    let hz = horizon(&stack, lat, lon, &params(h_m, 0.25, HorizonMethod::Exact)).unwrap();
+/// Largest |error| (deg) of `hz` against a horizon at the point where each azimuth's great
+/// circle leaves `grid` (bisection on the ground angle, independent of the scan's segments), seen
+/// from radius `r0_m` at radius `rho_m`; asserts each distance to 0.5 m.
+fn max_error_vs_edge_deg(
+    hz: &penumbra::horizon::Horizon,
+    grid: &penumbra::terrain::GridGeometry,
+    (lat, lon): (f64, f64),
+    r0_m: f64,
+    rho_m: f64,
+) -> f64 {
     let mut max_err_deg: f64 = 0.0;
     for (i, az) in hz.az_deg.iter().enumerate() {
         let inside = |theta: f64| {
@@ -104,7 +102,7 @@ fn flat_dem_edge_nearer_than_geometric_horizon() {
             let mid = 0.5 * (lo_t + hi_t);
             if inside(mid) { lo_t = mid } else { hi_t = mid }
         }
-        let expect_deg = el_rad(R + h_m, R, lo_t).to_degrees();
+        let expect_deg = el_rad(r0_m, rho_m, lo_t).to_degrees();
         max_err_deg = max_err_deg.max((hz.elevation_deg[i] - expect_deg).abs());
         assert!(
             (hz.distance_m[i] - R * lo_t).abs() < 0.5,
@@ -113,6 +111,22 @@ fn flat_dem_edge_nearer_than_geometric_horizon() {
             R * lo_t
         );
     }
+    max_err_deg
+}
+
+/// Flat sphere, DEM edge nearer than the geometric horizon: the horizon is the angle to the
+/// farthest terrain point along each azimuth. Oracle: bisection on the ground angle at which the
+/// exact great circle leaves the DEM's outer edge (independent of the scan's segments).
+#[test]
+fn flat_dem_edge_nearer_than_geometric_horizon() {
+    // 50 m observer: geometric horizon at 13.2 km; DEM edge at 5.0 to 7.1 km.
+    let dem = square_dem(201, 50.0, 0.0, 0.0, |_, _| 0.0);
+    let grid = dem.grid;
+    let stack = TerrainStack::new(vec![dem]);
+    let h_m = 50.0;
+    let (lat, lon) = (-89.99, 30.0);
+    let hz = horizon(&stack, lat, lon, &params(h_m, 0.25, HorizonMethod::Exact)).unwrap();
+    let max_err_deg = max_error_vs_edge_deg(&hz, &grid, (lat, lon), R + h_m, R);
     println!("flat, edge-limited: max |error| {max_err_deg:.2e} deg");
     assert!(max_err_deg < 1e-4, "{max_err_deg}");
 }
@@ -127,33 +141,12 @@ fn flat_dem_edge_nearer_than_geometric_horizon() {
 fn coarser_layer_is_seen_from_the_finer_layers_edge() {
     let fine = square_dem(201, 50.0, 0.0, 0.0, |_, _| 0.0);
     let grid = fine.grid;
-    let far =
-        penumbra::terrain::synth::square_dem_at(101, 1_000.0, (0.0, 0.0), "far", |_, _| 100.0);
+    let far = square_dem(101, 1_000.0, 0.0, 0.0, |_, _| 100.0);
     let stack = TerrainStack::new(vec![fine, far]);
     let (h_m, plateau_m) = (2.0, 100.0);
     let (lat, lon) = (-89.99, 30.0);
     let hz = horizon(&stack, lat, lon, &params(h_m, 0.5, HorizonMethod::Exact)).unwrap();
-    let mut max_err_deg: f64 = 0.0;
-    for (i, az) in hz.az_deg.iter().enumerate() {
-        let inside = |theta: f64| {
-            let (la, lo) = along(lat, lon, *az, theta);
-            let (x, y) = Projection::LOLA_SOUTH_POLAR.xy_from_lat_lon(la, lo);
-            grid.contains_xy(x, y)
-        };
-        let (mut lo_t, mut hi_t) = (0.0, 20_000.0 / R);
-        for _ in 0..60 {
-            let mid = 0.5 * (lo_t + hi_t);
-            if inside(mid) { lo_t = mid } else { hi_t = mid }
-        }
-        let expect_deg = el_rad(R + h_m, R + plateau_m, lo_t).to_degrees();
-        max_err_deg = max_err_deg.max((hz.elevation_deg[i] - expect_deg).abs());
-        assert!(
-            (hz.distance_m[i] - R * lo_t).abs() < 0.5,
-            "az {az}: distance {} vs {}",
-            hz.distance_m[i],
-            R * lo_t
-        );
-    }
+    let max_err_deg = max_error_vs_edge_deg(&hz, &grid, (lat, lon), R + h_m, R + plateau_m);
     println!("plateau past the finer layer: max |error| {max_err_deg:.2e} deg");
     assert!(max_err_deg < 1e-4, "{max_err_deg}");
 }
