@@ -66,7 +66,20 @@ pub fn run_sweep(
     match backend {
         ResolvedBackend::Cpu => sweep.run(sink, progress),
         #[cfg(feature = "gpu")]
-        ResolvedBackend::Gpu(ctx) => crate::gpu::line_sweep::sweep_gpu(ctx, sweep, sink, progress),
+        ResolvedBackend::Gpu(ctx) => {
+            if ctx.is_software() {
+                // llvmpipe stops a SIMD group's loops after 65,535 iterations in all (its
+                // LP_MAX_TGSI_LOOP_ITERATIONS): long lines then lose their last looks silently.
+                eprintln!(
+                    "penumbra: warning: --backend gpu on a software adapter ({}): lavapipe cuts \
+                     shader loops short, so looks along long lines may be wrong (measured on the \
+                     1536² LOLA grid: up to 33 deg at 0.01 % of pixel-azimuths); use --backend cpu for \
+                     results, see docs/gpu.md",
+                    ctx.adapter_kind()
+                );
+            }
+            crate::gpu::line_sweep::sweep_gpu(ctx, sweep, sink, progress)
+        }
         #[cfg(not(feature = "gpu"))]
         ResolvedBackend::Gpu(ctx) => match **ctx {},
     }

@@ -354,3 +354,88 @@ fn flat_sphere_gives_the_geometric_dip_everywhere() {
     assert_eq!(bands, sweep.directions().len());
     assert!(worst < 1e-4, "{worst}");
 }
+
+/// Every band of a sweep, `(elevation, distance)` bit patterns in band order.
+fn sweep_bits(sweep: &HorizonSweep) -> Vec<(Vec<u32>, Vec<u32>)> {
+    let mut bands = vec![(Vec::new(), Vec::new()); sweep.directions().len()];
+    sweep
+        .run(
+            |b| {
+                bands[b.index] = (
+                    b.elevation_deg.iter().map(|v| v.to_bits()).collect(),
+                    b.distance_m.iter().map(|v| v.to_bits()).collect(),
+                );
+                Ok::<(), ()>(())
+            },
+            |_| {},
+        )
+        .unwrap();
+    bands
+}
+
+/// Samples on all lines of a sweep.
+fn sample_count(sweep: &HorizonSweep) -> usize {
+    let mut scratch = penumbra::horizon::SweepScratch::default();
+    let mut n = 0;
+    for (canonical, _, _) in sweep.line_directions() {
+        for key in sweep.line_keys(canonical) {
+            n += sweep
+                .with_line(canonical, key, &mut scratch, |l| l.samples.len())
+                .unwrap_or(0);
+        }
+    }
+    n
+}
+
+/// A line drops, before its looks, the samples below the chord of their neighbours (none of
+/// them can be on a look's hull): every horizon and distance bit-identical to the sweep that keeps
+/// them all, on the synthetic two-layer stack and on rows of the real LOLA grid + far field.
+#[test]
+fn dropping_hidden_samples_changes_no_horizon() {
+    let (cx, cy) = (60_000.0, -40_000.0);
+    let synthetic = TerrainStack::new(vec![
+        dem("fine", 200, 100.0, cx, cy, terrain),
+        dem("far", 120, 1_000.0, cx + 5_000.0, cy, terrain),
+    ]);
+    let lola = match (
+        crate::util::shared_lola("ldem75s_crop_240m_pm184km.tif"),
+        crate::util::shared_lola("ldem75s_far_1787m_pm457km_feathered.tif"),
+    ) {
+        (Some(inner), Some(far)) => Some(TerrainStack::load(&[inner, far]).unwrap()),
+        _ => None,
+    };
+    let params = SweepParams {
+        observer_height_m: 2.0,
+        azimuths: 12,
+        max_step: 8,
+    };
+    for (name, stack, rows) in [
+        ("synthetic", Some(synthetic), 0..200),
+        ("LOLA", lola, 700..708),
+    ] {
+        let Some(stack) = stack else { continue };
+        let pruned = HorizonSweep::new(&stack, params)
+            .unwrap()
+            .with_rows(rows.clone())
+            .unwrap();
+        let all = HorizonSweep::new(&stack, params)
+            .unwrap()
+            .with_rows(rows)
+            .unwrap()
+            .keeping_hidden_samples();
+        let (n_pruned, n_all) = (sample_count(&pruned), sample_count(&all));
+        println!(
+            "{name}: {n_pruned} of {n_all} samples kept ({:.1} %)",
+            100.0 * n_pruned as f64 / n_all as f64
+        );
+        // Measured (12 azimuths): synthetic 28.5 % kept, LOLA rows 700-707 + far field 50.5 %
+        // (the whole LOLA grid at 24 azimuths: 35 %).
+        assert!(n_pruned < n_all * 8 / 10, "{n_pruned} of {n_all}");
+        let (a, b) = (sweep_bits(&pruned), sweep_bits(&all));
+        for (i, (x, y)) in a.iter().zip(&b).enumerate() {
+            let differ = x.0.iter().zip(&y.0).filter(|(p, q)| p != q).count()
+                + x.1.iter().zip(&y.1).filter(|(p, q)| p != q).count();
+            assert_eq!(differ, 0, "{name}: band {i}: {differ} values differ");
+        }
+    }
+}

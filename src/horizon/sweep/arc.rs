@@ -24,9 +24,12 @@ impl LineGeometry {
         self.rho_c * 2.0 * atan_small(t_m / self.l_m)
     }
 
-    /// The inverse of [`Self::psi_rad`].
-    pub(super) fn t_at_psi(&self, psi_rad: f64) -> f64 {
-        self.l_m * (psi_rad / (2.0 * self.rho_c)).tan()
+    /// `dψ/dt` (rad per map metre) and `d²ψ/dt²` at `t_m`.
+    pub(super) fn psi_derivatives(&self, t_m: f64) -> (f64, f64) {
+        let tau = t_m / self.l_m;
+        let g = 1.0 / (1.0 + tau * tau);
+        let d1 = 2.0 * self.rho_c * g / self.l_m;
+        (d1, -2.0 * tau * g * d1 / self.l_m)
     }
 }
 
