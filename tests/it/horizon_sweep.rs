@@ -87,14 +87,27 @@ fn summary(diffs: &[f64]) -> (f64, f64, f64, f64) {
     (pct(&abs, 0.5), pct(&abs, 0.99), *abs.last().unwrap(), bias)
 }
 
-#[test]
-fn sweep_matches_the_exact_scan_on_a_two_layer_stack() {
-    // 200² at 100 m centred 73 km from the pole, inside a 120² far field at 1 km.
+/// 200² at 100 m centred 73 km from the pole, inside a 120² far field at 1 km, both of
+/// [`terrain`].
+fn two_layer_stack() -> TerrainStack {
     let (cx, cy) = (60_000.0, -40_000.0);
-    let stack = TerrainStack::new(vec![
+    TerrainStack::new(vec![
         dem("fine", 200, 100.0, cx, cy, terrain),
         dem("far", 120, 1_000.0, cx + 5_000.0, cy, terrain),
-    ]);
+    ])
+}
+
+/// The real 240 m LOLA crop with its 1787 m far field; `None` (the test then returns) when the
+/// shared data are absent (`shared_lola` prints why).
+fn lola_stack() -> Option<TerrainStack> {
+    let inner = crate::util::shared_lola("ldem75s_crop_240m_pm184km.tif")?;
+    let far = crate::util::shared_lola("ldem75s_far_1787m_pm457km_feathered.tif")?;
+    Some(TerrainStack::load(&[inner, far]).unwrap())
+}
+
+#[test]
+fn sweep_matches_the_exact_scan_on_a_two_layer_stack() {
+    let stack = two_layer_stack();
     let params = SweepParams {
         observer_height_m: 2.0,
         azimuths: 72,
@@ -168,13 +181,7 @@ fn random_cells(n: usize, rows: usize, cols: usize, seed: u64) -> Vec<(usize, us
 /// docs/VALIDATION.md is this test at 2000 cells and stride 8.
 #[test]
 fn sweep_matches_the_exact_scan_on_real_lola_grids() {
-    let (Some(inner), Some(far)) = (
-        crate::util::shared_lola("ldem75s_crop_240m_pm184km.tif"),
-        crate::util::shared_lola("ldem75s_far_1787m_pm457km_feathered.tif"),
-    ) else {
-        return;
-    };
-    let stack = TerrainStack::load(&[inner, far]).unwrap();
+    let Some(stack) = lola_stack() else { return };
     let env = |k: &str, d: usize| {
         std::env::var(k)
             .ok()
@@ -392,26 +399,14 @@ fn sample_count(sweep: &HorizonSweep) -> usize {
 /// them all, on the synthetic two-layer stack and on rows of the real LOLA grid + far field.
 #[test]
 fn dropping_hidden_samples_changes_no_horizon() {
-    let (cx, cy) = (60_000.0, -40_000.0);
-    let synthetic = TerrainStack::new(vec![
-        dem("fine", 200, 100.0, cx, cy, terrain),
-        dem("far", 120, 1_000.0, cx + 5_000.0, cy, terrain),
-    ]);
-    let lola = match (
-        crate::util::shared_lola("ldem75s_crop_240m_pm184km.tif"),
-        crate::util::shared_lola("ldem75s_far_1787m_pm457km_feathered.tif"),
-    ) {
-        (Some(inner), Some(far)) => Some(TerrainStack::load(&[inner, far]).unwrap()),
-        _ => None,
-    };
     let params = SweepParams {
         observer_height_m: 2.0,
         azimuths: 12,
         max_step: 8,
     };
     for (name, stack, rows) in [
-        ("synthetic", Some(synthetic), 0..200),
-        ("LOLA", lola, 700..708),
+        ("synthetic", Some(two_layer_stack()), 0..200),
+        ("LOLA", lola_stack(), 700..708),
     ] {
         let Some(stack) = stack else { continue };
         let pruned = HorizonSweep::new(&stack, params)

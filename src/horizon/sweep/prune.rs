@@ -18,10 +18,10 @@
 use super::{LineObserver, LineSample};
 
 /// Removes, in place, the samples the module docs allow to remove, and re-indexes `observers`: a
-/// stack that pops its top while the top lies below
-/// the chord from the entry under it to the next sample (each pop is such a removal against the
-/// current neighbours, which the induction of the module docs allows), i.e. the upper hull of the
-/// samples between two protected ones. `samples` are in increasing `ψ`; `keep` is scratch.
+/// stack that pops its unprotected top while it lies below the chord from the entry under it to
+/// the next sample (each pop is a removal against the current neighbours, as the module docs
+/// allow), leaving the upper hull of the samples between two protected ones (the first and the
+/// last sample are never popped). `samples` are in increasing `ψ`; `keep` is scratch.
 pub(super) fn drop_hidden_samples(
     samples: &mut Vec<LineSample>,
     observers: &mut [LineObserver],
@@ -34,8 +34,6 @@ pub(super) fn drop_hidden_samples(
     }
     keep.clear();
     keep.resize(n, false);
-    keep[0] = true;
-    keep[n - 1] = true;
     // The nearest sample of each look's set, forward the first with ψ ≥ ψo + θ and backward the
     // last with ψ ≤ ψo − θ, and the samples on either side of it: a look that decides the
     // boundary in f32 (the GPU kernel) may start its set one sample earlier or later, and the
