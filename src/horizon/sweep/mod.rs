@@ -55,7 +55,9 @@
 //! below the chord of their neighbours (`prune.rs`: one stack pass, the nearest sample of every
 //! observer's look set protected): none of them can be a vertex of any look's hull, so every
 //! horizon stays bit-identical while the looks walk about a third of the samples (35 % on the
-//! 240 m LOLA grid + far field; [`HorizonSweep::keeping_hidden_samples`] keeps them all).
+//! 240 m LOLA grid + far field with the GPU's protections, fewer for the CPU's own looks, which
+//! decide the boundaries in f64 as the pass does; [`HorizonSweep::keeping_hidden_samples`]
+//! keeps them all).
 //!
 //! **Azimuths.** Bands are in *grid azimuth*: degrees from map +y (grid north), clockwise. The
 //! local azimuth (from true north, clockwise) of a band at a pixel is the grid azimuth plus
@@ -513,9 +515,25 @@ impl<'a> HorizonSweep<'a> {
         k0..=k1
     }
 
+    /// The number of samples the CPU looks walk on line `key` of a canonical direction (after
+    /// the pruning of `prune.rs` for looks that decide their sets' boundaries in f64, unless
+    /// [`Self::keeping_hidden_samples`]); `None` when the line holds no pixel centre with data.
+    /// For measurements and checks.
+    pub fn looked_sample_count(
+        &self,
+        canonical: (i32, i32),
+        key: i64,
+        scratch: &mut SweepScratch,
+    ) -> Option<usize> {
+        self.build_line(canonical, key, prune::Boundary::F64, scratch)?;
+        Some(scratch.samples.len())
+    }
+
     /// Builds line `key` of a canonical direction (from [`Self::line_directions`] and
-    /// [`Self::line_keys`]) exactly as the CPU sweep samples it and hands it to `f`; `None` when
-    /// the line holds no pixel centre with data.
+    /// [`Self::line_keys`]) as the CPU sweep samples it and hands it to `f`; `None` when the line
+    /// holds no pixel centre with data. The hidden samples are dropped for looks that decide the
+    /// boundaries of their sets in f32 (the GPU kernel and its twin: the samples on either side
+    /// of each boundary stay too, so a line holds a few more samples than the CPU looks walk).
     pub fn with_line<R>(
         &self,
         canonical: (i32, i32),
@@ -523,7 +541,7 @@ impl<'a> HorizonSweep<'a> {
         scratch: &mut SweepScratch,
         f: impl FnOnce(SweptLine<'_>) -> R,
     ) -> Option<R> {
-        let geom = self.build_line(canonical, key, scratch)?;
+        let geom = self.build_line(canonical, key, prune::Boundary::F32, scratch)?;
         Some(f(SweptLine {
             rho_c: geom.rho_c,
             l_m: geom.l_m,
@@ -587,7 +605,7 @@ impl<'a> HorizonSweep<'a> {
         forward: Option<&mut Vec<Look>>,
         backward: Option<&mut Vec<Look>>,
     ) {
-        let Some(geom) = self.build_line(canonical, key, scratch) else {
+        let Some(geom) = self.build_line(canonical, key, prune::Boundary::F64, scratch) else {
             return;
         };
         let theta_min_rad = self.theta_min_rad();
@@ -605,6 +623,7 @@ impl<'a> HorizonSweep<'a> {
         &self,
         canonical: (i32, i32),
         key: i64,
+        boundary: prune::Boundary,
         scratch: &mut SweepScratch,
     ) -> Option<LineGeometry> {
         let fine = self.grid_dem();
@@ -751,7 +770,7 @@ impl<'a> HorizonSweep<'a> {
             push(samples, t, h);
         }
         if self.drop_hidden {
-            prune::drop_hidden_samples(samples, observers, self.theta_min_rad(), keep);
+            prune::drop_hidden_samples(samples, observers, self.theta_min_rad(), boundary, keep);
         }
         Some(geom)
     }
