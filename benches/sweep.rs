@@ -7,6 +7,13 @@
 //!   of 256 cells (time per cell x cells = the whole-grid cost of the per-site scan).
 //!
 //! Throughput is in pixel-azimuths. Run: `cargo bench --bench sweep`.
+//!
+//! Group `batched_looks_simulated_device`: the GPU path's pipeline (`twins::line_sweep::
+//! sweep_batched`: lines packed on the CPU, looks on the device) on the same DEM, with a
+//! simulated device that answers each batch after a sleep (no CPU) of the time its packing took
+//! alone, so that packing and device weigh the same: `pack_only` (an instant device) and
+//! `pack_and_device`. Packing and device in turn take twice `pack_only`; a perfect overlap takes
+//! `pack_only` itself.
 
 #![allow(
     missing_docs,
@@ -94,5 +101,66 @@ fn bench_sweep(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, bench_sweep);
+/// A simulated device: the looks of one batch.
+type Device<'a> =
+    dyn FnMut(&penumbra::twins::line_sweep::LineBatch) -> Result<Vec<[f32; 2]>, ()> + 'a;
+
+fn bench_batched(c: &mut Criterion) {
+    use penumbra::twins::line_sweep::{LineBatch, TWIN_BATCH_SAMPLES, sweep_batched};
+    use std::time::{Duration, Instant};
+    let stack = TerrainStack::new(vec![dem()]);
+    let params = SweepParams {
+        observer_height_m: 2.0,
+        azimuths: AZ,
+        max_step: 8,
+    };
+    let sweep = HorizonSweep::new(&stack, params).unwrap();
+    let instant = |b: &LineBatch| -> Result<Vec<[f32; 2]>, ()> {
+        Ok(vec![[1.0, 1.0]; 2 * b.observers.len()])
+    };
+    let run = |device: &mut Device<'_>| {
+        let mut sum = 0.0f64;
+        sweep_batched(
+            &sweep,
+            TWIN_BATCH_SAMPLES,
+            device,
+            |band| {
+                sum += f64::from(band.elevation_deg[N * N / 2]);
+                Ok(())
+            },
+            |_| {},
+        )
+        .unwrap();
+        sum
+    };
+    // The packing time per sample, measured alone (best of 3), sets the simulated device's.
+    let (mut samples, mut best) = (0usize, Duration::MAX);
+    for _ in 0..3 {
+        samples = 0;
+        let t0 = Instant::now();
+        run(&mut |b| {
+            samples += b.samples.len();
+            instant(b)
+        });
+        best = best.min(t0.elapsed());
+    }
+    let per_sample = best.as_secs_f64() / samples as f64;
+    let mut group = c.benchmark_group("batched_looks_simulated_device");
+    group.sample_size(10);
+    group.throughput(Throughput::Elements((N * N * AZ) as u64));
+    group.bench_function("pack_only", |b| b.iter(|| run(&mut |batch| instant(batch))));
+    group.bench_function("pack_and_device", |b| {
+        b.iter(|| {
+            run(&mut |batch| {
+                std::thread::sleep(Duration::from_secs_f64(
+                    per_sample * batch.samples.len() as f64,
+                ));
+                instant(batch)
+            })
+        })
+    });
+    group.finish();
+}
+
+criterion_group!(benches, bench_sweep, bench_batched);
 criterion_main!(benches);

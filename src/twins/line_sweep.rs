@@ -580,6 +580,12 @@ fn pack_chunk(
 /// The whole sweep with the looks run by `run_batch` (the twin [`line_sweep_twin`] or the GPU),
 /// in batches of at most `max_samples` samples: bands handed to `sink` as
 /// [`HorizonSweep::run`] does (the same band order and layout).
+///
+/// Packing and looks overlap: a scoped thread builds and packs the lines of the next batch (on
+/// rayon's pool) while this thread runs the current one and scatters its looks into the bands;
+/// the batches, their order and so the outputs are those of packing and running in turn. At
+/// most two batches are alive at once (a rendezvous channel: the packer waits until the last
+/// batch is taken). When `run_batch` or `sink` fails, the packer stops at its next hand-over.
 pub fn sweep_batched<E>(
     sweep: &HorizonSweep,
     max_samples: usize,
@@ -591,65 +597,85 @@ pub fn sweep_batched<E>(
     let rows = sweep.rows();
     let first_px = rows.start * cols;
     let n_px = rows.len() * cols;
-    let mut done = 0;
-    let mut batch = LineBatch::default();
-    for (canonical, forward, backward) in sweep.line_directions() {
-        let looks = if forward.is_some() { LOOK_FORWARD } else { 0 }
-            | if backward.is_some() { LOOK_BACKWARD } else { 0 };
-        // Band values: [forward, backward] × (elevation, distance).
-        let mut bands: [(Vec<f32>, Vec<f32>); 2] = [
-            (vec![f32::NAN; n_px], vec![f32::NAN; n_px]),
-            (vec![f32::NAN; n_px], vec![f32::NAN; n_px]),
-        ];
-        let mut flush = |batch: &mut LineBatch| -> Result<(), E> {
-            if batch.lines.is_empty() {
-                return Ok(());
+    let directions = sweep.line_directions();
+    std::thread::scope(|scope| {
+        // (direction, a batch of its lines or none, whether it is the direction's last).
+        let (tx, rx) = std::sync::mpsc::sync_channel::<(usize, Option<LineBatch>, bool)>(0);
+        let packer_directions = &directions;
+        scope.spawn(move || {
+            for (d, &(canonical, forward, backward)) in packer_directions.iter().enumerate() {
+                let looks = if forward.is_some() { LOOK_FORWARD } else { 0 }
+                    | if backward.is_some() { LOOK_BACKWARD } else { 0 };
+                let mut batch = LineBatch::default();
+                let keys = sweep.line_keys(canonical);
+                let mut k = *keys.start();
+                while k <= *keys.end() {
+                    let k_end = (k + CHUNK_LINES as i64).min(*keys.end() + 1);
+                    let chunk = pack_chunk(sweep, canonical, k..k_end, looks);
+                    if !batch.samples.is_empty()
+                        && batch.samples.len() + chunk.samples.len() > max_samples
+                    {
+                        let full = std::mem::take(&mut batch);
+                        if tx.send((d, Some(full), false)).is_err() {
+                            return;
+                        }
+                    }
+                    batch.append(&chunk);
+                    k = k_end;
+                }
+                let last = (!batch.lines.is_empty()).then_some(batch);
+                if tx.send((d, last, true)).is_err() {
+                    return;
+                }
             }
-            let out = run_batch(batch)?;
-            for line in &batch.lines {
-                for k in 0..line.obs_count as usize {
-                    let oi = line.obs_start as usize + k;
-                    let px = batch.observers[oi].pixel as usize - first_px;
-                    for (look, band) in bands.iter_mut().enumerate() {
-                        if line.looks & (1 << look) != 0 {
-                            let (e, d) = to_band_values(out[2 * oi + look]);
-                            band.0[px] = e;
-                            band.1[px] = d;
+        });
+        let mut done = 0;
+        // Band values: [forward, backward] × (elevation, distance).
+        let new_bands = || -> [(Vec<f32>, Vec<f32>); 2] {
+            [
+                (vec![f32::NAN; n_px], vec![f32::NAN; n_px]),
+                (vec![f32::NAN; n_px], vec![f32::NAN; n_px]),
+            ]
+        };
+        let mut bands = new_bands();
+        // Returning drops `rx`, which stops the packer at its next `send`.
+        for (d, batch, last) in rx {
+            if let Some(batch) = batch {
+                let out = run_batch(&batch)?;
+                for line in &batch.lines {
+                    for k in 0..line.obs_count as usize {
+                        let oi = line.obs_start as usize + k;
+                        let px = batch.observers[oi].pixel as usize - first_px;
+                        for (look, band) in bands.iter_mut().enumerate() {
+                            if line.looks & (1 << look) != 0 {
+                                let (el_deg, dist_m) = to_band_values(out[2 * oi + look]);
+                                band.0[px] = el_deg;
+                                band.1[px] = dist_m;
+                            }
                         }
                     }
                 }
             }
-            batch.clear();
-            Ok(())
-        };
-        let keys = sweep.line_keys(canonical);
-        let mut k = *keys.start();
-        while k <= *keys.end() {
-            let k_end = (k + CHUNK_LINES as i64).min(*keys.end() + 1);
-            let chunk = pack_chunk(sweep, canonical, k..k_end, looks);
-            if !batch.samples.is_empty() && batch.samples.len() + chunk.samples.len() > max_samples
-            {
-                flush(&mut batch)?;
+            if last {
+                let (_, forward, backward) = directions[d];
+                for (look, band) in [forward, backward].into_iter().enumerate() {
+                    let Some(index) = band else { continue };
+                    let (el, dist) = &bands[look];
+                    sink(SweepBand {
+                        index,
+                        direction: sweep.directions()[index],
+                        rows: rows.clone(),
+                        elevation_deg: el,
+                        distance_m: dist,
+                    })?;
+                    done += 1;
+                    progress(done);
+                }
+                bands = new_bands();
             }
-            batch.append(&chunk);
-            k = k_end;
         }
-        flush(&mut batch)?;
-        for (look, band) in [forward, backward].into_iter().enumerate() {
-            let Some(index) = band else { continue };
-            let (el, dist) = &bands[look];
-            sink(SweepBand {
-                index,
-                direction: sweep.directions()[index],
-                rows: rows.clone(),
-                elevation_deg: el,
-                distance_m: dist,
-            })?;
-            done += 1;
-            progress(done);
-        }
-    }
-    Ok(())
+        Ok(())
+    })
 }
 
 /// Largest batch of [`sweep_twin`], samples (as lavapipe's, 128 MiB / 32 B).

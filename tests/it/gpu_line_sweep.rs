@@ -182,6 +182,83 @@ fn twin_matches_the_cpu_sweep_and_the_exact_scan_on_a_two_layer_stack() {
     assert!(p99 <= 0.02 && bias.abs() <= 0.002, "p99 {p99} bias {bias}");
 }
 
+/// The batched pipeline (lines packed on one thread while the looks of the previous batch run on
+/// another): small batches (several per direction) give bit-identical bands to one batch per
+/// direction, and a failing device or sink ends the sweep with its error (no hang, no more bands).
+#[test]
+fn batched_sweep_is_independent_of_batch_size_and_stops_on_errors() {
+    use penumbra::twins::line_sweep::{SweepGrid, line_sweep_twin, sweep_batched};
+    let stack = two_layer_stack();
+    let params = SweepParams {
+        azimuths: 12,
+        ..TWO_LAYER_PARAMS
+    };
+    let sweep = HorizonSweep::new(&stack, params).unwrap();
+    let grid = SweepGrid::new(&sweep);
+    let whole = twin_bands(&sweep);
+    let mut batches = 0;
+    let small = collect(sweep.directions().len(), |sink| {
+        sweep_batched(
+            &sweep,
+            20_000,
+            |b| {
+                batches += 1;
+                Ok(line_sweep_twin(&grid, b))
+            },
+            sink,
+            |_| {},
+        )
+        .unwrap();
+    });
+    let n_dirs = sweep.line_directions().len();
+    println!("{batches} batches of <= 20,000 samples for {n_dirs} line directions");
+    assert!(batches > 2 * n_dirs, "{batches} batches");
+    for (i, (a, b)) in whole.iter().zip(&small).enumerate() {
+        let same = |x: &[f32], y: &[f32]| x.iter().zip(y).all(|(p, q)| p.to_bits() == q.to_bits());
+        assert!(same(&a.0, &b.0) && same(&a.1, &b.1), "band {i} differs");
+    }
+    // The device fails on its third batch.
+    let (mut calls, mut bands) = (0, 0);
+    let err = sweep_batched(
+        &sweep,
+        20_000,
+        |b| {
+            calls += 1;
+            if calls == 3 {
+                Err("device lost".to_string())
+            } else {
+                Ok(line_sweep_twin(&grid, b))
+            }
+        },
+        |_| Ok(()),
+        |n| bands = n,
+    )
+    .unwrap_err();
+    assert_eq!((err.as_str(), calls), ("device lost", 3));
+    assert!(
+        bands < sweep.directions().len(),
+        "{bands} bands after the error"
+    );
+    // The sink fails on its second band.
+    let mut sunk = 0;
+    let err = sweep_batched(
+        &sweep,
+        20_000,
+        |b| Ok(line_sweep_twin(&grid, b)),
+        |_| {
+            sunk += 1;
+            if sunk == 2 {
+                Err("disk full".to_string())
+            } else {
+                Ok(())
+            }
+        },
+        |_| {},
+    )
+    .unwrap_err();
+    assert_eq!((err.as_str(), sunk), ("disk full", 2));
+}
+
 /// Signed differences band − exact per-site scan at `n` random pixels (with data) × every band.
 fn vs_exact_scan(
     stack: &TerrainStack,
