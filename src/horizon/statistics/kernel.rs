@@ -16,7 +16,10 @@
 )]
 
 use super::lookup::{AzimuthLookup, ChordTable, atan2_deg};
-use super::sectors::{BodySectors, Entry, MapFrame, SECTORS as PSI_SECTORS};
+use super::sectors::{
+    BLOCK, BLOCK_BOUNDS, BlockSpan, BodySectors, Entry, MapFrame, SECTORS as PSI_SECTORS,
+    block_decision,
+};
 use crate::illum::polyline_visible_fraction_uniform;
 
 /// Epochs per chunk (the chunk's arrays stay in L1 while a task's cells run over it).
@@ -206,21 +209,29 @@ fn geometry_at(cell: &CellGeom, pos: [&[f32]; 3], j: usize, out: &mut Seen) {
     (out.el_deg[j], out.az_deg[j]) = el_az_deg(vz, hxy, vx, vy);
 }
 
-/// Pass 1 from the shared sector classification ([`super::sectors`]): a disc decided full (or
-/// visible) or dark for every `ψ` of its sector gets 1 or 0 without any geometry; the other
-/// epochs are listed in `partial` (their count returned).
+/// Pass 1 from the shared sector classification ([`super::sectors`]) over the epochs
+/// `from .. from + sector.len()` of the chunk: a disc decided full (or visible) or dark for
+/// every `ψ` of its sector gets 1 or 0 without any geometry; the other epochs are appended to
+/// `partial` from `count` (the new count returned).
+#[allow(clippy::too_many_arguments, reason = "the kernel's flat slices")]
 #[inline(always)]
 fn classify_sectors(
     table: &[Entry],
     up_ref: f32,
     (sector, cos_e, sin_e): (&[u16], &[f32], &[f32]),
+    from: usize,
     fraction: &mut [f32; CHUNK],
     undecided: &mut [bool; CHUNK],
     partial: &mut [u16; CHUNK],
+    mut count: usize,
 ) -> usize {
-    let n = sector.len().min(CHUNK);
+    let n = sector.len().min(CHUNK - from);
     let (sector, cos_e, sin_e) = (&sector[..n], &cos_e[..n], &sin_e[..n]);
     let table = &table[..PSI_SECTORS];
+    let (fraction, undecided) = (
+        &mut fraction[from..from + n],
+        &mut undecided[from..from + n],
+    );
     // Without a dependence between epochs (so that it pipelines), then the list.
     for j in 0..n {
         let [a_lo, s_hi, a_hi, s_lo] = table[usize::from(sector[j]) % PSI_SECTORS];
@@ -230,10 +241,9 @@ fn classify_sectors(
         fraction[j] = if full { 1.0 } else { 0.0 };
         undecided[j] = !(full | dark);
     }
-    let mut count = 0;
-    for (j, &u) in undecided[..n].iter().enumerate() {
+    for (j, &u) in undecided.iter().enumerate() {
         if u {
-            partial[count] = j as u16;
+            partial[count] = (from + j) as u16;
             count += 1;
         }
     }
@@ -452,6 +462,7 @@ pub(super) fn run_cells(
     horizons: &[f32],
     bounds: &[[f32; 2]],
     tables: &[Entry],
+    block_bounds: &[f32],
     stride: usize,
     epochs: &Epochs,
     range: std::ops::Range<usize>,
@@ -502,6 +513,18 @@ pub(super) fn run_cells(
         sectors_of(&epochs.sun_sectors, range.clone()).filter(|_| per_cell > 0),
         sectors_of(&epochs.earth_sectors, range.clone()).filter(|_| per_cell > 0),
     ];
+    // Blocks of BLOCK epochs from the chunk's start (chunks start at multiples of CHUNK).
+    debug_assert_eq!(range.start % BLOCK, 0);
+    let n_blocks = n.div_ceil(BLOCK);
+    fn block_range(s: &BodySectors, first: usize, count: usize) -> &[BlockSpan] {
+        s.blocks.get(first..first + count).unwrap_or(&[])
+    }
+    let blocks = [
+        block_range(&epochs.sun_sectors, range.start / BLOCK, n_blocks),
+        block_range(&epochs.earth_sectors, range.start / BLOCK, n_blocks),
+    ];
+    // Per body and block: decided whole (full or visible: true; dark: false), or epoch by epoch.
+    let mut decided = [[None::<bool>; CHUNK / BLOCK]; 2];
     for (i, ((cell, h), a)) in cells
         .iter()
         .zip(horizons.chunks_exact(stride))
@@ -545,13 +568,18 @@ pub(super) fn run_cells(
         ] {
             // Only the Sun's elevation is needed at every epoch it may light (irradiance).
             let is_sun = body == 0;
+            decided[body][..n_blocks].fill(None);
             match reach {
-                Reach::Never => seen.fraction[..n].fill(0.0),
+                Reach::Never => {
+                    seen.fraction[..n].fill(0.0);
+                    decided[body][..n_blocks].fill(Some(false));
+                }
                 Reach::Always => {
                     if is_sun {
                         geometry_sin_cos(cell, pos, seen);
                     }
                     seen.fraction[..n].fill(1.0);
+                    decided[body][..n_blocks].fill(Some(true));
                 }
                 Reach::Varies => {
                     let count = if let Some(sec) = sectors[body] {
@@ -559,14 +587,30 @@ pub(super) fn run_cells(
                             geometry_sin_cos(cell, pos, seen);
                         }
                         let t = &table[body * PSI_SECTORS..(body + 1) * PSI_SECTORS];
-                        let count = classify_sectors(
-                            t,
-                            cell.up_ref,
-                            sec,
-                            &mut seen.fraction,
-                            undecided,
-                            partial,
-                        );
+                        let bb = &block_bounds[(2 * i + body) * BLOCK_BOUNDS..][..BLOCK_BOUNDS];
+                        // Whole blocks first; the epochs of the others one by one.
+                        let mut count = 0;
+                        for k in 0..n_blocks {
+                            let (j0, j1) = (k * BLOCK, ((k + 1) * BLOCK).min(n));
+                            decided[body][k] = blocks[body]
+                                .get(k)
+                                .and_then(|span| block_decision(bb, cell.up_ref, span));
+                            if let Some(v) = decided[body][k] {
+                                seen.fraction[j0..j1].fill(if v { 1.0 } else { 0.0 });
+                                continue;
+                            }
+                            let (sector, cos_e, sin_e) = sec;
+                            count = classify_sectors(
+                                t,
+                                cell.up_ref,
+                                (&sector[j0..j1], &cos_e[j0..j1], &sin_e[j0..j1]),
+                                j0,
+                                &mut seen.fraction,
+                                undecided,
+                                partial,
+                                count,
+                            );
+                        }
                         for &j in &partial[..count] {
                             geometry_at(cell, pos, usize::from(j), seen);
                         }
@@ -582,32 +626,77 @@ pub(super) fn run_cells(
         let mut s = *a;
         let mut sum = 0.0_f32;
         let (mut irr_h, mut irr_t) = (0.0_f32, 0.0_f32);
-        for j in 0..n {
-            let (fs, fe) = (sun.fraction[j], earth.fraction[j]);
-            let sun_up = fs > th.visible_min;
-            let earth_up = fe > th.visible_min;
-            sum += fs;
-            let flux = sun_w[j] * fs;
-            irr_h += flux * sun.sin_el[j].max(0.0);
-            irr_t += flux * sun.cos_el[j];
-            s.sun_visible += u32::from(sun_up);
-            s.sun_full += u32::from(fs >= th.full_min);
-            s.earth_visible += u32::from(earth_up);
-            s.sun_and_earth += u32::from(sun_up && earth_up);
-            s.dark_run = if sun_up { 0 } else { s.dark_run + 1 };
-            s.dark_max = s.dark_max.max(s.dark_run);
-            s.earth_hidden_run = if earth_up { 0 } else { s.earth_hidden_run + 1 };
-            s.earth_hidden_max = s.earth_hidden_max.max(s.earth_hidden_run);
-            // Lit from below the local horizontal, and below the observer's geometric horizon
-            // on the sphere (its sine, with room for f32): the ray may meet the sphere.
-            if sun_up && sun.sin_el[j] < cell.beyond.sin_dip_bound() {
-                let (vz, hxy, _, vx, vy) = local(cell, sun_pos[0][j], sun_pos[1][j], sun_pos[2][j]);
-                let (el, az) = el_az_deg(vz, hxy, vx, vy);
-                if el < 0.0
-                    && cell.beyond.may_meet_sphere(el)
-                    && cell.beyond.meets_sphere(edges, az, el)
-                {
-                    s.below_sphere += 1;
+        let bound = cell.beyond.sin_dip_bound();
+        for k in 0..n_blocks {
+            let (j0, j1) = (k * BLOCK, ((k + 1) * BLOCK).min(n));
+            // A block decided whole for both bodies: its statistics at once, its sums in the
+            // same order as epoch by epoch (bit for bit) — unless a lit Sun may be below the
+            // observer's geometric horizon (the below-sphere check, epoch by epoch).
+            if let (Some(sun_whole), Some(earth_whole)) = (decided[0][k], decided[1][k])
+                && !(sun_whole && sun.sin_el[j0..j1].iter().any(|&x| x < bound))
+            {
+                let len = (j1 - j0) as u32;
+                let (fs, fe) = (
+                    f32::from(u8::from(sun_whole)),
+                    f32::from(u8::from(earth_whole)),
+                );
+                let (sun_up, earth_up) = (fs > th.visible_min, fe > th.visible_min);
+                if fs != 0.0 {
+                    // (Adding the zeros of a dark Sun changes no sum.)
+                    for j in j0..j1 {
+                        sum += fs;
+                        let flux = sun_w[j] * fs;
+                        irr_h += flux * sun.sin_el[j].max(0.0);
+                        irr_t += flux * sun.cos_el[j];
+                    }
+                }
+                if sun_up {
+                    s.sun_visible += len;
+                    s.dark_run = 0;
+                } else {
+                    s.dark_run += len;
+                    s.dark_max = s.dark_max.max(s.dark_run);
+                }
+                s.sun_full += len * u32::from(fs >= th.full_min);
+                if earth_up {
+                    s.earth_visible += len;
+                    s.earth_hidden_run = 0;
+                } else {
+                    s.earth_hidden_run += len;
+                    s.earth_hidden_max = s.earth_hidden_max.max(s.earth_hidden_run);
+                }
+                s.sun_and_earth += len * u32::from(sun_up && earth_up);
+                continue;
+            }
+            for j in j0..j1 {
+                let (fs, fe) = (sun.fraction[j], earth.fraction[j]);
+                let sun_up = fs > th.visible_min;
+                let earth_up = fe > th.visible_min;
+                sum += fs;
+                let flux = sun_w[j] * fs;
+                irr_h += flux * sun.sin_el[j].max(0.0);
+                irr_t += flux * sun.cos_el[j];
+                s.sun_visible += u32::from(sun_up);
+                s.sun_full += u32::from(fs >= th.full_min);
+                s.earth_visible += u32::from(earth_up);
+                s.sun_and_earth += u32::from(sun_up && earth_up);
+                s.dark_run = if sun_up { 0 } else { s.dark_run + 1 };
+                s.dark_max = s.dark_max.max(s.dark_run);
+                s.earth_hidden_run = if earth_up { 0 } else { s.earth_hidden_run + 1 };
+                s.earth_hidden_max = s.earth_hidden_max.max(s.earth_hidden_run);
+                // Lit from below the local horizontal, and below the observer's geometric
+                // horizon on the sphere (its sine, with room for f32): the ray may meet the
+                // sphere.
+                if sun_up && sun.sin_el[j] < bound {
+                    let (vz, hxy, _, vx, vy) =
+                        local(cell, sun_pos[0][j], sun_pos[1][j], sun_pos[2][j]);
+                    let (el, az) = el_az_deg(vz, hxy, vx, vy);
+                    if el < 0.0
+                        && cell.beyond.may_meet_sphere(el)
+                        && cell.beyond.meets_sphere(edges, az, el)
+                    {
+                        s.below_sphere += 1;
+                    }
                 }
             }
         }
@@ -627,6 +716,9 @@ pub(super) struct RunCells<'a> {
     pub horizons: &'a [f32],
     pub bounds: &'a [[f32; 2]],
     pub tables: &'a [Entry],
+    /// Per cell, the Sun's then the Earth's block decision values (`sectors::BLOCK_BOUNDS`
+    /// each; with the tables).
+    pub block_bounds: &'a [f32],
     pub stride: usize,
     pub epochs: &'a Epochs,
     pub range: std::ops::Range<usize>,
@@ -649,6 +741,7 @@ impl pulp::WithSimd for RunCells<'_> {
             self.horizons,
             self.bounds,
             self.tables,
+            self.block_bounds,
             self.stride,
             self.epochs,
             self.range,

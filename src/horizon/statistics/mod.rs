@@ -381,6 +381,9 @@ pub struct StatisticsEngine<'a> {
     /// Whether the shared sector classification decides most epochs (off only to test that it
     /// never changes a result).
     sector_tables: bool,
+    /// Whether blocks of epochs decided whole by the tables skip the epoch-by-epoch path (off
+    /// only to test that they never change a result).
+    block_decisions: bool,
 }
 
 impl<'a> StatisticsEngine<'a> {
@@ -392,6 +395,7 @@ impl<'a> StatisticsEngine<'a> {
             params,
             skip_unseen: true,
             sector_tables: true,
+            block_decisions: true,
         })
     }
 
@@ -545,7 +549,12 @@ impl<'a> StatisticsEngine<'a> {
             |e| (e.earth_in_moon_me_km, e.earth_radius_deg),
             &reference,
         );
+        if !self.block_decisions {
+            soa.sun_sectors.blocks.clear();
+            soa.earth_sectors.blocks.clear();
+        }
         let sector_edges = sectors::edges();
+        let bin_samples = sectors::HorizonBins::samples(&lookup);
         // The Earth's statistics need only "any part visible".
         let earth_visible_only =
             self.params.visible_min_fraction < sectors::VISIBLE_ONLY_MAX_FRACTION;
@@ -629,6 +638,7 @@ impl<'a> StatisticsEngine<'a> {
                 let mut horizons = Vec::with_capacity(indices.len() * (n + 1));
                 let mut bounds = Vec::with_capacity(indices.len() * 2 * BOUND_SECTORS);
                 let mut tables = Vec::new();
+                let mut block_bounds = Vec::new();
                 let mut hbins = sectors::HorizonBins::default();
                 let mut tscratch = sectors::TableScratch::default();
                 for &i in indices {
@@ -666,10 +676,11 @@ impl<'a> StatisticsEngine<'a> {
                                 frame: &cell.frame,
                                 r_obs_km: f64::from(cell.r_obs_km),
                                 h: &horizons[start..],
-                                lookup: &lookup,
+                                samples: &bin_samples,
                                 bins: &mut hbins,
                                 scratch: &mut tscratch,
                                 out: &mut tables,
+                                block_out: &mut block_bounds,
                             });
                         }
                         pixels.push(px);
@@ -688,6 +699,7 @@ impl<'a> StatisticsEngine<'a> {
                         horizons: &horizons,
                         bounds: &bounds,
                         tables: &tables,
+                        block_bounds: &block_bounds,
                         stride: n + 1,
                         epochs: &soa,
                         range: j0..j1,

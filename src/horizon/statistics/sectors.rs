@@ -29,7 +29,7 @@
 use nalgebra::Vector3;
 
 use super::EpochBodies;
-use super::lookup::{AzimuthLookup, atan2_deg};
+use super::lookup::{AzimuthLookup, UniformSamples, atan2_deg};
 
 /// The visible-only rule's cap: the part of a disc above the chord at `CAP_HEIGHT` radii over
 /// its centre, `CAP_HALF_WIDTH = √(1 − 0.9²)` radii either side, is 1.87 % of the disc.
@@ -76,6 +76,11 @@ pub(super) struct BodySectors {
     pub sector: Vec<u16>,
     pub cos_e: Vec<f32>,
     pub sin_e: Vec<f32>,
+    /// Per block of [`BLOCK`] epochs (from the first epoch): the sectors and the range of `e`
+    /// the body covers over it ([`BlockSpan`]).
+    pub blocks: Vec<BlockSpan>,
+    /// The range of `cos e` over every epoch (its f32 values).
+    pub cos_e_range: [f32; 2],
     /// Runs of consecutive sectors some epoch falls in (the others need no entry).
     runs: Vec<std::ops::Range<usize>>,
     e_min_rad: f64,
@@ -83,6 +88,107 @@ pub(super) struct BodySectors {
     dist_min_km: f64,
     dist_max_km: f64,
     radius_max_deg: f64,
+}
+
+/// Epochs per block of the block decisions ([`BlockSpan`]; a divisor of the kernel's chunk).
+pub(super) const BLOCK: usize = 16;
+/// The most sectors a block may cover and still be decided whole (the Sun covers ≈ 9 in 16 h
+/// at the poles, the Earth 1 or 2).
+pub(super) const BLOCK_MAX_SECTORS: usize = 24;
+
+/// What a block of [`BLOCK`] consecutive epochs covers of a body's path: the sectors
+/// `first .. first + count` (cyclic; `count` 0 when more than [`BLOCK_MAX_SECTORS`]) and the
+/// range of `sin e`. A cell's entries over those sectors, with `cos e` (over the whole path)
+/// and `c sin e` (over the block) at their least favourable ends, decide every epoch of the
+/// block at once ([`block_decision`]): the same thresholds as epoch by epoch, so a block
+/// decided whole is decided as each of its epochs would be.
+#[derive(Debug, Clone, Copy, Default)]
+pub(super) struct BlockSpan {
+    pub first: u16,
+    pub count: u16,
+    pub sin_e: [f32; 2],
+}
+
+/// Values per body and cell of the block decisions: `F` then `−D` (see
+/// [`append_block_bounds`]), each over the [`SECTORS`] sectors and again over the first
+/// [`BLOCK_MAX_SECTORS`] (so that a block across sector 0 reads a contiguous run).
+pub(super) const BLOCK_BOUNDS: usize = 2 * (SECTORS + BLOCK_MAX_SECTORS);
+
+/// Appends a cell's [`BLOCK_BOUNDS`] values of one body from its [`SECTORS`] `entries`, for a
+/// path whose `cos e` stays within `cos_e_range`: per sector `F = min(cos e · a_lo) − s_hi` and
+/// `D = s_lo − max(cos e · a_hi)` over that range (`cos e · a` is linear in `cos e`: its ends).
+/// An epoch in the sector is full when `F + c sin e ≥ 0`, dark when `D − c sin e ≥ 0`.
+#[inline(always)]
+pub(super) fn append_block_bounds(entries: &[Entry], cos_e_range: [f32; 2], out: &mut Vec<f32>) {
+    let [ce0, ce1] = cos_e_range;
+    let base = out.len();
+    out.resize(base + BLOCK_BOUNDS, 0.0);
+    let (f, d) = out[base..].split_at_mut(SECTORS + BLOCK_MAX_SECTORS);
+    for ((f, d), &[a_lo, s_hi, a_hi, s_lo]) in f.iter_mut().zip(d.iter_mut()).zip(entries) {
+        let (p, q) = (ce0 * a_lo, ce1 * a_lo);
+        *f = (if p < q { p } else { q }) - s_hi;
+        let (p, q) = (ce0 * a_hi, ce1 * a_hi);
+        *d = (if p > q { p } else { q }) - s_lo;
+    }
+    f.copy_within(..BLOCK_MAX_SECTORS, SECTORS);
+    d.copy_within(..BLOCK_MAX_SECTORS, SECTORS);
+}
+
+/// What a cell's [`BLOCK_BOUNDS`] values `bounds` of a body say of every epoch of `block` at a
+/// cell with `c = up_ref`: `Some(true)` full (or visible), `Some(false)` dark, `None` either
+/// some epoch is not decided by its entry or the bound is not tight enough. Never decides an
+/// epoch otherwise than its entry would (the entries' margins cover the f32 rounding here).
+#[inline(always)]
+pub(super) fn block_decision(bounds: &[f32], up_ref: f32, block: &BlockSpan) -> Option<bool> {
+    let count = usize::from(block.count);
+    if count == 0 {
+        return None;
+    }
+    let (cs0, cs1) = (up_ref * block.sin_e[0], up_ref * block.sin_e[1]);
+    let (cs_lo, cs_hi) = if cs0 < cs1 { (cs0, cs1) } else { (cs1, cs0) };
+    let (f, minus_d) = bounds[..BLOCK_BOUNDS].split_at(SECTORS + BLOCK_MAX_SECTORS);
+    let first = usize::from(block.first);
+    let (full, minus_dark) = min_max(&f[first..first + count], &minus_d[first..first + count]);
+    if full + cs_lo >= 0.0 {
+        Some(true)
+    } else if -minus_dark - cs_hi >= 0.0 {
+        Some(false)
+    } else {
+        None
+    }
+}
+
+/// The [`BlockSpan`] of a block's epochs (sectors, `cos e`, `sin e`).
+fn block_span(sector: &[u16], sin_e: &[f32]) -> BlockSpan {
+    // The shortest cyclic arc of sectors holding them all: offsets from the first epoch's in
+    // (−180, 180] sectors' worth of a turn.
+    let k0 = i32::from(sector[0]);
+    let n = SECTORS as i32;
+    let (mut lo, mut hi) = (0_i32, 0_i32);
+    for &k in sector {
+        let mut d = (i32::from(k) - k0).rem_euclid(n);
+        if d > n / 2 {
+            d -= n;
+        }
+        lo = lo.min(d);
+        hi = hi.max(d);
+    }
+    let count = (hi - lo + 1) as usize;
+    let range = |v: &[f32]| {
+        v.iter()
+            .fold([f32::INFINITY, f32::NEG_INFINITY], |[a, b], &x| {
+                [a.min(x), b.max(x)]
+            })
+    };
+    BlockSpan {
+        first: (k0 + lo).rem_euclid(n) as u16,
+        count: if count <= BLOCK_MAX_SECTORS {
+            count as u16
+        } else {
+            0
+        },
+        sin_e: range(sin_e),
+    }
 }
 
 /// `(sin, cos)` of every sector edge (`SECTORS + 1`).
@@ -136,6 +242,18 @@ impl BodySectors {
             s.dist_max_km = s.dist_max_km.max(dist);
             s.radius_max_deg = s.radius_max_deg.max(radius_deg);
         }
+        s.blocks = s
+            .sector
+            .chunks(BLOCK)
+            .zip(s.sin_e.chunks(BLOCK))
+            .map(|(sec, se)| block_span(sec, se))
+            .collect();
+        s.cos_e_range = s
+            .cos_e
+            .iter()
+            .fold([f32::INFINITY, f32::NEG_INFINITY], |[a, b], &x| {
+                [a.min(x), b.max(x)]
+            });
         let mut k = 0;
         while k < SECTORS {
             if visited[k] {
@@ -285,10 +403,12 @@ pub(super) struct CellTables<'a> {
     pub frame: &'a MapFrame,
     pub r_obs_km: f64,
     pub h: &'a [f32],
-    pub lookup: &'a AzimuthLookup,
+    pub samples: &'a UniformSamples,
     pub bins: &'a mut HorizonBins,
     pub scratch: &'a mut TableScratch,
     pub out: &'a mut Vec<Entry>,
+    /// The [`BLOCK_BOUNDS`] values of each body ([`append_block_bounds`]).
+    pub block_out: &'a mut Vec<f32>,
 }
 
 impl pulp::WithSimd for CellTables<'_> {
@@ -296,22 +416,24 @@ impl pulp::WithSimd for CellTables<'_> {
 
     #[inline(always)]
     fn with_simd<S: pulp::Simd>(self, _simd: S) {
-        self.bins.fill(self.h, self.lookup);
+        self.bins.fill(self.h, self.samples);
         for (body, visible_only, needed) in self.bodies {
-            if !needed {
-                self.out.resize(self.out.len() + SECTORS, UNDECIDED);
-                continue;
+            let base = self.out.len();
+            if needed {
+                body.append_entries(
+                    self.reference,
+                    self.edges,
+                    self.frame,
+                    self.r_obs_km,
+                    self.bins,
+                    visible_only,
+                    self.scratch,
+                    self.out,
+                );
+            } else {
+                self.out.resize(base + SECTORS, UNDECIDED);
             }
-            body.append_entries(
-                self.reference,
-                self.edges,
-                self.frame,
-                self.r_obs_km,
-                self.bins,
-                visible_only,
-                self.scratch,
-                self.out,
-            );
+            append_block_bounds(&self.out[base..], body.cos_e_range, self.block_out);
         }
     }
 }
@@ -384,20 +506,25 @@ impl Default for HorizonBins {
 }
 
 impl HorizonBins {
-    /// The bins of the horizon `h` (`n + 1` band values at `lookup`'s bands).
+    /// The uniform samples the bins need (their edges), shared by every cell.
+    pub fn samples(lookup: &AzimuthLookup) -> UniformSamples {
+        lookup.uniform_samples(BINS)
+    }
+
+    /// The bins of the horizon `h` (`n + 1` band values at the bands of the lookup whose
+    /// [`HorizonBins::samples`] are `samples`).
     #[inline(always)]
-    pub fn fill(&mut self, h: &[f32], lookup: &AzimuthLookup) {
-        lookup.sample_uniform(h, &mut self.edge);
+    pub fn fill(&mut self, h: &[f32], samples: &UniformSamples) {
+        samples.sample(h, &mut self.edge);
         for i in 0..BINS {
             let (a, b) = (self.edge[i], self.edge[i + 1]);
-            self.lo[i] = a.min(b);
-            self.hi[i] = a.max(b);
+            self.lo[i] = fmin(a, b);
+            self.hi[i] = fmax(a, b);
         }
-        let per_deg = BINS as f32 / 360.0;
-        for (&az, &v) in lookup.band_az_deg().iter().zip(h) {
-            let i = ((az * per_deg) as usize).min(BINS - 1);
-            self.lo[i] = self.lo[i].min(v);
-            self.hi[i] = self.hi[i].max(v);
+        for (&i, &v) in samples.band_bins().iter().zip(h) {
+            let i = i as usize;
+            self.lo[i] = fmin(self.lo[i], v);
+            self.hi[i] = fmax(self.hi[i], v);
         }
     }
 
@@ -410,25 +537,145 @@ impl HorizonBins {
         let turns = 4 * BINS as i64;
         let first = ((from * per_deg) as f64 + turns as f64) as i64 - turns;
         let last = ((to * per_deg) as f64 + turns as f64) as i64 - turns;
-        let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
         if last - first >= BINS as i64 {
-            for i in 0..BINS {
-                lo = lo.min(self.lo[i]);
-                hi = hi.max(self.hi[i]);
-            }
-            return (lo, hi);
+            return min_max(&self.lo, &self.hi);
         }
         let start = first.rem_euclid(BINS as i64) as usize;
         let count = (last - first + 1) as usize;
         let head = count.min(BINS - start);
-        for i in start..start + head {
-            lo = lo.min(self.lo[i]);
-            hi = hi.max(self.hi[i]);
+        let (lo, hi) = min_max(&self.lo[start..start + head], &self.hi[start..start + head]);
+        let (lo2, hi2) = min_max(&self.lo[..count - head], &self.hi[..count - head]);
+        (fmin(lo, lo2), fmax(hi, hi2))
+    }
+}
+
+/// The smaller of two horizon values (never NaN): a plain comparison, which compiles to one
+/// `min` instruction (`f32::min`'s NaN rule costs a compare and a blend in a dependent chain).
+#[inline(always)]
+fn fmin(a: f32, b: f32) -> f32 {
+    if a < b { a } else { b }
+}
+
+/// The larger of two horizon values (never NaN).
+#[inline(always)]
+fn fmax(a: f32, b: f32) -> f32 {
+    if a > b { a } else { b }
+}
+
+/// The lowest of `lo` and the highest of `hi` (equal lengths): eight lanes at a time (the last
+/// eight overlap the others: min and max do not mind), so that it vectorises.
+#[inline(always)]
+fn min_max(lo: &[f32], hi: &[f32]) -> (f32, f32) {
+    const LANES: usize = 8;
+    let n = lo.len().min(hi.len());
+    if n < LANES {
+        let mut m = (f32::INFINITY, f32::NEG_INFINITY);
+        for i in 0..n {
+            m = (fmin(lo[i], m.0), fmax(hi[i], m.1));
         }
-        for i in 0..count - head {
-            lo = lo.min(self.lo[i]);
-            hi = hi.max(self.hi[i]);
+        return m;
+    }
+    let load = |v: &[f32], at: usize| -> [f32; LANES] { v[at..at + LANES].try_into().unwrap() };
+    let (mut mn, mut mx) = (load(lo, n - LANES), load(hi, n - LANES));
+    let mut at = 0;
+    while at + LANES < n {
+        let (a, b) = (load(lo, at), load(hi, at));
+        for i in 0..LANES {
+            mn[i] = fmin(a[i], mn[i]);
+            mx[i] = fmax(b[i], mx[i]);
         }
-        (lo, hi)
+        at += LANES;
+    }
+    // Halving reductions.
+    let mut width = LANES / 2;
+    while width > 0 {
+        for i in 0..width {
+            mn[i] = fmin(mn[i], mn[i + width]);
+            mx[i] = fmax(mx[i], mx[i + width]);
+        }
+        width /= 2;
+    }
+    (mn[0], mx[0])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A block decided whole is decided so at each of its epochs by the per-epoch rule (the
+    /// kernel's `classify_sectors`), on random entries and paths; and the bound is tight enough
+    /// to decide most blocks of a slow path.
+    #[test]
+    fn block_decisions_agree_with_every_epoch() {
+        // A small deterministic generator (xorshift).
+        let mut state = 0x9E37_79B9_7F4A_7C15_u64;
+        let mut uniform = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let (mut decided, mut blocks) = (0, 0);
+        for _ in 0..200 {
+            // A cell's entries: A = a sin ψ + b cos ψ over each sector, thresholds about a
+            // horizon that wanders by a few degrees.
+            let (a, b) = (0.1 * (uniform() - 0.5), 0.1 * (uniform() - 0.5));
+            let c = (1.0 - a * a - b * b).sqrt() as f32;
+            let mut horizon = 0.02 * (uniform() - 0.5);
+            let table: Vec<Entry> = (0..SECTORS)
+                .map(|k| {
+                    horizon = (horizon + 0.002 * (uniform() - 0.5)).clamp(-0.05, 0.05);
+                    let psi = |k: usize| (k as f64 * 360.0 / SECTORS as f64).to_radians();
+                    let ends = [psi(k), psi(k + 1)].map(|p| a * p.sin() + b * p.cos());
+                    let (a_lo, a_hi) = (ends[0].min(ends[1]), ends[0].max(ends[1]));
+                    let half = 0.005 * uniform();
+                    [
+                        a_lo as f32,
+                        (horizon + half) as f32,
+                        a_hi as f32,
+                        (horizon - half) as f32,
+                    ]
+                })
+                .collect();
+            // A path: ψ advancing ≈ 0.55° per epoch, e wandering within ±1°.
+            let start = 360.0 * uniform();
+            let e0 = 0.03 * (uniform() - 0.5);
+            let n = 20 * BLOCK;
+            let (mut sector, mut cos_e, mut sin_e) = (vec![], vec![], vec![]);
+            for j in 0..n {
+                let psi = (start + 0.55 * j as f64).rem_euclid(360.0);
+                let e = e0 + 0.005 * ((j as f64) * 0.01).sin();
+                sector.push(((psi / 360.0 * SECTORS as f64) as usize).min(SECTORS - 1) as u16);
+                cos_e.push(e.cos() as f32);
+                sin_e.push(e.sin() as f32);
+            }
+            let range = |v: &[f32]| {
+                v.iter()
+                    .fold([f32::INFINITY, f32::NEG_INFINITY], |[a, b], &x| {
+                        [a.min(x), b.max(x)]
+                    })
+            };
+            let mut bounds = Vec::new();
+            append_block_bounds(&table, range(&cos_e), &mut bounds);
+            for j0 in (0..n).step_by(BLOCK) {
+                let r = j0..j0 + BLOCK;
+                let span = block_span(&sector[r.clone()], &sin_e[r.clone()]);
+                blocks += 1;
+                let Some(v) = block_decision(&bounds, c, &span) else {
+                    continue;
+                };
+                decided += 1;
+                for j in r {
+                    let [a_lo, s_hi, a_hi, s_lo] = table[usize::from(sector[j])];
+                    let cs = c * sin_e[j];
+                    if v {
+                        assert!(cos_e[j] * a_lo + cs >= s_hi, "block full, epoch {j} not");
+                    } else {
+                        assert!(cos_e[j] * a_hi + cs <= s_lo, "block dark, epoch {j} not");
+                    }
+                }
+            }
+        }
+        assert!(decided * 2 > blocks, "{decided} of {blocks} blocks decided");
     }
 }

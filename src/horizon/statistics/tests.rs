@@ -347,6 +347,23 @@ fn sector_tables_change_nothing() {
     assert_statistics_equal(&with, &without);
 }
 
+/// Hourly (blocks of 16 h: the Sun covers ≈ 9 sectors per block, so that its blocks can be
+/// decided whole), bit for bit the epoch-by-epoch path.
+#[test]
+fn block_decisions_change_nothing() {
+    let (stack, mut horizons, bodies) = super::testing::rough_terrain_2027(
+        48,
+        5,
+        1.0,
+        &crate::ephem::kernels::default_kernel_dir(),
+    );
+    let mut engine = StatisticsEngine::new(&stack, rough_terrain_params()).unwrap();
+    let with = engine.run(&mut horizons, &bodies, |_| true).unwrap();
+    engine.block_decisions = false;
+    let without = engine.run(&mut horizons, &bodies, |_| true).unwrap();
+    assert_statistics_equal(&with, &without);
+}
+
 /// A store that keeps every block.
 #[derive(Default)]
 struct Keep(std::collections::BTreeMap<(usize, usize), Vec<u8>>);
