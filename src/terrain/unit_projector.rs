@@ -44,6 +44,29 @@ impl UnitProjector {
         }
     }
 
+    /// A lower bound of the angle (radians) at the Moon's centre between map point
+    /// `(x_m, y_m)` and any map point at least `dist_m` from it and at most `reach_m` from the
+    /// map origin, or `None` for a projection without the bound. Polar stereographic: with
+    /// `P`, `Q` the points in units of `2 R k0`, their sphere points are
+    /// `2 |P − Q| / √((1 + |P|²)(1 + |Q|²))` apart (chord of the unit sphere).
+    pub(crate) fn min_angle_rad(
+        &self,
+        (x_m, y_m): (f64, f64),
+        dist_m: f64,
+        reach_m: f64,
+    ) -> Option<f64> {
+        match *self {
+            UnitProjector::Stereographic { two_r_k0_m, .. } => {
+                let t = two_r_k0_m;
+                let p2 = (x_m * x_m + y_m * y_m) / (t * t);
+                let q2 = (reach_m / t).powi(2);
+                let chord = 2.0 * (dist_m.max(0.0) / t) / ((1.0 + p2) * (1.0 + q2)).sqrt();
+                Some(2.0 * (0.5 * chord).min(1.0).asin())
+            }
+            UnitProjector::Other(_) => None,
+        }
+    }
+
     /// Map coordinates (m) of the unit radial vector `u`.
     #[inline]
     pub(crate) fn xy_from_unit(&self, u: &Vector3<f64>) -> (f64, f64) {

@@ -157,11 +157,14 @@ pub(crate) struct BeyondDem {
     y_m: f64,
     up: [f64; 3],
     r0_m: f64,
-    /// Elevation of the observer's geometric horizon on the reference sphere, `−acos(R / r0)`
-    /// (0 when the observer is inside the sphere: then every descending ray meets it).
+    /// The highest elevation at which a ray may meet the reference sphere beyond the layers:
+    /// the observer's geometric horizon on the sphere, `−acos(R / r0)` (0 when the observer is
+    /// inside the sphere: then every descending ray meets it), or lower where every ray leaves
+    /// the outermost layer far enough away to have risen above the sphere by then
+    /// ([`StatisticsEngine::min_exit_angle_rad`]).
     dip_deg: f32,
     /// `sin(dip)` plus room for f32 rounding: a Sun whose sine of elevation is at least this
-    /// is above the observer's geometric horizon (no elevation needs computing).
+    /// needs no below-sphere test (no elevation needs computing).
     sin_dip_bound: f32,
 }
 
@@ -900,6 +903,28 @@ impl<'a> StatisticsEngine<'a> {
         Some(cell)
     }
 
+    /// A lower bound of the angle at the Moon's centre between map point `(x, y)` and where
+    /// any ray from it leaves the outermost layer holding it (the farthest exit, as
+    /// [`BeyondDem::meets_sphere`] takes it): at least the map distance to the nearest edge of
+    /// any layer holding the point, the exit within the layers' farthest corner from the map
+    /// origin. `None` outside every layer or for a projection without the bound.
+    fn min_exit_angle_rad(&self, x: f64, y: f64, projector: &UnitProjector) -> Option<f64> {
+        let (mut dist_m, mut reach_m) = (f64::NEG_INFINITY, 0.0_f64);
+        for layer in &self.stack.layers {
+            let (x0, y0, x1, y1) = layer.grid.bounds_m();
+            for (cx, cy) in [(x0, y0), (x0, y1), (x1, y0), (x1, y1)] {
+                reach_m = reach_m.max(cx.hypot(cy));
+            }
+            if x >= x0 && x <= x1 && y >= y0 && y <= y1 {
+                dist_m = dist_m.max((x - x0).min(x1 - x).min(y - y0).min(y1 - y));
+            }
+        }
+        if !dist_m.is_finite() {
+            return None;
+        }
+        projector.min_angle_rad((x, y), dist_m, reach_m)
+    }
+
     /// [`Self::cell`] without the bounds: both bodies [`kernel::Reach::Varies`] (what a
     /// [`CellKernel`] needs, which reads no bounds).
     fn cell_frame(
@@ -931,11 +956,6 @@ impl<'a> StatisticsEngine<'a> {
         let MapFrame { up, east, north } = frame;
         let r0_m = MOON_RADIUS_M + ground_m + h_obs_m;
         let v32 = |v: nalgebra::Vector3<f64>| [v.x as f32, v.y as f32, v.z as f32];
-        let dip_deg = if r0_m > MOON_RADIUS_M {
-            -((MOON_RADIUS_M / r0_m).acos().to_degrees() as f32)
-        } else {
-            0.0
-        };
         Some(CellGeom {
             up: v32(up),
             up_ref: up.dot(&reference.up) as f32,
@@ -945,15 +965,46 @@ impl<'a> StatisticsEngine<'a> {
             r_obs_km: (r0_m / 1000.0) as f32,
             sun: kernel::Reach::Varies,
             earth: kernel::Reach::Varies,
-            beyond: BeyondDem {
-                x_m: x,
-                y_m: y,
-                up: [up.x, up.y, up.z],
-                r0_m,
-                dip_deg,
-                sin_dip_bound: (f64::from(dip_deg).to_radians().sin() + 1e-5) as f32,
-            },
+            beyond: self.beyond_dem((x, y), up, r0_m, &projector),
         })
+    }
+
+    /// Where the rays of an observer at map point `(x, y)` (radial `up`, `r0_m` from the
+    /// Moon's centre) leave the layers, and the highest elevation at which one may meet the
+    /// sphere beyond them.
+    fn beyond_dem(
+        &self,
+        (x, y): (f64, f64),
+        up: nalgebra::Vector3<f64>,
+        r0_m: f64,
+        projector: &UnitProjector,
+    ) -> BeyondDem {
+        let r = MOON_RADIUS_M;
+        // The observer's geometric horizon on the sphere (0 inside it: then every descending
+        // ray meets it, unless it leaves the layers past its lowest point and rises above the
+        // sphere first).
+        let dip_rad = if r0_m > r { (r / r0_m).acos() } else { 0.0 };
+        // Rays leave the outermost layer at least `p` (at the Moon's centre) away. A ray at
+        // elevation e < 0 is at `r0 cos e / cos(e + φ)` from the centre at angle φ, rising
+        // once e + φ > 0: it meets the sphere beyond an exit at φ ≥ p only if `R cos(e + p) >
+        // r0 cos e`, i.e. below `e* = atan((R cos p − r0) / (R sin p))` — when `R cos p < r0`
+        // (no ray just below the horizontal meets it) and `R > r0 cos p` (e* > −p: the exit
+        // is past the lowest point of every ray above e*), i.e. when
+        // `p > acos(min(R, r0) / max(R, r0))`. Higher rays need no test.
+        let cut_rad = self.min_exit_angle_rad(x, y, projector).and_then(|p| {
+            (p > (r.min(r0_m) / r.max(r0_m)).acos())
+                .then(|| ((r * p.cos() - r0_m) / (r * p.sin())).atan())
+        });
+        let highest_rad = cut_rad.map_or(-dip_rad, |c| c.min(-dip_rad));
+        let dip_deg = (highest_rad.to_degrees() + 1e-6).min(0.0) as f32;
+        BeyondDem {
+            x_m: x,
+            y_m: y,
+            up: [up.x, up.y, up.z],
+            r0_m,
+            dip_deg,
+            sin_dip_bound: (f64::from(dip_deg).to_radians().sin() + 1e-5) as f32,
+        }
     }
 }
 

@@ -419,3 +419,71 @@ fn stored_blocks_are_taken_back(
         "the missing block was computed and stored"
     );
 }
+
+/// The below-sphere test's cut (rays above it leave the layers too far away to meet the sphere
+/// beyond them) skips no ray that the exact test finds meeting it, and is tight: on a fine layer
+/// inside a 256 km far field, observers 3 km below to 3 km above the sphere, every grid
+/// azimuth, rays from the cut up to the geometric horizon (0° below the sphere) never meet the
+/// sphere, and some rays within 0.3° below the cut do.
+#[test]
+fn below_sphere_cut_skips_no_ray_that_meets_the_sphere() {
+    use crate::terrain::synth::{SynthParams, south_polar_dem};
+    let layer = |size_px, px_m| {
+        south_polar_dem(&SynthParams {
+            size_px,
+            px_m,
+            seed: 3,
+        })
+        .unwrap()
+    };
+    let stack = TerrainStack::new(vec![layer(64, 150.0), layer(64, 4000.0)]);
+    let engine = StatisticsEngine::new(&stack, rough_terrain_params()).unwrap();
+    let fine = &stack.layers[0];
+    let projector = UnitProjector::new(&fine.projection);
+    let edges = Edges {
+        extents: stack.layers.iter().map(|l| l.grid.bounds_m()).collect(),
+        projector,
+    };
+    let (mut cut_active, mut tight) = (0, 0);
+    for (row, col) in [(0, 0), (10, 50), (32, 32), (63, 5), (63, 63)] {
+        let (x, y) = fine.grid.xy_from_row_col(row as f64, col as f64);
+        let up = map_frame(&projector, x, y).up;
+        for h_m in [-3000.0, -500.0, 100.0, 1000.0, 3000.0] {
+            let r0_m = MOON_RADIUS_M + h_m;
+            let beyond = engine.beyond_dem((x, y), up, r0_m, &projector);
+            let horizon_deg = -(MOON_RADIUS_M / r0_m).min(1.0).acos().to_degrees();
+            let cut_deg = f64::from(beyond.dip_deg);
+            assert!(
+                cut_deg <= horizon_deg + 1e-5,
+                "{cut_deg} above {horizon_deg}"
+            );
+            if cut_deg < horizon_deg - 0.01 {
+                cut_active += 1;
+            }
+            let mut below = false;
+            for az in 0..360 {
+                let az = az as f32;
+                for k in 0..=20 {
+                    // From the cut to the geometric horizon: never.
+                    let el = cut_deg + (horizon_deg - cut_deg) * f64::from(k) / 20.0;
+                    assert!(
+                        !beyond.meets_sphere(&edges, az, el as f32),
+                        "({row}, {col}) {h_m} m: az {az}, el {el} above the cut {cut_deg} meets"
+                    );
+                    // Just below it: sometimes.
+                    let el = cut_deg - 0.3 * f64::from(k) / 20.0;
+                    below |= beyond.meets_sphere(&edges, az, el as f32);
+                }
+            }
+            tight += usize::from(below);
+        }
+    }
+    assert!(
+        cut_active >= 20,
+        "{cut_active} observers with the cut below the horizon"
+    );
+    assert!(
+        tight >= 20,
+        "{tight} observers with rays meeting the sphere just below the cut"
+    );
+}
