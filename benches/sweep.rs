@@ -35,14 +35,18 @@ fn dem() -> Dem {
     })
 }
 
-fn bench_sweep(c: &mut Criterion) {
-    let stack = TerrainStack::new(vec![dem()]);
-    let params = SweepParams {
+/// The benches' sweep: a 2 m observer, [`AZ`] directions, steps of at most 8 px.
+fn sweep_params() -> SweepParams {
+    SweepParams {
         observer_height_m: 2.0,
         azimuths: AZ,
         max_step: 8,
-    };
-    let sweep = HorizonSweep::new(&stack, params).unwrap();
+    }
+}
+
+fn bench_sweep(c: &mut Criterion) {
+    let stack = TerrainStack::new(vec![dem()]);
+    let sweep = HorizonSweep::new(&stack, sweep_params()).unwrap();
     assert_eq!(sweep.directions().len(), AZ);
     let mut group = c.benchmark_group("whole_grid_horizons_128sq_64az");
     group.sample_size(10);
@@ -109,12 +113,7 @@ fn bench_batched(c: &mut Criterion) {
     use penumbra::twins::line_sweep::{LineBatch, TWIN_BATCH_SAMPLES, sweep_batched};
     use std::time::{Duration, Instant};
     let stack = TerrainStack::new(vec![dem()]);
-    let params = SweepParams {
-        observer_height_m: 2.0,
-        azimuths: AZ,
-        max_step: 8,
-    };
-    let sweep = HorizonSweep::new(&stack, params).unwrap();
+    let sweep = HorizonSweep::new(&stack, sweep_params()).unwrap();
     let instant = |b: &LineBatch| -> Result<Vec<[f32; 2]>, ()> {
         Ok(vec![[1.0, 1.0]; 2 * b.observers.len()])
     };
