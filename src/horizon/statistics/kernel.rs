@@ -3,12 +3,16 @@
 //! statistics. f32 geometry (errors ≈ 1e-5°, far below the horizons' 0.01° quantisation), f64
 //! sums.
 //!
-//! Three passes over a chunk of epochs per cell, so that the expensive part vectorises:
-//! 1. geometry (branch-free: three dot products, two square roots, two `atan2`s per body);
-//! 2. fractions: a disc entirely above or below the horizon of its azimuth sector (bounds per
-//!    cell and sector, widened by the largest disc half-span) needs no lookup; the others get the
-//!    circular segment under the horizon's chord across the disc;
-//! 3. the statistics, in time order.
+//! Passes over a chunk of epochs per cell, so that the expensive part vectorises:
+//! 0. with the shared sector tables: blocks of 16 epochs decided whole for a body
+//!    ([`super::sectors::block_decision`]) get its fraction 0 or 1 at once;
+//! 1. the other epochs: the shared classification, or geometry (branch-free: three dot
+//!    products, two square roots, two `atan2`s per body) against per-cell sector bounds
+//!    (widened by the largest disc half-span);
+//! 2. fractions: the epochs neither decides get the circular segment under the horizon's chord
+//!    across the disc (the Earth: the polyline itself);
+//! 3. the statistics, in time order: a block decided whole for both bodies at once (its sums in
+//!    the epoch-by-epoch order, so bit for bit), the others epoch by epoch.
 
 #![allow(
     clippy::needless_range_loop,
@@ -179,6 +183,21 @@ fn geometry(cell: &CellGeom, pos: [&[f32]; 3], out: &mut Seen) {
     let (el, az) = (&mut out.el_deg[..n], &mut out.az_deg[..n]);
     let (sin_el, cos_el) = (&mut out.sin_el[..n], &mut out.cos_el[..n]);
     for j in 0..n {
+        let (vz, hxy, inv_len, vx, vy) = local(cell, px[j], py[j], pz[j]);
+        sin_el[j] = vz * inv_len;
+        cos_el[j] = hxy * inv_len;
+        (el[j], az[j]) = el_az_deg(vz, hxy, vx, vy);
+    }
+}
+
+/// [`geometry`] over the epochs `span` of the chunk only.
+#[inline(always)]
+fn geometry_span(cell: &CellGeom, pos: [&[f32]; 3], span: std::ops::Range<usize>, out: &mut Seen) {
+    let (a, b) = (span.start, span.end.min(CHUNK).min(pos[0].len()));
+    let (px, py, pz) = (&pos[0][a..b], &pos[1][a..b], &pos[2][a..b]);
+    let (el, az) = (&mut out.el_deg[a..b], &mut out.az_deg[a..b]);
+    let (sin_el, cos_el) = (&mut out.sin_el[a..b], &mut out.cos_el[a..b]);
+    for j in 0..b - a {
         let (vz, hxy, inv_len, vx, vy) = local(cell, px[j], py[j], pz[j]);
         sin_el[j] = vz * inv_len;
         cos_el[j] = hxy * inv_len;
@@ -600,6 +619,7 @@ pub(super) fn run_cells(
                                 continue;
                             }
                             let (sector, cos_e, sin_e) = sec;
+                            let before = count;
                             count = classify_sectors(
                                 t,
                                 cell.up_ref,
@@ -610,9 +630,15 @@ pub(super) fn run_cells(
                                 partial,
                                 count,
                             );
-                        }
-                        for &j in &partial[..count] {
-                            geometry_at(cell, pos, usize::from(j), seen);
+                            // The directions of the epochs left: the whole block in SIMD lanes
+                            // when it has a few, else one by one.
+                            if count - before >= 2 {
+                                geometry_span(cell, pos, j0..j1, seen);
+                            } else {
+                                for &j in &partial[before..count] {
+                                    geometry_at(cell, pos, usize::from(j), seen);
+                                }
+                            }
                         }
                         count
                     } else {

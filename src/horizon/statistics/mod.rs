@@ -35,6 +35,14 @@
 //! **Rays the Moon beyond the DEM would block**: a lit epoch whose Sun centre is below the local
 //! horizontal and whose ray, from where it leaves the outermost layer (along the straight map
 //! line of its grid azimuth), meets the reference sphere, as the per-epoch maps count them.
+//! Only rays below a per-cell cut need the test: a ray leaving the layers at least `p` away
+//! (at the Moon's centre) has risen above the sphere there unless its elevation is below
+//! `atan((R cos p − r0) / (R sin p))` (`BeyondDem`; tested against the exact exit test).
+//!
+//! **Where the time goes** (a year hourly, 256² of the LOLA grid round the pole): the shared
+//! classification decides ≈ 87 % of a cell's blocks of 16 epochs whole for both bodies
+//! (`sectors.rs`); the rest is the exact per-epoch path for discs on the horizon and the
+//! per-cell tables' build.
 
 mod blocks;
 mod kernel;

@@ -25,6 +25,17 @@
 //! conservative (the parallax at its largest or smallest, 1e-4° of margin for f32), so the
 //! fast path never decides an epoch the exact path would decide otherwise
 //! (`tests::sector_tables_change_nothing`).
+//!
+//! **Whole blocks.** Most of the time a body stays well clear of a cell's horizon for hours, so
+//! the same thresholds decide blocks of [`BLOCK`] consecutive epochs at once: over a block the
+//! body covers a few sectors ([`BlockSpan`]: the Sun ≈ 9 in 16 h at the poles, the Earth 1 or 2)
+//! and a narrow range of `sin e`; per cell and sector, `F = min(cos e · a_lo) − s_hi` and
+//! `D = s_lo − max(cos e · a_hi)` over the path's range of `cos e` ([`append_block_bounds`]);
+//! the block is full when `min F + min(c sin e) ≥ 0`, dark when `min D − max(c sin e) ≥ 0`
+//! ([`block_decision`]), which implies the per-epoch inequality at each of its epochs
+//! (`tests::block_decisions_agree_with_every_epoch`). A block decided for both bodies skips the
+//! per-epoch classification and the time-order loop (its counts, runs and sums at once,
+//! `statistics::tests::block_decisions_change_nothing`: bit for bit).
 
 use nalgebra::Vector3;
 
