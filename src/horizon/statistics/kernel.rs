@@ -205,6 +205,24 @@ fn geometry_span(cell: &CellGeom, pos: [&[f32]; 3], span: std::ops::Range<usize>
     }
 }
 
+/// [`geometry_sin_cos`] over the epochs `span` of the chunk only.
+#[inline(always)]
+fn geometry_sin_cos_span(
+    cell: &CellGeom,
+    pos: [&[f32]; 3],
+    span: std::ops::Range<usize>,
+    out: &mut Seen,
+) {
+    let (a, b) = (span.start, span.end.min(CHUNK).min(pos[0].len()));
+    let (px, py, pz) = (&pos[0][a..b], &pos[1][a..b], &pos[2][a..b]);
+    let (sin_el, cos_el) = (&mut out.sin_el[a..b], &mut out.cos_el[a..b]);
+    for j in 0..b - a {
+        let (vz, hxy, inv_len, _, _) = local(cell, px[j], py[j], pz[j]);
+        sin_el[j] = vz * inv_len;
+        cos_el[j] = hxy * inv_len;
+    }
+}
+
 /// [`geometry`]'s sine and cosine of the elevation only (the irradiance needs them at every
 /// epoch; the angles are only needed where a disc is cut).
 #[inline(always)]
@@ -602,9 +620,6 @@ pub(super) fn run_cells(
                 }
                 Reach::Varies => {
                     let count = if let Some(sec) = sectors[body] {
-                        if is_sun {
-                            geometry_sin_cos(cell, pos, seen);
-                        }
                         let t = &table[body * PSI_SECTORS..(body + 1) * PSI_SECTORS];
                         let bb = &block_bounds[(2 * i + body) * BLOCK_BOUNDS..][..BLOCK_BOUNDS];
                         // Whole blocks first; the epochs of the others one by one.
@@ -616,6 +631,11 @@ pub(super) fn run_cells(
                                 .and_then(|span| block_decision(bb, cell.up_ref, span));
                             if let Some(v) = decided[body][k] {
                                 seen.fraction[j0..j1].fill(if v { 1.0 } else { 0.0 });
+                                // The Sun's elevation where it lights the cell (irradiance;
+                                // a dark block adds nothing).
+                                if is_sun && v {
+                                    geometry_sin_cos_span(cell, pos, j0..j1, seen);
+                                }
                                 continue;
                             }
                             let (sector, cos_e, sin_e) = sec;
@@ -635,6 +655,9 @@ pub(super) fn run_cells(
                             if count - before >= 2 {
                                 geometry_span(cell, pos, j0..j1, seen);
                             } else {
+                                if is_sun {
+                                    geometry_sin_cos_span(cell, pos, j0..j1, seen);
+                                }
                                 for &j in &partial[before..count] {
                                     geometry_at(cell, pos, usize::from(j), seen);
                                 }
