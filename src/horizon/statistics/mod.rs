@@ -1003,8 +1003,12 @@ impl<'a> StatisticsEngine<'a> {
             (p > (r.min(r0_m) / r.max(r0_m)).acos())
                 .then(|| ((r * p.cos() - r0_m) / (r * p.sin())).atan())
         });
-        let highest_rad = cut_rad.map_or(-dip_rad, |c| c.min(-dip_rad));
-        let dip_deg = (highest_rad.to_degrees() + 1e-6).min(0.0) as f32;
+        // The cut with 1e-6° of room for its f32 rounding; the horizon as before (rays within
+        // f32 rounding of tangent to the sphere stay uncounted, as the per-epoch maps do).
+        let dip_deg = match cut_rad {
+            Some(c) if c < -dip_rad => (c.to_degrees() + 1e-6).min(-dip_rad.to_degrees()),
+            _ => -dip_rad.to_degrees(),
+        } as f32;
         BeyondDem {
             x_m: x,
             y_m: y,
