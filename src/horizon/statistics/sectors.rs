@@ -87,7 +87,7 @@ pub(super) struct BodySectors {
     pub sector: Vec<u16>,
     pub cos_e: Vec<f32>,
     pub sin_e: Vec<f32>,
-    /// Per block of [`BLOCK`] epochs (from the first epoch): the sectors and the range of `e`
+    /// Per block of [`BLOCK`] epochs (from the first epoch): the sectors and the range of `sin e`
     /// the body covers over it ([`BlockSpan`]).
     pub blocks: Vec<BlockSpan>,
     /// The range of `cos e` over every epoch (its f32 values).
@@ -169,7 +169,7 @@ pub(super) fn block_decision(bounds: &[f32], up_ref: f32, block: &BlockSpan) -> 
     }
 }
 
-/// The [`BlockSpan`] of a block's epochs (sectors, `cos e`, `sin e`).
+/// The [`BlockSpan`] of a block's epochs (their sectors and `sin e`).
 fn block_span(sector: &[u16], sin_e: &[f32]) -> BlockSpan {
     // The shortest cyclic arc of sectors holding them all: offsets from the first epoch's in
     // (−180, 180] sectors' worth of a turn.
