@@ -175,22 +175,7 @@ fn el_az_deg(vz: f32, hxy: f32, vx: f32, vy: f32) -> (f32, f32) {
 }
 
 /// Pass 1: the direction of the body at `pos` (km, relative to the Moon's centre) from `cell`
-/// for the epochs of the chunk.
-#[inline(always)]
-fn geometry(cell: &CellGeom, pos: [&[f32]; 3], out: &mut Seen) {
-    let n = pos[0].len().min(CHUNK);
-    let (px, py, pz) = (&pos[0][..n], &pos[1][..n], &pos[2][..n]);
-    let (el, az) = (&mut out.el_deg[..n], &mut out.az_deg[..n]);
-    let (sin_el, cos_el) = (&mut out.sin_el[..n], &mut out.cos_el[..n]);
-    for j in 0..n {
-        let (vz, hxy, inv_len, vx, vy) = local(cell, px[j], py[j], pz[j]);
-        sin_el[j] = vz * inv_len;
-        cos_el[j] = hxy * inv_len;
-        (el[j], az[j]) = el_az_deg(vz, hxy, vx, vy);
-    }
-}
-
-/// [`geometry`] over the epochs `span` of the chunk only.
+/// for the epochs `span` of the chunk.
 #[inline(always)]
 fn geometry_span(cell: &CellGeom, pos: [&[f32]; 3], span: std::ops::Range<usize>, out: &mut Seen) {
     let (a, b) = (span.start, span.end.min(CHUNK).min(pos[0].len()));
@@ -205,7 +190,8 @@ fn geometry_span(cell: &CellGeom, pos: [&[f32]; 3], span: std::ops::Range<usize>
     }
 }
 
-/// [`geometry_sin_cos`] over the epochs `span` of the chunk only.
+/// [`geometry_span`]'s sine and cosine of the elevation only (the irradiance needs them
+/// wherever the Sun may light the cell; the angles are only needed where a disc is cut).
 #[inline(always)]
 fn geometry_sin_cos_span(
     cell: &CellGeom,
@@ -223,21 +209,7 @@ fn geometry_sin_cos_span(
     }
 }
 
-/// [`geometry`]'s sine and cosine of the elevation only (the irradiance needs them at every
-/// epoch; the angles are only needed where a disc is cut).
-#[inline(always)]
-fn geometry_sin_cos(cell: &CellGeom, pos: [&[f32]; 3], out: &mut Seen) {
-    let n = pos[0].len().min(CHUNK);
-    let (px, py, pz) = (&pos[0][..n], &pos[1][..n], &pos[2][..n]);
-    let (sin_el, cos_el) = (&mut out.sin_el[..n], &mut out.cos_el[..n]);
-    for j in 0..n {
-        let (vz, hxy, inv_len, _, _) = local(cell, px[j], py[j], pz[j]);
-        sin_el[j] = vz * inv_len;
-        cos_el[j] = hxy * inv_len;
-    }
-}
-
-/// [`geometry`] at epoch `j` of the chunk only.
+/// [`geometry_span`] at epoch `j` of the chunk only.
 #[inline(always)]
 fn geometry_at(cell: &CellGeom, pos: [&[f32]; 3], j: usize, out: &mut Seen) {
     let (vz, hxy, inv_len, vx, vy) = local(cell, pos[0][j], pos[1][j], pos[2][j]);
@@ -478,6 +450,16 @@ pub(super) fn sector_bounds(
     }
 }
 
+/// Counts `len` consecutive epochs in which a body is visible (`up`) or hidden throughout: the
+/// epochs it is visible, the run of hidden epochs up to now and the longest such run
+/// (branch-free, so that the epoch-by-epoch loop keeps its selects).
+#[inline(always)]
+fn count_epochs(up: bool, len: u32, visible: &mut u32, hidden_run: &mut u32, longest: &mut u32) {
+    *visible += len * u32::from(up);
+    *hidden_run = if up { 0 } else { *hidden_run + len };
+    *longest = (*longest).max(*hidden_run);
+}
+
 /// Per-thread buffers of a chunk.
 pub(super) struct Scratch {
     sun: Box<Seen>,
@@ -613,7 +595,7 @@ pub(super) fn run_cells(
                 }
                 Reach::Always => {
                     if is_sun {
-                        geometry_sin_cos(cell, pos, seen);
+                        geometry_sin_cos_span(cell, pos, 0..n, seen);
                     }
                     seen.fraction[..n].fill(1.0);
                     decided[body][..n_blocks].fill(Some(true));
@@ -665,7 +647,7 @@ pub(super) fn run_cells(
                         }
                         count
                     } else {
-                        geometry(cell, pos, seen);
+                        geometry_span(cell, pos, 0..n, seen);
                         classify_bounds(b, margin, radius, seen, partial)
                     };
                     partial_fractions(h, lookup, chord, exact, radius, seen, &partial[..count]);
@@ -699,21 +681,21 @@ pub(super) fn run_cells(
                         irr_t += flux * sun.cos_el[j];
                     }
                 }
-                if sun_up {
-                    s.sun_visible += len;
-                    s.dark_run = 0;
-                } else {
-                    s.dark_run += len;
-                    s.dark_max = s.dark_max.max(s.dark_run);
-                }
+                count_epochs(
+                    sun_up,
+                    len,
+                    &mut s.sun_visible,
+                    &mut s.dark_run,
+                    &mut s.dark_max,
+                );
                 s.sun_full += len * u32::from(fs >= th.full_min);
-                if earth_up {
-                    s.earth_visible += len;
-                    s.earth_hidden_run = 0;
-                } else {
-                    s.earth_hidden_run += len;
-                    s.earth_hidden_max = s.earth_hidden_max.max(s.earth_hidden_run);
-                }
+                count_epochs(
+                    earth_up,
+                    len,
+                    &mut s.earth_visible,
+                    &mut s.earth_hidden_run,
+                    &mut s.earth_hidden_max,
+                );
                 s.sun_and_earth += len * u32::from(sun_up && earth_up);
                 continue;
             }
@@ -725,14 +707,22 @@ pub(super) fn run_cells(
                 let flux = sun_w[j] * fs;
                 irr_h += flux * sun.sin_el[j].max(0.0);
                 irr_t += flux * sun.cos_el[j];
-                s.sun_visible += u32::from(sun_up);
+                count_epochs(
+                    sun_up,
+                    1,
+                    &mut s.sun_visible,
+                    &mut s.dark_run,
+                    &mut s.dark_max,
+                );
                 s.sun_full += u32::from(fs >= th.full_min);
-                s.earth_visible += u32::from(earth_up);
+                count_epochs(
+                    earth_up,
+                    1,
+                    &mut s.earth_visible,
+                    &mut s.earth_hidden_run,
+                    &mut s.earth_hidden_max,
+                );
                 s.sun_and_earth += u32::from(sun_up && earth_up);
-                s.dark_run = if sun_up { 0 } else { s.dark_run + 1 };
-                s.dark_max = s.dark_max.max(s.dark_run);
-                s.earth_hidden_run = if earth_up { 0 } else { s.earth_hidden_run + 1 };
-                s.earth_hidden_max = s.earth_hidden_max.max(s.earth_hidden_run);
                 // Lit from below the local horizontal, and below the observer's geometric
                 // horizon on the sphere (its sine, with room for f32): the ray may meet the
                 // sphere.

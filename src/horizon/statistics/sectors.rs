@@ -185,12 +185,6 @@ fn block_span(sector: &[u16], sin_e: &[f32]) -> BlockSpan {
         hi = hi.max(d);
     }
     let count = (hi - lo + 1) as usize;
-    let range = |v: &[f32]| {
-        v.iter()
-            .fold([f32::INFINITY, f32::NEG_INFINITY], |[a, b], &x| {
-                [a.min(x), b.max(x)]
-            })
-    };
     BlockSpan {
         first: (k0 + lo).rem_euclid(n) as u16,
         count: if count <= BLOCK_MAX_SECTORS {
@@ -198,8 +192,17 @@ fn block_span(sector: &[u16], sin_e: &[f32]) -> BlockSpan {
         } else {
             0
         },
-        sin_e: range(sin_e),
+        sin_e: value_range(sin_e),
     }
+}
+
+/// The lowest and highest of `values`.
+fn value_range(values: &[f32]) -> [f32; 2] {
+    values
+        .iter()
+        .fold([f32::INFINITY, f32::NEG_INFINITY], |[a, b], &x| {
+            [a.min(x), b.max(x)]
+        })
 }
 
 /// `(sin, cos)` of every sector edge (`SECTORS + 1`).
@@ -259,12 +262,7 @@ impl BodySectors {
             .zip(s.sin_e.chunks(BLOCK))
             .map(|(sec, se)| block_span(sec, se))
             .collect();
-        s.cos_e_range = s
-            .cos_e
-            .iter()
-            .fold([f32::INFINITY, f32::NEG_INFINITY], |[a, b], &x| {
-                [a.min(x), b.max(x)]
-            });
+        s.cos_e_range = value_range(&s.cos_e);
         let mut k = 0;
         while k < SECTORS {
             if visited[k] {
@@ -660,14 +658,8 @@ mod tests {
                 cos_e.push(e.cos() as f32);
                 sin_e.push(e.sin() as f32);
             }
-            let range = |v: &[f32]| {
-                v.iter()
-                    .fold([f32::INFINITY, f32::NEG_INFINITY], |[a, b], &x| {
-                        [a.min(x), b.max(x)]
-                    })
-            };
             let mut bounds = Vec::new();
-            append_block_bounds(&table, range(&cos_e), &mut bounds);
+            append_block_bounds(&table, value_range(&cos_e), &mut bounds);
             for j0 in (0..n).step_by(BLOCK) {
                 let r = j0..j0 + BLOCK;
                 let span = block_span(&sector[r.clone()], &sin_e[r.clone()]);
