@@ -12,7 +12,8 @@
 //! 2. fractions: the epochs neither decides get the circular segment under the horizon's chord
 //!    across the disc (the Earth: the polyline itself);
 //! 3. the statistics, in time order: a block decided whole for both bodies at once (its sums in
-//!    the epoch-by-epoch order, so bit for bit), the others epoch by epoch.
+//!    the epoch-by-epoch order, so bit for bit), the others with their sums epoch by epoch and
+//!    their counts and runs from bit masks of the block's epochs ([`count_mask`]).
 
 #![allow(
     clippy::needless_range_loop,
@@ -460,6 +461,34 @@ fn count_epochs(up: bool, len: u32, visible: &mut u32, hidden_run: &mut u32, lon
     *longest = (*longest).max(*hidden_run);
 }
 
+/// [`count_epochs`] over `len ≤ 32` consecutive epochs at once: bit `i` of `up` tells whether
+/// the body is visible at the `i`-th. The same counts as epoch by epoch: the hidden run before
+/// the first visible epoch extends the current run, the runs between visible epochs stand
+/// alone, the run after the last one is the new current run.
+#[inline(always)]
+fn count_mask(up: u32, len: u32, visible: &mut u32, hidden_run: &mut u32, longest: &mut u32) {
+    debug_assert!((1..=32).contains(&len));
+    let valid = u32::MAX >> (32 - len);
+    let up = up & valid;
+    *visible += up.count_ones();
+    if up == 0 {
+        *hidden_run += len;
+        *longest = (*longest).max(*hidden_run);
+        return;
+    }
+    let (first, last) = (up.trailing_zeros(), 31 - up.leading_zeros());
+    *longest = (*longest).max(*hidden_run + first);
+    // Hidden epochs between the first and the last visible one: the longest run of ones.
+    let mut inner = !up & valid & (u32::MAX >> (31 - last)) & (u32::MAX << first);
+    let mut run = 0;
+    while inner != 0 {
+        inner &= inner >> 1;
+        run += 1;
+    }
+    *hidden_run = len - 1 - last;
+    *longest = (*longest).max(run).max(*hidden_run);
+}
+
 /// Per-thread buffers of a chunk.
 pub(super) struct Scratch {
     sun: Box<Seen>,
@@ -699,43 +728,51 @@ pub(super) fn run_cells(
                 s.sun_and_earth += len * u32::from(sun_up && earth_up);
                 continue;
             }
+            // Epoch by epoch: the sums in time order, the rest as bit masks of the block's
+            // epochs (bit `j − j0`), counted at once (as `count_epochs` would epoch by epoch).
+            let (mut sun_up, mut earth_up, mut full, mut low) = (0_u32, 0_u32, 0_u32, 0_u32);
             for j in j0..j1 {
                 let (fs, fe) = (sun.fraction[j], earth.fraction[j]);
-                let sun_up = fs > th.visible_min;
-                let earth_up = fe > th.visible_min;
                 sum += fs;
                 let flux = sun_w[j] * fs;
                 irr_h += flux * sun.sin_el[j].max(0.0);
                 irr_t += flux * sun.cos_el[j];
-                count_epochs(
-                    sun_up,
-                    1,
-                    &mut s.sun_visible,
-                    &mut s.dark_run,
-                    &mut s.dark_max,
-                );
-                s.sun_full += u32::from(fs >= th.full_min);
-                count_epochs(
-                    earth_up,
-                    1,
-                    &mut s.earth_visible,
-                    &mut s.earth_hidden_run,
-                    &mut s.earth_hidden_max,
-                );
-                s.sun_and_earth += u32::from(sun_up && earth_up);
-                // Lit from below the local horizontal, and below the observer's geometric
-                // horizon on the sphere (its sine, with room for f32): the ray may meet the
-                // sphere.
-                if sun_up && sun.sin_el[j] < bound {
-                    let (vz, hxy, _, vx, vy) =
-                        local(cell, sun_pos[0][j], sun_pos[1][j], sun_pos[2][j]);
-                    let (el, az) = el_az_deg(vz, hxy, vx, vy);
-                    if el < 0.0
-                        && cell.beyond.may_meet_sphere(el)
-                        && cell.beyond.meets_sphere(edges, az, el)
-                    {
-                        s.below_sphere += 1;
-                    }
+                let bit = (j - j0) as u32;
+                sun_up |= u32::from(fs > th.visible_min) << bit;
+                earth_up |= u32::from(fe > th.visible_min) << bit;
+                full |= u32::from(fs >= th.full_min) << bit;
+                low |= u32::from(sun.sin_el[j] < bound) << bit;
+            }
+            let len = (j1 - j0) as u32;
+            count_mask(
+                sun_up,
+                len,
+                &mut s.sun_visible,
+                &mut s.dark_run,
+                &mut s.dark_max,
+            );
+            s.sun_full += full.count_ones();
+            count_mask(
+                earth_up,
+                len,
+                &mut s.earth_visible,
+                &mut s.earth_hidden_run,
+                &mut s.earth_hidden_max,
+            );
+            s.sun_and_earth += (sun_up & earth_up).count_ones();
+            // Lit from below the local horizontal, and below the observer's geometric horizon
+            // on the sphere (its sine, with room for f32): the ray may meet the sphere.
+            let mut maybe_below = sun_up & low;
+            while maybe_below != 0 {
+                let j = j0 + maybe_below.trailing_zeros() as usize;
+                maybe_below &= maybe_below - 1;
+                let (vz, hxy, _, vx, vy) = local(cell, sun_pos[0][j], sun_pos[1][j], sun_pos[2][j]);
+                let (el, az) = el_az_deg(vz, hxy, vx, vy);
+                if el < 0.0
+                    && cell.beyond.may_meet_sphere(el)
+                    && cell.beyond.meets_sphere(edges, az, el)
+                {
+                    s.below_sphere += 1;
                 }
             }
         }
@@ -792,5 +829,43 @@ impl pulp::WithSimd for RunCells<'_> {
             self.scratch,
             self.acc,
         );
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{count_epochs, count_mask};
+
+    /// Every 12-epoch pattern (and blocks of 1, 16 and 32 epochs from a small generator), from
+    /// several running states: the counts at once equal the epoch-by-epoch counts.
+    #[test]
+    fn count_mask_equals_epoch_by_epoch() {
+        let mut state = 0x2545_f491_u32;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 17;
+            state ^= state << 5;
+            state
+        };
+        let mut cases: Vec<(u32, u32)> = (0..1 << 12).map(|m| (m, 12)).collect();
+        for len in [1, 2, 16, 31, 32] {
+            cases.extend((0..500).map(|_| (next(), len)));
+            cases.extend([(0, len), (u32::MAX, len), (1, len), (1 << (len - 1), len)]);
+        }
+        for (mask, len) in cases {
+            for (run0, longest0) in [(0, 0), (3, 3), (5, 40), (100, 100)] {
+                let mut want = (0_u32, run0, longest0);
+                for bit in 0..len {
+                    let up = mask >> bit & 1 == 1;
+                    count_epochs(up, 1, &mut want.0, &mut want.1, &mut want.2);
+                }
+                let mut got = (0_u32, run0, longest0);
+                count_mask(mask, len, &mut got.0, &mut got.1, &mut got.2);
+                assert_eq!(
+                    got, want,
+                    "mask {mask:#b}, {len} epochs, from {run0}/{longest0}"
+                );
+            }
+        }
     }
 }
