@@ -395,18 +395,31 @@ pub struct StatisticsEngine<'a> {
     /// Whether blocks of epochs decided whole by the tables skip the epoch-by-epoch path (off
     /// only to test that they never change a result).
     block_decisions: bool,
+    /// The farthest corner of any layer from the map origin, map metres (for
+    /// [`Self::min_exit_angle_rad`]).
+    layers_reach_m: f64,
 }
 
 impl<'a> StatisticsEngine<'a> {
     /// An engine for `stack` (the horizons must be on its finest layer's grid).
     pub fn new(stack: &'a TerrainStack, params: StatisticsParams) -> Result<Self, HorizonError> {
         stack.layers.first().ok_or(HorizonError::NoLayers)?;
+        let layers_reach_m = stack
+            .layers
+            .iter()
+            .flat_map(|layer| {
+                let (x0, y0, x1, y1) = layer.grid.bounds_m();
+                [(x0, y0), (x0, y1), (x1, y0), (x1, y1)]
+            })
+            .map(|(x, y)| x.hypot(y))
+            .fold(0.0, f64::max);
         Ok(StatisticsEngine {
             stack,
             params,
             skip_unseen: true,
             sector_tables: true,
             block_decisions: true,
+            layers_reach_m,
         })
     }
 
@@ -917,12 +930,9 @@ impl<'a> StatisticsEngine<'a> {
     /// any layer holding the point, the exit within the layers' farthest corner from the map
     /// origin. `None` outside every layer or for a projection without the bound.
     fn min_exit_angle_rad(&self, x: f64, y: f64, projector: &UnitProjector) -> Option<f64> {
-        let (mut dist_m, mut reach_m) = (f64::NEG_INFINITY, 0.0_f64);
+        let mut dist_m = f64::NEG_INFINITY;
         for layer in &self.stack.layers {
             let (x0, y0, x1, y1) = layer.grid.bounds_m();
-            for (cx, cy) in [(x0, y0), (x0, y1), (x1, y0), (x1, y1)] {
-                reach_m = reach_m.max(cx.hypot(cy));
-            }
             if x >= x0 && x <= x1 && y >= y0 && y <= y1 {
                 dist_m = dist_m.max((x - x0).min(x1 - x).min(y - y0).min(y1 - y));
             }
@@ -930,7 +940,7 @@ impl<'a> StatisticsEngine<'a> {
         if !dist_m.is_finite() {
             return None;
         }
-        projector.min_angle_rad((x, y), dist_m, reach_m)
+        projector.min_angle_rad((x, y), dist_m, self.layers_reach_m)
     }
 
     /// [`Self::cell`] without the bounds: both bodies [`kernel::Reach::Varies`] (what a
