@@ -126,42 +126,6 @@ impl AzimuthLookup {
         (k, r)
     }
 
-    /// Where grid azimuths `i · 360 / m`, `i = 0 ..= m` (the last equals the first), fall among
-    /// the bands: one merged walk over them, shared by every cell ([`UniformSamples::sample`]
-    /// gives the values of [`AzimuthLookup::horizon_deg`] there).
-    pub(super) fn uniform_samples(&self, m: usize) -> UniformSamples {
-        let mut seg = vec![0_u32; m + 1];
-        let mut w = vec![0.0_f32; m + 1];
-        if m > 0 {
-            let step = 360.0 / m as f32;
-            let n = self.inv_width.len();
-            // Azimuths at or past the first band come first in its order, then the others a
-            // turn on.
-            let i0 = ((self.a0_deg / step).ceil() as usize).min(m + 1);
-            let mut k = 0;
-            for i in (i0..=m).chain(0..i0) {
-                let az = i as f32 * step;
-                let r = if i >= i0 {
-                    az - self.a0_deg
-                } else {
-                    az - self.a0_deg + 360.0
-                };
-                while k + 1 < n && self.rel_deg[k + 1] <= r {
-                    k += 1;
-                }
-                seg[i] = k as u32;
-                w[i] = (r - self.rel_deg[k]) * self.inv_width[k];
-            }
-        }
-        let per_deg = m as f32 / 360.0;
-        let band_bin = self
-            .band_az_deg
-            .iter()
-            .map(|&az| ((az * per_deg) as u32).min(m.saturating_sub(1) as u32))
-            .collect();
-        UniformSamples { seg, w, band_bin }
-    }
-
     /// Segments holding grid azimuths from `from_deg` over `width_deg` (≥ 0), in order.
     pub fn segments_over(&self, from_deg: f32, width_deg: f32) -> impl Iterator<Item = usize> {
         let n = self.inv_width.len();
@@ -261,32 +225,4 @@ pub fn atan2_deg(y: f32, x: f32) -> f32 {
     let r = if x < 0.0 { std::f32::consts::PI - r } else { r };
     let r = if y < 0.0 { -r } else { r };
     r * (180.0 / std::f32::consts::PI)
-}
-
-/// Uniform samples of a horizon polyline ([`AzimuthLookup::uniform_samples`]): per sample, its
-/// band segment and the weight of the segment's second band.
-#[derive(Debug, Clone)]
-pub(super) struct UniformSamples {
-    seg: Vec<u32>,
-    w: Vec<f32>,
-    /// The uniform interval (of `m`) holding each band.
-    band_bin: Vec<u32>,
-}
-
-impl UniformSamples {
-    /// The horizon (deg) from the band values `h` (`n + 1` values) at the samples, into `out`
-    /// (as long as the samples): a gather, without the walk's branches.
-    #[inline(always)]
-    pub fn sample(&self, h: &[f32], out: &mut [f32]) {
-        for ((o, &k), &w) in out.iter_mut().zip(&self.seg).zip(&self.w) {
-            let k = k as usize;
-            let (a, b) = (h[k], h[k + 1]);
-            *o = a + w * (b - a);
-        }
-    }
-
-    /// The uniform interval holding each band (in the bands' order).
-    pub fn band_bins(&self) -> &[u32] {
-        &self.band_bin
-    }
 }

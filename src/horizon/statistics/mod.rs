@@ -578,7 +578,6 @@ impl<'a> StatisticsEngine<'a> {
             soa.earth_sectors.blocks.clear();
         }
         let sector_edges = sectors::edges();
-        let bin_samples = sectors::HorizonBins::samples(&lookup);
         // The Earth's statistics need only "any part visible".
         let earth_visible_only =
             self.params.visible_min_fraction < sectors::VISIBLE_ONLY_MAX_FRACTION;
@@ -663,7 +662,6 @@ impl<'a> StatisticsEngine<'a> {
                 let mut bounds = Vec::with_capacity(indices.len() * 2 * BOUND_SECTORS);
                 let mut tables = Vec::new();
                 let mut block_bounds = Vec::new();
-                let mut hbins = sectors::HorizonBins::default();
                 let mut tscratch = sectors::TableScratch::default();
                 for &i in indices {
                     let px = first_px + i;
@@ -700,8 +698,7 @@ impl<'a> StatisticsEngine<'a> {
                                 frame: &cell.frame,
                                 r_obs_km: f64::from(cell.r_obs_km),
                                 h: &horizons[start..],
-                                samples: &bin_samples,
-                                bins: &mut hbins,
+                                lookup: &lookup,
                                 scratch: &mut tscratch,
                                 out: &mut tables,
                                 block_out: &mut block_bounds,

@@ -40,7 +40,7 @@
 use nalgebra::Vector3;
 
 use super::EpochBodies;
-use super::lookup::{AzimuthLookup, UniformSamples, atan2_deg};
+use super::lookup::{AzimuthLookup, atan2_deg};
 
 /// The visible-only rule's cap: the part of a disc above the chord at `CAP_HEIGHT` radii over
 /// its centre, `CAP_HALF_WIDTH = √(1 − 0.9²)` radii either side, is 1.87 % of the disc.
@@ -281,8 +281,7 @@ impl BodySectors {
     }
 
     /// Appends the [`SECTORS`] entries of a cell (radial `up`, map `east` and `north` on the
-    /// sphere, observer at `r_obs_km` from the Moon's centre; horizon bounds per azimuth bin in
-    /// `bins`). `visible_only`: the body's statistics need only whether any part of it is
+    /// sphere, observer at `r_obs_km` from the Moon's centre; its horizon polyline `horizon`). `visible_only`: the body's statistics need only whether any part of it is
     /// visible (more than a fraction below [`VISIBLE_ONLY_MAX_FRACTION`]), not whether it is
     /// whole. Array passes over the visited sectors (the first and last vectorise).
     #[allow(clippy::too_many_arguments, reason = "a cell's frame and horizon")]
@@ -293,7 +292,7 @@ impl BodySectors {
         edges: &[(f32, f32)],
         cell: &MapFrame,
         r_obs_km: f64,
-        bins: &HorizonBins,
+        horizon: &HorizonPolyline,
         visible_only: bool,
         scratch: &mut TableScratch,
         out: &mut Vec<Entry>,
@@ -365,16 +364,18 @@ impl BodySectors {
                 let (c1, c2, c3) = (unwrap(az1[k]), unwrap(az0[k + 1]), unwrap(az1[k + 1]));
                 let lo = base_az.min(c1).min(c2).min(c3) - AZ_MARGIN_DEG;
                 let hi = base_az.max(c1).max(c2).max(c3) + AZ_MARGIN_DEG;
-                let (h_lo, h_hi) = bins.range(lo - half_span, hi + half_span);
+                let (h_lo, h_hi) = horizon.range(lo - half_span, hi + half_span);
                 top[k] = if visible_only {
                     // The horizon under the disc's top cap (above the chord at 0.9 r, which
                     // spans ±0.436 r) lower than that chord: at least 1.87 % of the disc is
                     // visible.
-                    bins.range(
-                        lo - CAP_HALF_WIDTH * half_span,
-                        hi + CAP_HALF_WIDTH * half_span,
-                    )
-                    .1 - CAP_HEIGHT * r
+                    horizon
+                        .range(
+                            lo - CAP_HALF_WIDTH * half_span,
+                            hi + CAP_HALF_WIDTH * half_span,
+                        )
+                        .1
+                        - CAP_HEIGHT * r
                 } else {
                     h_hi + r
                 };
@@ -411,9 +412,9 @@ pub(super) struct CellTables<'a> {
     /// The cell's own frame.
     pub frame: &'a MapFrame,
     pub r_obs_km: f64,
+    /// The cell's horizon: `n + 1` band values at the bands of `lookup`.
     pub h: &'a [f32],
-    pub samples: &'a UniformSamples,
-    pub bins: &'a mut HorizonBins,
+    pub lookup: &'a AzimuthLookup,
     pub scratch: &'a mut TableScratch,
     pub out: &'a mut Vec<Entry>,
     /// The [`BLOCK_BOUNDS`] values of each body ([`append_block_bounds`]).
@@ -425,7 +426,10 @@ impl pulp::WithSimd for CellTables<'_> {
 
     #[inline(always)]
     fn with_simd<S: pulp::Simd>(self, _simd: S) {
-        self.bins.fill(self.h, self.samples);
+        let horizon = HorizonPolyline {
+            lookup: self.lookup,
+            h: self.h,
+        };
         for (body, visible_only, needed) in self.bodies {
             let base = self.out.len();
             if needed {
@@ -434,7 +438,7 @@ impl pulp::WithSimd for CellTables<'_> {
                     self.edges,
                     self.frame,
                     self.r_obs_km,
-                    self.bins,
+                    &horizon,
                     visible_only,
                     self.scratch,
                     self.out,
@@ -491,70 +495,48 @@ fn sin_topo_to_geo(t_deg: f32, rho: f32) -> f32 {
                 + x2 * (-1.0 / 5040.0 + x2 * (1.0 / 362_880.0 - x2 / 39_916_800.0)))))
 }
 
-/// Bins of a cell's horizon polyline over grid azimuth ([`BINS`] of `360 / BINS` degrees): the
-/// lowest and highest horizon over each (its two edges and the bands inside), so that the
-/// range over any span is a few comparisons.
-#[derive(Debug, Clone)]
-pub(super) struct HorizonBins {
-    lo: Vec<f32>,
-    hi: Vec<f32>,
-    edge: Vec<f32>,
+/// A cell's horizon polyline: `n + 1` band values `h` at the bands of `lookup` (the last the
+/// first again), linear in grid azimuth between bands as the kernel reads it
+/// ([`AzimuthLookup::horizon_deg`]).
+#[derive(Clone, Copy)]
+pub(super) struct HorizonPolyline<'a> {
+    pub lookup: &'a AzimuthLookup,
+    pub h: &'a [f32],
 }
 
-/// Bins of [`HorizonBins`] (0.125° each).
-const BINS: usize = 2880;
-
-impl Default for HorizonBins {
-    fn default() -> Self {
-        HorizonBins {
-            lo: vec![0.0; BINS],
-            hi: vec![0.0; BINS],
-            edge: vec![0.0; BINS + 1],
-        }
-    }
-}
-
-impl HorizonBins {
-    /// The uniform samples the bins need (their edges), shared by every cell.
-    pub fn samples(lookup: &AzimuthLookup) -> UniformSamples {
-        lookup.uniform_samples(BINS)
-    }
-
-    /// The bins of the horizon `h` (`n + 1` band values at the bands of the lookup whose
-    /// [`HorizonBins::samples`] are `samples`).
-    #[inline(always)]
-    pub fn fill(&mut self, h: &[f32], samples: &UniformSamples) {
-        samples.sample(h, &mut self.edge);
-        for i in 0..BINS {
-            let (a, b) = (self.edge[i], self.edge[i + 1]);
-            self.lo[i] = fmin(a, b);
-            self.hi[i] = fmax(a, b);
-        }
-        for (&i, &v) in samples.band_bins().iter().zip(h) {
-            let i = i as usize;
-            self.lo[i] = fmin(self.lo[i], v);
-            self.hi[i] = fmax(self.hi[i], v);
-        }
-    }
-
+impl HorizonPolyline<'_> {
     /// The lowest and highest horizon over grid azimuths `[from, to]` (degrees, any real
-    /// values, `to ≥ from`), taken over whole bins (so a little beyond the span: conservative).
+    /// values, `to ≥ from`): the polyline at both ends and the bands strictly between them
+    /// (its extremes on a span; the f32 rounding, ≈ 1e-6°, is within the entries' margins).
+    /// A span of 90 bands (4° apart) holds one band or none, so this is a few loads.
     #[inline(always)]
     pub fn range(&self, from: f32, to: f32) -> (f32, f32) {
-        let per_deg = BINS as f32 / 360.0;
-        // Floors by truncation of positive values (spans are within a turn or two of 0°).
-        let turns = 4 * BINS as i64;
-        let first = ((from * per_deg) as f64 + turns as f64) as i64 - turns;
-        let last = ((to * per_deg) as f64 + turns as f64) as i64 - turns;
-        if last - first >= BINS as i64 {
-            return min_max(&self.lo, &self.hi);
+        let h = self.h;
+        let n = self.lookup.n_bands();
+        if to - from >= 360.0 {
+            return min_max(&h[..n], &h[..n]);
         }
-        let start = first.rem_euclid(BINS as i64) as usize;
-        let count = (last - first + 1) as usize;
-        let head = count.min(BINS - start);
-        let (lo, hi) = min_max(&self.lo[start..start + head], &self.hi[start..start + head]);
-        let (lo2, hi2) = min_max(&self.lo[..count - head], &self.hi[..count - head]);
-        (fmin(lo, lo2), fmax(hi, hi2))
+        let parts = self.lookup.parts();
+        let rel = parts.rel_deg;
+        let (k0, r0) = self.lookup.segment(from);
+        let start = h[k0] + (r0 - rel[k0]) * parts.inv_width[k0] * (h[k0 + 1] - h[k0]);
+        let stop = self.lookup.horizon_deg(h, to);
+        let (mut lo, mut hi) = (fmin(start, stop), fmax(start, stop));
+        // The bands after `from` (unwrapped past the first lap) before `to`.
+        let end = r0 + (to - from);
+        for k in k0 + 1..k0 + 1 + n {
+            let (at, v) = if k <= n {
+                (rel[k], h[k])
+            } else {
+                (rel[k - n] + 360.0, h[k - n])
+            };
+            if at >= end {
+                break;
+            }
+            lo = fmin(lo, v);
+            hi = fmax(hi, v);
+        }
+        (lo, hi)
     }
 }
 
@@ -610,6 +592,82 @@ fn min_max(lo: &[f32], hi: &[f32]) -> (f32, f32) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The polyline's range over a span equals the extremes of the horizon sampled densely
+    /// over it plus the bands inside it (found in f64, by their unwrapped distance from the
+    /// span's start): non-uniform bands, spans across grid azimuth 0, past 360° and whole turns.
+    #[test]
+    fn polyline_range_matches_dense_samples() {
+        let mut state = 0x2545_F491_4F6C_DD1D_u64;
+        let mut uniform = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        for n in [7_usize, 90, 720] {
+            // Non-uniform bands: jittered around n even steps.
+            let az: Vec<f64> = (0..n)
+                .map(|k| (k as f64 + 0.1 + 0.8 * uniform()) * 360.0 / n as f64)
+                .collect();
+            let lookup = AzimuthLookup::new(&az).unwrap();
+            let mut h: Vec<f32> = (0..n).map(|_| (4.0 * uniform() - 1.0) as f32).collect();
+            h.push(h[0]);
+            let horizon = HorizonPolyline {
+                lookup: &lookup,
+                h: &h,
+            };
+            let (mut inside_some, mut whole) = (0, 0);
+            for _ in 0..2_000 {
+                let from = (720.0 * uniform() - 360.0) as f32;
+                let width = if uniform() < 0.05 {
+                    360.0 + 10.0 * uniform()
+                } else {
+                    12.0 * uniform() * uniform()
+                } as f32;
+                let to = from + width;
+                let (lo, hi) = horizon.range(from, to);
+                // `strict`: the ends, dense samples and the bands clearly inside; `loose` also
+                // the bands within 1e-3° of an end (f32 may put those either side).
+                let mut strict = [f32::INFINITY, f32::NEG_INFINITY];
+                let mut loose = strict;
+                let take = |m: &mut [f32; 2], v: f32| *m = [m[0].min(v), m[1].max(v)];
+                if width >= 360.0 {
+                    h[..n].iter().for_each(|&v| take(&mut strict, v));
+                    whole += 1;
+                } else {
+                    for i in 0..=64 {
+                        take(
+                            &mut strict,
+                            lookup.horizon_deg(&h, from + width * i as f32 / 64.0),
+                        );
+                    }
+                    loose = strict;
+                    for (k, &a) in az.iter().enumerate() {
+                        let d = (a - f64::from(from)).rem_euclid(360.0);
+                        if d > 1e-3 && d < f64::from(width) - 1e-3 {
+                            take(&mut strict, h[k]);
+                            inside_some += 1;
+                        }
+                        if d < f64::from(width) + 1e-3 || d > 360.0 - 1e-3 {
+                            take(&mut loose, h[k]);
+                        }
+                    }
+                }
+                if width >= 360.0 {
+                    loose = strict;
+                }
+                // Dense samples can only miss the extremes at the bands, which are taken.
+                let ok =
+                    |got: f32, a: f32, b: f32| got >= a.min(b) - 1e-5 && got <= a.max(b) + 1e-5;
+                assert!(
+                    ok(lo, strict[0], loose[0]) && ok(hi, strict[1], loose[1]),
+                    "n {n}, [{from}, {to}]: ({lo}, {hi}) vs {strict:?} / {loose:?}"
+                );
+            }
+            assert!(inside_some > 100 && whole > 20, "{inside_some} {whole}");
+        }
+    }
 
     /// A block decided whole is decided so at each of its epochs by the per-epoch rule (the
     /// kernel's `classify_sectors`), on random entries and paths; and the bound is tight enough
