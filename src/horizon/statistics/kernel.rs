@@ -4,7 +4,7 @@
 //! sums.
 //!
 //! Passes over a chunk of epochs per cell, so that the expensive part vectorises:
-//! 0. with the shared sector tables: blocks of 16 epochs decided whole for a body
+//! 0. with the shared sector tables: blocks of [`BLOCK`] (32) epochs decided whole for a body
 //!    ([`super::sectors::block_decision`]) get its fraction 0 or 1 at once;
 //! 1. the other epochs: the shared classification, or geometry (branch-free: three dot
 //!    products, two square roots, two `atan2`s per body) against per-cell sector bounds
@@ -29,6 +29,8 @@ use crate::illum::polyline_visible_fraction_uniform;
 
 /// Epochs per chunk (the chunk's arrays stay in L1 while a task's cells run over it).
 pub(super) const CHUNK: usize = 512;
+// Whole blocks per chunk, counted in `u32` bit masks.
+const _: () = assert!(CHUNK % BLOCK == 0 && BLOCK <= 32);
 /// Azimuth sectors of the per-cell horizon bounds (one set per body).
 pub(super) const BOUND_SECTORS: usize = 128;
 /// Largest half-span in azimuth of the Sun's disc the Sun's sector bounds cover, degrees (each

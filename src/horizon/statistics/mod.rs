@@ -40,7 +40,8 @@
 //! `atan((R cos p − r0) / (R sin p))` (`BeyondDem`; tested against the exact exit test).
 //!
 //! **Where the time goes** (a year hourly, 256² of the LOLA grid round the pole): the shared
-//! classification decides ≈ 87 % of a cell's blocks of 16 epochs whole for both bodies
+//! classification decides most of a cell's blocks of 32 epochs whole for both bodies (≈ 87 % of
+//! the blocks of 16 epochs it used before)
 //! (`sectors.rs`); the rest is the exact per-epoch path for discs on the horizon and the
 //! per-cell tables' build.
 

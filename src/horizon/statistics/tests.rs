@@ -347,7 +347,7 @@ fn sector_tables_change_nothing() {
     assert_statistics_equal(&with, &without);
 }
 
-/// Hourly (blocks of 16 h: the Sun covers ≈ 9 sectors per block, so that its blocks can be
+/// Hourly (blocks of 32 h: the Sun covers ≈ 17 sectors per block, so that its blocks can be
 /// decided whole), bit for bit the epoch-by-epoch path.
 #[test]
 fn block_decisions_change_nothing() {
