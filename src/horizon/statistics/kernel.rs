@@ -30,7 +30,7 @@ use crate::illum::polyline_visible_fraction_uniform;
 /// Epochs per chunk (the chunk's arrays stay in L1 while a task's cells run over it).
 pub(super) const CHUNK: usize = 512;
 // Whole blocks per chunk, counted in `u32` bit masks.
-const _: () = assert!(CHUNK % BLOCK == 0 && BLOCK <= 32);
+const _: () = assert!(CHUNK.is_multiple_of(BLOCK) && BLOCK <= 32);
 /// Azimuth sectors of the per-cell horizon bounds (one set per body).
 pub(super) const BOUND_SECTORS: usize = 128;
 /// Largest half-span in azimuth of the Sun's disc the Sun's sector bounds cover, degrees (each
