@@ -106,6 +106,13 @@ impl AzimuthLookup {
     #[inline(always)]
     pub fn horizon_deg(&self, h: &[f32], az_deg: f32) -> f32 {
         let (k, r) = self.segment(az_deg);
+        self.horizon_in_segment(h, k, r)
+    }
+
+    /// The horizon (deg) at azimuth `r` relative to the first band, in band segment `k` (both
+    /// from [`AzimuthLookup::segment`]).
+    #[inline(always)]
+    pub(super) fn horizon_in_segment(&self, h: &[f32], k: usize, r: f32) -> f32 {
         let w = (r - self.rel_deg[k]) * self.inv_width[k];
         let (a, b) = (h[k], h[k + 1]);
         a + w * (b - a)

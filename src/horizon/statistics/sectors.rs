@@ -284,9 +284,9 @@ impl BodySectors {
     }
 
     /// Appends the [`SECTORS`] entries of a cell (radial `up`, map `east` and `north` on the
-    /// sphere, observer at `r_obs_km` from the Moon's centre; its horizon polyline `horizon`). `visible_only`: the body's statistics need only whether any part of it is
-    /// visible (more than a fraction below [`VISIBLE_ONLY_MAX_FRACTION`]), not whether it is
-    /// whole. Array passes over the visited sectors (the first and last vectorise).
+    /// sphere, observer at `r_obs_km` from the Moon's centre; its horizon polyline `horizon`).
+    /// `visible_only`: the body's statistics need only whether any part of it is visible (more
+    /// than a fraction below [`VISIBLE_ONLY_MAX_FRACTION`]), not whether it is whole. Array passes over the visited sectors (the first and last vectorise).
     #[allow(clippy::too_many_arguments, reason = "a cell's frame and horizon")]
     #[inline(always)]
     pub fn append_entries(
@@ -519,10 +519,9 @@ impl HorizonPolyline<'_> {
         if to - from >= 360.0 {
             return min_max(&h[..n], &h[..n]);
         }
-        let parts = self.lookup.parts();
-        let rel = parts.rel_deg;
+        let rel = self.lookup.parts().rel_deg;
         let (k0, r0) = self.lookup.segment(from);
-        let start = h[k0] + (r0 - rel[k0]) * parts.inv_width[k0] * (h[k0 + 1] - h[k0]);
+        let start = self.lookup.horizon_in_segment(h, k0, r0);
         let stop = self.lookup.horizon_deg(h, to);
         let (mut lo, mut hi) = (fmin(start, stop), fmax(start, stop));
         // The bands after `from` (unwrapped past the first lap) before `to`.
@@ -594,6 +593,7 @@ fn min_max(lo: &[f32], hi: &[f32]) -> (f32, f32) {
 
 #[cfg(test)]
 mod tests {
+    use super::super::tests::rng;
     use super::*;
 
     /// The polyline's range over a span equals the extremes of the horizon sampled densely
@@ -601,13 +601,7 @@ mod tests {
     /// span's start): non-uniform bands, spans across grid azimuth 0, past 360° and whole turns.
     #[test]
     fn polyline_range_matches_dense_samples() {
-        let mut state = 0x2545_F491_4F6C_DD1D_u64;
-        let mut uniform = move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut uniform = rng(0x2545_F491_4F6C_DD1D_u64);
         for n in [7_usize, 90, 720] {
             // Non-uniform bands: jittered around n even steps.
             let az: Vec<f64> = (0..n)
@@ -677,14 +671,7 @@ mod tests {
     /// to decide most blocks of a slow path.
     #[test]
     fn block_decisions_agree_with_every_epoch() {
-        // A small deterministic generator (xorshift).
-        let mut state = 0x9E37_79B9_7F4A_7C15_u64;
-        let mut uniform = move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut uniform = rng(0x9E37_79B9_7F4A_7C15_u64);
         let (mut decided, mut blocks) = (0, 0);
         for _ in 0..200 {
             // A cell's entries: A = a sin ψ + b cos ψ over each sector, thresholds about a

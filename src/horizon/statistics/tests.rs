@@ -3,7 +3,7 @@ use super::*;
 use crate::terrain::TerrainStack;
 
 /// A small deterministic generator (xorshift) for test inputs.
-fn rng(seed: u64) -> impl FnMut() -> f64 {
+pub(super) fn rng(seed: u64) -> impl FnMut() -> f64 {
     let mut s = seed;
     move || {
         s ^= s << 13;
