@@ -102,15 +102,7 @@ pub fn range_statistics(
         );
     }
     let grid = MapGrid::new(stack)?;
-    crate::note!(
-        "penumbra: model grid {} x {} at {} m centred on ({:.4}, {:.4}) deg (every layer)",
-        grid.hf.rows,
-        grid.hf.cols,
-        grid.hf.px_m,
-        grid.hf.centre_lat_deg,
-        grid.hf.centre_lon_deg
-    );
-    grid.warn_if_clipped();
+    grid.announce();
     let lights = epoch_lights(&grid, kernels, epochs, abcorr)?;
     let progress = crate::output::progress_bar(
         lights.len(),

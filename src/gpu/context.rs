@@ -152,6 +152,17 @@ impl GpuContext {
         })
     }
 
+    /// A storage buffer of `size` bytes that a kernel writes and [`Self::read_back`] copies out
+    /// (wgpu zero-initialises it).
+    pub(crate) fn output_buffer(&self, label: &str, size: u64) -> wgpu::Buffer {
+        self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(label),
+            size,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        })
+    }
+
     /// Encodes one compute pass of `pipeline` over `workgroups` (x, y, z) with `bind_group` at
     /// the dynamic `offsets`, and submits it.
     pub(crate) fn dispatch(

@@ -28,50 +28,20 @@ pub const DEFAULT_EPOCHS_PER_DISPATCH: u32 = 16;
 /// Dispatches per queue submit of the soft sweep by default.
 pub const DEFAULT_DISPATCHES_PER_SUBMIT: u32 = 16;
 
-const SHARED_DP_WGSL: &str = include_str!(concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/shaders/shared/dp.wgsl"
-));
-const DP_VISIBLE_WGSL: &str = include_str!(concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/shaders/dp_visible.wgsl"
-));
-const DP_SWEEP_WGSL: &str = include_str!(concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/shaders/dp_sweep.wgsl"
-));
-const DP_SITES_WGSL: &str = include_str!(concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/shaders/dp_sites.wgsl"
-));
+const SHARED_DP_WGSL: &str = wgsl!("shared/dp.wgsl");
+const DP_VISIBLE_WGSL: &str = wgsl!("dp_visible.wgsl");
+const DP_SWEEP_WGSL: &str = wgsl!("dp_sweep.wgsl");
+const DP_SITES_WGSL: &str = wgsl!("dp_sites.wgsl");
 /// Workgroup size of `shaders/dp_sites.wgsl` (along the entries). Keep in sync.
 const SITES_WORKGROUP_SIZE_X: u32 = 64;
-const DP_POINTS_WGSL: &str = include_str!(concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/shaders/dp_points.wgsl"
-));
-const DP_POINTS_SWEEP_WGSL: &str = include_str!(concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/shaders/dp_points_sweep.wgsl"
-));
+const DP_POINTS_WGSL: &str = wgsl!("dp_points.wgsl");
+const DP_POINTS_SWEEP_WGSL: &str = wgsl!("dp_points_sweep.wgsl");
 /// Workgroup size of `shaders/dp_points.wgsl` and `dp_points_sweep.wgsl`. Keep in sync.
 const POINTS_WORKGROUP_SIZE_X: u32 = 64;
-const DP_TILE_COST_WGSL: &str = include_str!(concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/shaders/dp_tile_cost.wgsl"
-));
-const DP_TILE_FRACTION_WGSL: &str = include_str!(concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/shaders/dp_tile_fraction.wgsl"
-));
-const DP_TILE_SWEEP_COST_WGSL: &str = include_str!(concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/shaders/dp_tile_sweep_cost.wgsl"
-));
-const DP_TILE_SWEEP_ACCUMULATE_WGSL: &str = include_str!(concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/shaders/dp_tile_sweep_accumulate.wgsl"
-));
+const DP_TILE_COST_WGSL: &str = wgsl!("dp_tile_cost.wgsl");
+const DP_TILE_FRACTION_WGSL: &str = wgsl!("dp_tile_fraction.wgsl");
+const DP_TILE_SWEEP_COST_WGSL: &str = wgsl!("dp_tile_sweep_cost.wgsl");
+const DP_TILE_SWEEP_ACCUMULATE_WGSL: &str = wgsl!("dp_tile_sweep_accumulate.wgsl");
 
 /// Mirrors of the WGSL structs.
 pub(crate) mod gpu_data {

@@ -43,18 +43,9 @@ pub const DEFAULT_AZIMUTHS_PER_DISPATCH: u32 = 16;
 /// Workgroup size of both kernels. Keep in sync with shaders/fourier_*.wgsl.
 const WORKGROUP_SIZE_XY: u32 = 8;
 
-const MARCH_WGSL: &str = include_str!(concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/shaders/shared/march.wgsl"
-));
-const FOURIER_BUILD_WGSL: &str = include_str!(concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/shaders/fourier_build.wgsl"
-));
-const FOURIER_EVAL_WGSL: &str = include_str!(concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/shaders/fourier_eval.wgsl"
-));
+const MARCH_WGSL: &str = wgsl!("shared/march.wgsl");
+const FOURIER_BUILD_WGSL: &str = wgsl!("fourier_build.wgsl");
+const FOURIER_EVAL_WGSL: &str = wgsl!("fourier_eval.wgsl");
 
 /// Errors of the GPU horizon maps.
 #[derive(Debug, thiserror::Error)]

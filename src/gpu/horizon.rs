@@ -23,14 +23,8 @@ pub const SITES_PER_DISPATCH: u32 = 64;
 /// Workgroup size along the azimuths. Keep in sync with shaders/horizon_scan.wgsl.
 const WORKGROUP_SIZE: u32 = 64;
 
-const SHARED_BILINEAR_WGSL: &str = include_str!(concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/shaders/shared/bilinear.wgsl"
-));
-const HORIZON_SCAN_WGSL: &str = include_str!(concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/shaders/horizon_scan.wgsl"
-));
+const SHARED_BILINEAR_WGSL: &str = wgsl!("shared/bilinear.wgsl");
+const HORIZON_SCAN_WGSL: &str = wgsl!("horizon_scan.wgsl");
 
 /// Errors of the GPU horizon path: a bad site or terrain (as on the CPU), or a GPU failure.
 #[derive(Debug, thiserror::Error)]
@@ -140,12 +134,7 @@ impl GpuHorizonScan {
             "penumbra horizon_scan azimuths",
             bytemuck::cast_slice(azimuths),
         );
-        let out = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("penumbra horizon_scan out"),
-            size: n_out * 8,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        });
+        let out = ctx.output_buffer("penumbra horizon_scan out", n_out * 8);
         let bind_group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("penumbra horizon_scan bind group"),
             layout: &self.layout,

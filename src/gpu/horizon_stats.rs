@@ -18,10 +18,7 @@ use crate::twins::horizon_stats::{
     EPOCHS_PER_BATCH, HorizonStatsParams, WORKGROUP_SIZE, packed_tables,
 };
 
-const HORIZON_STATS_WGSL: &str = include_str!(concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/shaders/horizon_stats.wgsl"
-));
+const HORIZON_STATS_WGSL: &str = wgsl!("horizon_stats.wgsl");
 
 /// What a run shares, resident on the GPU.
 struct Resident {
@@ -106,12 +103,7 @@ impl<'a> GpuHorizonStats<'a> {
         );
         let acc_bytes = (cells.len() * size_of::<KernelAcc>()) as u64;
         // wgpu zero-initialises new buffers: the statistics start empty.
-        let acc = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("penumbra horizon_stats acc"),
-            size: acc_bytes,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        });
+        let acc = ctx.output_buffer("penumbra horizon_stats acc", acc_bytes);
         let bind_group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("penumbra horizon_stats bind group"),
             layout: &self.layout,

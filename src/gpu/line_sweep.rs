@@ -16,14 +16,8 @@ use crate::twins::line_sweep::{
     LineBatch, LineSweepParams, SweepGrid, WORKGROUP_SIZE, sweep_batched,
 };
 
-const SHARED_BILINEAR_WGSL: &str = include_str!(concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/shaders/shared/bilinear.wgsl"
-));
-const LINE_SWEEP_WGSL: &str = include_str!(concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/shaders/line_sweep.wgsl"
-));
+const SHARED_BILINEAR_WGSL: &str = wgsl!("shared/bilinear.wgsl");
+const LINE_SWEEP_WGSL: &str = wgsl!("line_sweep.wgsl");
 
 /// Largest batch, samples (the hull scratch is 32 B per sample: 256 MiB).
 pub const MAX_BATCH_SAMPLES: usize = 1 << 23;
@@ -154,12 +148,7 @@ impl GpuLineSweep {
             usage: wgpu::BufferUsages::STORAGE,
             mapped_at_creation: false,
         });
-        let out = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("penumbra line_sweep out"),
-            size: n_out * 8,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        });
+        let out = ctx.output_buffer("penumbra line_sweep out", n_out * 8);
         ctx.queue
             .write_buffer(&self.params_buf, 0, bytemuck::bytes_of(&params));
         let bind_group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {

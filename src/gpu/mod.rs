@@ -9,7 +9,16 @@
 //! Layout (vello/rerun): [`GpuContext`] builds the instance, adapter, device, queue and every
 //! compute pipeline once; one module per shader (`shadow_march`, `sweep_accumulate`) holds its
 //! runner and its `mod gpu_data` mirror structs. The WGSL lives in `shaders/` at the crate root
-//! and is embedded with `include_str!`.
+//! and is embedded with `include_str!` (through `wgsl!`).
+
+/// The text of a WGSL file under `shaders/` at the crate root, embedded at compile time:
+/// `wgsl!("dp_visible.wgsl")`.
+#[cfg(feature = "gpu")]
+macro_rules! wgsl {
+    ($path:literal) => {
+        include_str!(concat!(env!("CARGO_MANIFEST_DIR"), "/shaders/", $path))
+    };
+}
 
 mod backend;
 mod error;

@@ -37,13 +37,7 @@ pub const CODE_EARTH: f32 = -3.0;
 /// Output code of a pixel that shows the night side of the Earth's disc.
 pub const CODE_EARTH_NIGHT: f32 = -4.0;
 
-const RENDER_WGSL: &str = concat!(
-    include_str!(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/shaders/shared/brdf.wgsl"
-    )),
-    include_str!(concat!(env!("CARGO_MANIFEST_DIR"), "/shaders/render.wgsl"))
-);
+const RENDER_WGSL: &str = concat!(wgsl!("shared/brdf.wgsl"), wgsl!("render.wgsl"));
 
 /// Mirrors of the WGSL structs.
 mod gpu_data {
@@ -305,12 +299,7 @@ pub fn render_radiance_gpu(
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
         });
     let band_bytes = u64::from(band_rows) * u64::from(width) * 4;
-    let output = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("penumbra render output band"),
-        size: band_bytes,
-        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-        mapped_at_creation: false,
-    });
+    let output = ctx.output_buffer("penumbra render output band", band_bytes);
     let bind_group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
         label: Some("penumbra render bind group"),
         layout: &render.layout,

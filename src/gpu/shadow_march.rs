@@ -29,26 +29,9 @@ const WORKGROUP_SIZE_XY: u32 = 8;
 /// `min_uniform_buffer_offset_alignment`, so valid on every adapter).
 pub(crate) const STEP_SLOT_BYTES: u64 = 256;
 
-const SHADOW_MARCH_WGSL: &str = concat!(
-    include_str!(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/shaders/shared/march.wgsl"
-    )),
-    include_str!(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/shaders/shadow_march.wgsl"
-    ))
-);
-const SHADOW_MARCH_SOFT_WGSL: &str = concat!(
-    include_str!(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/shaders/shared/march.wgsl"
-    )),
-    include_str!(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/shaders/shadow_march_soft.wgsl"
-    ))
-);
+const SHADOW_MARCH_WGSL: &str = concat!(wgsl!("shared/march.wgsl"), wgsl!("shadow_march.wgsl"));
+const SHADOW_MARCH_SOFT_WGSL: &str =
+    concat!(wgsl!("shared/march.wgsl"), wgsl!("shadow_march_soft.wgsl"));
 
 /// Mirrors of the WGSL structs.
 pub(crate) mod gpu_data {

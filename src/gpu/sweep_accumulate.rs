@@ -26,10 +26,7 @@ pub const DEFAULT_EPOCHS_PER_SUBMIT: u32 = 64;
 /// Workgroup size of the accumulate kernel. Keep in sync with shaders/sweep_accumulate.wgsl.
 const WORKGROUP_SIZE: u32 = 64;
 
-const SWEEP_ACCUMULATE_WGSL: &str = include_str!(concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/shaders/sweep_accumulate.wgsl"
-));
+const SWEEP_ACCUMULATE_WGSL: &str = wgsl!("sweep_accumulate.wgsl");
 
 /// Mirrors of the WGSL structs.
 mod gpu_data {

@@ -188,6 +188,20 @@ impl MapGrid {
         }
     }
 
+    /// Says what the grid is (one note line: size, spacing, centre) and warns in one line when
+    /// the far field was clipped to [`MAX_MODEL_CELLS`].
+    pub fn announce(&self) {
+        crate::note!(
+            "penumbra: model grid {} x {} at {} m centred on ({:.4}, {:.4}) deg (every layer)",
+            self.hf.rows,
+            self.hf.cols,
+            self.hf.px_m,
+            self.hf.centre_lat_deg,
+            self.hf.centre_lon_deg
+        );
+        self.warn_if_clipped();
+    }
+
     /// Prints a one-line warning when the far field was clipped to [`MAX_MODEL_CELLS`].
     pub fn warn_if_clipped(&self) {
         if let Some(km) = self.clipped_to_km {

@@ -346,15 +346,7 @@ pub fn run(req: &MapRequest) -> anyhow::Result<()> {
     }
 
     let grid = MapGrid::new(&stack)?;
-    crate::note!(
-        "penumbra: model grid {} x {} at {} m centred on ({:.4}, {:.4}) deg (every layer)",
-        grid.hf.rows,
-        grid.hf.cols,
-        grid.hf.px_m,
-        grid.hf.centre_lat_deg,
-        grid.hf.centre_lon_deg
-    );
-    grid.warn_if_clipped();
+    grid.announce();
 
     // One light.
     let (sun, sun_radius_rad, earth) = match (&kernels, explicit_dir, req.sun_az_el_deg) {

@@ -181,43 +181,9 @@ pub fn read_geotiff_from<R: Read + Seek>(
         path: name.into(),
         detail,
     };
-    let pixel_scale = find_f64s(&mut decoder, Tag::ModelPixelScaleTag).map_err(tiff_err)?;
-    let tiepoint = find_f64s(&mut decoder, Tag::ModelTiepointTag).map_err(tiff_err)?;
-    let transformation = find_f64s(&mut decoder, Tag::ModelTransformationTag).map_err(tiff_err)?;
-    let key_dir = match decoder
-        .find_tag(Tag::GeoKeyDirectoryTag)
-        .map_err(tiff_err)?
-    {
-        Some(v) => v.into_u16_vec().map_err(tiff_err)?,
-        None => {
-            return Err(geo_err(
-                "no GeoKeyDirectory tag (34735): not a GeoTIFF".into(),
-            ));
-        }
-    };
-    let doubles = find_f64s(&mut decoder, Tag::GeoDoubleParamsTag)
-        .map_err(tiff_err)?
-        .unwrap_or_default();
-    let ascii = find_ascii(&mut decoder, Tag::GeoAsciiParamsTag)
-        .map_err(tiff_err)?
-        .unwrap_or_default();
-    let keys = parse_geo_keys(&key_dir, &doubles, &ascii).map_err(geo_err)?;
-    let crs = projection_from_geo_keys(&keys).map_err(|detail| DemError::UnknownCrs {
-        path: name.into(),
-        detail,
-    })?;
-    let pixel_is_point = matches!(keys.get(&KEY_RASTER_TYPE), Some(GeoKeyValue::Short(2)));
-    let grid = grid_from_tags(
-        rows_u32 as usize,
-        cols_u32 as usize,
-        pixel_scale.as_deref(),
-        tiepoint.as_deref(),
-        transformation.as_deref(),
-        pixel_is_point,
-        (crs.false_easting_m, crs.false_northing_m),
-    )
-    .map_err(geo_err)?;
-    Dem::check_georeferencing(&grid, &crs.projection).map_err(geo_err)?;
+    let (grid, projection) =
+        read_georeferencing(&mut decoder, name, rows_u32 as usize, cols_u32 as usize)?;
+    Dem::check_georeferencing(&grid, &projection).map_err(geo_err)?;
     check_declared_size(&mut decoder, &grid, kind, file_len).map_err(|detail| {
         DemError::Rejected {
             path: name.into(),
@@ -396,7 +362,7 @@ pub fn read_geotiff_from<R: Read + Seek>(
     Ok((
         Dem {
             grid,
-            projection: crs.projection,
+            projection,
             heights_m,
             name: name.into(),
         },
@@ -567,6 +533,57 @@ fn map_tiff_error(name: &str, e: TiffError) -> DemError {
             detail: other.to_string(),
         },
     }
+}
+
+/// The georeferencing of the first image of `decoder` (`rows` x `cols` pixels): its pixel-is-area
+/// grid (false easting/northing folded into the origin) and projection, from the model tie point,
+/// pixel scale or transformation tags and the GeoKey directory.
+fn read_georeferencing<R: Read + Seek>(
+    decoder: &mut Decoder<R>,
+    name: &str,
+    rows: usize,
+    cols: usize,
+) -> Result<(GridGeometry, Projection)> {
+    let tiff_err = |e: TiffError| map_tiff_error(name, e);
+    let geo_err = |detail: String| DemError::Georeferencing {
+        path: name.into(),
+        detail,
+    };
+    let pixel_scale = find_f64s(decoder, Tag::ModelPixelScaleTag).map_err(tiff_err)?;
+    let tiepoint = find_f64s(decoder, Tag::ModelTiepointTag).map_err(tiff_err)?;
+    let transformation = find_f64s(decoder, Tag::ModelTransformationTag).map_err(tiff_err)?;
+    let Some(key_dir) = decoder
+        .find_tag(Tag::GeoKeyDirectoryTag)
+        .map_err(tiff_err)?
+    else {
+        return Err(geo_err(
+            "no GeoKeyDirectory tag (34735): not a GeoTIFF".into(),
+        ));
+    };
+    let key_dir = key_dir.into_u16_vec().map_err(tiff_err)?;
+    let doubles = find_f64s(decoder, Tag::GeoDoubleParamsTag)
+        .map_err(tiff_err)?
+        .unwrap_or_default();
+    let ascii = find_ascii(decoder, Tag::GeoAsciiParamsTag)
+        .map_err(tiff_err)?
+        .unwrap_or_default();
+    let keys = parse_geo_keys(&key_dir, &doubles, &ascii).map_err(geo_err)?;
+    let crs = projection_from_geo_keys(&keys).map_err(|detail| DemError::UnknownCrs {
+        path: name.into(),
+        detail,
+    })?;
+    let pixel_is_point = matches!(keys.get(&KEY_RASTER_TYPE), Some(GeoKeyValue::Short(2)));
+    let grid = grid_from_tags(
+        rows,
+        cols,
+        pixel_scale.as_deref(),
+        tiepoint.as_deref(),
+        transformation.as_deref(),
+        pixel_is_point,
+        (crs.false_easting_m, crs.false_northing_m),
+    )
+    .map_err(geo_err)?;
+    Ok((grid, crs.projection))
 }
 
 fn find_f64s<R: Read + Seek>(

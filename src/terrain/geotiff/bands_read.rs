@@ -128,43 +128,7 @@ impl MultiBandTiffReader {
         }
 
         // Georeferencing, as for a DEM.
-        let geo_err = |detail: String| DemError::Georeferencing {
-            path: name.clone(),
-            detail,
-        };
-        let pixel_scale = find_f64s(&mut decoder, Tag::ModelPixelScaleTag).map_err(tiff_err)?;
-        let tiepoint = find_f64s(&mut decoder, Tag::ModelTiepointTag).map_err(tiff_err)?;
-        let transformation =
-            find_f64s(&mut decoder, Tag::ModelTransformationTag).map_err(tiff_err)?;
-        let key_dir = match decoder
-            .find_tag(Tag::GeoKeyDirectoryTag)
-            .map_err(tiff_err)?
-        {
-            Some(v) => v.into_u16_vec().map_err(tiff_err)?,
-            None => return Err(geo_err("no GeoKeyDirectory tag (34735)".into())),
-        };
-        let doubles = find_f64s(&mut decoder, Tag::GeoDoubleParamsTag)
-            .map_err(tiff_err)?
-            .unwrap_or_default();
-        let ascii = find_ascii(&mut decoder, Tag::GeoAsciiParamsTag)
-            .map_err(tiff_err)?
-            .unwrap_or_default();
-        let keys = parse_geo_keys(&key_dir, &doubles, &ascii).map_err(geo_err)?;
-        let crs = projection_from_geo_keys(&keys).map_err(|detail| DemError::UnknownCrs {
-            path: name.clone(),
-            detail,
-        })?;
-        let pixel_is_point = matches!(keys.get(&KEY_RASTER_TYPE), Some(GeoKeyValue::Short(2)));
-        let grid = grid_from_tags(
-            rows,
-            cols,
-            pixel_scale.as_deref(),
-            tiepoint.as_deref(),
-            transformation.as_deref(),
-            pixel_is_point,
-            (crs.false_easting_m, crs.false_northing_m),
-        )
-        .map_err(geo_err)?;
+        let (grid, projection) = read_georeferencing(&mut decoder, &name, rows, cols)?;
         let items = find_ascii(&mut decoder, Tag::Unknown(TAG_GDAL_METADATA))
             .map_err(tiff_err)?
             .map(|xml| parse_gdal_metadata(&xml))
@@ -190,7 +154,7 @@ impl MultiBandTiffReader {
             file,
             path: path.to_path_buf(),
             grid,
-            projection: crs.projection,
+            projection,
             sample,
             descriptions,
             metadata,
