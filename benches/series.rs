@@ -1,13 +1,11 @@
-//! The two per-site series engines (issue 7 item 3) on the synthetic DEM (400² at 100 m), eight
-//! days hourly (192 epochs), for 1, 10 and 100 sites: everything `run_series` computes except the
-//! files, sites in parallel as in `run_series`. `horizon`: per-site horizons (fast scan, 0.25°) + the strip integral per epoch;
-//! `smap_dp`: the model grid + max mipmap (once), the DP horizon profile per site (for the CSV
-//! columns and plots) and one DP search per site, epoch and disc.
-//! `smap_dp_gpu` (feature `gpu`, skipped with a printed line when no adapter exists): the same
-//! on the GPU (`series --engine smap-dp --backend gpu`): model grid, f32 grid + mipmap upload,
-//! the horizon profiles and every (site, epoch, disc) search of `shaders/dp_sites.wgsl`, plus
-//! the CPU's per-epoch ephemeris pass that feeds the CSV rows ([`series::site_fractions_given`]);
-//! the device and pipelines are built once, outside the timing (as once per process).
+//! The two per-site series engines on the synthetic DEM (400² at 100 m), eight days hourly (192
+//! epochs), for 1, 10 and 100 sites: everything `run_series` computes except the files, sites in
+//! parallel as in `run_series`. `horizon`: per-site horizons (fast scan, 0.25°) + the strip
+//! integral per epoch; `smap_dp`: the model grid + max mipmap (once), the DP horizon profile per
+//! site and one DP search per site, epoch and disc, then the per-epoch ephemeris pass that feeds
+//! the CSV rows. `smap_dp_gpu` (feature `gpu`, skipped with a printed line when no adapter
+//! exists): the same on the GPU (`series --engine smap-dp --backend gpu`); the device and
+//! pipelines are built once per process, in the warm-up.
 //!
 //! `PENUMBRA_BENCH_KERNELS` overrides the kernel folder (default: the crate's `kernels/`), for
 //! `tools/gpu-bench.sh` on a machine where the crate is elsewhere.
@@ -18,25 +16,78 @@
 )]
 
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
-use penumbra::ephem::{self, Kernels, Site};
-use penumbra::series::dp::SmapDpSites;
-use penumbra::series::{self, SeriesConfig, SeriesEngine, SeriesSite};
+use penumbra::compute::Backend;
+use penumbra::compute::site_dp::{ProfileParams, SiteDpRequest, site_dp};
+use penumbra::ephem::{self, Kernels};
+use penumbra::model::{ObserverHeight, Site};
+use penumbra::products::series::{self, SeriesConfig, SiteFractions};
 use penumbra::terrain::{TerrainStack, synth};
 use rayon::prelude::*;
 
-fn sites(n: usize) -> Vec<SeriesSite> {
+fn sites(n: usize) -> Vec<Site> {
     // A spiral of sites between 3 and 15 km from the pole.
     (0..n)
         .map(|i| {
             let t = i as f64 / n.max(1) as f64;
-            SeriesSite {
-                name: format!("s{i}"),
-                lat_deg: -89.9 + 0.4 * t,
-                lon_deg: (i as f64 * 137.5) % 360.0,
-                height_above_ground_m: 2.0,
-            }
+            Site::new(
+                &format!("s{i}"),
+                -89.9 + 0.4 * t,
+                (i as f64 * 137.5) % 360.0,
+                ObserverHeight::DEFAULT,
+            )
+            .unwrap()
         })
         .collect()
+}
+
+/// The smap-dp engine's request for `sites`.
+fn dp_request<'a>(
+    stack: &'a TerrainStack,
+    sites: &'a [Site],
+    table: &'a [ephem::MoonGeometry],
+    config: &SeriesConfig,
+) -> SiteDpRequest<'a> {
+    SiteDpRequest {
+        stack,
+        sites,
+        table,
+        profile: ProfileParams {
+            az_step_deg: config.az_step_deg,
+            method: config.horizon_method,
+        },
+        limb: config.limb_darkening.law(),
+        abcorr: config.abcorr,
+    }
+}
+
+/// The sum of every site's Sun fractions through the per-epoch pass of `series`.
+fn fraction_sum(
+    table: &[ephem::MoonGeometry],
+    sites: &[Site],
+    horizons: &[penumbra::horizon::Horizon],
+    given: Option<&[(Vec<f64>, Vec<f64>)]>,
+    config: &SeriesConfig,
+) -> f64 {
+    sites
+        .par_iter()
+        .zip(horizons)
+        .enumerate()
+        .map(|(i, (s, h))| {
+            let place =
+                ephem::Site::new(s.lat_deg(), s.lon_deg(), h.ground_height_m + 2.0).unwrap();
+            let source = match given {
+                Some(f) => SiteFractions::Given {
+                    sun: &f[i].0,
+                    earth: &f[i].1,
+                },
+                None => SiteFractions::FromHorizon,
+            };
+            let (f, _) =
+                series::site_fractions(table, &place, h, source, config, |_| false, |_, _| Ok(()))
+                    .unwrap();
+            f.iter().sum::<f64>()
+        })
+        .sum::<f64>()
 }
 
 fn bench_engines(c: &mut Criterion) {
@@ -51,11 +102,11 @@ fn bench_engines(c: &mut Criterion) {
                 "series_engines/smap_dp_gpu on adapter {}",
                 ctx.adapter_name()
             );
-            Some(ctx)
+            true
         }
         Err(e) => {
             eprintln!("series_engines/smap_dp_gpu skipped: {e}");
-            None
+            false
         }
     };
     let stack = TerrainStack::new(vec![
@@ -78,91 +129,29 @@ fn bench_engines(c: &mut Criterion) {
         let sites = sites(n);
         group.bench_with_input(BenchmarkId::new("horizon", n), &sites, |b, sites| {
             b.iter(|| {
-                let horizons = series::site_horizons(&stack, sites, &config).unwrap();
-                sites
-                    .par_iter()
-                    .zip(&horizons)
-                    .map(|(s, h)| {
-                        let site =
-                            Site::new(s.lat_deg, s.lon_deg, h.ground_height_m + 2.0).unwrap();
-                        let (f, _) = series::site_fractions(
-                            &table,
-                            &site,
-                            h,
-                            &config,
-                            |_| false,
-                            |_, _| Ok(()),
-                        )
-                        .unwrap();
-                        f.iter().sum::<f64>()
-                    })
-                    .sum::<f64>()
+                let (horizons, _) = penumbra::compute::horizons::site_horizons(
+                    Backend::Cpu,
+                    &stack,
+                    sites,
+                    config.az_step_deg,
+                    config.horizon_method,
+                )
+                .unwrap();
+                fraction_sum(&table, sites, &horizons, None, &config)
             })
         });
-        let cfg = SeriesConfig {
-            engine: SeriesEngine::SmapDp,
-            ..config
-        };
         group.bench_with_input(BenchmarkId::new("smap_dp", n), &sites, |b, sites| {
             b.iter(|| {
-                let dp = SmapDpSites::new(&stack, sites).unwrap();
-                sites
-                    .par_iter()
-                    .enumerate()
-                    .map(|(i, s)| {
-                        let site =
-                            Site::new(s.lat_deg, s.lon_deg, dp.ground_height_m(i) + 2.0).unwrap();
-                        let h = dp.horizon(i, s, &site, &cfg).unwrap();
-                        let (f, _) = series::site_fractions_smap_dp(
-                            &table,
-                            &site,
-                            &dp,
-                            i,
-                            &h,
-                            &cfg,
-                            |_| false,
-                            |_, _| Ok(()),
-                        )
-                        .unwrap();
-                        f.iter().sum::<f64>()
-                    })
-                    .sum::<f64>()
+                let run = site_dp(Backend::Cpu, dp_request(&stack, sites, &table, &config)).unwrap();
+                fraction_sum(&table, sites, &run.horizons, Some(&run.fractions), &config)
             })
         });
         #[cfg(feature = "gpu")]
-        if let Some(ctx) = &gpu {
+        if gpu {
             group.bench_with_input(BenchmarkId::new("smap_dp_gpu", n), &sites, |b, sites| {
                 b.iter(|| {
-                    let dp = SmapDpSites::new(&stack, sites).unwrap();
-                    let on_gpu = penumbra::series::dp::SmapDpGpu::new(ctx, &dp).unwrap();
-                    let ephem_sites: Vec<Site> = sites
-                        .iter()
-                        .enumerate()
-                        .map(|(i, s)| {
-                            Site::new(s.lat_deg, s.lon_deg, dp.ground_height_m(i) + 2.0).unwrap()
-                        })
-                        .collect();
-                    let horizons = on_gpu.horizons(&dp, sites, &ephem_sites, &cfg).unwrap();
-                    let fractions = on_gpu.fractions(&dp, &table, &ephem_sites, &cfg).unwrap();
-                    ephem_sites
-                        .par_iter()
-                        .zip(&horizons)
-                        .zip(&fractions)
-                        .map(|((site, h), (sun, earth))| {
-                            let (f, _) = series::site_fractions_given(
-                                &table,
-                                site,
-                                h,
-                                sun,
-                                earth,
-                                &cfg,
-                                |_| false,
-                                |_, _| Ok(()),
-                            )
-                            .unwrap();
-                            f.iter().sum::<f64>()
-                        })
-                        .sum::<f64>()
+                    let run = site_dp(Backend::Gpu, dp_request(&stack, sites, &table, &config)).unwrap();
+                    fraction_sum(&table, sites, &run.horizons, Some(&run.fractions), &config)
                 })
             });
         }

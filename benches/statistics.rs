@@ -18,7 +18,7 @@ use penumbra::horizon::statistics::{
 };
 use penumbra::horizon::{HorizonSweep, SweepParams};
 use penumbra::illum::LimbDarkening;
-use penumbra::map::{MapEngine, MapEngineKind, ObserverPlacement};
+use penumbra::model::{MapEngine, MapEngineKind, ObserverPlacement};
 use penumbra::model::{MapGrid, epoch_lights};
 use penumbra::terrain::TerrainStack;
 
@@ -89,7 +89,7 @@ fn bench_statistics(c: &mut Criterion) {
         let engine = MapEngine::new(kind, &grid, 2.0).unwrap();
         group.bench_function(name, |b| {
             b.iter(|| {
-                penumbra::map::sweep(
+                penumbra::model::per_epoch_statistics(
                     &grid,
                     &engine,
                     2.0,

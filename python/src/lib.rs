@@ -13,6 +13,7 @@ use hifitime::Epoch;
 use numpy::ndarray::Array2;
 use numpy::{IntoPyArray, PyReadonlyArray1};
 use penumbra::ephem::{self as eph, AbCorr, Kernels};
+use penumbra::model::{EpochRange, ObserverHeight, Site};
 use penumbra::terrain::TerrainStack;
 use pyo3::create_exception;
 use pyo3::exceptions::PyValueError;
@@ -33,6 +34,16 @@ fn py_err(e: anyhow::Error) -> PyErr {
 
 fn bad(msg: impl Into<String>) -> PyErr {
     PenumbraError::new_err(msg.into())
+}
+
+/// A value typed by the caller, refused: `<argument>: <the command line's message>`.
+fn refused(argument: &str, e: penumbra::model::InputError) -> PyErr {
+    bad(format!("{argument}: {e}"))
+}
+
+/// `observer_height_m` as the command line's `--observer-height-m` takes it.
+fn observer_height(m: f64) -> PyResult<ObserverHeight> {
+    ObserverHeight::new(m).map_err(|e| refused("observer_height_m", e))
 }
 
 // --- time ---------------------------------------------------------------------------------------
@@ -150,24 +161,14 @@ fn time_range<'py>(
     stop: &str,
     step: &str,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let spec = penumbra::products::EpochSpec::parse(None, Some(start), Some(stop), Some(step))
-        .map_err(py_err)?
-        .ok_or_else(|| bad("time_range needs start, stop and step"))?;
-    let epochs = spec.epochs().map_err(py_err)?;
-    datetime64(py, &epochs)
+    let range = EpochRange::parse(start, stop, step).map_err(|e| refused("time_range", e))?;
+    datetime64(py, &range.epochs())
 }
 
-/// The step of evenly spaced epochs, seconds (`None` when they are not evenly spaced).
-fn uniform_step_s(epochs: &[Epoch]) -> Option<f64> {
-    if epochs.len() < 2 {
-        return Some(3600.0);
-    }
-    let step = (epochs[1] - epochs[0]).to_seconds();
-    (step > 0.0
-        && epochs
-            .windows(2)
-            .all(|w| ((w[1] - w[0]).to_seconds() - step).abs() <= 1e-6))
-    .then_some(step)
+/// The range that `epochs` are (evenly spaced, in order), as the command line's
+/// `--start --stop --step` would give them.
+fn epoch_range(epochs: &[Epoch]) -> PyResult<EpochRange> {
+    EpochRange::from_epochs(epochs).map_err(|e| refused("times", e))
 }
 
 // --- kernels, progress ----------------------------------------------------------------------------
@@ -427,7 +428,7 @@ fn horizon<'py>(
         other => return Err(bad(format!("method '{other}': use fast or exact"))),
     };
     let params = penumbra::horizon::HorizonParams {
-        observer_height_m,
+        observer_height_m: observer_height(observer_height_m)?.m(),
         az_step_deg,
         method,
         ..Default::default()
@@ -478,7 +479,6 @@ struct SiteColumns {
 /// `stats` the dict of the CLI's `stats.json` (needs evenly spaced times).
 #[pyfunction]
 #[pyo3(signature = (terrain, sites, times, kernels = None, abcorr = "lt+s", limb_darkening = "eddington", disc_method = "exact", az_step_deg = 0.25, horizon_method = "fast", progress = None))]
-#[allow(clippy::too_many_arguments, reason = "a Python function with keywords")]
 fn series<'py>(
     py: Python<'py>,
     terrain: &Terrain,
@@ -492,10 +492,12 @@ fn series<'py>(
     horizon_method: &str,
     progress: Option<Bound<'py, PyAny>>,
 ) -> PyResult<(Bound<'py, PyDict>, Bound<'py, PyAny>)> {
-    use penumbra::series::{self as ser, SeriesConfig, SeriesSite};
+    use penumbra::products::series::{self as ser, SeriesConfig};
     let epochs = epochs_from(times)?;
-    let step_s = uniform_step_s(&epochs)
-        .ok_or_else(|| bad("series: the times must be evenly spaced (use time_range)"))?;
+    let step_s = match epochs.len() {
+        1 => 3600.0,
+        _ => epoch_range(&epochs)?.step_s(),
+    };
     let mut config = SeriesConfig {
         abcorr: self::abcorr(abcorr)?,
         az_step_deg,
@@ -503,16 +505,7 @@ fn series<'py>(
         plots: false,
         ..SeriesConfig::default()
     };
-    config.limb_darkening = match limb_darkening {
-        "none" => ser::LimbLaw::None,
-        "eddington" => ser::LimbLaw::Eddington,
-        "allen550nm" => ser::LimbLaw::Allen550nm,
-        o => {
-            return Err(bad(format!(
-                "limb_darkening '{o}': use none, eddington or allen550nm"
-            )));
-        }
-    };
+    config.limb_darkening = limb_law(limb_darkening)?;
     config.disc_method = match disc_method {
         "exact" => penumbra::illum::DiscMethod::Exact,
         "segment" => penumbra::illum::DiscMethod::Segment,
@@ -528,30 +521,32 @@ fn series<'py>(
         "exact" => penumbra::horizon::HorizonMethod::Exact,
         o => return Err(bad(format!("horizon_method '{o}': use fast or exact"))),
     };
-    let specs: Vec<SeriesSite> = sites
+    let specs: Vec<Site> = sites
         .into_iter()
-        .map(
-            |(name, lat_deg, lon_deg, height_above_ground_m)| SeriesSite {
-                name,
-                lat_deg,
-                lon_deg,
-                height_above_ground_m,
-            },
-        )
-        .collect();
+        .map(|(name, lat_deg, lon_deg, height_m)| {
+            Site::new(&name, lat_deg, lon_deg, observer_height(height_m)?)
+                .map_err(|e| refused("sites", e))
+        })
+        .collect::<PyResult<_>>()?;
     if specs.is_empty() {
         return Err(bad(
             "series: give at least one site (name, lat_deg, lon_deg, height_m)",
         ));
     }
-    ser::validate_sites(&specs).map_err(py_err)?;
+    penumbra::model::check_distinct_sites(&specs).map_err(|e| refused("sites", e))?;
     let kernels = load_kernels(kernels)?;
     let stack = Arc::clone(&terrain.stack);
 
     // Horizons and the shared ephemeris, then the sites in chunks (progress, Ctrl-C between).
     let (horizons, table) = py
         .allow_threads(|| -> anyhow::Result<_> {
-            let horizons = ser::site_horizons(&stack, &specs, &config)?;
+            let (horizons, _) = penumbra::compute::horizons::site_horizons(
+                penumbra::compute::Backend::Cpu,
+                &stack,
+                &specs,
+                config.az_step_deg,
+                config.horizon_method,
+            )?;
             let table = eph::moon_geometry_table(&kernels, &epochs)?;
             Ok((horizons, table))
         })
@@ -579,7 +574,7 @@ fn series<'py>(
     let out = PyDict::new(py);
     let names: Vec<&str> = specs
         .iter()
-        .flat_map(|s| std::iter::repeat_n(s.name.as_str(), epochs.len()))
+        .flat_map(|s| std::iter::repeat_n(s.name(), epochs.len()))
         .collect();
     let np = py.import("numpy")?;
     out.set_item(
@@ -608,7 +603,7 @@ fn series<'py>(
         .iter()
         .zip(&results)
         .map(|(s, r)| penumbra::illum::stats::SiteSeries {
-            site: &s.name,
+            site: s.name(),
             start_utc: epochs[0],
             step_s,
             sun_fraction: &r.sun,
@@ -628,24 +623,26 @@ fn series<'py>(
 /// One site's rows, as `series.csv` has them.
 fn site_columns(
     table: &[eph::topo::MoonGeometry],
-    spec: &penumbra::series::SeriesSite,
+    spec: &Site,
     horizon: &penumbra::horizon::Horizon,
-    config: &penumbra::series::SeriesConfig,
+    config: &penumbra::products::series::SeriesConfig,
 ) -> anyhow::Result<SiteColumns> {
+    use penumbra::products::series as ser;
     let site = eph::Site::new(
-        spec.lat_deg,
-        spec.lon_deg,
-        horizon.ground_height_m + spec.height_above_ground_m,
+        spec.lat_deg(),
+        spec.lon_deg(),
+        horizon.ground_height_m + spec.height_above_ground_m(),
     )?;
     let mut columns = vec![Vec::with_capacity(table.len()); SERIES_COLUMNS.len()];
-    let (sun, earth) = penumbra::series::site_fractions(
+    let (sun, earth) = ser::site_fractions(
         table,
         &site,
         horizon,
+        ser::SiteFractions::FromHorizon,
         config,
         |_| true,
         |_, r| {
-            for (c, v) in columns.iter_mut().zip(penumbra::series::row_values(r)) {
+            for (c, v) in columns.iter_mut().zip(ser::row_values(r)) {
                 c.push(v);
             }
             Ok(())
@@ -671,7 +668,6 @@ fn site_columns(
 /// between them.
 #[pyfunction]
 #[pyo3(signature = (terrain, times, engine = "auto", observer_height_m = 2.0, kernels = None, abcorr = "lt+s", horizons = None, azimuths = 720, max_step = 16, limb_darkening = "eddington", progress = None))]
-#[allow(clippy::too_many_arguments, reason = "a Python function with keywords")]
 fn map_statistics<'py>(
     py: Python<'py>,
     terrain: &Terrain,
@@ -686,33 +682,20 @@ fn map_statistics<'py>(
     limb_darkening: &str,
     progress: Option<Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyDict>> {
-    use penumbra::compute::sweep::{HorizonsFrom, RangeMap, range_statistics};
-    use penumbra::map::MapEngineKind;
-    let epochs = epochs_from(times)?;
-    if epochs.len() < 2 {
-        return Err(bad("map_statistics: give at least two evenly spaced times"));
-    }
-    let step_s = uniform_step_s(&epochs)
-        .ok_or_else(|| bad("map_statistics: the times must be evenly spaced (use time_range)"))?;
-    let horizons = match horizons {
-        Some(p) => HorizonsFrom::File(p),
-        None => HorizonsFrom::Sweep { azimuths, max_step },
+    use penumbra::compute::range::{HorizonsFrom, RangeHooks, RangeInputs};
+    use penumbra::products::map as pm;
+    let epochs = epoch_range(&epochs_from(times)?)?;
+    let settings = pm::MapSettings {
+        observer_height: observer_height(observer_height_m)?,
+        engine: engine_choice(engine)?,
+        backend: penumbra::compute::Backend::Cpu,
+        horizons: match horizons {
+            Some(p) => HorizonsFrom::File(p),
+            None => HorizonsFrom::Sweep { azimuths, max_step },
+        },
+        limb: limb_law(limb_darkening)?,
+        ..pm::MapSettings::default()
     };
-    let backend = penumbra::compute::ResolvedBackend::Cpu;
-    let kind = match engine {
-        "auto" => penumbra::products::map::auto_engine(&backend, epochs.len(), &horizons),
-        other => MapEngineKind::parse(other).ok_or_else(|| {
-            bad(format!(
-                "engine '{other}': use auto, brute, smap, dp, combined, fourier or horizons"
-            ))
-        })?,
-    };
-    let limb = limb_law(limb_darkening)?;
-    if !(observer_height_m.is_finite() && observer_height_m >= 0.0) {
-        return Err(bad(format!(
-            "observer_height_m {observer_height_m} must be a finite number >= 0"
-        )));
-    }
     let ab = self::abcorr(abcorr)?;
     let kernels = load_kernels(kernels)?;
     let stack = Arc::clone(&terrain.stack);
@@ -731,28 +714,20 @@ fn map_statistics<'py>(
         })
     };
     let result = py.allow_threads(|| -> anyhow::Result<_> {
-        let result = range_statistics(
-            &backend,
-            &stack,
-            &RangeMap {
-                engine: kind,
-                observer_height_m,
-                placement: penumbra::map::ObserverPlacement::Pixels,
-                gpu_tile_cells: None,
-                horizons,
-                limb,
-            },
-            &kernels,
-            &epochs,
-            ab,
-            step_s / 3600.0,
-            &mut report,
-            &mut penumbra::horizon::statistics::NoStore,
-        )?;
+        let inputs = RangeInputs {
+            stack: &stack,
+            kernels: &kernels,
+            epochs: &epochs,
+            abcorr: ab,
+        };
+        let hooks = RangeHooks {
+            report: &mut report,
+            store: &mut penumbra::horizon::statistics::NoStore,
+        };
+        let result = pm::statistics(&settings, inputs, hooks)?;
         let (rasters, psr) =
-            penumbra::map::sweep_rasters(&stack.layers[0], result.model.as_ref(), &result.stats)?;
-        let items =
-            penumbra::map::sweep_metadata(&penumbra::map::span_text(&epochs), &result.stats);
+            pm::range_rasters(&stack.layers[0], result.model.as_ref(), &result.stats)?;
+        let items = pm::range_metadata(&pm::span_text(&epochs.epochs()), &result.stats);
         Ok((rasters, psr, result.note, items))
     });
     let (rasters, psr, note, items) = match (result, stopped) {
@@ -768,11 +743,11 @@ fn map_statistics<'py>(
             Array2::from_shape_vec((g.rows, g.cols), r.values).map_err(|e| bad(e.to_string()))?;
         out.set_item(r.name, a.into_pyarray(py))?;
         descriptions.set_item(r.name, r.description)?;
-        units.set_item(r.name, penumbra::map::geotiff_unit(r.name))?;
+        units.set_item(r.name, pm::geotiff_unit(r.name))?;
     }
     let a = Array2::from_shape_vec((g.rows, g.cols), psr).map_err(|e| bad(e.to_string()))?;
     out.set_item("psr_mask", a.into_pyarray(py))?;
-    descriptions.set_item("psr_mask", penumbra::map::PSR_DESCRIPTION)?;
+    descriptions.set_item("psr_mask", pm::PSR_DESCRIPTION)?;
     units.set_item("psr_mask", "")?;
     out.set_item("descriptions", descriptions)?;
     out.set_item("units", units)?;
@@ -792,7 +767,6 @@ fn map_statistics<'py>(
 /// map centre) with `sun_radius_deg`.
 #[pyfunction]
 #[pyo3(signature = (terrain, utc = None, sun_az_deg = None, sun_el_deg = None, sun_radius_deg = 0.2666, engine = "combined", observer_height_m = 2.0, kernels = None, abcorr = "lt+s"))]
-#[allow(clippy::too_many_arguments, reason = "a Python function with keywords")]
 fn map_light<'py>(
     py: Python<'py>,
     terrain: &Terrain,
@@ -805,34 +779,32 @@ fn map_light<'py>(
     kernels: Option<PathBuf>,
     abcorr: &str,
 ) -> PyResult<Bound<'py, PyDict>> {
-    use penumbra::map::{MapEngineKind, ObserverPlacement};
     use penumbra::products::map as pm;
-    let kind = match engine {
-        "horizons" => {
+    let engine = match engine_choice(engine)? {
+        Some(penumbra::model::MapEngineKind::Horizons) => {
             return Err(bad(
                 "engine 'horizons' makes statistics over an epoch range: use map_statistics",
             ));
         }
-        "auto" => MapEngineKind::Direct(penumbra::shadow::Engine::Combined),
-        other => MapEngineKind::parse(other).ok_or_else(|| {
-            bad(format!(
-                "engine '{other}': use brute, smap, dp, combined or fourier"
-            ))
-        })?,
+        other => other,
     };
-    if !(observer_height_m.is_finite() && observer_height_m >= 0.0) {
-        return Err(bad(format!(
-            "observer_height_m {observer_height_m} must be a finite number >= 0"
-        )));
-    }
-    if !(sun_radius_deg > 0.0 && sun_radius_deg < 10.0) {
-        return Err(bad(format!(
-            "sun_radius_deg {sun_radius_deg} must be in (0, 10)"
-        )));
-    }
+    let settings = pm::MapSettings {
+        observer_height: observer_height(observer_height_m)?,
+        engine,
+        backend: penumbra::compute::Backend::Cpu,
+        ..pm::MapSettings::default()
+    };
     let light = match (utc, sun_az_deg, sun_el_deg) {
-        (Some(t), None, None) => Some(eph::time::parse_utc(t).map_err(|e| bad(e.to_string()))?),
-        (None, Some(_), Some(_)) => None,
+        (Some(t), None, None) => {
+            pm::Light::Epoch(eph::time::parse_utc(t).map_err(|e| bad(e.to_string()))?)
+        }
+        (None, Some(az_deg), Some(el_deg)) => pm::Light::AzElAtCentre {
+            az_deg,
+            el_deg,
+            radius_deg: sun_radius_deg,
+        }
+        .checked()
+        .map_err(py_err)?,
         _ => {
             return Err(bad(
                 "give the light: utc, or sun_az_deg and sun_el_deg (not both)",
@@ -841,53 +813,24 @@ fn map_light<'py>(
     };
     let ab = self::abcorr(abcorr)?;
     let kernels = match light {
-        Some(_) => Some(load_kernels(kernels)?),
-        None => None,
+        pm::Light::Epoch(_) => Some(load_kernels(kernels)?),
+        _ => None,
     };
     let stack = Arc::clone(&terrain.stack);
-    let (sun_f, mask, earth_f, items) = py
-        .allow_threads(|| -> anyhow::Result<_> {
-            let grid = penumbra::model::MapGrid::new(&stack)?;
-            let (sun, radius, earth) = match (light, &kernels) {
-                (Some(epoch), Some(k)) => {
-                    let l = penumbra::model::epoch_lights(&grid, k, &[epoch], ab)?[0];
-                    (l.sun, l.sun_radius_rad, Some((l.earth, l.earth_radius_rad)))
-                }
-                _ => (
-                    grid.light_from_az_el_deg(
-                        sun_az_deg.unwrap_or_default(),
-                        sun_el_deg.unwrap_or_default(),
-                    ),
-                    sun_radius_deg.to_radians(),
-                    None,
-                ),
-            };
-            let maps = penumbra::compute::one_light::OneLightMaps::new(
-                &penumbra::compute::ResolvedBackend::Cpu,
-                &grid,
-                kind,
-                observer_height_m,
-                ObserverPlacement::Pixels,
-                None,
-            )?;
-            let f = maps.fraction(sun, radius)?;
-            let m = maps.mask(sun)?;
-            let e = match earth {
-                Some((dir, r)) => Some(maps.fraction(dir, r)?),
-                None => None,
-            };
-            let items = pm::one_light_metadata(
-                &grid,
-                kind,
-                observer_height_m,
-                maps.placement(),
-                (sun, radius),
-                earth.map(|(dir, _)| dir),
-                light.map(|e| (e, ab)),
-            );
-            Ok((f, m, e, items))
-        })
+    let every = pm::OneLightOutputs {
+        sun_fraction: true,
+        sun_mask: true,
+        earth_fraction: true,
+    };
+    let maps = py
+        .allow_threads(|| pm::one_light(&settings, &stack, (light, kernels.as_ref(), ab), every))
         .map_err(py_err)?;
+    let (sun_f, mask, earth_f, items) = (
+        maps.sun_fraction.unwrap_or_default(),
+        maps.sun_mask.unwrap_or_default(),
+        maps.earth_fraction,
+        maps.metadata,
+    );
     let g = stack.layers[0].grid;
     let out = PyDict::new(py);
     let descriptions = PyDict::new(py);
@@ -984,7 +927,6 @@ enum ExposureArg {
 /// the sphere, looking at (`target_lat_deg`, `target_lon_deg`).
 #[pyfunction]
 #[pyo3(signature = (terrain, utc, lat_deg, lon_deg, camera = "site", height_m = 2.0, look_az_deg = 0.0, look_el_deg = 0.0, altitude_km = None, target_lat_deg = None, target_lon_deg = None, fov_deg = 60.0, width = 640, height = 400, brdf = "hapke", exposure = None, kernels = None, abcorr = "lt+s", backend = "auto"))]
-#[allow(clippy::too_many_arguments, reason = "a Python function with keywords")]
 fn render<'py>(
     py: Python<'py>,
     terrain: &Terrain,
@@ -1077,17 +1019,23 @@ fn render<'py>(
 }
 
 /// The limb darkening law named `text`.
-fn limb_law(text: &str) -> PyResult<penumbra::series::LimbLaw> {
+fn limb_law(text: &str) -> PyResult<penumbra::illum::LimbLaw> {
+    use penumbra::illum::LimbLaw;
     Ok(match text {
-        "none" => penumbra::series::LimbLaw::None,
-        "eddington" => penumbra::series::LimbLaw::Eddington,
-        "allen550nm" => penumbra::series::LimbLaw::Allen550nm,
+        "none" => LimbLaw::None,
+        "eddington" => LimbLaw::Eddington,
+        "allen550nm" => LimbLaw::Allen550nm,
         o => {
             return Err(bad(format!(
                 "limb_darkening '{o}': use none, eddington or allen550nm"
             )));
         }
     })
+}
+
+/// The map engine named `name` (`auto`: `None`), as the command line's `--engine` takes it.
+fn engine_choice(name: &str) -> PyResult<Option<penumbra::model::MapEngineKind>> {
+    penumbra::model::MapEngineKind::parse_choice(name).map_err(bad)
 }
 
 // --- sharded maps -----------------------------------------------------------------------------------
@@ -1099,7 +1047,6 @@ fn limb_law(text: &str) -> PyResult<penumbra::series::LimbLaw> {
 /// Shards made here and by the CLI with the same parameters and inputs merge together.
 #[pyfunction]
 #[pyo3(signature = (terrain, start, stop, step, out_dir, shard, shards, observer_height_m = 2.0, kernels = None, abcorr = "lt+s", horizons = None, azimuths = 720, max_step = 16, limb_darkening = "eddington", resume = false))]
-#[allow(clippy::too_many_arguments, reason = "a Python function with keywords")]
 fn map_shard<'py>(
     py: Python<'py>,
     terrain: &Terrain,
@@ -1118,46 +1065,41 @@ fn map_shard<'py>(
     limb_darkening: &str,
     resume: bool,
 ) -> PyResult<Bound<'py, PyAny>> {
-    use penumbra::compute::sweep::HorizonsFrom;
-    let shard = penumbra::products::shard::Shard::parse(&format!("{shard}/{shards}"))
+    use penumbra::compute::range::HorizonsFrom;
+    use penumbra::products::map as pm;
+    let shard = pm::shard::Shard::parse(&format!("{shard}/{shards}"))
         .map_err(|e| bad(e.replace("--shard", "map_shard")))?;
     if !(4..=100_000).contains(&azimuths) || !(1..=64).contains(&max_step) {
         return Err(bad(
             "map_shard: azimuths must be 4 … 100000 and max_step 1 … 64",
         ));
     }
-    let epochs =
-        penumbra::products::EpochSpec::parse_required(None, Some(start), Some(stop), Some(step))
-            .map_err(py_err)?;
-    let req = penumbra::products::map::MapRequest {
+    let epochs = EpochRange::parse(start, stop, step).map_err(|e| refused("map_shard", e))?;
+    let req = pm::MapRequest {
         terrain: terrain.source.clone(),
-        observer_height_m,
-        engine: None,
-        epochs: Some(epochs),
-        sun_dir_in_moon_me: None,
-        sun_az_el_deg: None,
-        // The command line's default, so that the job's fingerprint is the CLI's.
-        sun_radius_deg: 0.2666,
-        out_fraction: None,
-        out_mask: None,
-        out_earth_fraction: None,
-        out_dir: Some(out_dir.clone()),
-        resume,
-        shard: Some(shard),
-        backend: penumbra::gpu::Backend::Auto,
-        gpu_tile_cells: None,
-        observers: None,
-        horizons: match horizons {
-            Some(p) => HorizonsFrom::File(p),
-            None => HorizonsFrom::Sweep { azimuths, max_step },
-        },
-        limb: limb_law(limb_darkening)?,
-        abcorr: self::abcorr(abcorr)?,
         kernels: penumbra::products::KernelSource { dir: kernels },
+        abcorr: self::abcorr(abcorr)?,
+        settings: pm::MapSettings {
+            observer_height: observer_height(observer_height_m)?,
+            horizons: match horizons {
+                Some(p) => HorizonsFrom::File(p),
+                None => HorizonsFrom::Sweep { azimuths, max_step },
+            },
+            limb: limb_law(limb_darkening)?,
+            ..pm::MapSettings::default()
+        },
+        task: pm::MapTask::Range {
+            epochs,
+            files: pm::RangeFiles {
+                out_dir: out_dir.clone(),
+                resume,
+                shard: Some(shard),
+            },
+        },
     };
     py.allow_threads(|| penumbra::products::map::run(&req))
         .map_err(py_err)?;
-    let text = std::fs::read_to_string(out_dir.join(penumbra::products::shard::MANIFEST))
+    let text = std::fs::read_to_string(out_dir.join(penumbra::products::map::shard::MANIFEST))
         .map_err(|e| bad(format!("reading the shard's manifest: {e}")))?;
     let json = py.import("json")?;
     json.call_method1("loads", (text,))
@@ -1167,7 +1109,7 @@ fn map_shard<'py>(
 /// partials of all shards of one job into its maps (the bytes of a single-machine run).
 #[pyfunction]
 fn merge_shards(py: Python<'_>, out_dir: PathBuf, shard_dirs: Vec<PathBuf>) -> PyResult<()> {
-    py.allow_threads(|| penumbra::products::shard::merge(&out_dir, &shard_dirs))
+    py.allow_threads(|| penumbra::products::map::shard::merge(&out_dir, &shard_dirs))
         .map_err(py_err)
 }
 

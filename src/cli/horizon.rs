@@ -20,9 +20,9 @@ pub struct HorizonArgs {
     /// Site east longitude, degrees.
     #[arg(long, allow_negative_numbers = true)]
     pub lon_deg: f64,
-    /// Observer height above the terrain surface (radial), metres.
-    #[arg(long, default_value_t = penumbra::DEFAULT_OBSERVER_HEIGHT_M, allow_negative_numbers = true)]
-    pub observer_height_m: f64,
+    /// Observer height above the terrain surface (radial), metres (0 … 100000).
+    #[arg(long, value_name = "M", default_value_t = penumbra::model::ObserverHeight::DEFAULT, allow_negative_numbers = true)]
+    pub observer_height_m: penumbra::model::ObserverHeight,
     /// Azimuth step, degrees (must divide 360).
     #[arg(long, default_value_t = 0.25, allow_negative_numbers = true)]
     pub az_step_deg: f64,
@@ -75,7 +75,7 @@ pub fn run(args: &HorizonArgs) -> anyhow::Result<()> {
         lat_deg: args.lat_deg,
         lon_deg: args.lon_deg,
         params: HorizonParams {
-            observer_height_m: args.observer_height_m,
+            observer_height_m: args.observer_height_m.m(),
             az_step_deg: args.az_step_deg,
             method: args.method.into(),
             ..HorizonParams::default()

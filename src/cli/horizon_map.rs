@@ -29,9 +29,9 @@ pub struct HorizonMapBuildArgs {
     /// The terrain.
     #[command(flatten)]
     pub terrain: TerrainArgs,
-    /// Observer height above the ground (radial), metres.
-    #[arg(long, default_value_t = penumbra::DEFAULT_OBSERVER_HEIGHT_M, allow_negative_numbers = true)]
-    pub observer_height_m: f64,
+    /// Observer height above the ground (radial), metres (0 … 100000).
+    #[arg(long, value_name = "M", default_value_t = penumbra::model::ObserverHeight::DEFAULT, allow_negative_numbers = true)]
+    pub observer_height_m: penumbra::model::ObserverHeight,
     /// Number of sampled azimuths before the DFT (at least 32).
     #[arg(long, default_value_t = penumbra::shadow::fourier::DEFAULT_AZIMUTHS)]
     pub azimuths: usize,
@@ -54,9 +54,9 @@ pub struct HorizonSweepArgs {
     /// The terrain.
     #[command(flatten)]
     pub terrain: TerrainArgs,
-    /// Observer height above the ground (radial), metres.
-    #[arg(long, default_value_t = penumbra::DEFAULT_OBSERVER_HEIGHT_M, allow_negative_numbers = true)]
-    pub observer_height_m: f64,
+    /// Observer height above the ground (radial), metres (0 … 100000).
+    #[arg(long, value_name = "M", default_value_t = penumbra::model::ObserverHeight::DEFAULT, allow_negative_numbers = true)]
+    pub observer_height_m: penumbra::model::ObserverHeight,
     /// Requested azimuths, uniform in grid azimuth; each is served by the nearest line direction
     /// (band descriptions give the exact grid azimuths).
     #[arg(long, default_value_t = penumbra::horizon::sweep::DEFAULT_SWEEP_AZIMUTHS)]
@@ -85,7 +85,7 @@ pub fn run(command: HorizonMapCommand) -> anyhow::Result<()> {
         HorizonMapCommand::Build(args) => {
             penumbra::products::horizon_map::build(&HorizonMapBuildRequest {
                 terrain: args.terrain.source(),
-                observer_height_m: args.observer_height_m,
+                observer_height: args.observer_height_m,
                 azimuths: args.azimuths,
                 max_distance_cells: args.max_distance_cells,
                 out: args.out.clone(),
@@ -95,7 +95,7 @@ pub fn run(command: HorizonMapCommand) -> anyhow::Result<()> {
         HorizonMapCommand::Sweep(args) => {
             penumbra::products::horizon_map::sweep(&HorizonSweepRequest {
                 terrain: args.terrain.source(),
-                observer_height_m: args.observer_height_m,
+                observer_height: args.observer_height_m,
                 azimuths: args.azimuths,
                 max_step: args.max_step,
                 out: args.out,

@@ -3,7 +3,10 @@
 use std::path::PathBuf;
 
 use clap::{Args, ValueEnum};
-use penumbra::products::map::MapRequest;
+use penumbra::model::{MapEngineKind, ObserverHeight, ObserverPlacement};
+use penumbra::products::map::{
+    Light, MapRequest, MapSettings, MapTask, OneLightFiles, RangeFiles, shard::Shard,
+};
 
 use super::{BackendArg, EpochArgs, KernelArgs, TerrainArgs};
 
@@ -16,54 +19,43 @@ pub enum ObserversArg {
     Cells,
 }
 
-impl From<ObserversArg> for penumbra::map::ObserverPlacement {
+impl From<ObserversArg> for ObserverPlacement {
     fn from(o: ObserversArg) -> Self {
         match o {
-            ObserversArg::Pixels => penumbra::map::ObserverPlacement::Pixels,
-            ObserversArg::Cells => penumbra::map::ObserverPlacement::Cells,
+            ObserversArg::Pixels => ObserverPlacement::Pixels,
+            ObserversArg::Cells => ObserverPlacement::Cells,
         }
     }
 }
 
-/// Shadow engine on the command line.
+/// Map engine on the command line (the names of [`MapEngineKind::parse_choice`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum EngineArg {
-    /// Brute-force ray march (the reference; slow).
-    Brute,
-    /// SMap hard shadows ("Real-time terrain shadowing by directional light"); soft fractions
-    /// via SMap + DP.
-    Smap,
-    /// DP maximum-mipmap soft shadows everywhere (Jung, Schrempp and Son: dynamic programming
-    /// and maximum mipmaps).
-    Dp,
-    /// SMap at the disc limbs + DP in the penumbra only (the design's combination).
+    /// SMap hard shadows at the disc limbs + DP maximum-mipmap soft shadows in the penumbra only
+    /// (the design's combination; CPU).
     Combined,
-    /// Fourier-compressed horizon maps (Fritsch et al.): per-cell horizons at 64 azimuths, 16 complex
-    /// DFT coefficients in f16, built once; each light is then a cheap evaluation.
+    /// DP maximum-mipmap soft shadows everywhere (Jung, Schrempp and Son: dynamic programming
+    /// and maximum mipmaps; CPU or GPU).
+    Dp,
+    /// Fourier-compressed horizon maps (Fritsch et al.): per-cell horizons at 64 azimuths, 16
+    /// complex DFT coefficients in f16, built once; each light is then a cheap evaluation.
     Fourier,
     /// Epoch ranges only: exact whole-grid horizons (line sweep, every layer; or --horizons
     /// FILE), then every epoch at every pixel with the pixel's own Sun and Earth directions.
     Horizons,
-    /// One light: `combined`. Epoch ranges: `horizons` from 1,000 epochs on (or with
-    /// --horizons FILE), `combined` below (measured break-even, docs/PERFORMANCE.md); on the GPU
-    /// its DP sweep.
+    /// One light: `dp` on a GPU, else `combined`. Epoch ranges: `horizons` from 1,000 epochs on
+    /// (or with --horizons FILE), else `dp` on a GPU, `combined` on the CPU.
     Auto,
 }
 
 impl EngineArg {
     /// The engine, or `None` for `auto` (the product chooses).
-    fn kind(self) -> Option<penumbra::map::MapEngineKind> {
-        use penumbra::map::MapEngineKind;
-        use penumbra::shadow::Engine;
-        Some(match self {
-            EngineArg::Brute => MapEngineKind::Direct(Engine::Brute),
-            EngineArg::Smap => MapEngineKind::Direct(Engine::Smap),
-            EngineArg::Dp => MapEngineKind::Direct(Engine::Dp),
-            EngineArg::Combined => MapEngineKind::Direct(Engine::Combined),
-            EngineArg::Fourier => MapEngineKind::Fourier,
-            EngineArg::Horizons => MapEngineKind::Horizons,
-            EngineArg::Auto => return None,
-        })
+    fn kind(self) -> Option<MapEngineKind> {
+        let name = self
+            .to_possible_value()
+            .map(|v| v.get_name().to_string())
+            .unwrap_or_default();
+        MapEngineKind::parse_choice(&name).unwrap_or(None)
     }
 }
 
@@ -73,9 +65,9 @@ pub struct MapArgs {
     /// Terrain: DEM layers or the synthetic DEM.
     #[command(flatten)]
     pub terrain: TerrainArgs,
-    /// Observer height above the ground, metres.
-    #[arg(long, default_value_t = penumbra::DEFAULT_OBSERVER_HEIGHT_M, allow_hyphen_values = true)]
-    pub observer_height_m: f64,
+    /// Observer height above the ground, metres (0 … 100000).
+    #[arg(long, value_name = "M", default_value_t = ObserverHeight::DEFAULT, allow_hyphen_values = true)]
+    pub observer_height_m: ObserverHeight,
     /// Shadow engine.
     #[arg(long, value_enum, default_value_t = EngineArg::Auto)]
     pub engine: EngineArg,
@@ -115,12 +107,11 @@ pub struct MapArgs {
     /// Epoch range: compute shard I of N only (0 <= I < N; a block of rows of the finest layer,
     /// horizons engine) and write a partial (shard.json + shard.pnbstat) into --out-dir;
     /// `penumbra merge` combines the N partials into this command's maps (docs/SCALING.md).
-    #[arg(long, value_name = "I/N", value_parser = penumbra::products::shard::Shard::parse, requires = "out_dir")]
-    pub shard: Option<penumbra::products::shard::Shard>,
-    /// Compute backend: `gpu` (DP max-mipmap soft shadows of the discs for sweeps and one-light
-    /// maps whatever `--engine` says, except `fourier` one-light maps: horizon map built and
-    /// evaluated on the GPU), `cpu` (the engine of `--engine`) or `auto` (the GPU when a hardware
-    /// adapter exists, else the CPU with one warning line).
+    #[arg(long, value_name = "I/N", value_parser = Shard::parse, requires = "out_dir")]
+    pub shard: Option<Shard>,
+    /// Where the engine runs: `cpu`, `gpu` (dp, fourier one-light maps and the horizons engine
+    /// have GPU kernels; combined and fourier ranges run on the CPU with one line saying so) or
+    /// `auto` (the GPU when a hardware adapter exists, else the CPU with one warning line).
     #[arg(long, value_enum, default_value_t = BackendArg::Auto)]
     pub backend: BackendArg,
     /// GPU maps and sweeps: compute in 2-D tiles of this many cells per side (≥ 2) instead of
@@ -159,57 +150,95 @@ pub struct MapArgs {
     pub kernels: KernelArgs,
 }
 
-/// Parses `x,y,z` into a non-zero finite vector.
-fn parse_vector3(text: &str) -> anyhow::Result<nalgebra::Vector3<f64>> {
+/// Parses `x,y,z` into three numbers.
+fn parse_vector3(text: &str) -> anyhow::Result<[f64; 3]> {
     let v: Vec<f64> = text
         .split(',')
         .map(|p| p.trim().parse::<f64>())
         .collect::<Result<_, _>>()
         .map_err(|_| anyhow::anyhow!("--sun-dir-body '{text}': expected three numbers X,Y,Z"))?;
-    if v.len() != 3 {
-        anyhow::bail!("--sun-dir-body '{text}': expected three numbers X,Y,Z");
+    <[f64; 3]>::try_from(v)
+        .map_err(|_| anyhow::anyhow!("--sun-dir-body '{text}': expected three numbers X,Y,Z"))
+}
+
+impl MapArgs {
+    /// What the flags ask for: one light (`--utc`, `--sun-dir-body`, `--sun-az-deg`) and its
+    /// files, or an epoch range and its folder.
+    fn task(&self) -> anyhow::Result<MapTask> {
+        let epochs = self.epochs.spec()?;
+        if let Some(penumbra::model::Epochs::Range(range)) = epochs {
+            let out_dir = self
+                .out_dir
+                .clone()
+                .ok_or_else(|| anyhow::anyhow!("an epoch range needs --out-dir DIR for the statistics maps"))?;
+            return Ok(MapTask::Range {
+                epochs: range,
+                files: RangeFiles {
+                    out_dir,
+                    resume: self.resume,
+                    shard: self.shard,
+                },
+            });
+        }
+        if self.shard.is_some() {
+            anyhow::bail!(
+                "--shard makes one part of a map over an epoch range: give --start/--stop/--step \
+                 and --out-dir"
+            );
+        }
+        let radius_deg = self.sun_radius_deg;
+        let light = match (epochs, &self.sun_dir_body, self.sun_az_deg) {
+            (Some(penumbra::model::Epochs::One(e)), _, _) => Light::Epoch(e),
+            (_, Some(text), _) => Light::DirectionInMoonMe {
+                dir: parse_vector3(text)?,
+                radius_deg,
+            },
+            (_, None, Some(az_deg)) => Light::AzElAtCentre {
+                az_deg,
+                el_deg: self.sun_el_deg.unwrap_or(0.0),
+                radius_deg,
+            },
+            _ => anyhow::bail!(
+                "give the light: --utc T, --sun-dir-body X,Y,Z or --sun-az-deg/--sun-el-deg"
+            ),
+        };
+        MapTask::one_light(
+            light,
+            OneLightFiles {
+                fraction: self.out_fraction.clone(),
+                mask: self.out_mask.clone(),
+                earth_fraction: self.out_earth_fraction.clone(),
+            },
+        )
     }
-    let v = nalgebra::Vector3::new(v[0], v[1], v[2]);
-    if !v.iter().all(|c| c.is_finite()) || v.norm() == 0.0 {
-        anyhow::bail!("--sun-dir-body '{text}': the direction must be finite and non-zero");
+
+    /// How the map is computed.
+    fn settings(&self) -> MapSettings {
+        MapSettings {
+            observer_height: self.observer_height_m,
+            engine: self.engine.kind(),
+            backend: self.backend.into(),
+            gpu_tile_cells: self.gpu_tile_cells,
+            observers: self.observers.map(Into::into),
+            horizons: match &self.horizons {
+                Some(path) => penumbra::compute::range::HorizonsFrom::File(path.clone()),
+                None => penumbra::compute::range::HorizonsFrom::Sweep {
+                    azimuths: self.azimuths as usize,
+                    max_step: self.max_step,
+                },
+            },
+            limb: self.limb_darkening.into(),
+        }
     }
-    Ok(v)
 }
 
 /// Runs `penumbra map`.
 pub fn run(args: &MapArgs) -> anyhow::Result<()> {
     penumbra::products::map::run(&MapRequest {
         terrain: args.terrain.source(),
-        observer_height_m: args.observer_height_m,
-        engine: args.engine.kind(),
-        epochs: args.epochs.spec()?,
-        sun_dir_in_moon_me: args
-            .sun_dir_body
-            .as_deref()
-            .map(parse_vector3)
-            .transpose()?,
-        sun_az_el_deg: args
-            .sun_az_deg
-            .map(|az| (az, args.sun_el_deg.unwrap_or(0.0))),
-        sun_radius_deg: args.sun_radius_deg,
-        out_fraction: args.out_fraction.clone(),
-        out_mask: args.out_mask.clone(),
-        out_earth_fraction: args.out_earth_fraction.clone(),
-        out_dir: args.out_dir.clone(),
-        resume: args.resume,
-        shard: args.shard,
-        backend: args.backend.into(),
-        gpu_tile_cells: args.gpu_tile_cells,
-        observers: args.observers.map(Into::into),
-        horizons: match &args.horizons {
-            Some(path) => penumbra::compute::sweep::HorizonsFrom::File(path.clone()),
-            None => penumbra::compute::sweep::HorizonsFrom::Sweep {
-                azimuths: args.azimuths as usize,
-                max_step: args.max_step,
-            },
-        },
-        limb: args.limb_darkening.into(),
-        abcorr: super::abcorr(&args.abcorr)?,
         kernels: args.kernels.source(),
+        abcorr: super::abcorr(&args.abcorr)?,
+        settings: args.settings(),
+        task: args.task()?,
     })
 }

@@ -7,7 +7,8 @@
 use std::path::PathBuf;
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
-use penumbra::products::{EpochSpec, KernelSource, TerrainSource};
+use penumbra::model::Epochs;
+use penumbra::products::{KernelSource, TerrainSource};
 
 mod dem;
 mod ephem;
@@ -119,7 +120,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Dem { command } => dem::run(command),
         Command::Series(args) => series::run(&args),
         Command::Map(args) => map::run(&args),
-        Command::Merge(args) => penumbra::products::shard::merge(&args.out_dir, &args.shards),
+        Command::Merge(args) => penumbra::products::map::shard::merge(&args.out_dir, &args.shards),
         Command::Horizon(args) => horizon::run(&args),
         Command::GpuInfo(args) => gpu_info::run(&args),
         Command::Render(args) => render::run(&args),
@@ -227,23 +228,23 @@ impl TerrainArgs {
 
 impl EpochArgs {
     /// The epochs of `--utc` or `--start/--stop/--step`, `None` when neither is given.
-    pub fn spec(&self) -> anyhow::Result<Option<EpochSpec>> {
-        EpochSpec::parse(
+    pub fn spec(&self) -> anyhow::Result<Option<Epochs>> {
+        Ok(Epochs::parse(
             self.utc.as_deref(),
             self.start.as_deref(),
             self.stop.as_deref(),
             self.step.as_deref(),
-        )
+        )?)
     }
 
     /// Like [`EpochArgs::spec`], but one of the two forms is required.
-    pub fn required(&self) -> anyhow::Result<EpochSpec> {
-        EpochSpec::parse_required(
+    pub fn required(&self) -> anyhow::Result<Epochs> {
+        Ok(Epochs::parse_required(
             self.utc.as_deref(),
             self.start.as_deref(),
             self.stop.as_deref(),
             self.step.as_deref(),
-        )
+        )?)
     }
 }
 

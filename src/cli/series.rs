@@ -3,8 +3,9 @@
 use std::path::PathBuf;
 
 use clap::{Args, ValueEnum};
-use penumbra::products::series::SeriesRequest;
-use penumbra::series::{LimbLaw, SeriesConfig, SeriesEngine, SeriesSite};
+use penumbra::illum::LimbLaw;
+use penumbra::model::{ObserverHeight, Site};
+use penumbra::products::series::{SeriesConfig, SeriesEngine, SeriesRequest};
 
 use super::horizon::HorizonMethodArg;
 use super::{BackendArg, EpochArgs, KernelArgs, TerrainArgs};
@@ -35,9 +36,10 @@ pub struct SeriesArgs {
     /// East longitude of a single site named "site", degrees.
     #[arg(long, allow_hyphen_values = true, requires = "lat_deg")]
     pub lon_deg: Option<f64>,
-    /// Observer height above the ground, metres (for sites that do not give their own).
-    #[arg(long, default_value_t = penumbra::DEFAULT_OBSERVER_HEIGHT_M, allow_hyphen_values = true)]
-    pub observer_height_m: f64,
+    /// Observer height above the ground, metres (0 … 100000; for sites that do not give their
+    /// own).
+    #[arg(long, value_name = "M", default_value_t = ObserverHeight::DEFAULT, allow_hyphen_values = true)]
+    pub observer_height_m: ObserverHeight,
     /// Epoch(s).
     #[command(flatten)]
     pub epochs: EpochArgs,
@@ -148,24 +150,19 @@ impl From<SeriesEngineArg> for SeriesEngine {
 
 /// Runs `penumbra series`.
 pub fn run(args: &SeriesArgs) -> anyhow::Result<()> {
-    let mut sites: Vec<SeriesSite> = args
+    let mut sites: Vec<Site> = args
         .site
         .iter()
-        .map(|s| penumbra::series::parse_site_flag(s, args.observer_height_m))
+        .map(|s| penumbra::model::parse_site_flag(s, args.observer_height_m))
         .collect::<anyhow::Result<_>>()?;
     if let Some(path) = &args.sites {
-        sites.extend(penumbra::series::read_sites_file(
+        sites.extend(penumbra::model::read_sites_file(
             path,
             args.observer_height_m,
         )?);
     }
     if let (Some(lat_deg), Some(lon_deg)) = (args.lat_deg, args.lon_deg) {
-        sites.push(SeriesSite {
-            name: "site".into(),
-            lat_deg,
-            lon_deg,
-            height_above_ground_m: args.observer_height_m,
-        });
+        sites.push(Site::new("site", lat_deg, lon_deg, args.observer_height_m)?);
     }
     let config = SeriesConfig {
         abcorr: super::abcorr(&args.abcorr)?,

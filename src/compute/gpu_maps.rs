@@ -5,14 +5,14 @@
 use anyhow::Context as _;
 use nalgebra::Vector3;
 
-use crate::map::{MapEngine, ObserverPlacement, SweepStats};
+use crate::model::{MapEngine, ObserverPlacement, RangeStats};
 use crate::model::{EpochLights, MapGrid};
 use crate::terrain::HeightField;
 
-/// The soft GPU twin of [`crate::map::sweep`] (issue 7 item 3): one GPU-resident sweep
+/// The soft GPU twin of [`crate::model::per_epoch_statistics`]: one GPU-resident sweep
 /// ([`crate::gpu::dp::dp_sweep_gpu`]) computes per epoch the DP visible fractions of the Sun's
 /// and the Earth's discs (max-mipmap shadow cost `J*` + disc occlusion, as
-/// [`crate::shadow::dp::visible_fraction`]) and folds them with the same definitions as [`crate::map::sweep`]
+/// [`crate::shadow::dp::visible_fraction`]) and folds them with the same definitions as [`crate::model::per_epoch_statistics`]
 /// (mean visible fraction, "visible" = fraction > [`crate::model::VISIBLE_MIN_FRACTION`], longest Sun-dark
 /// run, Earth and Sun-and-Earth counts). The light table goes up once (two f32 discs per epoch);
 /// nothing is read back per epoch. Whatever `--engine` says, the GPU runs DP. `tiling` chooses
@@ -24,7 +24,7 @@ pub fn sweep_gpu_soft(
     lights: &[EpochLights],
     step_h: f64,
     tiling: crate::gpu::tiles::DpTiling,
-) -> anyhow::Result<SweepStats> {
+) -> anyhow::Result<RangeStats> {
     use crate::gpu::dp::{DpSweepOptions, GpuDpGrid, dp_sweep_gpu};
     use crate::gpu::tiles::{DpTileSweepOptions, dp_sweep_tiled_gpu};
     use crate::twins::{DpMip, MarchGrid};
@@ -63,8 +63,8 @@ fn sweep_stats(
     epochs: usize,
     step_h: f64,
     on_dem_grid: bool,
-) -> SweepStats {
-    SweepStats {
+) -> RangeStats {
+    RangeStats {
         epochs,
         step_h,
         sun_fraction_sum: stats
@@ -349,7 +349,7 @@ impl GpuPixelMaps {
         ctx: &crate::gpu::GpuContext,
         lights: &[EpochLights],
         step_h: f64,
-    ) -> anyhow::Result<SweepStats> {
+    ) -> anyhow::Result<RangeStats> {
         use crate::gpu::dp::{DpSweepOptions, dp_points_sweep_gpu};
         let table = light_table(lights);
         let per_point = dp_points_sweep_gpu(

@@ -1,6 +1,9 @@
-//! Horizons on the resolved backend: one site's profile, and a whole-grid Fourier horizon map.
+//! Horizons on the resolved backend: sites' profiles, the whole-grid line sweep, and a Fourier
+//! horizon map.
 
-use crate::horizon::{Horizon, HorizonEngine, HorizonParams, HorizonSweep, SweepBand};
+use anyhow::Context as _;
+
+use crate::horizon::{Horizon, HorizonEngine, HorizonMethod, HorizonParams, HorizonSweep, SweepBand};
 use crate::shadow::fourier::{HorizonMap, HorizonMapParams};
 use crate::terrain::{HeightField, TerrainStack};
 
@@ -27,6 +30,53 @@ pub fn site_horizon(
         }
         #[cfg(not(feature = "gpu"))]
         ResolvedBackend::Gpu(ctx) => match **ctx {},
+    }
+}
+
+/// The horizons of `sites` (in order) over every layer of `stack`, each `az_step_deg` of azimuth,
+/// on the backend `requested` resolves to (`auto`: the CPU scan of `method`, the fast one for a
+/// few sites; `gpu`: all sites in one GPU scan, sampled like the exact method), and what ran.
+/// Errors name the site.
+pub fn site_horizons(
+    requested: super::Backend,
+    stack: &TerrainStack,
+    sites: &[crate::model::Site],
+    az_step_deg: f64,
+    method: HorizonMethod,
+) -> anyhow::Result<(Vec<Horizon>, String)> {
+    let engine = HorizonEngine::new(stack);
+    match super::resolve(requested, super::OnGpu::WhenAsked)? {
+        ResolvedBackend::Cpu => sites
+            .iter()
+            .map(|s| {
+                let params = HorizonParams {
+                    observer_height_m: s.height_above_ground_m(),
+                    az_step_deg,
+                    method,
+                    ..HorizonParams::default()
+                };
+                engine
+                    .horizon(s.lat_deg(), s.lon_deg(), &params)
+                    .with_context(|| format!("horizon of site '{}'", s.name()))
+            })
+            .collect::<anyhow::Result<Vec<_>>>()
+            .map(|h| (h, "cpu: per-site horizon scan".to_string())),
+        #[cfg(feature = "gpu")]
+        ResolvedBackend::Gpu(ctx) => {
+            let specs: Vec<(f64, f64, f64)> = sites
+                .iter()
+                .map(|s| (s.lat_deg(), s.lon_deg(), s.height_above_ground_m()))
+                .collect();
+            for (s, &(lat, lon, h)) in sites.iter().zip(&specs) {
+                crate::twins::horizon_scan::site_setup(&engine, lat, lon, h)
+                    .with_context(|| format!("horizon of site '{}'", s.name()))?;
+            }
+            let horizons =
+                crate::gpu::horizon::horizons_gpu(&ctx, stack, None, &specs, az_step_deg)?;
+            Ok((horizons, super::site_dp::gpu_note(&ctx, "per-site horizon scan")))
+        }
+        #[cfg(not(feature = "gpu"))]
+        ResolvedBackend::Gpu(ctx) => match *ctx {},
     }
 }
 

@@ -7,7 +7,7 @@
 //! (docs/gpu.md), always at the model cells. A grid that needs the GPU's 2-D tiles is mapped
 //! from its model cells on the GPU (with a warning).
 
-use crate::map::{MapEngine, MapEngineKind, ObserverPlacement};
+use crate::model::{MapEngine, MapEngineKind, ObserverPlacement};
 use crate::model::MapGrid;
 use crate::shadow::Observer;
 

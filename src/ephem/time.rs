@@ -356,6 +356,13 @@ pub const MAX_EPOCHS: usize = 20_000_000;
 
 /// Evenly spaced UTC epochs from `start` to `stop` inclusive (when `stop` falls on the grid).
 pub fn epoch_range(start: Epoch, stop: Epoch, step: Duration) -> Result<Vec<Epoch>, EphemError> {
+    let n = epoch_count(start, stop, step)?;
+    Ok((0..n).map(|i| start + step * (i as i64)).collect())
+}
+
+/// How many epochs [`epoch_range`] gives: the stop must not be before the start, and the count
+/// must not exceed [`MAX_EPOCHS`].
+pub fn epoch_count(start: Epoch, stop: Epoch, step: Duration) -> Result<usize, EphemError> {
     if stop < start {
         return Err(EphemError::BadRange {
             why: format!(
@@ -377,8 +384,7 @@ pub fn epoch_range(start: Epoch, stop: Epoch, step: Duration) -> Result<Vec<Epoc
         clippy::cast_possible_truncation,
         reason = "n is bounded by MAX_EPOCHS above"
     )]
-    let n = n as usize;
-    Ok((0..n).map(|i| start + step * (i as i64)).collect())
+    Ok(n as usize)
 }
 
 #[cfg(test)]

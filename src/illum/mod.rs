@@ -78,3 +78,37 @@ pub enum IllumError {
     #[error("serialising statistics: {0}")]
     Json(#[from] serde_json::Error),
 }
+
+/// Limb-darkening choices for the Sun's visible fraction.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum LimbLaw {
+    /// Uniform disc: the visible fraction is an area fraction.
+    None,
+    /// Eddington law `(2 + 3μ)/5`, for total (bolometric) irradiance: the default, since the
+    /// irradiance columns are total irradiance.
+    #[default]
+    Eddington,
+    /// Allen's 550 nm quadratic law (visible band).
+    Allen550nm,
+}
+
+impl LimbLaw {
+    /// The intensity law.
+    pub fn law(self) -> LimbDarkening {
+        match self {
+            LimbLaw::None => LimbDarkening::UNIFORM,
+            LimbLaw::Eddington => LimbDarkening::EDDINGTON,
+            LimbLaw::Allen550nm => LimbDarkening::ALLEN_550NM,
+        }
+    }
+
+    /// The name used on the command line and in scenarios.
+    pub fn name(self) -> &'static str {
+        match self {
+            LimbLaw::None => "none",
+            LimbLaw::Eddington => "eddington",
+            LimbLaw::Allen550nm => "allen550nm",
+        }
+    }
+}

@@ -1,11 +1,25 @@
-//! What the products share below the engines: the model grid on the DEM's own grid
-//! ([`MapGrid`]) and the light directions of each epoch in its frame ([`EpochLights`]).
+//! What the products share below the engine switch: the values a user types, parsed once
+//! ([`ObserverHeight`], [`Site`], [`Epochs`]), the model grid on the DEM's own grid
+//! ([`MapGrid`]), the light directions of each epoch in its frame ([`EpochLights`]), and the CPU
+//! map engines on that grid with their statistics over a range of epochs ([`MapEngine`],
+//! [`RangeStats`]).
 
+mod engine;
 mod grid;
+mod input;
 mod lights;
+mod sites;
 
+pub use engine::{
+    HorizonExtras, MapEngine, MapEngineKind, ObserverPlacement, RangeStats, per_epoch_statistics,
+};
 pub(crate) use grid::BelowSphereTally;
 pub use grid::{
     MAX_MODEL_CELLS, MapGrid, RasterInfo, VISIBLE_MIN_FRACTION, write_f32_on, write_u8_on,
 };
+pub use input::{
+    EpochRange, Epochs, InputError, MAX_SITE_NAME_CHARS, ObserverHeight, Site,
+    check_distinct_sites,
+};
 pub use lights::{EpochLights, epoch_lights};
+pub use sites::{parse_site_flag, read_sites_file};

@@ -5,7 +5,8 @@ use std::path::PathBuf;
 
 use hifitime::Epoch;
 
-use super::{EpochSpec, KernelSource, write_output};
+use super::{KernelSource, write_output};
+use crate::model::Epochs;
 use crate::ephem::{self, AbCorr, Site, SunEarth, time::format_iso};
 
 /// Output formats of a table.
@@ -24,7 +25,7 @@ pub struct EphemRequest {
     /// The site: planetocentric latitude, east longitude (deg), height above the sphere (m).
     pub site: Site,
     /// The epochs.
-    pub epochs: EpochSpec,
+    pub epochs: Epochs,
     /// Aberration correction.
     pub abcorr: AbCorr,
     /// The kernels.
@@ -59,7 +60,7 @@ pub fn write_ephem_row(w: &mut dyn Write, epoch: Epoch, v: &SunEarth) -> std::io
 pub fn run(req: &EphemRequest) -> anyhow::Result<()> {
     let abcorr = req.abcorr;
     let site = req.site;
-    let epochs = req.epochs.epochs()?;
+    let epochs = req.epochs.epochs();
     let kernels = req.kernels.load()?;
     let series = ephem::sun_earth_series(&kernels, &[site], &epochs, abcorr)?;
     let rows = &series[0];

@@ -1,14 +1,11 @@
 //! `penumbra gpu-info`: the adapters wgpu finds, and what a `--backend` choice resolves to.
 
-use anyhow::Context as _;
-
 use crate::gpu::Backend;
 
 /// The line saying what `requested` resolves to (`auto` falls back to the CPU with one warning
 /// line, `gpu` fails without an adapter).
 pub fn resolved(requested: Backend) -> anyhow::Result<String> {
-    let resolved = crate::gpu::resolve_backend(requested)
-        .with_context(|| format!("resolving --backend {}", requested.as_str()))?;
+    let resolved = crate::compute::resolve(requested, crate::compute::OnGpu::Preferred)?;
     Ok(format!(
         "backend {}: {}\n",
         requested.as_str(),

@@ -40,11 +40,7 @@ pub fn run(req: &HorizonRequest) -> anyhow::Result<()> {
     let stack = super::load_stack(&req.dems)?;
     // `auto` takes the CPU scan for one site (the fast method; the GPU scan samples like the
     // exact one): the same answer as the series' horizons.
-    let backend = if req.backend == crate::gpu::Backend::Auto {
-        crate::compute::ResolvedBackend::Cpu
-    } else {
-        crate::compute::resolve(req.backend)?
-    };
+    let backend = crate::compute::resolve(req.backend, crate::compute::OnGpu::WhenAsked)?;
     let horizon = crate::compute::horizons::site_horizon(
         &backend,
         &stack,

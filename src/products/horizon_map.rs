@@ -12,8 +12,8 @@ use crate::shadow::fourier::{HorizonMap, HorizonMapParams};
 pub struct HorizonMapBuildRequest {
     /// The terrain (every layer, on the map grid).
     pub terrain: TerrainSource,
-    /// Observer height above the ground (radial), metres.
-    pub observer_height_m: f64,
+    /// Observer height above the ground (radial).
+    pub observer_height: crate::model::ObserverHeight,
     /// Number of sampled azimuths before the DFT (at least 32).
     pub azimuths: usize,
     /// Longest horizon ray, cells; `None` for the grid's rows + columns.
@@ -32,14 +32,14 @@ pub fn build(req: &HorizonMapBuildRequest) -> anyhow::Result<()> {
     let grid = crate::model::MapGrid::new(&stack)?;
     let hf = &grid.hf;
     let params = HorizonMapParams {
-        observer_height_m: req.observer_height_m,
+        observer_height_m: req.observer_height.m(),
         n_azimuths: req.azimuths,
         max_distance_cells: req.max_distance_cells.unwrap_or(hf.rows + hf.cols),
         n_coeffs: crate::shadow::fourier::DEFAULT_COEFFS,
     };
     params.check()?;
     // Resolved after the input checks: bad input is one error line, with no warning.
-    let backend = crate::compute::resolve(req.backend)?;
+    let backend = crate::compute::resolve(req.backend, crate::compute::OnGpu::Preferred)?;
     let t0 = std::time::Instant::now();
     let map = crate::compute::horizons::horizon_map(&backend, hf, &params)?;
     map.write_tiff(&req.out)?;
@@ -62,8 +62,8 @@ pub fn build(req: &HorizonMapBuildRequest) -> anyhow::Result<()> {
 pub struct HorizonSweepRequest {
     /// The terrain (every layer; one polar stereographic map).
     pub terrain: TerrainSource,
-    /// Observer height above the ground (radial), metres.
-    pub observer_height_m: f64,
+    /// Observer height above the ground (radial).
+    pub observer_height: crate::model::ObserverHeight,
     /// Requested azimuths (uniform in grid azimuth).
     pub azimuths: usize,
     /// Largest step component of a sweep direction.
@@ -92,9 +92,9 @@ pub fn sweep(req: &HorizonSweepRequest) -> anyhow::Result<()> {
     use crate::terrain::geotiff::{BandSample, MultiBandTiff};
 
     let (stack, _) = req.terrain.load()?;
-    let backend = crate::compute::resolve(req.backend)?;
+    let backend = crate::compute::resolve(req.backend, crate::compute::OnGpu::Preferred)?;
     let params = SweepParams {
-        observer_height_m: req.observer_height_m,
+        observer_height_m: req.observer_height.m(),
         azimuths: req.azimuths,
         max_step: req.max_step,
     };
@@ -112,7 +112,7 @@ pub fn sweep(req: &HorizonSweepRequest) -> anyhow::Result<()> {
         .collect();
     let worst_miss = dirs.iter().map(|d| d.target_error_deg).fold(0.0, f64::max);
     let version = env!("CARGO_PKG_VERSION");
-    let h = format!("{}", req.observer_height_m);
+    let h = format!("{}", req.observer_height);
     let ms = format!("{}", req.max_step);
     let metadata = [
         ("penumbra_version", version),

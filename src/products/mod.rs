@@ -1,19 +1,15 @@
 //! One product pipeline per job: `ephem`, `kernels`, `dem`, `horizon`, `series`, `map`, `render`,
 //! `horizon-map`, `gpu-info` (the scenario runner, [`crate::scenario`], drives several).
 //!
-//! Each pipeline takes a typed request (its values already parsed: epochs are [`Epoch`]s, the
-//! aberration correction an [`AbCorr`], the backend a [`Backend`]) and writes its files. The
-//! command line (`src/cli/`, in the binary) and the scenario files build the same requests; the
-//! library knows neither clap nor argv.
-//!
-//! [`AbCorr`]: crate::ephem::AbCorr
-//! [`Backend`]: crate::gpu::Backend
+//! Each pipeline takes a typed request whose values are already parsed ([`crate::model`]'s
+//! `ObserverHeight`, `Site`, `Epochs`; the aberration correction, the backend) and writes its
+//! files. The command line (`src/cli/`, in the binary), the scenario files and the Python module
+//! build the same requests; the library knows neither clap nor argv.
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use anyhow::Context as _;
-use hifitime::{Duration, Epoch};
 
 use crate::ephem::Kernels;
 use crate::terrain::{TerrainStack, synth::SynthParams};
@@ -27,7 +23,6 @@ pub mod kernels;
 pub mod map;
 pub mod render;
 pub mod series;
-pub mod shard;
 
 /// Where the terrain comes from: DEM files (finest first) or the built-in synthetic DEM.
 #[derive(Debug, Clone, PartialEq)]
@@ -138,84 +133,6 @@ impl KernelSource {
         let kernels = Kernels::load(&self.dir()).context("loading SPICE kernels")?;
         detail_kernels(&kernels);
         Ok(kernels)
-    }
-}
-
-/// One epoch or an evenly stepped range of epochs (UTC on input, any time scale inside).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum EpochSpec {
-    /// A single epoch.
-    One(Epoch),
-    /// `start`, `start + step`, ... up to `stop` (inclusive when it falls on the step grid).
-    Range {
-        /// First epoch.
-        start: Epoch,
-        /// Last epoch.
-        stop: Epoch,
-        /// Step, > 0.
-        step: Duration,
-    },
-}
-
-impl EpochSpec {
-    /// Parses `utc` or all of `start`, `stop`, `step` (UTC strings and a step such as `6h`);
-    /// `Ok(None)` when none is given. Any other combination is an error naming the options.
-    pub fn parse(
-        utc: Option<&str>,
-        start: Option<&str>,
-        stop: Option<&str>,
-        step: Option<&str>,
-    ) -> anyhow::Result<Option<Self>> {
-        match (utc, start, stop, step) {
-            (None, None, None, None) => Ok(None),
-            (Some(t), None, None, None) => {
-                Ok(Some(EpochSpec::One(crate::ephem::time::parse_utc(t)?)))
-            }
-            (None, Some(a), Some(b), Some(s)) => {
-                let spec = EpochSpec::Range {
-                    start: crate::ephem::time::parse_utc(a)?,
-                    stop: crate::ephem::time::parse_utc(b)?,
-                    step: crate::ephem::time::parse_step(s)?,
-                };
-                Ok(Some(spec))
-            }
-            _ => anyhow::bail!("give either --utc T or all of --start T --stop T --step S"),
-        }
-    }
-
-    /// Like [`EpochSpec::parse`], but one of the two forms is required.
-    pub fn parse_required(
-        utc: Option<&str>,
-        start: Option<&str>,
-        stop: Option<&str>,
-        step: Option<&str>,
-    ) -> anyhow::Result<Self> {
-        Self::parse(utc, start, stop, step)?
-            .context("give either --utc T or all of --start T --stop T --step S")
-    }
-
-    /// The epochs, in order.
-    pub fn epochs(&self) -> anyhow::Result<Vec<Epoch>> {
-        Ok(match *self {
-            EpochSpec::One(e) => vec![e],
-            EpochSpec::Range { start, stop, step } => {
-                crate::ephem::time::epoch_range(start, stop, step)?
-            }
-        })
-    }
-
-    /// The weight of one sample in the statistics, seconds: the step of a range, or 3600 s for a
-    /// single epoch.
-    pub fn step_s(&self) -> f64 {
-        match self {
-            EpochSpec::One(_) => 3600.0,
-            EpochSpec::Range { step, .. } => step.to_seconds(),
-        }
-    }
-
-    /// Whether this is a range (statistics) rather than one epoch.
-    pub fn is_range(&self) -> bool {
-        matches!(self, EpochSpec::Range { .. })
     }
 }
 

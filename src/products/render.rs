@@ -6,7 +6,8 @@ use std::path::{Path, PathBuf};
 use anyhow::Context as _;
 use hifitime::Epoch;
 
-use super::{EpochSpec, KernelSource, TerrainSource};
+use super::{KernelSource, TerrainSource};
+use crate::model::Epochs;
 use crate::ephem::{AbCorr, time::format_utc};
 use crate::gpu::Backend;
 use crate::render::path::CameraPose;
@@ -255,15 +256,15 @@ pub const MAX_FRAMES: usize = 10_000;
 /// The frames of one camera at `epochs`.
 pub fn camera_frames(
     camera: &CameraSpec,
-    epochs: &EpochSpec,
+    epochs: &Epochs,
 ) -> anyhow::Result<Vec<(Epoch, CameraPose)>> {
     let pose = camera.pose()?;
-    Ok(epochs.epochs()?.into_iter().map(|e| (e, pose)).collect())
+    Ok(epochs.epochs().into_iter().map(|e| (e, pose)).collect())
 }
 
 /// `penumbra render`: one frame (one epoch) or numbered frames (a range) from one camera, and
 /// their provenance `<stem>.run.json` beside the PNG.
-pub fn run(opts: &RenderOptions, camera: &CameraSpec, epochs: &EpochSpec) -> anyhow::Result<()> {
+pub fn run(opts: &RenderOptions, camera: &CameraSpec, epochs: &Epochs) -> anyhow::Result<()> {
     let t0 = std::time::Instant::now();
     let run = render_frames(opts, &camera_frames(camera, epochs)?)?;
     let folder = opts.out.parent().unwrap_or(Path::new(""));
@@ -582,7 +583,7 @@ pub fn render_frames_kept(
     let kernels = opts.kernels.load()?;
     let lights_all = crate::model::epoch_lights(&grid, &kernels, &epochs, abcorr)?;
     // Resolved once: `auto` warns once and the GPU device + pipelines are built once.
-    let backend = crate::compute::resolve(opts.backend)?;
+    let backend = crate::compute::resolve(opts.backend, crate::compute::OnGpu::Preferred)?;
     let fractions = crate::compute::render::SceneFractions::new(&backend, hf)?;
     let job = FrameJob {
         opts,

@@ -78,7 +78,7 @@ pub struct Scenario {
     /// Terrain: DEM layers or the synthetic DEM. Without it the run is ephemeris-only.
     pub terrain: Option<TerrainSpec>,
     /// Per-site illumination series (needs `[terrain]`); present = enabled.
-    pub series: Option<crate::series::SeriesConfig>,
+    pub series: Option<crate::products::series::SeriesConfig>,
     /// Illumination maps over the scenario's span (needs `[terrain]`); present = enabled.
     pub map: Option<MapSpec>,
     /// Rendered views (needs `[terrain]`), written to `<output_dir>/render/`.
@@ -94,8 +94,8 @@ pub struct MapSpec {
     /// Observer height above the ground, metres (default 2).
     #[serde(default = "default_height_above_ground_m")]
     pub observer_height_m: f64,
-    /// Shadow engine: `brute`, `smap`, `dp`, `combined` (default), `fourier`, or `horizons`
-    /// (whole-grid horizons once, then every epoch per pixel: docs/horizon.md).
+    /// Engine: `combined` (default), `dp`, `fourier`, `horizons` (whole-grid horizons once,
+    /// then every epoch per pixel: docs/horizon.md) or `auto`, as `penumbra map --engine`.
     #[serde(default = "default_engine")]
     pub engine: String,
     /// `engine = "horizons"`: requested azimuths of the line sweep (default 720).
@@ -111,10 +111,9 @@ pub struct MapSpec {
     /// `engine = "horizons"`: the Sun's limb darkening in the mean fraction (`none`,
     /// `eddington` (default) or `allen550nm`).
     #[serde(default)]
-    pub limb_darkening: crate::series::LimbLaw,
-    /// Where the sweep runs: `cpu`, `gpu` or `auto` (default: the GPU when an adapter exists,
-    /// else the CPU with one warning line). The GPU sweep is DP soft shadows whatever `engine`
-    /// says (docs/gpu.md).
+    pub limb_darkening: crate::illum::LimbLaw,
+    /// Where the map runs: `cpu`, `gpu` or `auto` (default), as `penumbra map --backend`: an
+    /// engine without a GPU kernel runs on the CPU.
     #[serde(default = "default_map_backend")]
     pub backend: String,
 }
@@ -180,7 +179,7 @@ pub struct TimeSpec {
 #[serde(deny_unknown_fields)]
 pub struct SiteSpec {
     /// Name, used as a folder name (letters and digits of any script, inner spaces and
-    /// `- _ . ( ) + , '`; see [`crate::series::check_site_name`]).
+    /// `- _ . ( ) + , '`; see [`crate::model::Site`]).
     pub name: String,
     /// Planetocentric latitude, degrees.
     pub lat_deg: f64,
@@ -249,16 +248,16 @@ impl Scenario {
         if let Some(file) = &scenario.sites_file {
             let base = path.parent().unwrap_or(Path::new("."));
             let table =
-                crate::series::read_sites_file(&base.join(file), default_height_above_ground_m())
+                crate::model::read_sites_file(&base.join(file), crate::model::ObserverHeight::DEFAULT)
                     .map_err(|e| ScenarioError::Invalid {
                     path: path.display().to_string(),
                     why: format!("sites_file: {e:#}"),
                 })?;
             scenario.sites.extend(table.into_iter().map(|s| SiteSpec {
-                name: s.name,
-                lat_deg: s.lat_deg,
-                lon_deg: s.lon_deg,
-                height_above_ground_m: s.height_above_ground_m,
+                name: s.name().to_string(),
+                lat_deg: s.lat_deg(),
+                lon_deg: s.lon_deg(),
+                height_above_ground_m: s.height_above_ground_m(),
                 ground_height_m: None,
             }));
         }
@@ -274,23 +273,8 @@ impl Scenario {
         if self.sites.is_empty() {
             return Err(invalid("no [[sites]] and no sites_file given".into()));
         }
-        let mut seen = std::collections::HashSet::new();
-        for s in &self.sites {
-            crate::series::check_site_name(&s.name).map_err(invalid)?;
-            if !seen.insert(s.name.to_lowercase()) {
-                return Err(invalid(format!(
-                    "site name '{}' is used twice (names are folder names: they must differ in \
-                     more than letter case)",
-                    s.name
-                )));
-            }
-            if s.height_above_ground_m.is_nan() || s.height_above_ground_m < 0.0 {
-                return Err(invalid(format!(
-                    "site '{}': height_above_ground_m must be >= 0",
-                    s.name
-                )));
-            }
-        }
+        self.sites()
+            .map_err(|e| invalid(crate::products::one_line(&e)))?;
         if let Some(t) = &self.terrain {
             if t.layers.is_empty() && t.synthetic.is_none() {
                 return Err(invalid(
@@ -314,12 +298,9 @@ impl Scenario {
             return Err(invalid("[map] needs [terrain]".into()));
         }
         if let Some(m) = &self.map
-            && crate::map::MapEngineKind::parse(&m.engine).is_none()
+            && let Err(e) = crate::model::MapEngineKind::parse_choice(&m.engine)
         {
-            return Err(invalid(format!(
-                "[map] engine '{}': use brute, smap, dp, combined, fourier or horizons",
-                m.engine
-            )));
+            return Err(invalid(format!("[map] engine: {e}")));
         }
         if let Some(m) = &self.map
             && parse_map_backend(&m.backend).is_none()
@@ -358,20 +339,10 @@ impl Scenario {
         {
             anyhow::bail!("output_dir is empty");
         }
-        let start = crate::ephem::time::parse_utc(&self.time.start).context("[time] start")?;
-        let stop = crate::ephem::time::parse_utc(&self.time.stop).context("[time] stop")?;
-        let step = crate::ephem::time::parse_step(&self.time.step).context("[time] step")?;
-        crate::ephem::time::epoch_range(start, stop, step).context("[time]")?;
+        self.epochs()?;
         for s in &self.sites {
             crate::ephem::Site::new(s.lat_deg, s.lon_deg, s.ground_height_m.unwrap_or(0.0))
                 .with_context(|| format!("site '{}'", s.name))?;
-            if !(s.height_above_ground_m.is_finite() && s.height_above_ground_m <= 100_000.0) {
-                anyhow::bail!(
-                    "site '{}': height_above_ground_m {} must lie in 0 .. 100000 m",
-                    s.name,
-                    s.height_above_ground_m
-                );
-            }
         }
         if let Some(t) = &self.terrain
             && let Some(synth) = t.synthetic
@@ -389,16 +360,9 @@ impl Scenario {
             crate::horizon::azimuth_count(cfg.az_step_deg).context("[series] az_step_deg")?;
         }
         if let Some(m) = &self.map {
-            let map_step = crate::ephem::time::parse_step(&m.step).context("[map] step")?;
-            crate::ephem::time::epoch_range(start, stop, map_step).context("[map]")?;
-            if !(m.observer_height_m.is_finite()
-                && (0.0..=100_000.0).contains(&m.observer_height_m))
-            {
-                anyhow::bail!(
-                    "[map] observer_height_m {} must lie in 0 .. 100000 m",
-                    m.observer_height_m
-                );
-            }
+            self.map_epochs(m)?;
+            crate::model::ObserverHeight::new(m.observer_height_m)
+                .context("[map] observer_height_m")?;
             if !(4..=100_000).contains(&m.azimuths) || !(1..=64).contains(&m.max_step) {
                 anyhow::bail!(
                     "[map] azimuths {} must lie in 4 .. 100000 and max_step {} in 1 .. 64",
@@ -455,6 +419,44 @@ impl Scenario {
                 .context("[render]")?;
         }
         Ok(())
+    }
+
+    /// The scenario's sites, each checked ([`crate::model::Site`]) and their names distinct.
+    pub fn sites(&self) -> anyhow::Result<Vec<crate::model::Site>> {
+        use anyhow::Context as _;
+        let sites = self
+            .sites
+            .iter()
+            .map(|s| {
+                let h = crate::model::ObserverHeight::new(s.height_above_ground_m)
+                    .with_context(|| format!("site '{}': height_above_ground_m", s.name))?;
+                Ok(crate::model::Site::new(&s.name, s.lat_deg, s.lon_deg, h)?)
+            })
+            .collect::<anyhow::Result<Vec<_>>>()?;
+        crate::model::check_distinct_sites(&sites)?;
+        Ok(sites)
+    }
+
+    /// The epochs of `[time]`.
+    pub fn epochs(&self) -> anyhow::Result<crate::model::EpochRange> {
+        use anyhow::Context as _;
+        let step = crate::ephem::time::parse_step(&self.time.step).context("[time] step")?;
+        self.epochs_every(step).context("[time]")
+    }
+
+    /// The epochs of `[map]`: `[time]`'s span at the map's own step.
+    pub fn map_epochs(&self, m: &MapSpec) -> anyhow::Result<crate::model::EpochRange> {
+        use anyhow::Context as _;
+        let step = crate::ephem::time::parse_step(&m.step).context("[map] step")?;
+        self.epochs_every(step).context("[map]")
+    }
+
+    /// `[time]`'s span every `step`.
+    fn epochs_every(&self, step: hifitime::Duration) -> anyhow::Result<crate::model::EpochRange> {
+        use anyhow::Context as _;
+        let start = crate::ephem::time::parse_utc(&self.time.start).context("[time] start")?;
+        let stop = crate::ephem::time::parse_utc(&self.time.stop).context("[time] stop")?;
+        Ok(crate::model::EpochRange::new(start, stop, step)?)
     }
 
     /// The scenario's folder, against which its relative paths are resolved.

@@ -239,13 +239,13 @@ impl ViewSpec {
     }
 
     /// The epochs of this view (`utc`, or `start`/`stop`/`step`).
-    pub(super) fn epochs(&self) -> anyhow::Result<crate::products::EpochSpec> {
-        crate::products::EpochSpec::parse_required(
+    pub(super) fn epochs(&self) -> anyhow::Result<crate::model::Epochs> {
+        Ok(crate::model::Epochs::parse_required(
             self.utc.as_deref(),
             self.start.as_deref(),
             self.stop.as_deref(),
             self.step.as_deref(),
-        )
+        )?)
     }
 
     /// The image, BRDF and output options of this view, with the scenario's terrain, kernels

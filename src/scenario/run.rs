@@ -6,7 +6,8 @@ use std::time::Instant;
 use anyhow::Context as _;
 
 use super::{MapSpec, PathSpec, Scenario, TerrainSpec, ViewSpec, parse_map_backend};
-use crate::ephem::{self, AbCorr, Site};
+use crate::compute::range::{HorizonsFrom, RangeHooks, RangeInputs};
+use crate::ephem::{self, Site};
 use crate::output::checkpoint::Checkpoint;
 
 /// What `penumbra run` runs: a scenario file and the overrides of the command line.
@@ -39,10 +40,8 @@ pub fn run_file(args: &RunRequest) -> anyhow::Result<()> {
         (None, Some(k)) => base.join(k),
         (None, None) => ephem::kernels::default_kernel_dir(),
     };
-    let start = ephem::time::parse_utc(&scenario.time.start).context("[time] start")?;
-    let stop = ephem::time::parse_utc(&scenario.time.stop).context("[time] stop")?;
-    let step = ephem::time::parse_step(&scenario.time.step).context("[time] step")?;
-    let epochs = ephem::time::epoch_range(start, stop, step)?;
+    let range = scenario.epochs()?;
+    let epochs = range.epochs();
     let kernels = ephem::Kernels::load(&kernel_dir).context("loading SPICE kernels")?;
     crate::products::detail_kernels(&kernels);
     // Fail on coverage before loading terrain or writing anything.
@@ -83,23 +82,13 @@ pub fn run_file(args: &RunRequest) -> anyhow::Result<()> {
             prov.outputs.extend(cp.part("ephem").expect("done").0);
         }
         (Some(stack), Some(config)) => {
-            let sites: Vec<crate::series::SeriesSite> = scenario
-                .sites
-                .iter()
-                .map(|s| crate::series::SeriesSite {
-                    name: s.name.clone(),
-                    lat_deg: s.lat_deg,
-                    lon_deg: s.lon_deg,
-                    height_above_ground_m: s.height_above_ground_m,
-                })
-                .collect();
-            let run = crate::series::run_series(
+            let run = crate::products::series::run_series(
                 &kernels,
                 stack,
-                &sites,
+                &scenario.sites()?,
                 &epochs,
-                step.to_seconds(),
-                &crate::series::SeriesConfig {
+                range.step_s(),
+                &crate::products::series::SeriesConfig {
                     abcorr: scenario.abcorr,
                     ..*config
                 },
@@ -155,13 +144,14 @@ pub fn run_file(args: &RunRequest) -> anyhow::Result<()> {
             _ => {
                 let (files, below, map_backend) = run_map_spec(
                     spec,
-                    stack,
-                    &kernels,
-                    start,
-                    stop,
-                    scenario.abcorr,
+                    RangeInputs {
+                        stack,
+                        kernels: &kernels,
+                        epochs: &scenario.map_epochs(spec)?,
+                        abcorr: scenario.abcorr,
+                    },
                     &base,
-                    &out_dir,
+                    &out_dir.join("map"),
                     &mut cp,
                 )?;
                 let files: Vec<String> = files.into_iter().map(|f| format!("map/{f}")).collect();
@@ -363,74 +353,51 @@ fn load_terrain(
     Ok(stack)
 }
 
-/// Runs a scenario's `[map]`: the statistics over the scenario's span at the map's step.
-#[allow(
-    clippy::too_many_arguments,
-    reason = "one call site; the scenario's parts"
-)]
+/// Runs a scenario's `[map]`: the statistics over the scenario's span at the map's step, written
+/// into `dir`.
 fn run_map_spec(
     spec: &MapSpec,
-    stack: &crate::terrain::TerrainStack,
-    kernels: &ephem::Kernels,
-    start: hifitime::Epoch,
-    stop: hifitime::Epoch,
-    abcorr: AbCorr,
+    inputs: RangeInputs<'_>,
     base: &Path,
-    out_dir: &Path,
+    dir: &Path,
     store: &mut dyn crate::horizon::statistics::BlockStore,
 ) -> anyhow::Result<(Vec<String>, Option<crate::output::BelowSphereExits>, String)> {
-    let step = ephem::time::parse_step(&spec.step).context("[map] step")?;
-    let epochs = ephem::time::epoch_range(start, stop, step)?;
-    let kind = crate::map::MapEngineKind::parse(&spec.engine)
-        .with_context(|| format!("[map] engine '{}'", spec.engine))?;
-    let requested = parse_map_backend(&spec.backend)
-        .with_context(|| format!("[map] backend '{}'", spec.backend))?;
-    // The horizons engine is CPU-only: no adapter probe (and no `auto` warning) for it.
-    let backend =
-        if kind == crate::map::MapEngineKind::Horizons && requested != crate::gpu::Backend::Gpu {
-            crate::gpu::ResolvedBackend::Cpu
-        } else {
-            crate::gpu::resolve_backend(requested)
-                .with_context(|| format!("[map] backend '{}'", spec.backend))?
-        };
-    let horizons = match &spec.horizons_file {
-        Some(p) => crate::compute::sweep::HorizonsFrom::File(base.join(p)),
-        None => crate::compute::sweep::HorizonsFrom::Sweep {
-            azimuths: spec.azimuths,
-            max_step: spec.max_step,
+    use crate::products::map as pm;
+    let settings = pm::MapSettings {
+        observer_height: crate::model::ObserverHeight::new(spec.observer_height_m)
+            .context("[map] observer_height_m")?,
+        engine: crate::model::MapEngineKind::parse_choice(&spec.engine)
+            .map_err(anyhow::Error::msg)
+            .context("[map]")?,
+        backend: parse_map_backend(&spec.backend)
+            .with_context(|| format!("[map] backend '{}'", spec.backend))?,
+        gpu_tile_cells: None,
+        observers: None,
+        horizons: match &spec.horizons_file {
+            Some(p) => HorizonsFrom::File(base.join(p)),
+            None => HorizonsFrom::Sweep {
+                azimuths: spec.azimuths,
+                max_step: spec.max_step,
+            },
         },
+        limb: spec.limb_darkening,
     };
-    let result = crate::compute::sweep::range_statistics(
-        &backend,
-        stack,
-        &crate::compute::sweep::RangeMap {
-            engine: kind,
-            observer_height_m: spec.observer_height_m,
-            placement: crate::map::ObserverPlacement::Pixels,
-            gpu_tile_cells: None,
-            horizons,
-            limb: spec.limb_darkening,
-        },
-        kernels,
-        &epochs,
-        abcorr,
-        step.to_seconds() / 3600.0,
-        &mut |_, _| true,
+    let hooks = RangeHooks {
+        report: &mut |_, _| true,
         store,
-    )
-    .context("[map]")?;
-    let dir = out_dir.join("map");
-    std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+    };
+    let result = pm::statistics(&settings, inputs, hooks).context("[map]")?;
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    let epochs = inputs.epochs;
     let span = format!(
         "{} .. {}, {} epochs every {}",
-        ephem::time::format_iso(epochs[0]),
-        ephem::time::format_iso(*epochs.last().unwrap_or(&epochs[0])),
+        ephem::time::format_iso(epochs.start()),
+        ephem::time::format_iso(epochs.epochs()[epochs.len() - 1]),
         epochs.len(),
         spec.step
     );
     let stats = &result.stats;
-    let files =
-        crate::map::write_sweep(&stack.layers[0], result.model.as_ref(), stats, &dir, &span)?;
+    let files = pm::write_range(&inputs.stack.layers[0], result.model.as_ref(), stats, dir, &span)?;
     if let Some(b) = stats.below_sphere {
         b.warn();
     }

@@ -368,7 +368,7 @@ pub(crate) fn dp_cost(
 
 /// [`dp_cost`] ignoring the crossings within `min_s_cells` of the observer (ray distance in
 /// cells) and sampling the bilinear surface at exactly `min_s_cells`: the per-site series engine
-/// ([`crate::series::dp`]) skips the observer's own half cell, as the horizon engine does.
+/// ([`crate::compute::site_dp`]) skips the observer's own half cell, as the horizon engine does.
 #[expect(clippy::too_many_arguments, reason = "dp_cost plus the near-field cut")]
 pub(crate) fn dp_cost_beyond(
     hf: &HeightField,

@@ -545,7 +545,7 @@ pub const NO_HORIZON_TAN: f32 = -FAR_CELLS;
 
 /// A site observer for [`dp_sites`] as the GPU reads it: `[col, row, z_m − z_ref_m, min_s]`
 /// (fractional cell units; `min_s` cells of own ground skipped, as
-/// [`crate::series::dp::MIN_DISTANCE_CELLS`]).
+/// [`crate::compute::site_dp::MIN_DISTANCE_CELLS`]).
 pub fn site_observer_to_f32(
     grid: &MarchGrid,
     row: f64,

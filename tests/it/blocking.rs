@@ -288,7 +288,7 @@ fn sharp_mask_errors(dem: penumbra::terrain::Dem) -> Vec<(&'static str, f64, usi
     let mip = penumbra::twins::DpMip::build(&march);
     let (pixel_of_point, points) = penumbra::twins::pixel_point_records(&march, &observers);
     let dp_engine =
-        penumbra::map::MapEngine::new(penumbra::map::MapEngineKind::Direct(Engine::Dp), &grid, 2.0)
+        penumbra::model::MapEngine::new(penumbra::model::MapEngineKind::Direct(Engine::Dp), &grid, 2.0)
             .unwrap();
     let mut wrong = vec![0usize; engines.len() + 2];
     let mut stable = 0usize;

@@ -324,8 +324,8 @@ fn map_sweep_gpu_soft_matches_cpu_sweep() {
             )
             .unwrap();
             let words = match observers {
-                "cells" => penumbra::map::ObserverPlacement::Cells,
-                _ => penumbra::map::ObserverPlacement::Pixels,
+                "cells" => penumbra::model::ObserverPlacement::Cells,
+                _ => penumbra::model::ObserverPlacement::Pixels,
             }
             .describe();
             assert!(
@@ -604,7 +604,7 @@ fn pixel_case() -> PixelCase {
 /// and one below the map centre's horizontal (the rims see it): soft fractions and hard masks.
 #[test]
 fn dp_points_twin_matches_the_cpu_dp_engine_from_the_pixels() {
-    use penumbra::map::{MapEngine, MapEngineKind};
+    use penumbra::model::{MapEngine, MapEngineKind};
     let c = pixel_case();
     let engine = MapEngine::new(MapEngineKind::Direct(Engine::Dp), &c.grid, OBSERVER_M).unwrap();
     assert!(c.points.len() > 100_000);

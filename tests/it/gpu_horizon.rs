@@ -424,7 +424,7 @@ fn horizon_and_series_backend_gpu_match_cpu() {
 #[test]
 fn series_config_backend_key() {
     use penumbra::gpu::Backend;
-    use penumbra::series::SeriesConfig;
+    use penumbra::products::series::SeriesConfig;
     let parse = |t: &str| toml::from_str::<SeriesConfig>(t);
     assert_eq!(parse("").unwrap().backend, Backend::Auto);
     assert_eq!(parse("backend = \"cpu\"").unwrap().backend, Backend::Cpu);

@@ -247,13 +247,13 @@ fn gpu_maps_start_at_the_pixels_and_say_so() {
     let text = |name: &str| {
         String::from_utf8_lossy(&std::fs::read(dir.path().join(name)).unwrap()).into_owned()
     };
-    let words = |p: penumbra::map::ObserverPlacement| p.describe().to_string();
-    assert!(text("m.tif").contains(&words(penumbra::map::ObserverPlacement::Pixels)));
+    let words = |p: penumbra::model::ObserverPlacement| p.describe().to_string();
+    assert!(text("m.tif").contains(&words(penumbra::model::ObserverPlacement::Pixels)));
     let out = map(&["--observers", "cells"], "c.tif");
     assert!(
         out.status.success(),
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    assert!(text("c.tif").contains(&words(penumbra::map::ObserverPlacement::Cells)));
+    assert!(text("c.tif").contains(&words(penumbra::model::ObserverPlacement::Cells)));
 }

@@ -3,7 +3,9 @@
 
 use penumbra::ephem::{self, AbCorr, Kernels};
 use penumbra::illum::DiscMethod;
-use penumbra::series::{self, LimbLaw, SeriesConfig, SeriesSite};
+use penumbra::illum::LimbLaw;
+use penumbra::model::{ObserverHeight, Site};
+use penumbra::products::series::{self, SeriesConfig};
 use penumbra::terrain::{TerrainStack, synth};
 
 use crate::util::{assert_clean_error, files_in, kernels_dir, penumbra, penumbra_ok, root};
@@ -18,12 +20,7 @@ fn flat_terrain_series_matches_the_closed_form_segment() {
     let dem = synth::flat(200, 200, 100.0, 0.0);
     let stack = TerrainStack::new(vec![dem]);
     let h_m = 2.0;
-    let site = SeriesSite {
-        name: "flat".into(),
-        lat_deg: -89.9,
-        lon_deg: 30.0,
-        height_above_ground_m: h_m,
-    };
+    let site = Site::new("flat", -89.9, 30.0, ObserverHeight::new(h_m).unwrap()).unwrap();
     let start = ephem::time::parse_utc("2027-01-25").unwrap();
     let stop = ephem::time::parse_utc("2027-02-25").unwrap();
     let epochs =

@@ -7,8 +7,10 @@ use penumbra::ephem::{self, AbCorr, Kernels};
 use penumbra::illum::DiscMethod;
 use penumbra::illum::LimbDarkening;
 use penumbra::illum::stats::{SUN_FULL_MIN_FRACTION, VISIBLE_MIN_FRACTION};
-use penumbra::series::dp::{SmapDpSites, fraction_from_horizon_tan};
-use penumbra::series::{self, LimbLaw, SeriesConfig, SeriesEngine, SeriesSite};
+use penumbra::compute::site_dp::{SmapDpSites, fraction_from_horizon_tan};
+use penumbra::illum::LimbLaw;
+use penumbra::model::{ObserverHeight, Site as SeriesSite};
+use penumbra::products::series::{self, SeriesConfig, SeriesEngine};
 use penumbra::terrain::{TerrainStack, synth};
 use penumbra::twins::{self, DpMip, MarchGrid};
 
@@ -41,12 +43,7 @@ fn quiet() -> SeriesConfig {
 }
 
 fn site(name: &str, lat_deg: f64, lon_deg: f64) -> SeriesSite {
-    SeriesSite {
-        name: name.into(),
-        lat_deg,
-        lon_deg,
-        height_above_ground_m: 2.0,
-    }
+    SeriesSite::new(name, lat_deg, lon_deg, ObserverHeight::DEFAULT).unwrap()
 }
 
 /// Both engines' fractions per site: `(sun_h, earth_h, sun_d, earth_d)`.
@@ -124,7 +121,7 @@ fn check(label: &str, sites: &[SeriesSite], pairs: &[Pair], b: &Bounds) {
             "{label} {:>10}: Sun lit {:5.1}% / {:5.1}%, full {:5.1}% / {:5.1}%, mean {:.4} / {:.4}; \
              Earth vis {:5.1}% / {:5.1}%, mean {:.4} / {:.4}; |Δ| lit {:.2} pp, sun {:.4}, \
              earth {:.4}, earth vis {:.2} pp, epochs |Δf|>0.1: {:.2}%",
-            s.name,
+            s.name(),
             pct(&p.0, lit),
             pct(&p.2, lit),
             pct(&p.0, full),
@@ -152,7 +149,7 @@ fn check(label: &str, sites: &[SeriesSite], pairs: &[Pair], b: &Bounds) {
             d[4] > b.big_epochs_pct,
         ];
         if over.iter().any(|&o| o) {
-            failures.push(format!("{}: {d:?} (over: {over:?})", s.name));
+            failures.push(format!("{}: {d:?} (over: {over:?})", s.name()));
         }
     }
     assert!(
@@ -480,9 +477,9 @@ fn kernel_inputs() -> KernelInputs {
         .enumerate()
         .map(|(i, s)| {
             ephem::Site::new(
-                s.lat_deg,
-                s.lon_deg,
-                dp.ground_height_m(i) + s.height_above_ground_m,
+                s.lat_deg(),
+                s.lon_deg(),
+                dp.ground_height_m(i) + s.height_above_ground_m(),
             )
             .unwrap()
         })
@@ -567,7 +564,7 @@ fn dp_sites_twin_matches_the_cpu_engine() {
 #[cfg(feature = "gpu")]
 mod gpu {
     use penumbra::gpu::dp::{GpuDpGrid, dp_sites_gpu};
-    use penumbra::series::dp::SmapDpGpu;
+    use penumbra::compute::site_dp::SmapDpGpu;
 
     use super::*;
 
@@ -625,20 +622,20 @@ mod gpu {
             .iter()
             .enumerate()
             .map(|(i, s)| {
-                ephem::Site::new(s.lat_deg, s.lon_deg, dp.ground_height_m(i) + 2.0).unwrap()
+                ephem::Site::new(s.lat_deg(), s.lon_deg(), dp.ground_height_m(i) + 2.0).unwrap()
             })
             .collect();
         let kernels = Kernels::load(&kernels_dir()).unwrap();
         let table = ephem::moon_geometry_table(&kernels, &month_hourly()).unwrap();
-        let config = SeriesConfig::default();
+        let limb = LimbLaw::default().law();
         let whole = SmapDpGpu::new(ctx, &dp)
             .unwrap()
-            .fractions(&dp, &table, &sites, &config)
+            .fractions(&dp, &table, &sites, limb, AbCorr::LtS)
             .unwrap();
         let batched = SmapDpGpu::new(ctx, &dp)
             .unwrap()
             .with_discs_per_call(2 * 7 * sites.len())
-            .fractions(&dp, &table, &sites, &config)
+            .fractions(&dp, &table, &sites, limb, AbCorr::LtS)
             .unwrap();
         assert_eq!(whole.len(), sites.len());
         assert!(
@@ -722,12 +719,12 @@ mod gpu {
             ));
             eprintln!(
                 "lola-240m smap-dp gpu vs cpu {:>16}: |Δ| lit {:.2} pp, sun {:.1e}, earth {:.1e}, earth vis {:.2} pp",
-                c.site.name, d[0], d[1], d[2], d[3]
+                c.site.name(), d[0], d[1], d[2], d[3]
             );
             assert!(
                 d[0] <= 0.2 && d[1] <= 2e-4 && d[2] <= 2e-4 && d[3] <= 0.2,
                 "{}: {d:?}",
-                c.site.name
+                c.site.name()
             );
         }
         // Measured: max 1.95e-3, mean 7.9e-6 (docs/VALIDATION.md).

@@ -1,8 +1,8 @@
-//! Writing a sweep's statistics: one GeoTIFF on the DEM's grid and one PNG preview per quantity.
+//! Writing the statistics of an epoch range: one GeoTIFF on the DEM's grid and one PNG preview per quantity.
 
 use std::path::Path;
 
-use super::SweepStats;
+use crate::model::RangeStats;
 use crate::illum::plot::{MapLegend, MapPlace, write_map_preview};
 use crate::model::{MapGrid, RasterInfo, write_f32_on, write_u8_on};
 use crate::shadow::MASK_NODATA;
@@ -30,7 +30,7 @@ pub fn span_text(epochs: &[hifitime::Epoch]) -> String {
 
 /// The metadata items of every statistics GeoTIFF: the span ([`span_text`], or a scenario's), the
 /// number of epochs and the step.
-pub fn sweep_metadata(span: &str, s: &SweepStats) -> Vec<(String, String)> {
+pub fn range_metadata(span: &str, s: &RangeStats) -> Vec<(String, String)> {
     vec![
         ("span_utc".to_string(), span.to_string()),
         ("epochs".to_string(), s.epochs.to_string()),
@@ -51,9 +51,9 @@ pub fn geotiff_unit(stem: &str) -> &'static str {
     }
 }
 
-/// One statistic of a sweep as a raster on the DEM's grid.
+/// One statistic of an epoch range as a raster on the DEM's grid.
 #[derive(Debug, Clone)]
-pub struct SweepRaster {
+pub struct RangeRaster {
     /// File stem (`sun_illumination_pct`, …).
     pub name: &'static str,
     /// What the values are, with their unit (the GeoTIFF's `content`).
@@ -66,14 +66,14 @@ pub struct SweepRaster {
     pub unit: String,
 }
 
-/// The rasters of a sweep's statistics on the grid of `dem` (statistics per model cell,
+/// The rasters of the statistics on the grid of `dem` (statistics per model cell,
 /// `!s.on_dem_grid`, are resampled through `model`) and the PSR mask (1 never lit, 0 lit at least
-/// once, 255 nodata): what [`write_sweep`] writes, for callers that want the arrays.
-pub fn sweep_rasters(
+/// once, 255 nodata): what [`write_range`] writes, for callers that want the arrays.
+pub fn range_rasters(
     dem: &Dem,
     model: Option<&MapGrid>,
-    s: &SweepStats,
-) -> anyhow::Result<(Vec<SweepRaster>, Vec<u8>)> {
+    s: &RangeStats,
+) -> anyhow::Result<(Vec<RangeRaster>, Vec<u8>)> {
     let model = match (s.on_dem_grid, model) {
         (true, _) => None,
         (false, Some(m)) => Some(m),
@@ -209,10 +209,10 @@ pub fn sweep_rasters(
         ]);
     }
 
-    let rasters: Vec<SweepRaster> = outputs
+    let rasters: Vec<RangeRaster> = outputs
         .into_iter()
         .map(
-            |(name, description, values, full_scale, unit)| SweepRaster {
+            |(name, description, values, full_scale, unit)| RangeRaster {
                 name,
                 description,
                 values: to_dem(mask_nodata(values)),
@@ -234,19 +234,19 @@ pub fn sweep_rasters(
     Ok((rasters, psr_out))
 }
 
-/// Writes the statistics of a sweep as GeoTIFFs and PNG previews into `out_dir` on the grid of
+/// Writes the statistics of an epoch range as GeoTIFFs and PNG previews into `out_dir` on the grid of
 /// `dem` (the finest layer); returns the file names. Statistics per model cell
-/// (`!s.on_dem_grid`, the GPU sweeps) are resampled through `model`, which they need.
-pub fn write_sweep(
+/// (`!s.on_dem_grid`, the GPU per-epoch DP) are resampled through `model`, which they need.
+pub fn write_range(
     dem: &Dem,
     model: Option<&MapGrid>,
-    s: &SweepStats,
+    s: &RangeStats,
     out_dir: &Path,
     span: &str,
 ) -> anyhow::Result<Vec<String>> {
-    let (rasters, psr_out) = sweep_rasters(dem, model, s)?;
+    let (rasters, psr_out) = range_rasters(dem, model, s)?;
     let mut files = Vec::new();
-    let items = sweep_metadata(span, s);
+    let items = range_metadata(span, s);
     let (rows, cols) = (dem.grid.rows, dem.grid.cols);
     let place = MapPlace {
         grid: dem.grid,

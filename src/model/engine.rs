@@ -1,40 +1,23 @@
-//! Illumination maps (`penumbra map`): shadow engines run on the model-space height field, results
-//! resampled back onto the DEM's own grid so that every GeoTIFF carries the DEM's georeferencing.
-//!
-//! ```text
-//!  DEM layers ──resample──► HeightField (model space: tangent plane at the DEM centre,
-//!      ▲                    curvature in z; the finest layer's extent + margin, its pixel size)
-//!      │                                  │ shadow engine per light direction
-//!      │                                  ▼
-//!  output grid = finest layer ◄──bilinear/nearest── per-cell values in model space
-//! ```
+//! The map engines on the model grid (CPU): a per-light engine of [`crate::shadow`] or a Fourier
+//! horizon map built once ([`MapEngine`]), and the statistics of a range of epochs from one map
+//! per epoch ([`per_epoch_statistics`]), per DEM pixel (rays from each pixel's own surface point)
+//! or per model cell.
 //!
 //! The Sun is one direction over the whole grid (its parallax over 184 km is 1.2e-6 rad). For the
 //! Earth the direction is taken at the map centre; over ±184 km it varies by up to
 //! 184 km / 384,400 km = 4.8e-4 rad = 0.027°, about 3% of the Earth's angular radius, which bounds
 //! the Earth-visibility error at the map edges.
-//!
-//! The grid itself, with every layer, is [`crate::model::MapGrid`]; the CPU|GPU switch of maps
-//! and sweeps is [`crate::compute`]. This module holds the CPU map engines, the CPU sweep and
-//! the writers of a sweep's statistics (`write.rs`).
-
-mod write;
-
-pub use write::{
-    PSR_DESCRIPTION, SweepRaster, geotiff_unit, span_text, sweep_metadata, sweep_rasters,
-    write_sweep,
-};
 
 use rayon::prelude::*;
 
-use crate::model::{BelowSphereTally, EpochLights, MapGrid, VISIBLE_MIN_FRACTION};
+use super::{BelowSphereTally, EpochLights, MapGrid, VISIBLE_MIN_FRACTION};
 use crate::output::BelowSphereExits;
 use crate::shadow::{Engine, Observer};
 use crate::terrain::HeightField;
 
-/// Per-cell statistics of an epoch sweep, on the model grid.
+/// Per-pixel (or per model cell) statistics over a range of epochs.
 #[derive(Debug, Clone)]
-pub struct SweepStats {
+pub struct RangeStats {
     /// Number of epochs.
     pub epochs: usize,
     /// Time step, hours.
@@ -47,20 +30,20 @@ pub struct SweepStats {
     pub longest_dark_epochs: Vec<u32>,
     /// Epochs with any part of the Earth visible.
     pub earth_visible_count: Vec<u32>,
-    /// Epochs with both the Sun and the Earth (partly) visible; `None` when the sweep cannot tell
-    /// (the GPU sweep folds each light separately), written as an all-NaN map.
+    /// Epochs with both the Sun and the Earth (partly) visible; `None` when the engine cannot tell
+    /// (the GPU per-epoch DP folds each light separately), written as an all-NaN map.
     pub sun_and_earth_count: Option<Vec<u32>>,
     /// Sun-lit results resting on rays that leave the DEM below the reference sphere (counted
-    /// by the CPU sweep; `None` on the GPU).
+    /// by the CPU per-epoch engines and the horizons engine; `None` on the GPU).
     pub below_sphere: Option<BelowSphereExits>,
-    /// Whether the arrays are per DEM pixel (the CPU sweep, from the pixels' own observers, and
-    /// the horizons engine) rather than per model cell (the GPU sweeps).
+    /// Whether the arrays are per DEM pixel (the CPU per-epoch engines, from the pixels' own observers, and
+    /// the horizons engine) rather than per model cell (the GPU per-epoch DP).
     pub on_dem_grid: bool,
     /// Statistics only the horizons engine computes (`None` for the per-epoch engines).
     pub extra: Option<HorizonExtras>,
 }
 
-/// The statistics the horizons engine adds to a sweep's (per DEM pixel).
+/// The statistics the horizons engine adds to the per-epoch engines' (per DEM pixel).
 #[derive(Debug, Clone)]
 pub struct HorizonExtras {
     /// Epochs with the Sun fully visible.
@@ -75,8 +58,8 @@ pub struct HorizonExtras {
     pub limb_law: String,
 }
 
-impl SweepStats {
-    /// A sweep's statistics from the horizons engine's (`step_h` hours apart).
+impl RangeStats {
+    /// The statistics from the horizons engine's (`step_h` hours apart).
     pub fn from_horizons(
         h: crate::horizon::statistics::HorizonStatistics,
         step_h: f64,
@@ -84,7 +67,7 @@ impl SweepStats {
     ) -> Self {
         let n = h.epochs.max(1) as f64;
         let mean = |v: &[f64]| v.iter().map(|&x| (x / n) as f32).collect::<Vec<f32>>();
-        SweepStats {
+        RangeStats {
             epochs: h.epochs,
             step_h,
             extra: Some(HorizonExtras {
@@ -150,17 +133,21 @@ impl MapEngineKind {
         }
     }
 
-    /// Parses a scenario's engine name (`brute`, `smap`, `dp`, `combined`, `fourier`).
-    pub fn parse(name: &str) -> Option<Self> {
-        Some(match name {
-            "brute" => MapEngineKind::Direct(Engine::Brute),
-            "smap" => MapEngineKind::Direct(Engine::Smap),
-            "dp" => MapEngineKind::Direct(Engine::Dp),
+    /// The engine of a user-facing name (`combined`, `dp`, `fourier`, `horizons`), or `None` for
+    /// `auto`; the error lists the names. The command line, scenarios and Python take these.
+    pub fn parse_choice(name: &str) -> Result<Option<Self>, String> {
+        Ok(Some(match name {
+            "auto" => return Ok(None),
             "combined" => MapEngineKind::Direct(Engine::Combined),
+            "dp" => MapEngineKind::Direct(Engine::Dp),
             "fourier" => MapEngineKind::Fourier,
             "horizons" => MapEngineKind::Horizons,
-            _ => return None,
-        })
+            _ => {
+                return Err(format!(
+                    "engine '{name}': use auto, combined, dp, fourier or horizons"
+                ));
+            }
+        }))
     }
 }
 
@@ -301,7 +288,7 @@ impl MapEngine {
 
 /// Runs the engine for every epoch and accumulates the map statistics per DEM pixel (CPU, rayon
 /// inside the engines), with the rays from `placement`. `progress` is advanced once per epoch.
-pub fn sweep(
+pub fn per_epoch_statistics(
     grid: &MapGrid,
     engine: &MapEngine,
     observer_height_m: f64,
@@ -309,9 +296,9 @@ pub fn sweep(
     lights: &[EpochLights],
     step_h: f64,
     progress: &indicatif::ProgressBar,
-) -> anyhow::Result<SweepStats> {
+) -> anyhow::Result<RangeStats> {
     // Per DEM pixel from the pixels' own observers, or per model cell (resampled at the end, as
-    // the GPU sweeps).
+    // the GPU per-epoch DP).
     let on_dem_grid = placement == ObserverPlacement::Pixels;
     let observers = grid.pixel_observers(observer_height_m);
     let n = if on_dem_grid {
@@ -319,7 +306,7 @@ pub fn sweep(
     } else {
         grid.hf.rows * grid.hf.cols
     };
-    let mut s = SweepStats {
+    let mut s = RangeStats {
         epochs: lights.len(),
         step_h,
         sun_fraction_sum: vec![0.0; n],

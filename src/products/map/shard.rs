@@ -163,6 +163,89 @@ pub struct ShardRun<'a> {
     pub arrays_bytes: u64,
 }
 
+/// One shard of a job and what its run needs.
+pub struct ShardJob<'a> {
+    /// The shard.
+    pub shard: Shard,
+    /// The job's fingerprint (what `merge` checks).
+    pub job: String,
+    /// How the map is computed.
+    pub settings: &'a super::MapSettings,
+    /// The terrain, ephemeris and epochs.
+    pub inputs: crate::compute::range::RangeInputs<'a>,
+    /// The partial's folder.
+    pub out_dir: &'a Path,
+    /// The run's provenance so far (inputs and epochs); the shard adds what ran.
+    pub prov: &'a mut crate::output::Provenance,
+    /// When the run started.
+    pub t0: std::time::Instant,
+}
+
+/// Runs one shard: the horizons engine's statistics of the shard's rows (on the CPU), then the
+/// partial (data file, then manifest).
+pub fn run(job: ShardJob<'_>, hooks: crate::compute::range::RangeHooks<'_>) -> anyhow::Result<()> {
+    let ShardJob {
+        shard,
+        job,
+        settings,
+        inputs,
+        out_dir,
+        prov,
+        t0,
+    } = job;
+    let fine = &inputs.stack.layers[0];
+    let rows = shard.rows(fine.grid.rows).map_err(anyhow::Error::msg)?;
+    let arrays_bytes = arrays_bytes(inputs.stack, rows.len(), &settings.horizons);
+    crate::output::guard::check_budget(
+        &format!(
+            "shard {shard} (rows {}..{}: terrain, horizons, statistics)",
+            rows.start, rows.end
+        ),
+        u128::from(arrays_bytes),
+    )
+    .map_err(|e| {
+        anyhow::anyhow!(
+            "{e}; split the map into more shards or sweep the horizons once into a file (--horizons)"
+        )
+    })?;
+    let map = super::range_map(settings, crate::model::MapEngineKind::Horizons);
+    let (stats, note) = crate::compute::range::horizon_statistics_rows(
+        &crate::compute::ResolvedBackend::Cpu,
+        inputs,
+        &map,
+        hooks,
+        rows.clone(),
+    )?;
+    prov.backend = note;
+    let run = ShardRun {
+        shard,
+        job,
+        fine,
+        rows: rows.clone(),
+        provenance: prov,
+        step_h: inputs.epochs.step_s() / 3600.0,
+        span: super::span_text(&inputs.epochs.epochs()),
+        limb_law: settings.limb.name().to_string(),
+        arrays_bytes,
+    };
+    let manifest = write_partial(out_dir, &run, &stats, t0.elapsed().as_secs_f64())?;
+    crate::note!(
+        "penumbra: shard {shard} (rows {}..{} of {}) -> {} ({:.1} s, arrays {:.0} MB{}); \
+         combine the shards with `penumbra merge --out-dir OUT DIR...`",
+        rows.start,
+        rows.end,
+        fine.grid.rows,
+        out_dir.display(),
+        manifest.wall_time_s,
+        manifest.arrays_bytes as f64 / 1e6,
+        manifest
+            .peak_rss_bytes
+            .map(|b| format!(", peak resident {:.0} MB", b as f64 / 1e6))
+            .unwrap_or_default()
+    );
+    Ok(())
+}
+
 /// Writes the partial of `run` with `stats` (its rows' raw statistics) into `out_dir`: the data
 /// file, then the manifest. Returns the manifest.
 pub fn write_partial(
@@ -221,7 +304,7 @@ pub fn write_partial(
 pub fn arrays_bytes(
     stack: &crate::terrain::TerrainStack,
     rows: usize,
-    horizons: &crate::compute::sweep::HorizonsFrom,
+    horizons: &crate::compute::range::HorizonsFrom,
 ) -> u64 {
     let fine = &stack.layers[0];
     let px = (rows * fine.grid.cols) as u64;
@@ -231,7 +314,7 @@ pub fn arrays_bytes(
         .map(|l| 4 * l.heights_m.len() as u64)
         .sum();
     let horizons = match horizons {
-        crate::compute::sweep::HorizonsFrom::Sweep { azimuths, max_step } => {
+        crate::compute::range::HorizonsFrom::Sweep { azimuths, max_step } => {
             let dirs = crate::horizon::sweep::sweep_directions(
                 *azimuths,
                 *max_step,
@@ -242,7 +325,7 @@ pub fn arrays_bytes(
             // Kept int16 bands, plus one direction's looks (12 bytes each way) and its band.
             dirs * px * 2 + px * (2 * 12 + 8)
         }
-        crate::compute::sweep::HorizonsFrom::File(_) => 64 << 20,
+        crate::compute::range::HorizonsFrom::File(_) => 64 << 20,
     };
     terrain + horizons + px * 53
 }
@@ -471,8 +554,8 @@ pub fn merge(out_dir: &Path, dirs: &[PathBuf]) -> anyhow::Result<()> {
     };
     let _lock =
         crate::output::cleanup::RunLock::begin(out_dir, "run.json").map_err(anyhow::Error::msg)?;
-    let sweep = crate::map::SweepStats::from_horizons(stats, first.step_h, &first.limb_law);
-    let files = crate::map::write_sweep(&dem, None, &sweep, out_dir, &first.span)?;
+    let sweep = crate::model::RangeStats::from_horizons(stats, first.step_h, &first.limb_law);
+    let files = super::write_range(&dem, None, &sweep, out_dir, &first.span)?;
     let mut prov = crate::output::Provenance::new();
     prov.dem_layers = first.dem_layers.clone();
     prov.epoch_start_utc = first.epoch_start_utc.clone();

@@ -1,21 +1,22 @@
 //! Map statistics over an epoch range on the resolved backend: the per-epoch engines (a shadow
-//! map per epoch, CPU or GPU) or the horizons engine (whole-grid horizons once, then every epoch
-//! per pixel; CPU).
+//! map per epoch: combined, dp or fourier on the CPU; dp on the GPU) or the horizons engine
+//! (whole-grid horizons once, then every epoch per pixel; its epoch loop on the GPU too).
 
 use std::path::PathBuf;
 
 use anyhow::Context as _;
-use hifitime::Epoch;
 
 use crate::ephem::{AbCorr, Kernels};
+use crate::illum::LimbLaw;
 use crate::horizon::statistics::{
     BlockStore, EpochBodies, HorizonFile, HorizonRows, InMemoryHorizons, StatisticsEngine,
     StatisticsParams,
 };
 use crate::horizon::{HorizonSweep, SweepParams};
-use crate::map::{MapEngine, MapEngineKind, ObserverPlacement, SweepStats};
-use crate::model::{EpochLights, MapGrid, VISIBLE_MIN_FRACTION, epoch_lights};
-use crate::series::LimbLaw;
+use crate::model::{
+    EpochLights, EpochRange, MapEngine, MapEngineKind, MapGrid, ObserverHeight, ObserverPlacement,
+    RangeStats, VISIBLE_MIN_FRACTION, epoch_lights,
+};
 use crate::terrain::TerrainStack;
 
 use super::ResolvedBackend;
@@ -44,13 +45,13 @@ impl Default for HorizonsFrom {
     }
 }
 
-/// What a map over an epoch range computes, besides its epochs.
+/// What a map over an epoch range computes, besides its inputs.
 #[derive(Debug, Clone)]
 pub struct RangeMap {
     /// The engine.
     pub engine: MapEngineKind,
-    /// Observer height above the ground, metres.
-    pub observer_height_m: f64,
+    /// Observer height above the ground.
+    pub observer_height: ObserverHeight,
     /// Where the per-epoch engines' rays start (CPU).
     pub placement: ObserverPlacement,
     /// GPU tiles of this many cells per side instead of the automatic choice.
@@ -62,13 +63,26 @@ pub struct RangeMap {
     pub limb: LimbLaw,
 }
 
+/// The inputs of a map over an epoch range: the terrain, the ephemeris and the epochs.
+#[derive(Clone, Copy)]
+pub struct RangeInputs<'a> {
+    /// Every terrain layer, finest first.
+    pub stack: &'a TerrainStack,
+    /// The SPICE kernels.
+    pub kernels: &'a Kernels,
+    /// The epochs.
+    pub epochs: &'a EpochRange,
+    /// The aberration correction.
+    pub abcorr: AbCorr,
+}
+
 /// The statistics of a range, what ran, and the model grid when the arrays are per model cell.
 pub struct RangeResult {
     /// The statistics.
-    pub stats: SweepStats,
+    pub stats: RangeStats,
     /// What ran, for provenance.
     pub note: String,
-    /// The model grid of model-cell statistics (GPU sweeps), for writing them.
+    /// The model grid of model-cell statistics (the GPU's per-epoch DP), for writing them.
     pub model: Option<MapGrid>,
 }
 
@@ -77,96 +91,67 @@ pub struct RangeResult {
 /// "interrupted" error. The per-epoch engines report nothing yet.
 pub type Report<'a> = &'a mut (dyn FnMut(usize, usize) -> bool + Send);
 
-/// The statistics of `epochs` (`step_h` hours apart) over `stack` with `map.engine` on
-/// `backend`; `report` hears the progress (see [`Report`]). The horizons engine takes finished
-/// blocks of rows from `store` and gives it those it computes (a resumable run); the per-epoch
-/// engines do not use it.
-#[allow(
-    clippy::too_many_arguments,
-    reason = "the request's parts; two call sites"
-)]
+/// What a caller hears and keeps while a range runs: `report` hears the progress (see
+/// [`Report`]); the horizons engine takes finished blocks of rows from `store` and gives it those
+/// it computes (a resumable run); the per-epoch engines do not use it.
+pub struct RangeHooks<'a> {
+    /// The progress report.
+    pub report: Report<'a>,
+    /// The finished blocks of rows.
+    pub store: &'a mut dyn BlockStore,
+}
+
+/// The statistics of `inputs` with `map.engine` on `backend`.
 pub fn range_statistics(
     backend: &ResolvedBackend,
-    stack: &TerrainStack,
+    inputs: RangeInputs<'_>,
     map: &RangeMap,
-    kernels: &Kernels,
-    epochs: &[Epoch],
-    abcorr: AbCorr,
-    step_h: f64,
-    report: Report<'_>,
-    store: &mut dyn BlockStore,
+    hooks: RangeHooks<'_>,
 ) -> anyhow::Result<RangeResult> {
+    let step_h = inputs.epochs.step_s() / 3600.0;
     if map.engine == MapEngineKind::Horizons {
-        return horizon_statistics(
-            backend, stack, map, kernels, epochs, abcorr, step_h, report, store,
-        );
+        let fine = inputs.stack.layers.first().context("no DEM layer")?;
+        let rows = 0..fine.grid.rows;
+        let (stats, note) = horizon_statistics_rows(backend, inputs, map, hooks, rows)?;
+        return Ok(RangeResult {
+            stats: RangeStats::from_horizons(stats, step_h, map.limb.name()),
+            note,
+            model: None,
+        });
     }
-    let grid = MapGrid::new(stack)?;
+    let grid = MapGrid::new(inputs.stack)?;
     grid.announce();
-    let lights = epoch_lights(&grid, kernels, epochs, abcorr)?;
+    let epochs = inputs.epochs.epochs();
+    let lights = epoch_lights(&grid, inputs.kernels, &epochs, inputs.abcorr)?;
     let progress = crate::output::progress_bar(
         lights.len(),
-        "{spinner} map sweep [{bar:30}] {pos}/{len} epochs (eta {eta})",
+        "{spinner} map [{bar:30}] {pos}/{len} epochs (eta {eta})",
     );
-    let (stats, note) = map_sweep(
-        backend,
-        &grid,
-        map.engine,
-        map.observer_height_m,
-        map.placement,
-        &lights,
-        step_h,
-        map.gpu_tile_cells,
-        &progress,
-    )?;
+    let (stats, note) = per_epoch(backend, &grid, map, &lights, step_h, &progress)?;
     progress.finish_and_clear();
     let model = (!stats.on_dem_grid).then_some(grid);
     Ok(RangeResult { stats, note, model })
-}
-
-/// The horizons engine: whole-grid horizons (from a file or a sweep in memory), then every
-/// epoch per pixel ([`crate::horizon::statistics`]; the epoch loop on the GPU with the GPU
-/// backend).
-#[allow(clippy::too_many_arguments, reason = "range_statistics' arguments")]
-fn horizon_statistics(
-    backend: &ResolvedBackend,
-    stack: &TerrainStack,
-    map: &RangeMap,
-    kernels: &Kernels,
-    epochs: &[Epoch],
-    abcorr: AbCorr,
-    step_h: f64,
-    report: Report<'_>,
-    store: &mut dyn BlockStore,
-) -> anyhow::Result<RangeResult> {
-    let fine = stack.layers.first().context("no DEM layer")?;
-    let rows = 0..fine.grid.rows;
-    let (stats, note) = horizon_statistics_rows(
-        backend, stack, map, kernels, epochs, abcorr, report, store, rows,
-    )?;
-    Ok(RangeResult {
-        stats: SweepStats::from_horizons(stats, step_h, map.limb.name()),
-        note,
-        model: None,
-    })
 }
 
 /// The horizons engine's raw statistics of the finest layer's `rows` (all of them, or a shard's:
 /// then the sweep keeps only those rows' horizons and memory scales with the rows), and what
 /// ran. Pixel `i` of the result is the grid's pixel `rows.start · cols + i`; the values are bit
 /// for bit those of a whole-grid run. `map.engine` is not looked at.
-#[allow(clippy::too_many_arguments, reason = "range_statistics' arguments")]
 pub fn horizon_statistics_rows(
     backend: &ResolvedBackend,
-    stack: &TerrainStack,
+    inputs: RangeInputs<'_>,
     map: &RangeMap,
-    kernels: &Kernels,
-    epochs: &[Epoch],
-    abcorr: AbCorr,
-    report: Report<'_>,
-    store: &mut dyn BlockStore,
+    hooks: RangeHooks<'_>,
     rows: std::ops::Range<usize>,
 ) -> anyhow::Result<(crate::horizon::statistics::HorizonStatistics, String)> {
+    let RangeInputs {
+        stack,
+        kernels,
+        epochs,
+        abcorr,
+    } = inputs;
+    let RangeHooks { report, store } = hooks;
+    let epochs = epochs.epochs();
     let fine = stack.layers.first().context("no DEM layer")?;
     let engine = StatisticsEngine::new(
         stack,
@@ -193,7 +178,7 @@ pub fn horizon_statistics_rows(
             let sweep = HorizonSweep::new(
                 stack,
                 SweepParams {
-                    observer_height_m: map.observer_height_m,
+                    observer_height_m: map.observer_height.m(),
                     azimuths: *azimuths,
                     max_step: *max_step,
                 },
@@ -226,14 +211,14 @@ pub fn horizon_statistics_rows(
     };
     engine.check_source(source.as_ref())?;
     let h_file = source.observer_height_m();
-    if (h_file - map.observer_height_m).abs() > 1e-9 * (1.0 + h_file.abs()) {
+    if (h_file - map.observer_height.m()).abs() > 1e-9 * (1.0 + h_file.abs()) {
         anyhow::bail!(
             "the horizons were computed for an observer {h_file} m above the ground, the map asks \
              for {} m (give --observer-height-m {h_file} or recompute the horizons)",
-            map.observer_height_m
+            map.observer_height
         );
     }
-    let bodies = EpochBodies::over_dem(fine, kernels, epochs, abcorr)?;
+    let bodies = EpochBodies::over_dem(fine, kernels, &epochs, abcorr)?;
     let t1 = std::time::Instant::now();
     let progress = crate::output::progress_bar(
         rows.len(),
@@ -295,33 +280,28 @@ pub fn horizon_statistics_rows(
     Ok((stats, note))
 }
 
-/// The statistics of `lights` (one entry per epoch, `step_h` hours apart) over `grid`, and a
-/// description of what ran for provenance. The CPU runs `engine` with rays from `placement`;
-/// the GPU runs its DP sweep whatever `engine` says (docs/gpu.md), in tiles of
-/// `gpu_tile_cells` when given.
-#[allow(
-    clippy::too_many_arguments,
-    reason = "one call site per product; a struct would only rename the arguments"
-)]
-pub fn map_sweep(
+/// The statistics of `lights` (one entry per epoch, `step_h` hours apart) over `grid` with the
+/// per-epoch engine `map.engine`, and a description of what ran for provenance. The CPU runs the
+/// engine with rays from `map.placement`; the GPU runs the dp engine (the only per-epoch engine
+/// with a GPU kernel; [`map_engine_on_gpu`] keeps the others on the CPU), in tiles of
+/// `map.gpu_tile_cells` when given.
+fn per_epoch(
     backend: &ResolvedBackend,
     grid: &MapGrid,
-    engine: MapEngineKind,
-    observer_height_m: f64,
-    placement: ObserverPlacement,
+    map: &RangeMap,
     lights: &[EpochLights],
     step_h: f64,
-    gpu_tile_cells: Option<u32>,
     progress: &indicatif::ProgressBar,
-) -> anyhow::Result<(SweepStats, String)> {
+) -> anyhow::Result<(RangeStats, String)> {
+    let h_m = map.observer_height.m();
     match backend {
         ResolvedBackend::Cpu => {
-            let engine = MapEngine::new(engine, grid, observer_height_m)?;
-            let stats = crate::map::sweep(
+            let engine = MapEngine::new(map.engine, grid, h_m)?;
+            let stats = crate::model::per_epoch_statistics(
                 grid,
                 &engine,
-                observer_height_m,
-                placement,
+                h_m,
+                map.placement,
                 lights,
                 step_h,
                 progress,
@@ -329,7 +309,7 @@ pub fn map_sweep(
             // The Fourier horizon map is per model cell whatever the placement.
             let rays = match engine {
                 MapEngine::Fourier(_) => ObserverPlacement::Cells,
-                MapEngine::Direct(_) => placement,
+                MapEngine::Direct(_) => map.placement,
             };
             let note = format!(
                 "cpu: {} soft shadows of the discs, rays from the {}",
@@ -340,41 +320,57 @@ pub fn map_sweep(
         }
         #[cfg(feature = "gpu")]
         ResolvedBackend::Gpu(ctx) => {
+            anyhow::ensure!(
+                map.engine == MapEngineKind::Direct(crate::shadow::Engine::Dp),
+                "internal: the {} engine has no GPU kernel for epoch ranges",
+                map.engine.name()
+            );
             let tiling = crate::gpu::tiles::DpTiling {
-                tile_cells: gpu_tile_cells,
+                tile_cells: map.gpu_tile_cells,
             };
             let (pixels, placement) = super::gpu_maps::GpuPixelMaps::for_placement(
                 ctx,
                 grid,
-                &grid.pixel_observers(observer_height_m),
-                observer_height_m,
+                &grid.pixel_observers(h_m),
+                h_m,
                 tiling,
-                placement,
+                map.placement,
             )?;
             let stats = match pixels {
                 Some(pixels) => pixels.sweep(ctx, lights, step_h)?,
-                None => super::gpu_maps::sweep_gpu_soft(
-                    ctx,
-                    grid,
-                    observer_height_m,
-                    lights,
-                    step_h,
-                    tiling,
-                )?,
+                None => super::gpu_maps::sweep_gpu_soft(ctx, grid, h_m, lights, step_h, tiling)?,
             };
             progress.inc(lights.len() as u64);
             let note = format!(
-                "{}: DP max-mipmap soft shadows of the Sun and Earth discs \
-                 (GPU-resident sweep; --engine is not used on the GPU), rays from the {}",
+                "{}: DP max-mipmap soft shadows of the Sun and Earth discs, rays from the {}",
                 backend.describe(),
                 placement.describe()
             );
             Ok((stats, note))
         }
         #[cfg(not(feature = "gpu"))]
-        ResolvedBackend::Gpu(ctx) => {
-            let _ = gpu_tile_cells;
-            match **ctx {}
-        }
+        ResolvedBackend::Gpu(ctx) => match **ctx {},
+    }
+}
+
+/// What the GPU can do for a map of `engine` (one light, or an epoch range when `range`): the dp
+/// engine runs on the GPU; the Fourier engine's one-light maps too (its horizon map built and
+/// evaluated there); the horizons engine when asked (its line sweep and epoch loop); the combined
+/// engine and Fourier ranges have no GPU kernel.
+pub fn map_engine_on_gpu(engine: MapEngineKind, range: bool) -> super::OnGpu {
+    use crate::shadow::Engine;
+    match engine {
+        MapEngineKind::Direct(Engine::Dp) => super::OnGpu::Preferred,
+        MapEngineKind::Fourier if !range => super::OnGpu::Preferred,
+        MapEngineKind::Horizons => super::OnGpu::WhenAsked,
+        MapEngineKind::Fourier => super::OnGpu::Never {
+            what: "the fourier engine over an epoch range",
+        },
+        MapEngineKind::Direct(Engine::Combined | Engine::Smap) => super::OnGpu::Never {
+            what: "the combined engine",
+        },
+        MapEngineKind::Direct(Engine::Brute) => super::OnGpu::Never {
+            what: "the brute-force engine",
+        },
     }
 }

@@ -25,19 +25,14 @@ use anyhow::Context as _;
 use hifitime::Epoch;
 use rayon::prelude::*;
 
-use crate::ephem::{self, Kernels, MoonGeometry, Site, time::format_iso};
-use crate::horizon::{self, Horizon, HorizonParams};
+use crate::ephem::{self, Kernels, MoonGeometry, time::format_iso};
+use crate::model::Site;
+use crate::horizon::Horizon;
 use crate::illum::stats::{SiteSeries, StatsFile};
 use crate::illum::{self, Disc, HorizonProfile, LimbDarkening};
 use crate::terrain::TerrainStack;
 
-pub mod config;
-pub mod dp;
-
-pub use config::{
-    LimbLaw, SeriesConfig, SeriesEngine, SeriesSite, check_site_name, parse_site_flag,
-    read_sites_file, validate_sites,
-};
+use super::{SeriesConfig, SeriesEngine};
 
 /// The CSV header of a site's `series.csv`.
 pub const SERIES_CSV_HEADER: &str = "utc,sun_az_deg,sun_el_deg,sun_horizon_el_deg,sun_visible_fraction,sun_irradiance_normal_w_m2,sun_irradiance_horizontal_w_m2,sun_irradiance_vertical_tracking_w_m2,earth_az_deg,earth_el_deg,earth_horizon_el_deg,earth_visible_fraction";
@@ -46,7 +41,7 @@ pub const SERIES_CSV_HEADER: &str = "utc,sun_az_deg,sun_el_deg,sun_horizon_el_de
 #[derive(Debug, Clone)]
 pub struct SiteOutcome {
     /// The site.
-    pub site: SeriesSite,
+    pub site: Site,
     /// Its horizon.
     pub horizon: Horizon,
     /// Visible fraction of the Sun per epoch.
@@ -57,116 +52,52 @@ pub struct SiteOutcome {
     pub files: Vec<String>,
 }
 
-/// Computes the horizons of every site (in order), failing with the site's name. With
-/// `config.backend` other than `cpu` the backend is resolved here (`auto`: one warning line and
-/// the CPU when no adapter exists) and on the GPU all sites go to the GPU horizon scan at once.
-pub fn site_horizons(
-    stack: &TerrainStack,
-    sites: &[SeriesSite],
-    config: &SeriesConfig,
-) -> anyhow::Result<Vec<Horizon>> {
-    Ok(site_horizons_on(stack, sites, config)?.0)
-}
-
-/// [`site_horizons`] and the backend that computed them (`run.json`'s `series_backend`).
-fn site_horizons_on(
-    stack: &TerrainStack,
-    sites: &[SeriesSite],
-    config: &SeriesConfig,
-) -> anyhow::Result<(Vec<Horizon>, String)> {
-    // `auto` takes the CPU scan here: for a few sites it is the fast method (`--horizon-method
-    // fast`, ≤ 0.002 deg), while the GPU scan samples like the exact one.
-    if config.backend == crate::gpu::Backend::Gpu {
-        let resolved = crate::gpu::resolve_backend(config.backend)
-            .with_context(|| format!("resolving backend {}", config.backend.as_str()))?;
-        if let crate::gpu::ResolvedBackend::Gpu(ctx) = resolved {
-            let horizons = gpu_site_horizons(&ctx, stack, sites, config)?;
-            return Ok((horizons, gpu_backend_note(&ctx, "per-site horizon scan")));
-        }
-    }
-    let engine = horizon::HorizonEngine::new(stack);
-    sites
-        .iter()
-        .map(|s| {
-            let params = HorizonParams {
-                observer_height_m: s.height_above_ground_m,
-                az_step_deg: config.az_step_deg,
-                method: config.horizon_method,
-                ..HorizonParams::default()
-            };
-            engine
-                .horizon(s.lat_deg, s.lon_deg, &params)
-                .with_context(|| format!("horizon of site '{}'", s.name))
-        })
-        .collect::<anyhow::Result<Vec<_>>>()
-        .map(|h| (h, "cpu: per-site horizon scan".to_string()))
-}
-
-/// `run.json`'s description of a GPU stage: `gpu: <what> on <adapter>`.
-#[cfg(feature = "gpu")]
-fn gpu_backend_note(ctx: &crate::gpu::GpuContext, what: &str) -> String {
-    format!("gpu: {what} on {}", ctx.adapter_name())
-}
-
-#[cfg(not(feature = "gpu"))]
-fn gpu_backend_note(ctx: &crate::gpu::GpuContext, _what: &str) -> String {
-    match *ctx {}
-}
-
-/// The GPU path of [`site_horizons`].
-#[cfg(feature = "gpu")]
-fn gpu_site_horizons(
-    ctx: &crate::gpu::GpuContext,
-    stack: &TerrainStack,
-    sites: &[SeriesSite],
-    config: &SeriesConfig,
-) -> anyhow::Result<Vec<Horizon>> {
-    let engine = horizon::HorizonEngine::new(stack);
-    for s in sites {
-        crate::twins::horizon_scan::site_setup(
-            &engine,
-            s.lat_deg,
-            s.lon_deg,
-            s.height_above_ground_m,
-        )
-        .with_context(|| format!("horizon of site '{}'", s.name))?;
-    }
-    let specs: Vec<(f64, f64, f64)> = sites
-        .iter()
-        .map(|s| (s.lat_deg, s.lon_deg, s.height_above_ground_m))
-        .collect();
-    Ok(crate::gpu::horizon::horizons_gpu(
-        ctx,
-        stack,
-        None,
-        &specs,
-        config.az_step_deg,
-    )?)
-}
-
-#[cfg(not(feature = "gpu"))]
-fn gpu_site_horizons(
-    ctx: &crate::gpu::GpuContext,
-    _stack: &TerrainStack,
-    _sites: &[SeriesSite],
-    _config: &SeriesConfig,
-) -> anyhow::Result<Vec<Horizon>> {
-    match *ctx {}
+/// Where a site's visible fractions come from.
+#[derive(Debug, Clone, Copy)]
+pub enum SiteFractions<'a> {
+    /// The strip integral of each disc against the site's horizon (the horizon engine).
+    FromHorizon,
+    /// Already computed (the smap-dp engine, [`crate::compute::site_dp::site_dp`]): one Sun and
+    /// one Earth fraction per epoch.
+    Given {
+        /// The Sun's visible fraction per epoch.
+        sun: &'a [f64],
+        /// The Earth's visible fraction per epoch.
+        earth: &'a [f64],
+    },
 }
 
 /// Sun and Earth fractions of one site for every epoch of the shared table, calling `row` for each
-/// epoch (in order) with the values of the CSV row. Azimuths are computed for the epochs where
-/// `need_azimuths(k)` is true (CSV rows, plot tracks) and wherever a disc is cut by the horizon;
-/// elsewhere they are `NaN`.
+/// epoch (in order) with the values of the CSV row (the ephemeris is evaluated per epoch for the
+/// CSV columns and sky tracks whatever the fractions' source). Azimuths are computed for the
+/// epochs where `need_azimuths(k)` is true (CSV rows, plot tracks) and wherever a disc is cut by
+/// the horizon; elsewhere they are `NaN`.
 pub fn site_fractions(
     table: &[MoonGeometry],
-    site: &Site,
+    site: &ephem::Site,
     horizon: &Horizon,
+    source: SiteFractions<'_>,
     config: &SeriesConfig,
     need_azimuths: impl Fn(usize) -> bool,
     row: impl FnMut(usize, &SeriesRow) -> anyhow::Result<()>,
 ) -> anyhow::Result<(Vec<f64>, Vec<f64>)> {
     let profile = HorizonProfile::new(&horizon.elevation_deg)?;
+    if let SiteFractions::Given { sun, earth } = source {
+        anyhow::ensure!(
+            sun.len() == table.len() && earth.len() == table.len(),
+            "{} / {} precomputed fractions for {} epochs",
+            sun.len(),
+            earth.len(),
+            table.len()
+        );
+        let fraction = |k: usize, b: Body, _: &mut ephem::Apparent, _: &LimbDarkening| -> f64 {
+            match b {
+                Body::Sun => sun[k],
+                Body::Earth => earth[k],
+            }
+        };
+        return fractions_with(table, site, &profile, config, need_azimuths, row, fraction);
+    }
     // The horizon is the polyline through its samples, so a disc entirely above the highest
     // sample is fully visible and one entirely below the lowest is hidden, whatever the method:
     // most epochs at a polar site end here without looking at the profile.
@@ -194,69 +125,6 @@ pub fn site_fractions(
     fractions_with(table, site, &profile, config, need_azimuths, row, fraction)
 }
 
-/// As [`site_fractions`] with the smap-dp engine ([`crate::series::dp`]): the fractions of site
-/// `index` of `dp` come from the DP search on the map grid; `horizon` (from
-/// [`dp::SmapDpSites::horizon`]) only fills the CSV's horizon columns.
-#[expect(
-    clippy::too_many_arguments,
-    reason = "site_fractions plus the engine and index"
-)]
-pub fn site_fractions_smap_dp(
-    table: &[MoonGeometry],
-    site: &Site,
-    dp: &dp::SmapDpSites,
-    index: usize,
-    horizon: &Horizon,
-    config: &SeriesConfig,
-    need_azimuths: impl Fn(usize) -> bool,
-    row: impl FnMut(usize, &SeriesRow) -> anyhow::Result<()>,
-) -> anyhow::Result<(Vec<f64>, Vec<f64>)> {
-    let profile = HorizonProfile::new(&horizon.elevation_deg)?;
-    let fraction = |_: usize, _: Body, body: &mut ephem::Apparent, limb: &LimbDarkening| -> f64 {
-        dp.fraction(
-            index,
-            &body.pos_in_moon_me_km,
-            body.radius_deg.to_radians(),
-            limb,
-        )
-    };
-    fractions_with(table, site, &profile, config, need_azimuths, row, fraction)
-}
-
-/// As [`site_fractions`] with fractions already computed (the GPU path of the smap-dp engine,
-/// [`dp::SmapDpGpu::fractions`]): `sun` and `earth` hold one fraction per epoch of
-/// `table`; the ephemeris is still evaluated per epoch for the CSV columns and sky tracks.
-#[expect(
-    clippy::too_many_arguments,
-    reason = "site_fractions plus the two fraction series"
-)]
-pub fn site_fractions_given(
-    table: &[MoonGeometry],
-    site: &Site,
-    horizon: &Horizon,
-    sun: &[f64],
-    earth: &[f64],
-    config: &SeriesConfig,
-    need_azimuths: impl Fn(usize) -> bool,
-    row: impl FnMut(usize, &SeriesRow) -> anyhow::Result<()>,
-) -> anyhow::Result<(Vec<f64>, Vec<f64>)> {
-    anyhow::ensure!(
-        sun.len() == table.len() && earth.len() == table.len(),
-        "{} / {} precomputed fractions for {} epochs",
-        sun.len(),
-        earth.len(),
-        table.len()
-    );
-    let profile = HorizonProfile::new(&horizon.elevation_deg)?;
-    let fraction = |k: usize, b: Body, _: &mut ephem::Apparent, _: &LimbDarkening| -> f64 {
-        match b {
-            Body::Sun => sun[k],
-            Body::Earth => earth[k],
-        }
-    };
-    fractions_with(table, site, &profile, config, need_azimuths, row, fraction)
-}
-
 /// Which disc [`fractions_with`] asks for.
 #[derive(Debug, Clone, Copy)]
 enum Body {
@@ -268,7 +136,7 @@ enum Body {
 /// index, body, apparent body, limb darkening), CSV row.
 fn fractions_with(
     table: &[MoonGeometry],
-    site: &Site,
+    site: &ephem::Site,
     profile: &HorizonProfile<'_>,
     config: &SeriesConfig,
     need_azimuths: impl Fn(usize) -> bool,
@@ -401,7 +269,7 @@ pub struct SeriesRun {
 pub fn run_series(
     kernels: &Kernels,
     stack: &TerrainStack,
-    sites: &[SeriesSite],
+    sites: &[Site],
     epochs: &[Epoch],
     step_s: f64,
     config: &SeriesConfig,
@@ -410,65 +278,34 @@ pub fn run_series(
     if sites.is_empty() {
         anyhow::bail!("no sites given");
     }
-    let mut gpu_fractions: Option<Vec<(Vec<f64>, Vec<f64>)>> = None;
-    let mut backend_note = "cpu: smap-dp searches".to_string();
-    let (horizons, dp, table) = match config.engine {
+    let table = ephem::moon_geometry_table(kernels, epochs)?;
+    let (horizons, fractions, backend_note) = match config.engine {
         SeriesEngine::Horizon => {
-            let (horizons, note) = site_horizons_on(stack, sites, config)?;
-            backend_note = note;
-            (horizons, None, ephem::moon_geometry_table(kernels, epochs)?)
+            let (horizons, note) = crate::compute::horizons::site_horizons(
+                config.backend,
+                stack,
+                sites,
+                config.az_step_deg,
+                config.horizon_method,
+            )?;
+            (horizons, None, note)
         }
         SeriesEngine::SmapDp => {
-            let dp = dp::SmapDpSites::new(stack, sites)?;
-            let ephem_sites = sites
-                .iter()
-                .enumerate()
-                .map(|(i, s)| {
-                    Site::new(
-                        s.lat_deg,
-                        s.lon_deg,
-                        dp.ground_height_m(i) + s.height_above_ground_m,
-                    )
-                    .with_context(|| format!("site '{}'", s.name))
-                })
-                .collect::<anyhow::Result<Vec<_>>>()?;
-            // smap-dp on the GPU: `gpu` needs an adapter (else one error line), `auto` takes a hardware
-            // one or falls back to the CPU with one warning line (crate::gpu::resolve_backend).
-            // (resolved after the sites are checked: a bad site is one error line, no backend warning)
-            let gpu_ctx = match (config.engine, config.backend) {
-                (SeriesEngine::SmapDp, backend) if backend != crate::gpu::Backend::Cpu => {
-                    match crate::gpu::resolve_backend(backend)
-                        .with_context(|| format!("resolving backend {}", backend.as_str()))?
-                    {
-                        crate::gpu::ResolvedBackend::Gpu(ctx) => Some(ctx),
-                        crate::gpu::ResolvedBackend::Cpu => None,
-                    }
-                }
-                _ => None,
-            };
-            match gpu_ctx.as_deref() {
-                Some(ctx) => {
-                    let gpu = dp::SmapDpGpu::new(ctx, &dp)?;
-                    let horizons = gpu.horizons(&dp, sites, &ephem_sites, config)?;
-                    let table = ephem::moon_geometry_table(kernels, epochs)?;
-                    gpu_fractions = Some(gpu.fractions(&dp, &table, &ephem_sites, config)?);
-                    backend_note = gpu_backend_note(ctx, "smap-dp searches");
-                    (horizons, None, table)
-                }
-                None => {
-                    let horizons = sites
-                        .iter()
-                        .zip(&ephem_sites)
-                        .enumerate()
-                        .map(|(i, (s, site))| {
-                            dp.horizon(i, s, site, config)
-                                .with_context(|| format!("horizon of site '{}'", s.name))
-                        })
-                        .collect::<anyhow::Result<Vec<_>>>()?;
-                    let table = ephem::moon_geometry_table(kernels, epochs)?;
-                    (horizons, Some(dp), table)
-                }
-            }
+            let run = crate::compute::site_dp::site_dp(
+                config.backend,
+                crate::compute::site_dp::SiteDpRequest {
+                    stack,
+                    sites,
+                    table: &table,
+                    profile: crate::compute::site_dp::ProfileParams {
+                        az_step_deg: config.az_step_deg,
+                        method: config.horizon_method,
+                    },
+                    limb: config.limb_darkening.law(),
+                    abcorr: config.abcorr,
+                },
+            )?;
+            (run.horizons, Some(run.fractions), run.note)
         }
     };
     std::fs::create_dir_all(out_dir)
@@ -478,19 +315,27 @@ pub fn run_series(
         sites.len() * epochs.len(),
         "{spinner} series [{bar:30}] {percent}% ({pos}/{len} site-epochs, eta {eta})",
     );
+    let shared = Shared {
+        table: &table,
+        epochs,
+        step_s,
+        config,
+        out_dir,
+        progress: &progress,
+    };
     let outcomes: Vec<SiteOutcome> = sites
         .par_iter()
         .zip(horizons)
         .enumerate()
         .map(|(i, (spec, horizon))| {
-            let engine = match (&dp, &gpu_fractions) {
-                (Some(d), _) => SiteEngine::SmapDp(d, i),
-                (None, Some(f)) => SiteEngine::Given(&f[i].0, &f[i].1),
-                (None, None) => SiteEngine::Horizon,
+            let source = match &fractions {
+                Some(f) => SiteFractions::Given {
+                    sun: &f[i].0,
+                    earth: &f[i].1,
+                },
+                None => SiteFractions::FromHorizon,
             };
-            run_one_site(
-                &table, epochs, step_s, spec, horizon, engine, config, out_dir, &progress,
-            )
+            run_one_site(&shared, spec, horizon, source)
         })
         .collect::<anyhow::Result<_>>()?;
     progress.finish_and_clear();
@@ -499,7 +344,7 @@ pub fn run_series(
     let all: Vec<SiteSeries<'_>> = outcomes
         .iter()
         .map(|o| SiteSeries {
-            site: &o.site.name,
+            site: o.site.name(),
             start_utc: epochs[0],
             step_s,
             sun_fraction: &o.sun_fraction,
@@ -525,11 +370,11 @@ pub fn run_series(
 
 /// Where a site stands, for `stats.json`: its coordinates, its height above the ground and the
 /// ground height its horizon was computed from.
-pub fn site_location(site: &SeriesSite, horizon: &Horizon) -> illum::stats::SiteLocation {
+pub fn site_location(site: &Site, horizon: &Horizon) -> illum::stats::SiteLocation {
     illum::stats::SiteLocation {
-        lat_deg: site.lat_deg,
-        lon_deg: site.lon_deg,
-        height_above_ground_m: site.height_above_ground_m,
+        lat_deg: site.lat_deg(),
+        lon_deg: site.lon_deg(),
+        height_above_ground_m: site.height_above_ground_m(),
         ground_height_m: horizon.ground_height_m,
     }
 }
@@ -548,15 +393,15 @@ fn write_long_table(outcomes: &[SiteOutcome], out_dir: &Path) -> anyhow::Result<
     crate::output::write_atomic(&out_dir.join(LONG_TABLE), |w| -> anyhow::Result<()> {
         writeln!(w, "{LONG_TABLE_SITE_COLUMNS},{SERIES_CSV_HEADER}")?;
         for o in outcomes {
-            let path = out_dir.join(&o.site.name).join("series.csv");
+            let path = out_dir.join(o.site.name()).join("series.csv");
             let file = std::fs::File::open(&path)
                 .with_context(|| format!("reading back {}", path.display()))?;
             let prefix = format!(
                 "{},{},{},{},{:.3}",
-                csv_field(&o.site.name),
-                o.site.lat_deg,
-                o.site.lon_deg,
-                o.site.height_above_ground_m,
+                csv_field(o.site.name()),
+                o.site.lat_deg(),
+                o.site.lon_deg(),
+                o.site.height_above_ground_m(),
                 o.horizon.ground_height_m
             );
             for line in std::io::BufReader::new(file).lines().skip(1) {
@@ -576,40 +421,42 @@ fn csv_field(s: &str) -> String {
     }
 }
 
-/// Where [`run_one_site`] takes its fractions from.
-#[derive(Clone, Copy)]
-enum SiteEngine<'a> {
-    /// The site's horizon (strip integrals).
-    Horizon,
-    /// The smap-dp engine on the CPU, site index.
-    SmapDp(&'a dp::SmapDpSites, usize),
-    /// Already computed (the smap-dp engine on the GPU): Sun and Earth fractions per epoch.
-    Given(&'a [f64], &'a [f64]),
+/// What every site of a run shares.
+struct Shared<'a> {
+    table: &'a [MoonGeometry],
+    epochs: &'a [Epoch],
+    step_s: f64,
+    config: &'a SeriesConfig,
+    out_dir: &'a Path,
+    progress: &'a indicatif::ProgressBar,
 }
 
-#[expect(clippy::too_many_arguments, reason = "one site's slice of run_series")]
+/// One site's slice of [`run_series`]: its fractions, files and outcome.
 fn run_one_site(
-    table: &[MoonGeometry],
-    epochs: &[Epoch],
-    step_s: f64,
-    spec: &SeriesSite,
+    shared: &Shared<'_>,
+    spec: &Site,
     horizon: Horizon,
-    engine: SiteEngine<'_>,
-    config: &SeriesConfig,
-    out_dir: &Path,
-    progress: &indicatif::ProgressBar,
+    source: SiteFractions<'_>,
 ) -> anyhow::Result<SiteOutcome> {
-    let site_dir = out_dir.join(&spec.name);
+    let Shared {
+        table,
+        epochs,
+        step_s,
+        config,
+        out_dir,
+        progress,
+    } = *shared;
+    let site_dir = out_dir.join(spec.name());
     std::fs::create_dir_all(&site_dir)
         .with_context(|| format!("creating {}", site_dir.display()))?;
-    let rel = |f: &str| format!("{}/{f}", spec.name);
+    let rel = |f: &str| format!("{}/{f}", spec.name());
     let mut files = Vec::new();
-    let site = Site::new(
-        spec.lat_deg,
-        spec.lon_deg,
-        horizon.ground_height_m + spec.height_above_ground_m,
+    let site = ephem::Site::new(
+        spec.lat_deg(),
+        spec.lon_deg(),
+        horizon.ground_height_m + spec.height_above_ground_m(),
     )
-    .with_context(|| format!("site '{}'", spec.name))?;
+    .with_context(|| format!("site '{}'", spec.name()))?;
 
     // Horizon CSV.
     crate::output::write_atomic(&site_dir.join("horizon.csv"), |w| -> anyhow::Result<()> {
@@ -639,31 +486,15 @@ fn run_one_site(
             }
             Ok(())
         };
-        fractions = match engine {
-            SiteEngine::Horizon => {
-                site_fractions(table, &site, &horizon, config, need_azimuths, on_row)?
-            }
-            SiteEngine::Given(sun, earth) => site_fractions_given(
-                table,
-                &site,
-                &horizon,
-                sun,
-                earth,
-                config,
-                need_azimuths,
-                on_row,
-            )?,
-            SiteEngine::SmapDp(dp, i) => site_fractions_smap_dp(
-                table,
-                &site,
-                dp,
-                i,
-                &horizon,
-                config,
-                need_azimuths,
-                on_row,
-            )?,
-        };
+        fractions = site_fractions(
+            table,
+            &site,
+            &horizon,
+            source,
+            config,
+            need_azimuths,
+            on_row,
+        )?;
         progress.inc((epochs.len() % 4096) as u64);
         Ok(())
     };
@@ -679,7 +510,7 @@ fn run_one_site(
     let (sun_fraction, earth_fraction) = fractions;
 
     let series = SiteSeries {
-        site: &spec.name,
+        site: spec.name(),
         start_utc: epochs[0],
         step_s,
         sun_fraction: &sun_fraction,
@@ -696,7 +527,7 @@ fn run_one_site(
         };
         let title = format!(
             "{} ({:.3}°, {:.3}°), {:.1} m above ground",
-            spec.name, spec.lat_deg, spec.lon_deg, spec.height_above_ground_m
+            spec.name(), spec.lat_deg(), spec.lon_deg(), spec.height_above_ground_m()
         );
         illum::plot::write_horizon_plot(
             &site_dir.join("horizon.png"),
@@ -707,7 +538,7 @@ fn run_one_site(
         )?;
         illum::plot::write_horizon_polar_plot(
             &site_dir.join("horizon_polar.png"),
-            &format!("Horizon (polar): {}", spec.name),
+            &format!("Horizon (polar): {}", spec.name()),
             &profile,
             &tracks,
             900,

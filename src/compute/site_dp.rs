@@ -62,11 +62,10 @@ use anyhow::Context as _;
 use nalgebra::{Matrix3, Vector3};
 use rayon::prelude::*;
 
-use super::config::{SeriesConfig, SeriesSite};
 use crate::ephem::topo::{self, MoonGeometry};
 use crate::ephem::{AbCorr, Site};
 use crate::gpu::GpuContext;
-use crate::horizon::Horizon;
+use crate::horizon::{Horizon, HorizonMethod};
 use crate::illum::LimbDarkening;
 use crate::illum::disc::chord_visible_fraction;
 use crate::model::MapGrid;
@@ -79,6 +78,16 @@ use crate::twins::{self, MarchGrid};
 /// Terrain nearer than this (cells of the model grid) is the observer's own ground (as
 /// [`crate::horizon`]'s `min_distance_m`, half a cell).
 pub const MIN_DISTANCE_CELLS: f64 = crate::shadow::OWN_HALF_PIXEL_CELLS;
+
+/// How a site's horizon profile (`horizon.csv`, the plots) is sampled: every `az_step_deg` of the
+/// site's local azimuth; `method` is recorded with it.
+#[derive(Debug, Clone, Copy)]
+pub struct ProfileParams {
+    /// Azimuth step, degrees (must divide 360).
+    pub az_step_deg: f64,
+    /// The horizon method the run asked for (recorded in the profile).
+    pub method: HorizonMethod,
+}
 
 /// Errors of the smap-dp series engine.
 #[derive(Debug, thiserror::Error)]
@@ -124,7 +133,7 @@ pub struct SmapDpSites {
 impl SmapDpSites {
     /// Builds the model grid of `stack` (as `penumbra map` does), its maximum mipmap, and the
     /// observer of each site (see the module docs).
-    pub fn new(stack: &TerrainStack, sites: &[SeriesSite]) -> anyhow::Result<Self> {
+    pub fn new(stack: &TerrainStack, sites: &[crate::model::Site]) -> anyhow::Result<Self> {
         let grid = MapGrid::new(stack)?;
         Self::from_grid(grid, stack, sites)
     }
@@ -133,7 +142,7 @@ impl SmapDpSites {
     pub fn from_grid(
         grid: MapGrid,
         stack: &TerrainStack,
-        sites: &[SeriesSite],
+        sites: &[crate::model::Site],
     ) -> anyhow::Result<Self> {
         let hf = &grid.hf;
         let frame = ModelFrame::of(hf);
@@ -142,15 +151,15 @@ impl SmapDpSites {
         for s in sites {
             let (ground_m, _) =
                 stack
-                    .height_at_lat_lon_m(s.lat_deg, s.lon_deg)
+                    .height_at_lat_lon_m(s.lat_deg(), s.lon_deg())
                     .ok_or_else(|| SeriesDpError::NoGround {
-                        site: s.name.clone(),
-                        lat_deg: s.lat_deg,
-                        lon_deg: s.lon_deg,
+                        site: s.name().to_string(),
+                        lat_deg: s.lat_deg(),
+                        lon_deg: s.lon_deg(),
                     })?;
             // The ground point, then the model grid's own surface under it (bilinear), then the
             // observer `h` above it along the radial direction.
-            let g = frame.model_from_lat_lon_height(s.lat_deg, s.lon_deg, ground_m);
+            let g = frame.model_from_lat_lon_height(s.lat_deg(), s.lon_deg(), ground_m);
             let (row_g, col_g) = hf.row_col_from_xy(g.x, g.y);
             let inside = row_g >= 0.0
                 && col_g >= 0.0
@@ -160,10 +169,10 @@ impl SmapDpSites {
                 .then(|| crate::shadow::brute::bilinear(hf, row_g, col_g))
                 .flatten()
                 .ok_or_else(|| SeriesDpError::OffGrid {
-                    site: s.name.clone(),
+                    site: s.name().to_string(),
                 })?;
             let up = hf.up_at(g.x, g.y, z_surface_m);
-            let p = Vector3::new(g.x, g.y, z_surface_m) + s.height_above_ground_m * up;
+            let p = Vector3::new(g.x, g.y, z_surface_m) + s.height_above_ground_m() * up;
             let (row, col) = hf.row_col_from_xy(p.x, p.y);
             observers.push(Observer {
                 row: row.clamp(0.0, (hf.rows - 1) as f64),
@@ -255,6 +264,48 @@ impl SmapDpSites {
         (n > 0.0 && n.is_finite()).then(|| LightDir::new(v / n))
     }
 
+    /// Every site's Sun and Earth visible fractions over `table` on the CPU (`sites`: the
+    /// ephemeris sites, one per site of [`Self::new`], in order), the Sun's weighted by `limb`;
+    /// the bodies' topocentric directions as [`Self::disc_table`] takes them. Rayon over sites.
+    pub fn fractions(
+        &self,
+        table: &[MoonGeometry],
+        sites: &[Site],
+        limb: &LimbDarkening,
+        abcorr: AbCorr,
+    ) -> Vec<(Vec<f64>, Vec<f64>)> {
+        sites
+            .par_iter()
+            .enumerate()
+            .map(|(i, site)| {
+                table
+                    .iter()
+                    .map(|geo| {
+                        let obs = topo::Observer::new(geo, site);
+                        let disc = |target, radius_km, limb| {
+                            let pos = topo::target_from_observer(geo, target, &obs, abcorr);
+                            let body = topo::apparent_without_azimuth(pos, site, radius_km);
+                            self.fraction(
+                                i,
+                                &body.pos_in_moon_me_km,
+                                body.radius_deg.to_radians(),
+                                limb,
+                            )
+                        };
+                        (
+                            disc(&geo.sun_wrt_moon, crate::SUN_RADIUS_KM, limb),
+                            disc(
+                                &geo.earth_wrt_moon,
+                                crate::EARTH_RADIUS_KM,
+                                &LimbDarkening::UNIFORM,
+                            ),
+                        )
+                    })
+                    .unzip()
+            })
+            .collect()
+    }
+
     /// The sites' observers as the GPU kernel `shaders/dp_sites.wgsl` reads them
     /// ([`twins::site_observer_to_f32`] on `march`, the [`MarchGrid`] of [`Self::grid`]).
     pub fn site_observers_f32(&self, march: &MarchGrid) -> Vec<[f32; 4]> {
@@ -304,17 +355,16 @@ impl SmapDpSites {
         per_epoch.into_iter().flatten().unzip()
     }
 
-    /// The terrain horizon of site `i` seen by the DP search (see the module docs), at
-    /// `az_step_deg` steps of the site's local azimuth; `site` is the ephemeris site (its ENU
-    /// frame), `spec` the series site.
+    /// The terrain horizon of site `i` seen by the DP search (see the module docs), sampled as
+    /// `profile` says; `site` is the ephemeris site (its ENU frame), `spec` the series site.
     pub fn horizon(
         &self,
         i: usize,
-        spec: &SeriesSite,
+        spec: &crate::model::Site,
         site: &Site,
-        config: &SeriesConfig,
+        profile: ProfileParams,
     ) -> anyhow::Result<Horizon> {
-        self.horizon_with(i, spec, site, config, |dirs| {
+        self.horizon_with(i, spec, site, profile, |dirs| {
             Ok(dirs
                 .iter()
                 .map(|dir| {
@@ -327,8 +377,8 @@ impl SmapDpSites {
 
     /// The model-space directions of the horizon profile of `site` (one per `az_step_deg` of
     /// the site's local azimuth, horizontal in the site's ENU frame).
-    fn profile_dirs(&self, site: &Site, config: &SeriesConfig) -> anyhow::Result<Vec<LightDir>> {
-        let step = config.az_step_deg;
+    fn profile_dirs(&self, site: &Site, profile: ProfileParams) -> anyhow::Result<Vec<LightDir>> {
+        let step = profile.az_step_deg;
         let n_f = 360.0 / step;
         if !(step.is_finite() && step >= 0.001 && (n_f - n_f.round()).abs() < 1e-6 * n_f) {
             return Err(SeriesDpError::BadAzStep(step).into());
@@ -350,13 +400,13 @@ impl SmapDpSites {
     fn horizon_with(
         &self,
         i: usize,
-        spec: &SeriesSite,
+        spec: &crate::model::Site,
         site: &Site,
-        config: &SeriesConfig,
+        profile: ProfileParams,
         tan_horizon: impl FnOnce(&[LightDir]) -> anyhow::Result<Vec<Option<f64>>>,
     ) -> anyhow::Result<Horizon> {
-        let step = config.az_step_deg;
-        let dirs = self.profile_dirs(site, config)?;
+        let step = profile.az_step_deg;
+        let dirs = self.profile_dirs(site, profile)?;
         let n = dirs.len();
         let tans = tan_horizon(&dirs)?;
         let enu_from_model = site.enu_from_moon_me * self.model_from_moon_me.transpose();
@@ -376,19 +426,109 @@ impl SmapDpSites {
             elevation_deg.push(el);
         }
         Ok(Horizon {
-            lat_deg: spec.lat_deg,
-            lon_deg: spec.lon_deg,
+            lat_deg: spec.lat_deg(),
+            lon_deg: spec.lon_deg(),
             ground_height_m: self.ground_height_m[i],
-            observer_height_m: spec.height_above_ground_m,
+            observer_height_m: spec.height_above_ground_m(),
             ground_layer: format!("smap-dp model grid of {}", self.grid.dem.name),
             min_distance_m: MIN_DISTANCE_CELLS * self.grid.hf.px_m,
-            method: config.horizon_method,
+            method: profile.method,
             az_step_deg: step,
             az_deg,
             elevation_deg,
             distance_m: vec![f64::NAN; n],
         })
     }
+}
+
+/// What the smap-dp engine computes for a series: the sites, the epochs and the settings.
+#[derive(Clone, Copy)]
+pub struct SiteDpRequest<'a> {
+    /// Every terrain layer (the model grid is built from them as `penumbra map` does).
+    pub stack: &'a TerrainStack,
+    /// The sites, in order.
+    pub sites: &'a [crate::model::Site],
+    /// The Moon-centred geometry of every epoch, in order.
+    pub table: &'a [MoonGeometry],
+    /// How the horizon profiles are sampled.
+    pub profile: ProfileParams,
+    /// The Sun's limb darkening (the Earth's disc is uniform).
+    pub limb: LimbDarkening,
+    /// The aberration correction.
+    pub abcorr: AbCorr,
+}
+
+/// Every site's horizon profile and its Sun and Earth fractions per epoch from the smap-dp
+/// engine, and what ran.
+#[derive(Debug)]
+pub struct SiteDpRun {
+    /// Each site's horizon profile (its ground height is the DEM's under the site).
+    pub horizons: Vec<Horizon>,
+    /// Each site's Sun and Earth visible fractions, one per epoch.
+    pub fractions: Vec<(Vec<f64>, Vec<f64>)>,
+    /// What ran, for `run.json`.
+    pub note: String,
+}
+
+/// The smap-dp engine on the backend `requested` resolves to (after the sites are checked, so a
+/// bad site is one error line with no backend warning): the CPU DP searches, or the GPU kernel
+/// `shaders/dp_sites.wgsl` with the disc weighting on the CPU in f64.
+pub fn site_dp(requested: super::Backend, req: SiteDpRequest<'_>) -> anyhow::Result<SiteDpRun> {
+    let dp = SmapDpSites::new(req.stack, req.sites)?;
+    let places = req
+        .sites
+        .iter()
+        .enumerate()
+        .map(|(i, s)| {
+            Site::new(
+                s.lat_deg(),
+                s.lon_deg(),
+                dp.ground_height_m(i) + s.height_above_ground_m(),
+            )
+            .with_context(|| format!("site '{}'", s.name()))
+        })
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    match super::resolve(requested, super::OnGpu::Preferred)? {
+        super::ResolvedBackend::Cpu => {
+            let horizons = req
+                .sites
+                .iter()
+                .zip(&places)
+                .enumerate()
+                .map(|(i, (s, place))| {
+                    dp.horizon(i, s, place, req.profile)
+                        .with_context(|| format!("horizon of site '{}'", s.name()))
+                })
+                .collect::<anyhow::Result<Vec<_>>>()?;
+            let fractions = dp.fractions(req.table, &places, &req.limb, req.abcorr);
+            Ok(SiteDpRun {
+                horizons,
+                fractions,
+                note: "cpu: smap-dp searches".into(),
+            })
+        }
+        super::ResolvedBackend::Gpu(ctx) => {
+            let gpu = SmapDpGpu::new(&ctx, &dp)?;
+            let horizons = gpu.horizons(&dp, req.sites, &places, req.profile)?;
+            let fractions = gpu.fractions(&dp, req.table, &places, req.limb, req.abcorr)?;
+            Ok(SiteDpRun {
+                horizons,
+                fractions,
+                note: gpu_note(&ctx, "smap-dp searches"),
+            })
+        }
+    }
+}
+
+/// `run.json`'s description of a GPU stage: `gpu: <what> on <adapter>`.
+#[cfg(feature = "gpu")]
+pub(crate) fn gpu_note(ctx: &GpuContext, what: &str) -> String {
+    format!("gpu: {what} on {}", ctx.adapter_name())
+}
+
+#[cfg(not(feature = "gpu"))]
+pub(crate) fn gpu_note(ctx: &GpuContext, _what: &str) -> String {
+    match *ctx {}
 }
 
 /// Visible (flux) fraction, weighted by `limb`, of a disc of centre elevation `e_c_rad` and
@@ -500,14 +640,14 @@ impl<'a> SmapDpGpu<'a> {
     pub fn horizons(
         &self,
         dp: &SmapDpSites,
-        specs: &[SeriesSite],
+        specs: &[crate::model::Site],
         sites: &[Site],
-        config: &SeriesConfig,
+        profile: ProfileParams,
     ) -> anyhow::Result<Vec<Horizon>> {
         let mut lights = Vec::new();
         let mut n = 0;
         for site in sites {
-            let dirs = dp.profile_dirs(site, config)?;
+            let dirs = dp.profile_dirs(site, profile)?;
             n = dirs.len();
             // Negative radius: no cap (the exact horizon).
             lights.extend(dirs.iter().map(|d| twins::disc_light_to_f32(&d.unit, -1.0)));
@@ -518,13 +658,13 @@ impl<'a> SmapDpGpu<'a> {
             .zip(sites)
             .enumerate()
             .map(|(i, (spec, site))| {
-                dp.horizon_with(i, spec, site, config, |_| {
+                dp.horizon_with(i, spec, site, profile, |_| {
                     Ok(tans[i * n..(i + 1) * n]
                         .iter()
                         .map(|&t| (t > 0.5 * twins::NO_HORIZON_TAN).then_some(f64::from(t)))
                         .collect())
                 })
-                .with_context(|| format!("horizon of site '{}'", spec.name))
+                .with_context(|| format!("horizon of site '{}'", spec.name()))
             })
             .collect()
     }
@@ -537,9 +677,9 @@ impl<'a> SmapDpGpu<'a> {
         dp: &SmapDpSites,
         table: &[MoonGeometry],
         sites: &[Site],
-        config: &SeriesConfig,
+        limb: LimbDarkening,
+        abcorr: AbCorr,
     ) -> anyhow::Result<Vec<(Vec<f64>, Vec<f64>)>> {
-        let limb = config.limb_darkening.law();
         let mut out: Vec<(Vec<f64>, Vec<f64>)> = sites
             .iter()
             .map(|_| {
@@ -551,7 +691,7 @@ impl<'a> SmapDpGpu<'a> {
             .collect();
         let batch = (self.discs_per_call / (2 * sites.len().max(1))).max(1);
         for chunk in table.chunks(batch) {
-            let (lights, discs) = dp.disc_table(chunk, sites, config.abcorr);
+            let (lights, discs) = dp.disc_table(chunk, sites, abcorr);
             let tans = self.run(&lights)?;
             out.par_iter_mut()
                 .enumerate()

@@ -1,9 +1,21 @@
-//! `penumbra series`: per-site illumination time series, statistics and plots.
+//! `penumbra series` and a scenario's `[series]`: per-site illumination time series, statistics
+//! and plots. The request ([`SeriesRequest`], its settings [`SeriesConfig`]) is built by the
+//! command line, a scenario and the Python module; [`run_series`] computes and writes a run, the
+//! horizons and the smap-dp engine through [`crate::compute`].
+
+mod config;
+mod pipeline;
 
 use std::path::PathBuf;
 
-use super::{EpochSpec, KernelSource, TerrainSource};
-use crate::series::{self, SeriesConfig, SeriesSite};
+use super::{KernelSource, TerrainSource};
+use crate::model::{Epochs, Site};
+
+pub use config::{SeriesConfig, SeriesEngine};
+pub use pipeline::{
+    LONG_TABLE, LONG_TABLE_SITE_COLUMNS, SERIES_CSV_HEADER, SeriesRow, SeriesRun, SiteFractions,
+    SiteOutcome, row_values, run_series, site_fractions, site_location,
+};
 
 /// What `penumbra series` computes.
 #[derive(Debug, Clone)]
@@ -11,9 +23,9 @@ pub struct SeriesRequest {
     /// The terrain.
     pub terrain: TerrainSource,
     /// The sites (at least one; names unique).
-    pub sites: Vec<SeriesSite>,
+    pub sites: Vec<Site>,
     /// The epochs.
-    pub epochs: EpochSpec,
+    pub epochs: Epochs,
     /// Engine, backend, disc method, limb darkening, horizon settings, outputs.
     pub config: SeriesConfig,
     /// The kernels.
@@ -30,14 +42,14 @@ pub fn run(req: &SeriesRequest) -> anyhow::Result<()> {
             "no site given (use --site NAME,LAT,LON, --sites FILE or --lat-deg/--lon-deg)"
         );
     }
-    series::validate_sites(&req.sites)?;
-    let epochs = req.epochs.epochs()?;
+    crate::model::check_distinct_sites(&req.sites)?;
+    let epochs = req.epochs.epochs();
     let step_s = req.epochs.step_s();
     let (stack, dem_layers) = req.terrain.load()?;
     let kernels = req.kernels.load()?;
     let _lock = crate::output::cleanup::RunLock::begin(&req.out_dir, "run.json")
         .map_err(anyhow::Error::msg)?;
-    let run = series::run_series(
+    let run = run_series(
         &kernels,
         &stack,
         &req.sites,
