@@ -142,7 +142,8 @@ fn bench_engines(c: &mut Criterion) {
         });
         group.bench_with_input(BenchmarkId::new("smap_dp", n), &sites, |b, sites| {
             b.iter(|| {
-                let run = site_dp(Backend::Cpu, dp_request(&stack, sites, &table, &config)).unwrap();
+                let run =
+                    site_dp(Backend::Cpu, dp_request(&stack, sites, &table, &config)).unwrap();
                 fraction_sum(&table, sites, &run.horizons, Some(&run.fractions), &config)
             })
         });
@@ -150,7 +151,8 @@ fn bench_engines(c: &mut Criterion) {
         if gpu {
             group.bench_with_input(BenchmarkId::new("smap_dp_gpu", n), &sites, |b, sites| {
                 b.iter(|| {
-                    let run = site_dp(Backend::Gpu, dp_request(&stack, sites, &table, &config)).unwrap();
+                    let run =
+                        site_dp(Backend::Gpu, dp_request(&stack, sites, &table, &config)).unwrap();
                     fraction_sum(&table, sites, &run.horizons, Some(&run.fractions), &config)
                 })
             });

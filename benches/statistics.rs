@@ -96,7 +96,6 @@ fn bench_statistics(c: &mut Criterion) {
                     ObserverPlacement::Pixels,
                     &lights,
                     6.0,
-                    &indicatif::ProgressBar::hidden(),
                 )
                 .unwrap()
                 .sun_visible_count[N * N / 2]

@@ -167,10 +167,9 @@ impl MapArgs {
     fn task(&self) -> anyhow::Result<MapTask> {
         let epochs = self.epochs.spec()?;
         if let Some(penumbra::model::Epochs::Range(range)) = epochs {
-            let out_dir = self
-                .out_dir
-                .clone()
-                .ok_or_else(|| anyhow::anyhow!("an epoch range needs --out-dir DIR for the statistics maps"))?;
+            let out_dir = self.out_dir.clone().ok_or_else(|| {
+                anyhow::anyhow!("an epoch range needs --out-dir DIR for the statistics maps")
+            })?;
             return Ok(MapTask::Range {
                 epochs: range,
                 files: RangeFiles {
@@ -234,11 +233,12 @@ impl MapArgs {
 
 /// Runs `penumbra map`.
 pub fn run(args: &MapArgs) -> anyhow::Result<()> {
-    penumbra::products::map::run(&MapRequest {
+    let request = MapRequest {
         terrain: args.terrain.source(),
         kernels: args.kernels.source(),
         abcorr: super::abcorr(&args.abcorr)?,
         settings: args.settings(),
         task: args.task()?,
-    })
+    };
+    penumbra::products::map::run(&request)
 }

@@ -5,8 +5,8 @@
 use anyhow::Context as _;
 use nalgebra::Vector3;
 
-use crate::model::{MapEngine, ObserverPlacement, RangeStats};
 use crate::model::{EpochLights, MapGrid};
+use crate::model::{MapEngine, ObserverPlacement, RangeStats};
 use crate::terrain::HeightField;
 
 /// The soft GPU twin of [`crate::model::per_epoch_statistics`]: one GPU-resident sweep

@@ -3,7 +3,9 @@
 
 use anyhow::Context as _;
 
-use crate::horizon::{Horizon, HorizonEngine, HorizonMethod, HorizonParams, HorizonSweep, SweepBand};
+use crate::horizon::{
+    Horizon, HorizonEngine, HorizonMethod, HorizonParams, HorizonSweep, SweepBand,
+};
 use crate::shadow::fourier::{HorizonMap, HorizonMapParams};
 use crate::terrain::{HeightField, TerrainStack};
 
@@ -73,7 +75,10 @@ pub fn site_horizons(
             }
             let horizons =
                 crate::gpu::horizon::horizons_gpu(&ctx, stack, None, &specs, az_step_deg)?;
-            Ok((horizons, super::site_dp::gpu_note(&ctx, "per-site horizon scan")))
+            Ok((
+                horizons,
+                super::site_dp::gpu_note(&ctx, "per-site horizon scan"),
+            ))
         }
         #[cfg(not(feature = "gpu"))]
         ResolvedBackend::Gpu(ctx) => match *ctx {},

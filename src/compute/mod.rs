@@ -7,6 +7,8 @@
 
 use anyhow::Context as _;
 
+use crate::model::MapEngineKind;
+
 pub use crate::gpu::{Backend, ResolvedBackend};
 
 #[cfg(feature = "gpu")]
@@ -50,3 +52,132 @@ pub fn resolve(requested: Backend, on_gpu: OnGpu) -> anyhow::Result<ResolvedBack
             .with_context(|| format!("resolving --backend {}", requested.as_str())),
     }
 }
+
+/// How a map is computed, whatever it is asked for: the command line, a scenario's `[map]` and
+/// the Python module build the same settings.
+#[derive(Debug, Clone)]
+pub struct MapSettings {
+    /// Observer height above the ground.
+    pub observer_height: crate::model::ObserverHeight,
+    /// The engine; `None` for `auto` ([`auto_engine`]).
+    pub engine: Option<MapEngineKind>,
+    /// Where it runs (`--backend`).
+    pub backend: Backend,
+    /// GPU tiles of this many cells per side (≥ 2) instead of the automatic choice.
+    pub gpu_tile_cells: Option<u32>,
+    /// Where the rays start; `None` for the DEM pixels' own surface points.
+    pub observers: Option<crate::model::ObserverPlacement>,
+    /// The horizons engine: where its whole-grid horizons come from.
+    pub horizons: range::HorizonsFrom,
+    /// The horizons engine: the Sun's limb darkening in its mean fraction (the per-epoch engines
+    /// use a uniform disc).
+    pub limb: crate::illum::LimbLaw,
+}
+
+impl Default for MapSettings {
+    fn default() -> Self {
+        MapSettings {
+            observer_height: crate::model::ObserverHeight::DEFAULT,
+            engine: None,
+            backend: Backend::Auto,
+            gpu_tile_cells: None,
+            observers: None,
+            horizons: range::HorizonsFrom::default(),
+            limb: crate::illum::LimbLaw::default(),
+        }
+    }
+}
+
+impl MapSettings {
+    /// Where the rays start.
+    pub fn placement(&self) -> crate::model::ObserverPlacement {
+        self.observers
+            .unwrap_or(crate::model::ObserverPlacement::Pixels)
+    }
+
+    /// The engine a map runs and the backend it runs on: the engine asked for, on the backend
+    /// `--backend` resolves to for it ([`map_engine_on_gpu`]); for `auto`, the best engine where
+    /// the map runs ([`auto_engine`]). `n_epochs` is the number of epochs of a range (`None` for
+    /// one light).
+    pub fn engine_and_backend(
+        &self,
+        n_epochs: Option<usize>,
+    ) -> anyhow::Result<(MapEngineKind, ResolvedBackend)> {
+        if let Some(engine) = self.engine {
+            let on_gpu = map_engine_on_gpu(engine, n_epochs.is_some());
+            return Ok((engine, resolve(self.backend, on_gpu)?));
+        }
+        let backend = resolve(self.backend, OnGpu::Preferred)?;
+        let engine = auto_engine(&backend, n_epochs, &self.horizons);
+        if let Some(n) = n_epochs {
+            crate::note!(
+                "penumbra: --engine auto: {} for {n} epochs",
+                match engine {
+                    MapEngineKind::Horizons =>
+                        "horizons (whole-grid horizons once, then every epoch per pixel)",
+                    MapEngineKind::Direct(crate::shadow::Engine::Dp) =>
+                        "dp (a soft-shadow map per epoch on the GPU)",
+                    _ => "combined (a soft-shadow map per epoch)",
+                }
+            );
+        }
+        Ok((engine, backend))
+    }
+}
+
+/// What the GPU can do for a map of `engine` (one light, or an epoch range when `range`): the dp
+/// engine runs on the GPU; the Fourier engine's one-light maps too (its horizon map built and
+/// evaluated there); the horizons engine when asked (its line sweep and epoch loop); the combined
+/// engine and Fourier ranges have no GPU kernel.
+pub fn map_engine_on_gpu(engine: MapEngineKind, range: bool) -> OnGpu {
+    use crate::shadow::Engine;
+    match engine {
+        MapEngineKind::Direct(Engine::Dp) => OnGpu::Preferred,
+        MapEngineKind::Fourier if !range => OnGpu::Preferred,
+        MapEngineKind::Horizons => OnGpu::WhenAsked,
+        MapEngineKind::Fourier => OnGpu::Never {
+            what: "the fourier engine over an epoch range",
+        },
+        MapEngineKind::Direct(Engine::Combined | Engine::Smap) => OnGpu::Never {
+            what: "the combined engine",
+        },
+        MapEngineKind::Direct(Engine::Brute) => OnGpu::Never {
+            what: "the brute-force engine",
+        },
+    }
+}
+
+/// The engine `--engine auto` runs on `backend` for one light (`n_epochs` `None`) or a range of
+/// `n_epochs`: one light, `dp` on a GPU, else `combined`. A range: the horizons engine when its
+/// horizons are given as a file (`--horizons`: the sweep is paid for, and each epoch then costs
+/// it ≈ 35× less than a combined map on the CPU), or on the CPU from
+/// [`AUTO_HORIZONS_MIN_EPOCHS`] epochs on (where a whole-grid sweep costs less than the per-epoch
+/// maps; `cargo bench --bench statistics`, docs/PERFORMANCE.md); else `dp` on a GPU, `combined`
+/// on the CPU. Where a GPU's per-epoch maps overtake a CPU-built sweep has not been measured on
+/// a GPU.
+pub fn auto_engine(
+    backend: &ResolvedBackend,
+    n_epochs: Option<usize>,
+    horizons: &range::HorizonsFrom,
+) -> MapEngineKind {
+    use crate::shadow::Engine;
+    let on_gpu = matches!(backend, ResolvedBackend::Gpu(_));
+    let per_epoch = if on_gpu {
+        MapEngineKind::Direct(Engine::Dp)
+    } else {
+        MapEngineKind::Direct(Engine::Combined)
+    };
+    match (n_epochs, horizons) {
+        (None, _) => per_epoch,
+        (Some(_), range::HorizonsFrom::File(_)) => MapEngineKind::Horizons,
+        (Some(n), range::HorizonsFrom::Sweep { .. })
+            if !on_gpu && n >= AUTO_HORIZONS_MIN_EPOCHS =>
+        {
+            MapEngineKind::Horizons
+        }
+        (Some(_), range::HorizonsFrom::Sweep { .. }) => per_epoch,
+    }
+}
+
+/// Fewest epochs for which `--engine auto` sweeps horizons (see [`auto_engine`]).
+pub const AUTO_HORIZONS_MIN_EPOCHS: usize = 1000;

@@ -7,11 +7,14 @@
 //! (docs/gpu.md), always at the model cells. A grid that needs the GPU's 2-D tiles is mapped
 //! from its model cells on the GPU (with a warning).
 
-use crate::model::{MapEngine, MapEngineKind, ObserverPlacement};
-use crate::model::MapGrid;
-use crate::shadow::Observer;
+use hifitime::Epoch;
 
-use super::ResolvedBackend;
+use crate::ephem::{AbCorr, Kernels};
+use crate::model::{MapEngine, MapEngineKind, MapGrid, ObserverPlacement, epoch_lights};
+use crate::shadow::Observer;
+use crate::terrain::TerrainStack;
+
+use super::{MapSettings, ResolvedBackend};
 
 /// Where the rays of a map start when `requested` (`None`: the DEM pixels' own surface points,
 /// on either backend).
@@ -20,7 +23,7 @@ pub fn placement(requested: Option<ObserverPlacement>) -> ObserverPlacement {
 }
 
 /// A map grid ready for one-light maps on a backend (engine built, a GPU horizon map uploaded).
-pub struct OneLightMaps<'a> {
+pub struct Prepared<'a> {
     backend: &'a ResolvedBackend,
     grid: &'a MapGrid,
     observer_height_m: f64,
@@ -36,7 +39,7 @@ pub struct OneLightMaps<'a> {
     gpu_pixels: Option<super::gpu_maps::GpuPixelMaps>,
 }
 
-impl<'a> OneLightMaps<'a> {
+impl<'a> Prepared<'a> {
     /// Builds `engine` for `grid` on `backend` (the Fourier horizon map on the GPU there), with
     /// rays from `placement` (see [`placement`]) and GPU tiles of `gpu_tile_cells` when given.
     pub fn new(
@@ -90,7 +93,7 @@ impl<'a> OneLightMaps<'a> {
             }
             _ => (None, placement),
         };
-        Ok(OneLightMaps {
+        Ok(Prepared {
             backend,
             grid,
             observer_height_m: h_m,
@@ -189,4 +192,217 @@ impl<'a> OneLightMaps<'a> {
             ResolvedBackend::Gpu(ctx) => match **ctx {},
         }
     }
+}
+
+/// The light of a one-light map.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Light {
+    /// The Sun (and the Earth) of an epoch, from the ephemeris.
+    Epoch(Epoch),
+    /// A Sun direction in `MOON_ME` (any non-zero finite length) and the disc's angular radius.
+    DirectionInMoonMe {
+        /// The direction.
+        dir: [f64; 3],
+        /// Angular radius of the disc, degrees.
+        radius_deg: f64,
+    },
+    /// The Sun's azimuth and elevation at the map centre and the disc's angular radius.
+    AzElAtCentre {
+        /// Azimuth, degrees clockwise from north.
+        az_deg: f64,
+        /// Elevation, degrees.
+        el_deg: f64,
+        /// Angular radius of the disc, degrees.
+        radius_deg: f64,
+    },
+}
+
+impl Light {
+    /// Checks an explicit light: a finite non-zero direction, an elevation within ±90°, a disc
+    /// radius in (0, 10)°.
+    pub fn checked(self) -> anyhow::Result<Self> {
+        let radius_ok = |r: f64| r > 0.0 && r < 10.0;
+        match self {
+            Light::Epoch(_) => {}
+            Light::DirectionInMoonMe { dir, radius_deg } => {
+                let n = nalgebra::Vector3::from(dir).norm();
+                anyhow::ensure!(
+                    n.is_finite() && n > 0.0,
+                    "Sun direction {dir:?}: must be a non-zero vector of finite length"
+                );
+                anyhow::ensure!(
+                    radius_ok(radius_deg),
+                    "Sun radius {radius_deg} deg must be in (0, 10)"
+                );
+            }
+            Light::AzElAtCentre {
+                az_deg,
+                el_deg,
+                radius_deg,
+            } => {
+                anyhow::ensure!(
+                    az_deg.is_finite() && (-90.0..=90.0).contains(&el_deg),
+                    "Sun azimuth {az_deg} / elevation {el_deg} deg: the azimuth must be finite \
+                     and the elevation within -90 .. 90 deg"
+                );
+                anyhow::ensure!(
+                    radius_ok(radius_deg),
+                    "Sun radius {radius_deg} deg must be in (0, 10)"
+                );
+            }
+        }
+        Ok(self)
+    }
+}
+
+/// Which maps of one light to compute.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct OneLightOutputs {
+    /// The Sun's visible fraction.
+    pub sun_fraction: bool,
+    /// The hard mask of the Sun's disc centre.
+    pub sun_mask: bool,
+    /// The Earth's visible fraction (with an epoch only).
+    pub earth_fraction: bool,
+}
+
+/// One light's maps on the DEM's grid: the Sun's fraction and mask, the Earth's fraction with an
+/// epoch, and the metadata items every file carries.
+pub struct OneLightMaps {
+    /// The finest layer's grid with every layer (for writing).
+    pub grid: MapGrid,
+    /// The Sun's visible fraction per DEM pixel (`NaN` = nodata), when asked for.
+    pub sun_fraction: Option<Vec<f32>>,
+    /// The hard mask of the Sun's disc centre per DEM pixel (1 lit, 0 shadow, 255 nodata), when
+    /// asked for.
+    pub sun_mask: Option<Vec<u8>>,
+    /// The Earth's visible fraction per DEM pixel, when asked for (with an epoch).
+    pub earth_fraction: Option<Vec<f32>>,
+    /// The light and the run's parameters, for every file's metadata.
+    pub metadata: Vec<(String, String)>,
+}
+
+/// The maps of one light over `stack` that `outputs` asks for (the command line's `--utc` /
+/// `--sun-*` maps and Python's `map_light`): the light, the kernels for an epoch's light, and the
+/// aberration correction.
+pub fn one_light(
+    settings: &MapSettings,
+    stack: &TerrainStack,
+    (light, kernels, abcorr): (Light, Option<&Kernels>, AbCorr),
+    outputs: OneLightOutputs,
+) -> anyhow::Result<OneLightMaps> {
+    let grid = MapGrid::new(stack)?;
+    grid.announce();
+    let (engine, backend) = settings.engine_and_backend(None)?;
+    let (sun, sun_radius_rad, earth, epoch) = match (light, kernels) {
+        (Light::Epoch(e), Some(k)) => {
+            let l = epoch_lights(&grid, k, &[e], abcorr)?[0];
+            (
+                l.sun,
+                l.sun_radius_rad,
+                Some((l.earth, l.earth_radius_rad)),
+                Some((e, abcorr)),
+            )
+        }
+        (Light::Epoch(_), None) => anyhow::bail!("a light at an epoch needs the kernels"),
+        (Light::DirectionInMoonMe { dir, radius_deg }, _) => (
+            grid.light_from_moon_me(&nalgebra::Vector3::from(dir)),
+            radius_deg.to_radians(),
+            None,
+            None,
+        ),
+        (
+            Light::AzElAtCentre {
+                az_deg,
+                el_deg,
+                radius_deg,
+            },
+            _,
+        ) => (
+            grid.light_from_az_el_deg(az_deg, el_deg),
+            radius_deg.to_radians(),
+            None,
+            None,
+        ),
+    };
+    let h_m = settings.observer_height.m();
+    let placement = settings.placement();
+    let maps = Prepared::new(
+        &backend,
+        &grid,
+        engine,
+        h_m,
+        placement,
+        settings.gpu_tile_cells,
+    )?;
+    let metadata = one_light_metadata(
+        &grid,
+        (engine, h_m, maps.placement()),
+        (sun, sun_radius_rad),
+        earth.map(|(dir, _)| dir),
+        epoch,
+    );
+    let sun_fraction = match outputs.sun_fraction {
+        true => {
+            let f = maps.fraction(sun, sun_radius_rad)?;
+            grid.below_sphere_exits(maps.pixel_observers(), sun, &f)?
+                .warn();
+            Some(f)
+        }
+        false => None,
+    };
+    let sun_mask = match outputs.sun_mask {
+        true => Some(maps.mask(sun)?),
+        false => None,
+    };
+    let earth_fraction = match (outputs.earth_fraction, earth) {
+        (true, Some((dir, radius))) => Some(maps.fraction(dir, radius)?),
+        _ => None,
+    };
+    drop(maps);
+    Ok(OneLightMaps {
+        grid,
+        sun_fraction,
+        sun_mask,
+        earth_fraction,
+        metadata,
+    })
+}
+
+/// The metadata items of a one-light map's GeoTIFFs: the epoch (when the light comes from the
+/// ephemeris), the engine, where the rays start, the observer height, the Sun's azimuth and
+/// elevation at the map centre, the Sun's angular radius, the aberration correction (with an
+/// epoch) and the Earth's azimuth and elevation at the map centre (with an Earth direction).
+pub fn one_light_metadata(
+    grid: &MapGrid,
+    (engine, observer_height_m, placement): (MapEngineKind, f64, ObserverPlacement),
+    (sun, sun_radius_rad): ([f64; 3], f64),
+    earth: Option<[f64; 3]>,
+    epoch: Option<(Epoch, AbCorr)>,
+) -> Vec<(String, String)> {
+    let (sun_az_deg, sun_el_deg) = grid.az_el_deg_at_centre(sun);
+    let mut items: Vec<(&str, String)> = Vec::new();
+    if let Some((e, _)) = epoch {
+        items.push(("epoch_utc", crate::ephem::time::format_iso(e)));
+    }
+    items.extend([
+        ("engine", engine.name().to_string()),
+        ("rays_from", placement.describe().to_string()),
+        ("observer_height_m", format!("{observer_height_m}")),
+        ("sun_az_deg_at_map_centre", format!("{sun_az_deg:.6}")),
+        ("sun_el_deg_at_map_centre", format!("{sun_el_deg:.6}")),
+        (
+            "sun_radius_deg",
+            format!("{:.6}", sun_radius_rad.to_degrees()),
+        ),
+    ]);
+    if let Some((_, abcorr)) = epoch {
+        items.push(("abcorr", abcorr.spice_name().to_string()));
+    }
+    if let Some(dir) = earth {
+        let (az, el) = grid.az_el_deg_at_centre(dir);
+        items.push(("earth_az_deg_at_map_centre", format!("{az:.6}")));
+        items.push(("earth_el_deg_at_map_centre", format!("{el:.6}")));
+    }
+    items.into_iter().map(|(k, v)| (k.to_string(), v)).collect()
 }

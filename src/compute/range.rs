@@ -7,19 +7,18 @@ use std::path::PathBuf;
 use anyhow::Context as _;
 
 use crate::ephem::{AbCorr, Kernels};
-use crate::illum::LimbLaw;
 use crate::horizon::statistics::{
     BlockStore, EpochBodies, HorizonFile, HorizonRows, InMemoryHorizons, StatisticsEngine,
     StatisticsParams,
 };
 use crate::horizon::{HorizonSweep, SweepParams};
 use crate::model::{
-    EpochLights, EpochRange, MapEngine, MapEngineKind, MapGrid, ObserverHeight, ObserverPlacement,
-    RangeStats, VISIBLE_MIN_FRACTION, epoch_lights,
+    EpochLights, EpochRange, MapEngine, MapEngineKind, MapGrid, ObserverPlacement, RangeStats,
+    VISIBLE_MIN_FRACTION, epoch_lights,
 };
 use crate::terrain::TerrainStack;
 
-use super::ResolvedBackend;
+use super::{MapSettings, ResolvedBackend};
 
 /// Where the horizons engine takes its whole-grid horizons.
 #[derive(Debug, Clone, PartialEq)]
@@ -43,24 +42,6 @@ impl Default for HorizonsFrom {
             max_step: crate::horizon::sweep::DEFAULT_MAX_STEP,
         }
     }
-}
-
-/// What a map over an epoch range computes, besides its inputs.
-#[derive(Debug, Clone)]
-pub struct RangeMap {
-    /// The engine.
-    pub engine: MapEngineKind,
-    /// Observer height above the ground.
-    pub observer_height: ObserverHeight,
-    /// Where the per-epoch engines' rays start (CPU).
-    pub placement: ObserverPlacement,
-    /// GPU tiles of this many cells per side instead of the automatic choice.
-    pub gpu_tile_cells: Option<u32>,
-    /// The horizons of the horizons engine.
-    pub horizons: HorizonsFrom,
-    /// The Sun's limb darkening in the horizons engine's mean fraction (the per-epoch engines
-    /// use a uniform disc).
-    pub limb: LimbLaw,
 }
 
 /// The inputs of a map over an epoch range: the terrain, the ephemeris and the epochs.
@@ -101,20 +82,29 @@ pub struct RangeHooks<'a> {
     pub store: &'a mut dyn BlockStore,
 }
 
-/// The statistics of `inputs` with `map.engine` on `backend`.
+/// The statistics of `inputs` with the engine `settings` ask for, on the backend they resolve
+/// to ([`MapSettings::engine_and_backend`]); the horizons engine's arrays are checked against
+/// the memory budget first.
 pub fn range_statistics(
-    backend: &ResolvedBackend,
     inputs: RangeInputs<'_>,
-    map: &RangeMap,
+    settings: &MapSettings,
     hooks: RangeHooks<'_>,
 ) -> anyhow::Result<RangeResult> {
+    let (engine, backend) = settings.engine_and_backend(Some(inputs.epochs.len()))?;
     let step_h = inputs.epochs.step_s() / 3600.0;
-    if map.engine == MapEngineKind::Horizons {
+    if engine == MapEngineKind::Horizons {
         let fine = inputs.stack.layers.first().context("no DEM layer")?;
         let rows = 0..fine.grid.rows;
-        let (stats, note) = horizon_statistics_rows(backend, inputs, map, hooks, rows)?;
+        let bytes = arrays_bytes(inputs.stack, rows.len(), &settings.horizons);
+        check_budget(
+            "the map's arrays (terrain, whole-grid horizons, statistics)",
+            bytes,
+            "split the map into shards (--shard I/N, then penumbra merge) or sweep the \
+             horizons once into a file (--horizons)",
+        )?;
+        let (stats, note) = horizon_statistics_rows(&backend, inputs, settings, hooks, rows)?;
         return Ok(RangeResult {
-            stats: RangeStats::from_horizons(stats, step_h, map.limb.name()),
+            stats: RangeStats::from_horizons(stats, step_h, settings.limb.name()),
             note,
             model: None,
         });
@@ -123,24 +113,55 @@ pub fn range_statistics(
     grid.announce();
     let epochs = inputs.epochs.epochs();
     let lights = epoch_lights(&grid, inputs.kernels, &epochs, inputs.abcorr)?;
-    let progress = crate::output::progress_bar(
-        lights.len(),
-        "{spinner} map [{bar:30}] {pos}/{len} epochs (eta {eta})",
-    );
-    let (stats, note) = per_epoch(backend, &grid, map, &lights, step_h, &progress)?;
-    progress.finish_and_clear();
+    let (stats, note) = per_epoch(&backend, &grid, (engine, settings), &lights, step_h)?;
     let model = (!stats.on_dem_grid).then_some(grid);
     Ok(RangeResult { stats, note, model })
+}
+
+/// `what` needs `bytes` of memory: an error naming `what` and `advice` beyond the budget
+/// ([`crate::output::guard::check_budget`]).
+pub fn check_budget(what: &str, bytes: u64, advice: &str) -> anyhow::Result<()> {
+    crate::output::guard::check_budget(what, u128::from(bytes))
+        .map_err(|e| anyhow::anyhow!("{e}; {advice}"))
+}
+
+/// The memory the horizons engine holds in arrays for `rows` rows of the finest layer, bytes:
+/// every terrain layer (f32), the horizons of those rows (int16 per sweep direction, or a block
+/// of rows read from a horizon file), the sweep's per-direction buffers of those rows and the
+/// statistics (53 bytes a pixel).
+pub fn arrays_bytes(stack: &TerrainStack, rows: usize, horizons: &HorizonsFrom) -> u64 {
+    let fine = &stack.layers[0];
+    let px = (rows * fine.grid.cols) as u64;
+    let terrain: u64 = stack
+        .layers
+        .iter()
+        .map(|l| 4 * l.heights_m.len() as u64)
+        .sum();
+    let horizons = match horizons {
+        HorizonsFrom::Sweep { azimuths, max_step } => {
+            let dirs = crate::horizon::sweep::sweep_directions(
+                *azimuths,
+                *max_step,
+                fine.grid.px_x_m,
+                fine.grid.px_y_m,
+            )
+            .len() as u64;
+            // Kept int16 bands, plus one direction's looks (12 bytes each way) and its band.
+            dirs * px * 2 + px * (2 * 12 + 8)
+        }
+        HorizonsFrom::File(_) => 64 << 20,
+    };
+    terrain + horizons + px * 53
 }
 
 /// The horizons engine's raw statistics of the finest layer's `rows` (all of them, or a shard's:
 /// then the sweep keeps only those rows' horizons and memory scales with the rows), and what
 /// ran. Pixel `i` of the result is the grid's pixel `rows.start · cols + i`; the values are bit
-/// for bit those of a whole-grid run. `map.engine` is not looked at.
+/// for bit those of a whole-grid run. `settings.engine` is not looked at.
 pub fn horizon_statistics_rows(
     backend: &ResolvedBackend,
     inputs: RangeInputs<'_>,
-    map: &RangeMap,
+    map: &MapSettings,
     hooks: RangeHooks<'_>,
     rows: std::ops::Range<usize>,
 ) -> anyhow::Result<(crate::horizon::statistics::HorizonStatistics, String)> {
@@ -281,35 +302,33 @@ pub fn horizon_statistics_rows(
 }
 
 /// The statistics of `lights` (one entry per epoch, `step_h` hours apart) over `grid` with the
-/// per-epoch engine `map.engine`, and a description of what ran for provenance. The CPU runs the
-/// engine with rays from `map.placement`; the GPU runs the dp engine (the only per-epoch engine
-/// with a GPU kernel; [`map_engine_on_gpu`] keeps the others on the CPU), in tiles of
-/// `map.gpu_tile_cells` when given.
+/// per-epoch `engine`, and a description of what ran for provenance. The CPU runs the engine
+/// with rays from the settings' placement; the GPU runs the dp engine (the only per-epoch engine
+/// with a GPU kernel; [`super::map_engine_on_gpu`] keeps the others on the CPU), in tiles of
+/// `gpu_tile_cells` when given.
 fn per_epoch(
     backend: &ResolvedBackend,
     grid: &MapGrid,
-    map: &RangeMap,
+    (engine, map): (MapEngineKind, &MapSettings),
     lights: &[EpochLights],
     step_h: f64,
-    progress: &indicatif::ProgressBar,
 ) -> anyhow::Result<(RangeStats, String)> {
     let h_m = map.observer_height.m();
     match backend {
         ResolvedBackend::Cpu => {
-            let engine = MapEngine::new(map.engine, grid, h_m)?;
+            let engine = MapEngine::new(engine, grid, h_m)?;
             let stats = crate::model::per_epoch_statistics(
                 grid,
                 &engine,
                 h_m,
-                map.placement,
+                map.placement(),
                 lights,
                 step_h,
-                progress,
             )?;
             // The Fourier horizon map is per model cell whatever the placement.
             let rays = match engine {
                 MapEngine::Fourier(_) => ObserverPlacement::Cells,
-                MapEngine::Direct(_) => map.placement,
+                MapEngine::Direct(_) => map.placement(),
             };
             let note = format!(
                 "cpu: {} soft shadows of the discs, rays from the {}",
@@ -321,9 +340,9 @@ fn per_epoch(
         #[cfg(feature = "gpu")]
         ResolvedBackend::Gpu(ctx) => {
             anyhow::ensure!(
-                map.engine == MapEngineKind::Direct(crate::shadow::Engine::Dp),
+                engine == MapEngineKind::Direct(crate::shadow::Engine::Dp),
                 "internal: the {} engine has no GPU kernel for epoch ranges",
-                map.engine.name()
+                engine.name()
             );
             let tiling = crate::gpu::tiles::DpTiling {
                 tile_cells: map.gpu_tile_cells,
@@ -334,13 +353,12 @@ fn per_epoch(
                 &grid.pixel_observers(h_m),
                 h_m,
                 tiling,
-                map.placement,
+                map.placement(),
             )?;
             let stats = match pixels {
                 Some(pixels) => pixels.sweep(ctx, lights, step_h)?,
                 None => super::gpu_maps::sweep_gpu_soft(ctx, grid, h_m, lights, step_h, tiling)?,
             };
-            progress.inc(lights.len() as u64);
             let note = format!(
                 "{}: DP max-mipmap soft shadows of the Sun and Earth discs, rays from the {}",
                 backend.describe(),
@@ -350,27 +368,5 @@ fn per_epoch(
         }
         #[cfg(not(feature = "gpu"))]
         ResolvedBackend::Gpu(ctx) => match **ctx {},
-    }
-}
-
-/// What the GPU can do for a map of `engine` (one light, or an epoch range when `range`): the dp
-/// engine runs on the GPU; the Fourier engine's one-light maps too (its horizon map built and
-/// evaluated there); the horizons engine when asked (its line sweep and epoch loop); the combined
-/// engine and Fourier ranges have no GPU kernel.
-pub fn map_engine_on_gpu(engine: MapEngineKind, range: bool) -> super::OnGpu {
-    use crate::shadow::Engine;
-    match engine {
-        MapEngineKind::Direct(Engine::Dp) => super::OnGpu::Preferred,
-        MapEngineKind::Fourier if !range => super::OnGpu::Preferred,
-        MapEngineKind::Horizons => super::OnGpu::WhenAsked,
-        MapEngineKind::Fourier => super::OnGpu::Never {
-            what: "the fourier engine over an epoch range",
-        },
-        MapEngineKind::Direct(Engine::Combined | Engine::Smap) => super::OnGpu::Never {
-            what: "the combined engine",
-        },
-        MapEngineKind::Direct(Engine::Brute) => super::OnGpu::Never {
-            what: "the brute-force engine",
-        },
     }
 }

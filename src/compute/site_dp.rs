@@ -149,14 +149,13 @@ impl SmapDpSites {
         let mut observers = Vec::with_capacity(sites.len());
         let mut ground_height_m = Vec::with_capacity(sites.len());
         for s in sites {
-            let (ground_m, _) =
-                stack
-                    .height_at_lat_lon_m(s.lat_deg(), s.lon_deg())
-                    .ok_or_else(|| SeriesDpError::NoGround {
-                        site: s.name().to_string(),
-                        lat_deg: s.lat_deg(),
-                        lon_deg: s.lon_deg(),
-                    })?;
+            let (ground_m, _) = stack
+                .height_at_lat_lon_m(s.lat_deg(), s.lon_deg())
+                .ok_or_else(|| SeriesDpError::NoGround {
+                    site: s.name().to_string(),
+                    lat_deg: s.lat_deg(),
+                    lon_deg: s.lon_deg(),
+                })?;
             // The ground point, then the model grid's own surface under it (bilinear), then the
             // observer `h` above it along the radial direction.
             let g = frame.model_from_lat_lon_height(s.lat_deg(), s.lon_deg(), ground_m);

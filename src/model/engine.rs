@@ -287,7 +287,7 @@ impl MapEngine {
 }
 
 /// Runs the engine for every epoch and accumulates the map statistics per DEM pixel (CPU, rayon
-/// inside the engines), with the rays from `placement`. `progress` is advanced once per epoch.
+/// inside the engines), with the rays from `placement`, showing a progress bar of the epochs.
 pub fn per_epoch_statistics(
     grid: &MapGrid,
     engine: &MapEngine,
@@ -295,8 +295,11 @@ pub fn per_epoch_statistics(
     placement: ObserverPlacement,
     lights: &[EpochLights],
     step_h: f64,
-    progress: &indicatif::ProgressBar,
 ) -> anyhow::Result<RangeStats> {
+    let progress = crate::output::progress_bar(
+        lights.len(),
+        "{spinner} map [{bar:30}] {pos}/{len} epochs (eta {eta})",
+    );
     // Per DEM pixel from the pixels' own observers, or per model cell (resampled at the end, as
     // the GPU per-epoch DP).
     let on_dem_grid = placement == ObserverPlacement::Pixels;
@@ -372,6 +375,7 @@ pub fn per_epoch_statistics(
             });
         progress.inc(1);
     }
+    progress.finish_and_clear();
     s.sun_and_earth_count = Some(sun_and_earth_count);
     s.below_sphere = on_dem_grid.then(|| below.finish());
     Ok(s)

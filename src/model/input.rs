@@ -207,8 +207,8 @@ impl EpochRange {
                 "step {step}: the step must be at least 1 s"
             )));
         }
-        let len = time::epoch_count(start, stop, step)
-            .map_err(|e| InputError::Epochs(e.to_string()))?;
+        let len =
+            time::epoch_count(start, stop, step).map_err(|e| InputError::Epochs(e.to_string()))?;
         Ok(EpochRange {
             start,
             stop,
@@ -310,7 +310,9 @@ impl Epochs {
             (Some(t), None, None, None) => Ok(Some(Epochs::One(
                 time::parse_utc(t).map_err(|e| InputError::Epochs(e.to_string()))?,
             ))),
-            (None, Some(a), Some(b), Some(s)) => Ok(Some(Epochs::Range(EpochRange::parse(a, b, s)?))),
+            (None, Some(a), Some(b), Some(s)) => {
+                Ok(Some(Epochs::Range(EpochRange::parse(a, b, s)?)))
+            }
             _ => Err(InputError::Epochs(
                 "give either --utc T or all of --start T --stop T --step S".into(),
             )),

@@ -2,12 +2,13 @@
 //! ([`ObserverHeight`], [`Site`], [`Epochs`]), the model grid on the DEM's own grid
 //! ([`MapGrid`]), the light directions of each epoch in its frame ([`EpochLights`]), and the CPU
 //! map engines on that grid with their statistics over a range of epochs ([`MapEngine`],
-//! [`RangeStats`]).
+//! [`RangeStats`]) and the rasters those statistics are written as ([`write_range`]).
 
 mod engine;
 mod grid;
 mod input;
 mod lights;
+mod rasters;
 mod sites;
 
 pub use engine::{
@@ -18,8 +19,11 @@ pub use grid::{
     MAX_MODEL_CELLS, MapGrid, RasterInfo, VISIBLE_MIN_FRACTION, write_f32_on, write_u8_on,
 };
 pub use input::{
-    EpochRange, Epochs, InputError, MAX_SITE_NAME_CHARS, ObserverHeight, Site,
-    check_distinct_sites,
+    EpochRange, Epochs, InputError, MAX_SITE_NAME_CHARS, ObserverHeight, Site, check_distinct_sites,
 };
 pub use lights::{EpochLights, epoch_lights};
+pub use rasters::{
+    PSR_DESCRIPTION, RangeRaster, geotiff_unit, range_metadata, range_rasters, span_text,
+    write_range,
+};
 pub use sites::{parse_site_flag, read_sites_file};

@@ -101,8 +101,13 @@ fn sites_from_csv(text: &str, default_height: ObserverHeight) -> Result<Vec<Site
             _ => default_height,
         };
         sites.push(
-            Site::new(field(name), num(lat, "latitude")?, num(lon, "longitude")?, height)
-                .map_err(|e| format!("line {line}: {e}"))?,
+            Site::new(
+                field(name),
+                num(lat, "latitude")?,
+                num(lon, "longitude")?,
+                height,
+            )
+            .map_err(|e| format!("line {line}: {e}"))?,
         );
         if sites.len() > MAX_SITES {
             break;

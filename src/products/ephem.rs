@@ -6,8 +6,8 @@ use std::path::PathBuf;
 use hifitime::Epoch;
 
 use super::{KernelSource, write_output};
-use crate::model::Epochs;
 use crate::ephem::{self, AbCorr, Site, SunEarth, time::format_iso};
+use crate::model::Epochs;
 
 /// Output formats of a table.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]

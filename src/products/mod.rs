@@ -53,6 +53,68 @@ impl TerrainSource {
     }
 }
 
+/// A product's inputs, loaded once: every terrain layer and, when the run has epochs, the kernels
+/// (checked to cover its first and last epoch), with their provenance.
+pub struct Inputs {
+    /// Every terrain layer, finest first.
+    pub stack: TerrainStack,
+    /// The kernels (`None` for a run without epochs).
+    pub kernels: Option<Kernels>,
+    /// The run's provenance so far: the kernels, the DEM layers (and with
+    /// [`Inputs::load_recorded`] the DEM files' sizes and sha256), the epochs.
+    pub provenance: crate::output::Provenance,
+}
+
+impl Inputs {
+    /// Loads `terrain`, and `kernels` when `epochs` is not empty (the terrain first: its errors
+    /// come before the kernels').
+    pub fn load(
+        terrain: &TerrainSource,
+        kernels: &KernelSource,
+        epochs: &[hifitime::Epoch],
+    ) -> anyhow::Result<Self> {
+        Self::load_with(terrain, kernels, epochs, false)
+    }
+
+    /// As [`Inputs::load`], and the DEM files' sizes and sha256 recorded for `run.json`.
+    pub fn load_recorded(
+        terrain: &TerrainSource,
+        kernels: &KernelSource,
+        epochs: &[hifitime::Epoch],
+    ) -> anyhow::Result<Self> {
+        Self::load_with(terrain, kernels, epochs, true)
+    }
+
+    fn load_with(
+        terrain: &TerrainSource,
+        kernels: &KernelSource,
+        epochs: &[hifitime::Epoch],
+        record_files: bool,
+    ) -> anyhow::Result<Self> {
+        let (stack, dem_layers) = terrain.load()?;
+        let mut provenance = crate::output::Provenance::new();
+        provenance.dem_layers = dem_layers;
+        if record_files {
+            provenance.dem_files = terrain.dem_files()?;
+        }
+        provenance.set_epochs(epochs);
+        let kernels = match (epochs.first(), epochs.last()) {
+            (Some(&first), Some(&last)) => {
+                let k = kernels.load()?;
+                crate::ephem::moon_geometry_table(&k, &[first, last])?;
+                provenance.kernels = k.files.clone();
+                Some(k)
+            }
+            _ => None,
+        };
+        Ok(Inputs {
+            stack,
+            kernels,
+            provenance,
+        })
+    }
+}
+
 /// `--verbose`: the terrain layers read.
 pub fn detail_terrain(stack: &TerrainStack) {
     for (i, l) in stack.layers.iter().enumerate() {

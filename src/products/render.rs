@@ -7,9 +7,9 @@ use anyhow::Context as _;
 use hifitime::Epoch;
 
 use super::{KernelSource, TerrainSource};
-use crate::model::Epochs;
 use crate::ephem::{AbCorr, time::format_utc};
 use crate::gpu::Backend;
+use crate::model::Epochs;
 use crate::render::path::CameraPose;
 
 /// Default image width, pixels.

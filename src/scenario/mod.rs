@@ -247,12 +247,14 @@ impl Scenario {
         let mut scenario = scenario;
         if let Some(file) = &scenario.sites_file {
             let base = path.parent().unwrap_or(Path::new("."));
-            let table =
-                crate::model::read_sites_file(&base.join(file), crate::model::ObserverHeight::DEFAULT)
-                    .map_err(|e| ScenarioError::Invalid {
-                    path: path.display().to_string(),
-                    why: format!("sites_file: {e:#}"),
-                })?;
+            let table = crate::model::read_sites_file(
+                &base.join(file),
+                crate::model::ObserverHeight::DEFAULT,
+            )
+            .map_err(|e| ScenarioError::Invalid {
+                path: path.display().to_string(),
+                why: format!("sites_file: {e:#}"),
+            })?;
             scenario.sites.extend(table.into_iter().map(|s| SiteSpec {
                 name: s.name().to_string(),
                 lat_deg: s.lat_deg(),

@@ -397,7 +397,13 @@ fn run_map_spec(
         spec.step
     );
     let stats = &result.stats;
-    let files = pm::write_range(&inputs.stack.layers[0], result.model.as_ref(), stats, dir, &span)?;
+    let files = pm::write_range(
+        &inputs.stack.layers[0],
+        result.model.as_ref(),
+        stats,
+        dir,
+        &span,
+    )?;
     if let Some(b) = stats.below_sphere {
         b.warn();
     }

@@ -287,9 +287,12 @@ fn sharp_mask_errors(dem: penumbra::terrain::Dem) -> Vec<(&'static str, f64, usi
     let march = penumbra::twins::MarchGrid::from_height_field(&grid.hf, 2.0).unwrap();
     let mip = penumbra::twins::DpMip::build(&march);
     let (pixel_of_point, points) = penumbra::twins::pixel_point_records(&march, &observers);
-    let dp_engine =
-        penumbra::model::MapEngine::new(penumbra::model::MapEngineKind::Direct(Engine::Dp), &grid, 2.0)
-            .unwrap();
+    let dp_engine = penumbra::model::MapEngine::new(
+        penumbra::model::MapEngineKind::Direct(Engine::Dp),
+        &grid,
+        2.0,
+    )
+    .unwrap();
     let mut wrong = vec![0usize; engines.len() + 2];
     let mut stable = 0usize;
     for az in [20.0, 95.0, 160.0, 250.0, 330.0] {

@@ -3,12 +3,12 @@
 //! same sites and epochs. The smap-dp engine is also checked alone against the closed form on a
 //! flat DEM. Bounds are the measured differences with a margin (docs/VALIDATION.md).
 
+use penumbra::compute::site_dp::{SmapDpSites, fraction_from_horizon_tan};
 use penumbra::ephem::{self, AbCorr, Kernels};
 use penumbra::illum::DiscMethod;
 use penumbra::illum::LimbDarkening;
-use penumbra::illum::stats::{SUN_FULL_MIN_FRACTION, VISIBLE_MIN_FRACTION};
-use penumbra::compute::site_dp::{SmapDpSites, fraction_from_horizon_tan};
 use penumbra::illum::LimbLaw;
+use penumbra::illum::stats::{SUN_FULL_MIN_FRACTION, VISIBLE_MIN_FRACTION};
 use penumbra::model::{ObserverHeight, Site as SeriesSite};
 use penumbra::products::series::{self, SeriesConfig, SeriesEngine};
 use penumbra::terrain::{TerrainStack, synth};
@@ -563,8 +563,8 @@ fn dp_sites_twin_matches_the_cpu_engine() {
 
 #[cfg(feature = "gpu")]
 mod gpu {
-    use penumbra::gpu::dp::{GpuDpGrid, dp_sites_gpu};
     use penumbra::compute::site_dp::SmapDpGpu;
+    use penumbra::gpu::dp::{GpuDpGrid, dp_sites_gpu};
 
     use super::*;
 
@@ -719,7 +719,11 @@ mod gpu {
             ));
             eprintln!(
                 "lola-240m smap-dp gpu vs cpu {:>16}: |Δ| lit {:.2} pp, sun {:.1e}, earth {:.1e}, earth vis {:.2} pp",
-                c.site.name(), d[0], d[1], d[2], d[3]
+                c.site.name(),
+                d[0],
+                d[1],
+                d[2],
+                d[3]
             );
             assert!(
                 d[0] <= 0.2 && d[1] <= 2e-4 && d[2] <= 2e-4 && d[3] <= 0.2,

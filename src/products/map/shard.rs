@@ -195,24 +195,20 @@ pub fn run(job: ShardJob<'_>, hooks: crate::compute::range::RangeHooks<'_>) -> a
     } = job;
     let fine = &inputs.stack.layers[0];
     let rows = shard.rows(fine.grid.rows).map_err(anyhow::Error::msg)?;
-    let arrays_bytes = arrays_bytes(inputs.stack, rows.len(), &settings.horizons);
-    crate::output::guard::check_budget(
+    let arrays_bytes =
+        crate::compute::range::arrays_bytes(inputs.stack, rows.len(), &settings.horizons);
+    crate::compute::range::check_budget(
         &format!(
             "shard {shard} (rows {}..{}: terrain, horizons, statistics)",
             rows.start, rows.end
         ),
-        u128::from(arrays_bytes),
-    )
-    .map_err(|e| {
-        anyhow::anyhow!(
-            "{e}; split the map into more shards or sweep the horizons once into a file (--horizons)"
-        )
-    })?;
-    let map = super::range_map(settings, crate::model::MapEngineKind::Horizons);
+        arrays_bytes,
+        "split the map into more shards or sweep the horizons once into a file (--horizons)",
+    )?;
     let (stats, note) = crate::compute::range::horizon_statistics_rows(
         &crate::compute::ResolvedBackend::Cpu,
         inputs,
-        &map,
+        settings,
         hooks,
         rows.clone(),
     )?;
@@ -296,38 +292,6 @@ pub fn write_partial(
     json.push(b'\n');
     crate::output::write_bytes_atomic(&out_dir.join(MANIFEST), &json)?;
     Ok(manifest)
-}
-
-/// The memory a shard of `rows` rows holds in arrays, bytes: every terrain layer (f32), the
-/// horizons of its rows (int16 per sweep direction, or a block of rows read from a horizon
-/// file), the sweep's per-direction buffers of its rows and the statistics (53 bytes a pixel).
-pub fn arrays_bytes(
-    stack: &crate::terrain::TerrainStack,
-    rows: usize,
-    horizons: &crate::compute::range::HorizonsFrom,
-) -> u64 {
-    let fine = &stack.layers[0];
-    let px = (rows * fine.grid.cols) as u64;
-    let terrain: u64 = stack
-        .layers
-        .iter()
-        .map(|l| 4 * l.heights_m.len() as u64)
-        .sum();
-    let horizons = match horizons {
-        crate::compute::range::HorizonsFrom::Sweep { azimuths, max_step } => {
-            let dirs = crate::horizon::sweep::sweep_directions(
-                *azimuths,
-                *max_step,
-                fine.grid.px_x_m,
-                fine.grid.px_y_m,
-            )
-            .len() as u64;
-            // Kept int16 bands, plus one direction's looks (12 bytes each way) and its band.
-            dirs * px * 2 + px * (2 * 12 + 8)
-        }
-        crate::compute::range::HorizonsFrom::File(_) => 64 << 20,
-    };
-    terrain + horizons + px * 53
 }
 
 /// Lowercase hex sha256 of `bytes` (what `sha256sum` prints for the file).

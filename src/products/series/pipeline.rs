@@ -26,10 +26,10 @@ use hifitime::Epoch;
 use rayon::prelude::*;
 
 use crate::ephem::{self, Kernels, MoonGeometry, time::format_iso};
-use crate::model::Site;
 use crate::horizon::Horizon;
 use crate::illum::stats::{SiteSeries, StatsFile};
 use crate::illum::{self, Disc, HorizonProfile, LimbDarkening};
+use crate::model::Site;
 use crate::terrain::TerrainStack;
 
 use super::{SeriesConfig, SeriesEngine};
@@ -527,7 +527,10 @@ fn run_one_site(
         };
         let title = format!(
             "{} ({:.3}°, {:.3}°), {:.1} m above ground",
-            spec.name(), spec.lat_deg(), spec.lon_deg(), spec.height_above_ground_m()
+            spec.name(),
+            spec.lat_deg(),
+            spec.lon_deg(),
+            spec.height_above_ground_m()
         );
         illum::plot::write_horizon_plot(
             &site_dir.join("horizon.png"),

@@ -2,9 +2,8 @@
 
 use std::path::Path;
 
-use crate::model::RangeStats;
+use super::{MapGrid, RangeStats, RasterInfo, write_f32_on, write_u8_on};
 use crate::illum::plot::{MapLegend, MapPlace, write_map_preview};
-use crate::model::{MapGrid, RasterInfo, write_f32_on, write_u8_on};
 use crate::shadow::MASK_NODATA;
 use crate::terrain::Dem;
 
