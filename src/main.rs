@@ -62,6 +62,7 @@ fn main() -> ExitCode {
             let first = text
                 .lines()
                 .take_while(|l| !l.starts_with("Usage:"))
+                .filter(|l| !l.starts_with("For more information"))
                 .map(str::trim)
                 .filter(|l| !l.is_empty())
                 .collect::<Vec<_>>()

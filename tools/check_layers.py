@@ -1,6 +1,7 @@
 #!/usr/bin/env python3
-"""Checks penumbra's layering: no import cycle between source files and no import from a lower
-layer to a higher one (docs/ARCHITECTURE.md, "Layers").
+"""Checks penumbra's layering: no import cycle between source files, no import from a lower layer
+to a higher one, every top-level module on a floor, and the floors of docs/ARCHITECTURE.md
+("Layers") in the order of LAYERS below.
 
 Reads `src/**/*.rs` as text: every `crate::a::b…` path, every `super::…` path and every path that
 starts with a child module of the file becomes an edge to the deepest file that exists for it.
@@ -23,8 +24,6 @@ LAYERS = [
     ["scenario"],
     ["products"],
     ["compute"],
-    ["series"],
-    ["map"],
     ["gpu"],
     ["twins"],
     ["render"],
@@ -94,6 +93,31 @@ def expand(tree: str, prefix: str = ""):
             yield from expand(item, prefix + head.strip())
 
 
+ARCHITECTURE = SRC.parent / "docs" / "ARCHITECTURE.md"
+# Names of the layer block that are not library modules (the binding, the binary).
+OUTSIDE = {"python", "main", "cli"}
+
+
+def documented_floors() -> list:
+    """The floors of the ```text block under "## Layers" in docs/ARCHITECTURE.md: per line, the
+    leading names written `name/` or `name.rs`."""
+    text = ARCHITECTURE.read_text()
+    section = text.split("## Layers", 1)[1]
+    block = section.split("```text", 1)[1].split("```", 1)[0]
+    floors = []
+    for line in block.splitlines():
+        names = []
+        for word in line.split():
+            m = re.fullmatch(r"([a-z_]+)(/|\.rs)", word)
+            if not m:
+                break
+            names.append(m.group(1))
+        names = [n for n in names if n not in OUTSIDE]
+        if names:
+            floors.append(names)
+    return floors
+
+
 def main() -> int:
     files = {}
     for p in SRC.rglob("*.rs"):
@@ -133,6 +157,19 @@ def main() -> int:
                 pass  # a child using its parent's items: a real edge
             edges[mod].add(dest)
     bad = []
+    # Every top-level module on a floor, every floor a module, the documented floors in order.
+    tops = {m[0] for m in files if m}
+    listed = {m for floor in LAYERS for m in floor if m != "lib"}
+    for m in sorted(tops - listed):
+        bad.append(f"src/{m}: a top-level module that LAYERS does not place")
+    for m in sorted(listed - tops):
+        bad.append(f"LAYERS names '{m}', which is not a module of src/")
+    expected = [sorted(floor) for floor in LAYERS if floor != ["lib"]]
+    written = [sorted(floor) for floor in documented_floors()]
+    if written != expected:
+        bad.append(
+            f"docs/ARCHITECTURE.md's layer list {written} differs from LAYERS {expected}"
+        )
     # Upward imports between top-level modules.
     for a, outs in edges.items():
         top_a = a[0] if a else "lib"

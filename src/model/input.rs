@@ -15,7 +15,8 @@ use crate::ephem::time;
 pub enum InputError {
     /// An observer height out of bounds.
     #[error(
-        "observer height {0} m must be a finite number from 0 to {max} m",
+        "observer height {} m must be a finite number from 0 to {max} m",
+        short_number(*.0),
         max = ObserverHeight::MAX_M
     )]
     ObserverHeight(f64),
@@ -30,6 +31,16 @@ pub enum InputError {
     /// An epoch, step or epoch range that cannot be.
     #[error("{0}")]
     Epochs(String),
+}
+
+/// `x` as a message shows it: plainly, or in exponent form when it is huge or tiny (`1e308`, not
+/// 309 digits).
+fn short_number(x: f64) -> String {
+    if x != 0.0 && x.is_finite() && !(1e-3..1e6).contains(&x.abs()) {
+        format!("{x:e}")
+    } else {
+        format!("{x}")
+    }
 }
 
 /// Height of an observer above the ground, metres: finite, from 0 to 100 km.
