@@ -19,7 +19,7 @@ import penumbra
 OBSERVER_1E6 = "observer height 1e6 m must be a finite number from 0 to 100000 m"
 OBSERVER_NEG = "observer height -1 m must be a finite number from 0 to 100000 m"
 LATITUDE_95 = "site 'a': latitude 95 deg must lie in -90 .. 90"
-SITE_NAME = "site 'a/b': a site name must be 1 … 100 letters"
+SITE_NAME = "site name 'a/b' must be 1 … 100 letters"
 STOP_BEFORE_START = "stop 2027-01-01T00:00:00 is before start 2027-02-01T00:00:00"
 
 SCENARIO_HEAD = """

@@ -239,12 +239,9 @@ impl EpochArgs {
 
     /// Like [`EpochArgs::spec`], but one of the two forms is required.
     pub fn required(&self) -> anyhow::Result<Epochs> {
-        Ok(Epochs::parse_required(
-            self.utc.as_deref(),
-            self.start.as_deref(),
-            self.stop.as_deref(),
-            self.step.as_deref(),
-        )?)
+        self.spec()?.ok_or_else(|| {
+            anyhow::anyhow!("give either --utc T or all of --start T --stop T --step S")
+        })
     }
 }
 

@@ -20,7 +20,19 @@ pub enum InputError {
         max = ObserverHeight::MAX_M
     )]
     ObserverHeight(f64),
-    /// A site that cannot be (bad name, latitude or longitude).
+    /// A site name that cannot name a folder.
+    #[error(
+        "site name '{0}' must be 1 … {MAX_SITE_NAME_CHARS} letters, digits, spaces (not at either \
+         end) or - _ . ( ) + , ' and not start with '.' (it names the site's folder)"
+    )]
+    SiteName(String),
+    /// Two sites whose names name the same folder.
+    #[error(
+        "site name '{0}' is used twice (names are folder names: they must differ in more than \
+         letter case)"
+    )]
+    SiteNameTwice(String),
+    /// A site whose latitude or longitude cannot be.
     #[error("site '{name}': {why}")]
     Site {
         /// The site's name as given.
@@ -138,10 +150,7 @@ impl Site {
             || name.starts_with('.')
             || !name.chars().all(ok_char)
         {
-            return Err(refuse(format!(
-                "a site name must be 1 … {MAX_SITE_NAME_CHARS} letters, digits, spaces (not at \
-                 either end) or - _ . ( ) + , ' and not start with '.' (it names the site's folder)"
-            )));
+            return Err(InputError::SiteName(name.escape_debug().to_string()));
         }
         if !(lat_deg.is_finite() && (-90.0..=90.0).contains(&lat_deg)) {
             return Err(refuse(format!(
@@ -189,12 +198,7 @@ pub fn check_distinct_sites(sites: &[Site]) -> Result<(), InputError> {
     let mut seen = std::collections::HashSet::new();
     for s in sites {
         if !seen.insert(s.name.to_lowercase()) {
-            return Err(InputError::Site {
-                name: s.name.clone(),
-                why: "the name is used twice (names are folder names: they must differ in more \
-                      than letter case)"
-                    .into(),
-            });
+            return Err(InputError::SiteNameTwice(s.name.clone()));
         }
     }
     Ok(())

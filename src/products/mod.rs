@@ -60,41 +60,34 @@ pub struct Inputs {
     pub stack: TerrainStack,
     /// The kernels (`None` for a run without epochs).
     pub kernels: Option<Kernels>,
-    /// The run's provenance so far: the kernels, the DEM layers (and with
-    /// [`Inputs::load_recorded`] the DEM files' sizes and sha256), the epochs.
+    /// The run's provenance so far: the kernels, the DEM layers (and, when asked, the DEM
+    /// files' sizes and sha256), the epochs.
     pub provenance: crate::output::Provenance,
 }
 
+/// Whether [`Inputs::load`] records the DEM files' sizes and sha256 (for a `run.json`; reading
+/// a large DEM twice costs seconds).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum DemFiles {
+    /// Recorded.
+    Record,
+    /// Not recorded.
+    Skip,
+}
+
 impl Inputs {
-    /// Loads `terrain`, and `kernels` when `epochs` is not empty (the terrain first: its errors
-    /// come before the kernels').
+    /// Loads `terrain` (recording its files as `dem_files` says), and `kernels` when `epochs`
+    /// is not empty (the terrain first: its errors come before the kernels').
     pub fn load(
         terrain: &TerrainSource,
         kernels: &KernelSource,
         epochs: &[hifitime::Epoch],
-    ) -> anyhow::Result<Self> {
-        Self::load_with(terrain, kernels, epochs, false)
-    }
-
-    /// As [`Inputs::load`], and the DEM files' sizes and sha256 recorded for `run.json`.
-    pub fn load_recorded(
-        terrain: &TerrainSource,
-        kernels: &KernelSource,
-        epochs: &[hifitime::Epoch],
-    ) -> anyhow::Result<Self> {
-        Self::load_with(terrain, kernels, epochs, true)
-    }
-
-    fn load_with(
-        terrain: &TerrainSource,
-        kernels: &KernelSource,
-        epochs: &[hifitime::Epoch],
-        record_files: bool,
+        dem_files: DemFiles,
     ) -> anyhow::Result<Self> {
         let (stack, dem_layers) = terrain.load()?;
         let mut provenance = crate::output::Provenance::new();
         provenance.dem_layers = dem_layers;
-        if record_files {
+        if dem_files == DemFiles::Record {
             provenance.dem_files = terrain.dem_files()?;
         }
         provenance.set_epochs(epochs);

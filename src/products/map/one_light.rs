@@ -21,7 +21,12 @@ pub(super) fn one_light_job(
         Light::Epoch(e) => vec![e],
         _ => Vec::new(),
     };
-    let inputs = super::super::Inputs::load(&req.terrain, &req.kernels, &epochs)?;
+    let inputs = super::super::Inputs::load(
+        &req.terrain,
+        &req.kernels,
+        &epochs,
+        super::super::DemFiles::Skip,
+    )?;
     let maps = crate::compute::one_light::one_light(
         &req.settings,
         &inputs.stack,

@@ -45,24 +45,20 @@ pub fn run(req: &SeriesRequest) -> anyhow::Result<()> {
     crate::model::check_distinct_sites(&req.sites)?;
     let epochs = req.epochs.epochs();
     let step_s = req.epochs.step_s();
-    let (stack, dem_layers) = req.terrain.load()?;
-    let kernels = req.kernels.load()?;
+    let inputs = super::Inputs::load(&req.terrain, &req.kernels, &epochs, super::DemFiles::Record)?;
+    let kernels = inputs.kernels.as_ref().expect("a series has epochs");
     let _lock = crate::output::cleanup::RunLock::begin(&req.out_dir, "run.json")
         .map_err(anyhow::Error::msg)?;
     let run = run_series(
-        &kernels,
-        &stack,
+        kernels,
+        &inputs.stack,
         &req.sites,
         &epochs,
         step_s,
         &req.config,
         &req.out_dir,
     )?;
-    let mut prov = crate::output::Provenance::new();
-    prov.kernels = kernels.files.clone();
-    prov.dem_layers = dem_layers;
-    prov.dem_files = req.terrain.dem_files()?;
-    prov.set_epochs(&epochs);
+    let mut prov = inputs.provenance;
     prov.outputs = run.files;
     prov.series_engine = Some(req.config.engine.name().into());
     prov.series_backend = Some(run.backend);
