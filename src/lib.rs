@@ -11,15 +11,11 @@
 //! 2. [`terrain`]: DEMs (GeoTIFF, polar stereographic or equirectangular) resampled into a
 //!    curvature-exact local model space.
 //! 3. [`horizon`], [`illum`], [`shadow`]: horizons, visible fractions of the Sun's and the Earth's
-//!    discs, shadow maps.
-//! 4. [`output`], [`products`] and [`scenario`]: CSV/JSON/GeoTIFF/PNG writers, one pipeline per
-//!    job (typed requests in, files out) and declarative runs. The command line lives in the
-//!    binary (`src/cli/`); the library knows no clap.
-//!
-//! Conventions used everywhere: azimuth in degrees from local north, clockwise (north = direction
-//! of increasing latitude, east = increasing longitude); elevation above the plane normal to the
-//! radial direction; heights in metres above the 1737.4 km reference sphere; planetocentric
-//! latitude and east longitude.
+//!    discs, shadow maps; [`compute`] runs them on the CPU or the GPU ([`gpu`], [`twins`]).
+//! 4. [`products`] and [`scenario`]: one home per product (typed requests in, files out) and
+//!    declarative runs. The command line lives in the binary (`src/cli/`); the library knows no
+//!    clap. Conventions (azimuth from north clockwise, heights above the 1737.4 km sphere,
+//!    planetocentric latitude, east longitude) are stated once in `docs/ARCHITECTURE.md`.
 
 pub mod compute;
 pub mod ephem;

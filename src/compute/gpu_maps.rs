@@ -103,7 +103,7 @@ fn fraction_from_gpu(f: f32) -> f32 {
     }
 }
 
-/// One-light maps on the GPU (issue 7 item 2): the DP visible fraction of a disc of angular
+/// One-light maps on the GPU: the DP visible fraction of a disc of angular
 /// radius `angular_radius_rad` per model cell (`NaN` for holes), or with `angular_radius_rad` =
 /// 0 the hard mask of the disc centre. Every `--engine` except `fourier` maps to this kernel on
 /// the GPU (see docs/gpu.md). `tiling` chooses between the whole-grid kernel and 2-D tiles
@@ -234,7 +234,7 @@ pub fn hard_mask_gpu(
 /// A map grid on the GPU with its DEM pixels' own observers ([`MapGrid::pixel_observers`]):
 /// one-light DP maps and the soft sweep per DEM pixel (`shaders/dp_points.wgsl`,
 /// `dp_points_sweep.wgsl`), each ray starting at the pixel's own surface point with its own half
-/// pixel left out, as the CPU engines and a series site at the pixel centre (issue 13). The
+/// pixel left out, as the CPU engines and a series site at the pixel centre. The
 /// heights, the mipmap and the observers go up once.
 pub struct GpuPixelMaps {
     grid: crate::gpu::dp::GpuDpGrid,

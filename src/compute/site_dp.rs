@@ -1,62 +1,18 @@
-//! The map pipeline's engine for per-site series (`penumbra series --engine smap-dp`): each
-//! site's visible fractions come from the model-space height field of the map pipeline
-//! ([`crate::model::MapGrid`]) and the DP maximum-mipmap search ([`crate::shadow::dp`]) instead of a
-//! per-site horizon ([`crate::horizon`]).
+//! The smap-dp series engine (`penumbra series --engine smap-dp`) on either backend: each site's
+//! visible fractions come from the map pipeline's model grid ([`crate::model::MapGrid`]) and the
+//! DP maximum-mipmap search ([`crate::shadow::dp`]) instead of a per-site horizon.
 //!
-//! **Set-up, once per run.** The [`MapGrid`] (the finest DEM layer resampled into model space, with
-//! the coarser layers filling its margin) and its [`MaxMipmap`] are built once for all sites.
-//!
-//! **The site's point.** No cell snapping: the site's ground point (`lat/lon` at the bilinear DEM
-//! height of the finest layer with data, as in [`crate::horizon`]) is mapped into model space; the
-//! observer stands `height_above_ground` along the radial direction above the **model grid's own
-//! surface** there (the bilinear interpolation of the 4 neighbouring model cells), at a fractional
-//! `(row, col)`. Standing on the model surface rather than at the DEM height matters on peaks:
-//! the resampling into model space lowers a 240 m ridge top by metres, and an observer left at the
-//! DEM height would float above its own near field (at the Connecting Ridge that moved the horizon
-//! by up to 1.4° and the mean Sun fraction by 0.044; on the model surface, 0.013). The DP's exact
-//! costs are taken where the ray crosses the lines through cell centres (the bilinear surface,
-//! [`crate::shadow`] conventions). As in the horizon engine, terrain closer than half a cell is the
-//! observer's own ground: the first sample is the bilinear surface at exactly half a cell, then
-//! the crossings beyond.
-//!
-//! **Light directions.** Per site and epoch, exactly as the horizon engine: the topocentric
-//! (light-time and aberration corrected) vector from the site to the Sun or the Earth
-//! ([`crate::ephem::topo`]), rotated into model space. So there is no parallax error; taking the
-//! map-centre direction instead ([`crate::model::epoch_lights`]) would cost, at a site `d` from the
-//! centre, `d / 1 au` for the Sun (1.2e-6 rad at 184 km, nothing) and `d / 384,400 km` for the
-//! Earth (4.8e-4 rad = 0.027° at 184 km, 3% of its radius).
-//!
-//! **Visible fraction.** Per light: one DP search of the minimum shadow cost `J*` along the centre
-//! ray, capped at the cost above which the disc is fully visible (so a clear sky stops at the
-//! first mipmap bounds), and the prism assumption of papers 000/003 §3.4: the horizon is a
-//! straight horizontal edge at `e_h = atan(tan e_c − J*)` across the disc,
-//! and the fraction is the chord fraction [`chord_visible_fraction`] with the series' limb
-//! darkening (uniform for the Earth).
-//!
-//! *No SMap pre-test.* In a map, [`crate::shadow::dp::soft_combined`] first classifies whole
-//! cells with two SMaps (the disc's limbs) and runs DP only in the penumbra: an SMap is built per
-//! light over the whole grid (0.37 s for 1536², docs/PERFORMANCE.md) and then answers every cell.
-//! At a handful of points the build never pays: the capped DP search answers the lit and the
-//! deep-shadow cases in microseconds (see the `series_engines` bench), so the per-site engine
-//! runs DP alone, and the SMap's role (decide early away from the limb) is played by the cap and
-//! the branch-and-bound pruning.
-//!
-//! *No local-horizontal floor* (the one blocking rule of every engine, [`crate::shadow`]). A site
-//! on a slope or a rim sees below that plane (the horizon engine reports horizons of −13° on the
-//! synthetic ridge), so here, as in the horizon engine and the map engines, the horizon is the
-//! highest terrain sample of the grid along the ray,
-//! whatever its sign; on a flat sphere that is the dip of the geometric horizon.
-//!
-//! **Horizon profile** (for `horizon.csv`, the plots and the CSV's horizon columns): per azimuth
-//! of the site's local frame, the DP search of the horizontal direction without a cap gives the
-//! terrain elevation along that model-space azimuth, converted back to the site's frame. The
-//! distance column is `NaN` (the search does not keep the argmin).
-//!
-//! **What differs from the horizon engine** (measured in docs/VALIDATION.md): the grid is the
-//! model-space resampling of the DEM (not the DEM's own bilinear surface along great circles),
-//! only the finest layer's extent (plus a 2-cell margin) casts shadows (the horizon engine reads
-//! every layer, so far-field terrain can differ), and the disc is cut by a straight edge at the
-//! centre azimuth's horizon instead of the strip integral over the sampled profile.
+//! The grid and its mipmap are built once for all sites; each observer stands its height above
+//! the model grid's own surface at the site (no cell snapping). Per site and epoch the light is
+//! the exact topocentric direction ([`crate::ephem::topo`]) rotated into model space; one capped
+//! DP search gives the minimum shadow cost `J*` along the centre ray, and the prism assumption of
+//! papers 000/003 (§3.4) cuts the disc with a horizontal edge at `atan(tan e_c − J*)`
+//! ([`chord_visible_fraction`]). No SMap pre-test (the capped search decides lit and deep-shadow
+//! cases in microseconds) and no local-horizontal floor (the one blocking rule). The horizon
+//! profile for `horizon.csv` is the uncapped search per azimuth of the site's frame. On the GPU,
+//! `shaders/dp_sites.wgsl` runs the searches and the disc weighting stays on the CPU in f64.
+//! Derivation and measured differences from the horizon engine: docs/shadow.md, "The smap-dp
+//! series engine".
 
 use anyhow::Context as _;
 use nalgebra::{Matrix3, Vector3};
@@ -212,12 +168,6 @@ impl SmapDpSites {
     /// Ground height (m above the sphere) under site `i`, from the DEM layers.
     pub fn ground_height_m(&self, i: usize) -> f64 {
         self.ground_height_m[i]
-    }
-
-    /// Model-space position (row, col, z_m) of site `i`'s observer.
-    pub fn observer_row_col_z(&self, i: usize) -> (f64, f64, f64) {
-        let o = &self.observers[i];
-        (o.row, o.col, o.z_m)
     }
 
     fn cost(&self, i: usize, dir: &LightDir, cap: f64) -> f64 {

@@ -16,7 +16,7 @@ pub enum SeriesEngine {
     #[default]
     Horizon,
     /// The map pipeline: the model-space grid of the finest layer and the DP max-mipmap search at
-    /// each site's point, per epoch and light ([`crate::series::dp`]).
+    /// each site's point, per epoch and light ([`crate::compute::site_dp`]).
     SmapDp,
 }
 
