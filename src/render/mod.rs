@@ -680,13 +680,7 @@ pub fn add_sun_glare(rgb: &mut [u8], scene: &Scene, camera: &Camera, width: u32,
     let sun = Vector3::from(l.sun);
     let rho = l.sun_radius_rad;
     // A frame perpendicular to the Sun's direction for the disc sample points.
-    let a = if sun.z.abs() < 0.9 {
-        Vector3::z()
-    } else {
-        Vector3::x()
-    };
-    let u = sun.cross(&a).normalize();
-    let w = sun.cross(&u);
+    let (u, w) = crate::frames::perpendicular_pair(&sun);
     let mut visible = 0;
     let mut total = 0;
     for (du, dw) in [
