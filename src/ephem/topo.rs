@@ -159,7 +159,7 @@ impl MoonGeometry {
 /// SPICE rotates `pos` about `u × v/c` by `φ = asin(|u × v/c|)`. The rotation needs only `sin φ`
 /// (the norm itself) and `cos φ = sqrt(1 − sin² φ)` (φ < 1e-3 rad, so no quadrant question), which
 /// is what is used here instead of `asin` followed by `sin`/`cos`.
-pub fn stellar_aberration(pos: &Vector3<f64>, obs_vel_km_s: &Vector3<f64>) -> Vector3<f64> {
+fn stellar_aberration(pos: &Vector3<f64>, obs_vel_km_s: &Vector3<f64>) -> Vector3<f64> {
     let Some(u) = pos.try_normalize(0.0) else {
         return *pos;
     };
@@ -264,17 +264,8 @@ impl Observer {
     }
 }
 
-/// Topocentric position of a target in `MOON_ME` for a site (see the module docs).
-pub fn target_from_site(
-    geo: &MoonGeometry,
-    target_wrt_moon: &StateJ2000,
-    site: &Site,
-    abcorr: AbCorr,
-) -> Vector3<f64> {
-    target_from_observer(geo, target_wrt_moon, &Observer::new(geo, site), abcorr)
-}
-
-/// [`target_from_site`] for an observer state computed once per site and epoch.
+/// Topocentric position of a target in `MOON_ME` for an observer state (see the module docs),
+/// computed once per site and epoch ([`Observer::new`]).
 pub fn target_from_observer(
     geo: &MoonGeometry,
     target_wrt_moon: &StateJ2000,
@@ -386,7 +377,7 @@ pub fn sub_body_point(
         pos_in_moon_me_km: Vector3::zeros(),
         enu_from_moon_me: Matrix3::identity(),
     };
-    let p = target_from_site(geo, target_wrt_moon, &centre, abcorr);
+    let p = target_from_observer(geo, target_wrt_moon, &Observer::new(geo, &centre), abcorr);
     let (lat_deg, lon_deg, _) = crate::frames::lat_lon_height_from_moon_me_km(&p);
     SubPoint { lat_deg, lon_deg }
 }

@@ -193,7 +193,7 @@ impl LimbDarkening {
     }
 
     /// Mean relative intensity over the disc, `(1/π) ∫∫_{unit disc} I dA = c0 + 2c1/3 + c2/2`.
-    pub fn disc_mean_intensity(&self) -> f64 {
+    fn disc_mean_intensity(&self) -> f64 {
         self.c0 + 2.0 * self.c1 / 3.0 + self.c2 / 2.0
     }
 

@@ -8,6 +8,13 @@ fn flat(n: usize, el: f64) -> Vec<f64> {
     vec![el; n]
 }
 
+/// A rough horizon of `n` samples, `el0 + a sin(k fa) + b cos(k fb)` degrees at sample `k`.
+fn rough(n: usize, el0: f64, (a, fa): (f64, f64), (b, fb): (f64, f64)) -> Vec<f64> {
+    (0..n)
+        .map(|k| el0 + a * (k as f64 * fa).sin() + b * (k as f64 * fb).cos())
+        .collect()
+}
+
 fn methods() -> [DiscMethod; 3] {
     [
         DiscMethod::Exact,
@@ -189,10 +196,7 @@ fn sloped_horizon_segment_is_exact() {
 /// (The integrand is then a trigonometric polynomial of low degree in θ on each piece.)
 #[test]
 fn gauss_legendre_path_matches_closed_form() {
-    let n = 1440;
-    let el: Vec<f64> = (0..n)
-        .map(|k| 1.0 + 0.4 * (k as f64 * 0.37).sin() + 0.2 * (k as f64 * 1.3).cos())
-        .collect();
+    let el = rough(1440, 1.0, (0.4, 0.37), (0.2, 1.3));
     let h = HorizonProfile::new(&el).unwrap();
     // A "uniform" law written so that is_uniform() is false: c1 μ with c1 = 1e-300.
     let almost = LimbDarkening {
@@ -219,10 +223,7 @@ fn gauss_legendre_path_matches_closed_form() {
 /// against 32, over partially covered discs on a rough horizon.
 #[test]
 fn limb_darkened_gauss_legendre_convergence() {
-    let n = 1440;
-    let el: Vec<f64> = (0..n)
-        .map(|k| 1.0 + 0.4 * (k as f64 * 0.37).sin() + 0.2 * (k as f64 * 1.3).cos())
-        .collect();
+    let el = rough(1440, 1.0, (0.4, 0.37), (0.2, 1.3));
     let h = HorizonProfile::new(&el).unwrap();
     let (mut err8, mut err16): (f64, f64) = (0.0, 0.0);
     for i in 0..2000 {
@@ -267,10 +268,7 @@ fn brute_force_fraction(h: &HorizonProfile<'_>, disc: &Disc, limb: &LimbDarkenin
 
 #[test]
 fn limb_darkened_exact_matches_brute_force() {
-    let n = 1440;
-    let el: Vec<f64> = (0..n)
-        .map(|k| 1.0 + 0.3 * (k as f64 * 0.41).sin() + 0.25 * (k as f64 * 2.1).cos())
-        .collect();
+    let el = rough(1440, 1.0, (0.3, 0.41), (0.25, 2.1));
     let h = HorizonProfile::new(&el).unwrap();
     for (i, limb) in [LimbDarkening::EDDINGTON, LimbDarkening::ALLEN_550NM]
         .iter()
@@ -364,10 +362,7 @@ fn point_disc_is_binary() {
 /// cap on the unit sphere, each point's exact (az, el) tested against the horizon.
 #[test]
 fn tangent_plane_error_vs_sphere() {
-    let n = 1440;
-    let el: Vec<f64> = (0..n)
-        .map(|k| 8.0 + 1.5 * (k as f64 * 0.05).sin() + 0.3 * (k as f64 * 0.7).cos())
-        .collect();
+    let el = rough(1440, 8.0, (1.5, 0.05), (0.3, 0.7));
     let h = HorizonProfile::new(&el).unwrap();
     for (r, tol) in [(SUN_R_DEG, 2e-4), (1.0, 1e-3)] {
         let disc = Disc {
