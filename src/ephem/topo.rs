@@ -285,6 +285,12 @@ pub fn target_from_observer(
     geo.moon_me_from_j2000 * rel
 }
 
+/// The angular radius (deg) of a sphere of radius `body_radius_km` seen from `range_km`
+/// (exact: `asin(R/d)`; `range_km` must exceed `body_radius_km`).
+fn angular_radius_deg(body_radius_km: f64, range_km: f64) -> f64 {
+    (body_radius_km / range_km).asin().to_degrees()
+}
+
 /// A body at `pos_in_moon_me_km` (relative to the site) seen from `site`.
 pub fn apparent(pos_in_moon_me_km: Vector3<f64>, site: &Site, body_radius_km: f64) -> Apparent {
     let enu = site.enu_from_moon_me * pos_in_moon_me_km;
@@ -294,7 +300,7 @@ pub fn apparent(pos_in_moon_me_km: Vector3<f64>, site: &Site, body_radius_km: f6
         az_deg,
         el_deg,
         range_km,
-        radius_deg: (body_radius_km / range_km).asin().to_degrees(),
+        radius_deg: angular_radius_deg(body_radius_km, range_km),
         pos_in_moon_me_km,
     }
 }
@@ -316,7 +322,7 @@ pub fn apparent_without_azimuth(
             .asin()
             .to_degrees(),
         range_km,
-        radius_deg: (body_radius_km / range_km).asin().to_degrees(),
+        radius_deg: angular_radius_deg(body_radius_km, range_km),
         pos_in_moon_me_km,
     }
 }
@@ -398,6 +404,20 @@ mod tests {
         assert!((app.norm() - pos.norm()).abs() < 1e-6, "length preserved");
         // Parallel velocity: no deflection.
         assert_eq!(stellar_aberration(&pos, &Vector3::new(5.0, 0.0, 0.0)), pos);
+    }
+
+    #[test]
+    fn angular_radius_of_sun_and_earth() {
+        // asin(R/d) against the independent form atan(R / sqrt(d² - R²)).
+        for (radius_km, range_km) in [(696_000.0, 149_597_870.7), (6_378.136_6, 384_400.0)] {
+            let got = angular_radius_deg(radius_km, range_km);
+            let want = (radius_km / (range_km * range_km - radius_km * radius_km).sqrt())
+                .atan()
+                .to_degrees();
+            assert!((got - want).abs() < 1e-13, "{got} vs {want}");
+        }
+        // The Sun at 1 au is 0.2666° (696,000 km / 1 au = 4.6525e-3 rad).
+        assert!((angular_radius_deg(696_000.0, 149_597_870.7) - 0.266_56).abs() < 1e-5);
     }
 
     #[test]

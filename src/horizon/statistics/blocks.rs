@@ -7,7 +7,7 @@ use std::ops::Range;
 use super::HorizonStatistics;
 use crate::output::BelowSphereExits;
 
-/// Where [`super::StatisticsEngine::run_with_store`] keeps finished row blocks.
+/// Where [`super::StatisticsEngine::run_rows_on`] keeps finished row blocks.
 pub trait BlockStore {
     /// The finished block of `rows`, if there is one (`None` → compute it).
     fn load(&mut self, rows: Range<usize>) -> Option<Vec<u8>>;

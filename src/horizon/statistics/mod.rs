@@ -481,7 +481,7 @@ impl<'a> StatisticsEngine<'a> {
     /// [`Self::run`], taking finished blocks of rows from `store` and giving it every block it
     /// computes (a resumed run gives the same bytes as an uninterrupted one: each pixel's
     /// statistics depend on its own horizon and the epochs only).
-    pub fn run_with_store(
+    fn run_with_store(
         &self,
         source: &mut dyn HorizonRows,
         epochs: &[EpochBodies],
@@ -489,28 +489,18 @@ impl<'a> StatisticsEngine<'a> {
         progress: impl FnMut(usize) -> bool,
     ) -> Result<HorizonStatistics, HorizonError> {
         let rows = 0..self.fine().grid.rows;
-        self.run_rows(source, epochs, store, rows, progress)
-    }
-
-    /// [`Self::run_with_store`] for the finest layer's `rows` only (a shard of a map): the
-    /// statistics returned hold those rows' pixels (pixel `i` is the grid's pixel
-    /// `rows.start * cols + i`), bit for bit the values of a whole run, and `progress` gets the
-    /// rows done from `rows.start`. `source` needs to hold those rows only.
-    fn run_rows(
-        &self,
-        source: &mut dyn HorizonRows,
-        epochs: &[EpochBodies],
-        store: &mut dyn BlockStore,
-        rows: std::ops::Range<usize>,
-        progress: impl FnMut(usize) -> bool,
-    ) -> Result<HorizonStatistics, HorizonError> {
         self.run_rows_on(source, epochs, store, rows, None, progress)
     }
 
-    /// `run_rows` with the per-cell epoch loop on `kernel` (the GPU, or its CPU twin;
+    /// [`Self::run`] for the finest layer's `rows` only (a shard of a map), taking finished
+    /// blocks of rows from `store` and giving it every block it computes (a resumed run gives
+    /// the same bytes as an uninterrupted one: each pixel's statistics depend on its own horizon
+    /// and the epochs only), with the per-cell epoch loop on `kernel` (the GPU, or its CPU twin;
     /// `statistics/offload.rs` says what differs from the CPU engine), or on the CPU when `None`.
-    /// The geometry of the cells, the blocks, the store and the below-sphere tally are the
-    /// CPU engine's.
+    /// The statistics returned hold those rows' pixels (pixel `i` is the grid's pixel
+    /// `rows.start * cols + i`), bit for bit the values of a whole run, and `progress` gets the
+    /// rows done from `rows.start`. `source` needs to hold those rows only. The geometry of the
+    /// cells, the blocks, the store and the below-sphere tally are the CPU engine's.
     pub fn run_rows_on(
         &self,
         source: &mut dyn HorizonRows,
