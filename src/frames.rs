@@ -26,6 +26,19 @@ pub fn site_in_moon_me_km(lat_deg: f64, lon_deg: f64, height_m: f64) -> Vector3<
     Vector3::new(r_km * clat * clon, r_km * clat * slon, r_km * slat)
 }
 
+/// Two unit vectors perpendicular to the unit vector `axis` and to each other, `(e1, e2)` with
+/// `e2 = axis × e1`: the tangent frame of sample points around a direction (any helper axis
+/// not parallel to `axis` gives one; `z` unless `axis` is within 26° of it, then `x`).
+pub fn perpendicular_pair(axis: &Vector3<f64>) -> (Vector3<f64>, Vector3<f64>) {
+    let helper = if axis.z.abs() < 0.9 {
+        Vector3::z()
+    } else {
+        Vector3::x()
+    };
+    let e1 = axis.cross(&helper).normalize();
+    (e1, axis.cross(&e1))
+}
+
 /// Rotation from `MOON_ME` to the local ENU frame at a site: the rows are the unit east, north and
 /// up vectors expressed in `MOON_ME`, so `v_enu = enu_from_moon_me * v_moon_me`.
 ///

@@ -25,7 +25,7 @@ use crate::horizon::{Horizon, HorizonMethod};
 use crate::illum::LimbDarkening;
 use crate::illum::disc::chord_visible_fraction;
 use crate::model::MapGrid;
-use crate::shadow::dp::{DpConfig, MaxMipmap, dp_cost_beyond, full_visibility_cap};
+use crate::shadow::dp::{DpConfig, DpScene, MaxMipmap, dp_cost_beyond, full_visibility_cap};
 use crate::shadow::{LightDir, Observer, max_height_m};
 use crate::terrain::TerrainStack;
 use crate::terrain::model_space::ModelFrame;
@@ -171,16 +171,13 @@ impl SmapDpSites {
     }
 
     fn cost(&self, i: usize, dir: &LightDir, cap: f64) -> f64 {
-        dp_cost_beyond(
-            &self.grid.hf,
-            &self.mip,
-            &self.observers[i],
-            dir,
-            self.z_max_m,
-            cap,
-            &self.cfg,
-            MIN_DISTANCE_CELLS,
-        )
+        let scene = DpScene {
+            hf: &self.grid.hf,
+            mip: &self.mip,
+            z_max_m: self.z_max_m,
+            cfg: &self.cfg,
+        };
+        dp_cost_beyond(&scene, &self.observers[i], dir, cap, MIN_DISTANCE_CELLS)
     }
 
     /// Visible (flux) fraction at site `i` of a disc of angular radius `radius_rad` whose centre

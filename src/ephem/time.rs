@@ -212,11 +212,11 @@ fn parse_calendar(
         return Err(bad("a field is out of range"));
     }
     let year = i32::try_from(year).map_err(|_| bad("year out of range"))?;
-    if scale != TimeScale::UTC {
-        if second == 60 {
-            return Err(bad("second 60 exists in UTC only"));
-        }
-        return Epoch::maybe_from_gregorian(
+    if second == 60 && scale != TimeScale::UTC {
+        return Err(bad("second 60 exists in UTC only"));
+    }
+    let at_second = |second: u32| {
+        Epoch::maybe_from_gregorian(
             year,
             month as u8,
             day as u8,
@@ -226,31 +226,13 @@ fn parse_calendar(
             nanos,
             scale,
         )
-        .map_err(|e| bad(&e.to_string()));
-    }
-    let epoch = Epoch::maybe_from_gregorian_utc(
-        year,
-        month as u8,
-        day as u8,
-        hour as u8,
-        minute as u8,
-        second as u8,
-        nanos,
-    )
-    .map_err(|e| bad(&e.to_string()))?;
+        .map_err(|e| bad(&e.to_string()))
+    };
+    let epoch = at_second(second)?;
     if second == 60 {
         // hifitime accepts a real leap second (and refuses others) but puts it on 23:59:59;
         // the leap second is the SI second after 23:59:59.
-        let before = Epoch::maybe_from_gregorian_utc(
-            year,
-            month as u8,
-            day as u8,
-            hour as u8,
-            minute as u8,
-            59,
-            nanos,
-        )
-        .map_err(|e| bad(&e.to_string()))?;
+        let before = at_second(59)?;
         return Ok(before.to_time_scale(hifitime::TimeScale::TAI) + Unit::Second * 1);
     }
     Ok(epoch)

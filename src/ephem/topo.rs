@@ -159,7 +159,7 @@ impl MoonGeometry {
 /// SPICE rotates `pos` about `u × v/c` by `φ = asin(|u × v/c|)`. The rotation needs only `sin φ`
 /// (the norm itself) and `cos φ = sqrt(1 − sin² φ)` (φ < 1e-3 rad, so no quadrant question), which
 /// is what is used here instead of `asin` followed by `sin`/`cos`.
-pub fn stellar_aberration(pos: &Vector3<f64>, obs_vel_km_s: &Vector3<f64>) -> Vector3<f64> {
+fn stellar_aberration(pos: &Vector3<f64>, obs_vel_km_s: &Vector3<f64>) -> Vector3<f64> {
     let Some(u) = pos.try_normalize(0.0) else {
         return *pos;
     };
@@ -264,17 +264,8 @@ impl Observer {
     }
 }
 
-/// Topocentric position of a target in `MOON_ME` for a site (see the module docs).
-pub fn target_from_site(
-    geo: &MoonGeometry,
-    target_wrt_moon: &StateJ2000,
-    site: &Site,
-    abcorr: AbCorr,
-) -> Vector3<f64> {
-    target_from_observer(geo, target_wrt_moon, &Observer::new(geo, site), abcorr)
-}
-
-/// [`target_from_site`] for an observer state computed once per site and epoch.
+/// Topocentric position of a target in `MOON_ME` for an observer state (see the module docs),
+/// computed once per site and epoch ([`Observer::new`]).
 pub fn target_from_observer(
     geo: &MoonGeometry,
     target_wrt_moon: &StateJ2000,
@@ -294,6 +285,12 @@ pub fn target_from_observer(
     geo.moon_me_from_j2000 * rel
 }
 
+/// The angular radius (deg) of a sphere of radius `body_radius_km` seen from `range_km`
+/// (exact: `asin(R/d)`; `range_km` must exceed `body_radius_km`).
+fn angular_radius_deg(body_radius_km: f64, range_km: f64) -> f64 {
+    (body_radius_km / range_km).asin().to_degrees()
+}
+
 /// A body at `pos_in_moon_me_km` (relative to the site) seen from `site`.
 pub fn apparent(pos_in_moon_me_km: Vector3<f64>, site: &Site, body_radius_km: f64) -> Apparent {
     let enu = site.enu_from_moon_me * pos_in_moon_me_km;
@@ -303,7 +300,7 @@ pub fn apparent(pos_in_moon_me_km: Vector3<f64>, site: &Site, body_radius_km: f6
         az_deg,
         el_deg,
         range_km,
-        radius_deg: (body_radius_km / range_km).asin().to_degrees(),
+        radius_deg: angular_radius_deg(body_radius_km, range_km),
         pos_in_moon_me_km,
     }
 }
@@ -325,7 +322,7 @@ pub fn apparent_without_azimuth(
             .asin()
             .to_degrees(),
         range_km,
-        radius_deg: (body_radius_km / range_km).asin().to_degrees(),
+        radius_deg: angular_radius_deg(body_radius_km, range_km),
         pos_in_moon_me_km,
     }
 }
@@ -386,7 +383,7 @@ pub fn sub_body_point(
         pos_in_moon_me_km: Vector3::zeros(),
         enu_from_moon_me: Matrix3::identity(),
     };
-    let p = target_from_site(geo, target_wrt_moon, &centre, abcorr);
+    let p = target_from_observer(geo, target_wrt_moon, &Observer::new(geo, &centre), abcorr);
     let (lat_deg, lon_deg, _) = crate::frames::lat_lon_height_from_moon_me_km(&p);
     SubPoint { lat_deg, lon_deg }
 }
@@ -407,6 +404,20 @@ mod tests {
         assert!((app.norm() - pos.norm()).abs() < 1e-6, "length preserved");
         // Parallel velocity: no deflection.
         assert_eq!(stellar_aberration(&pos, &Vector3::new(5.0, 0.0, 0.0)), pos);
+    }
+
+    #[test]
+    fn angular_radius_of_sun_and_earth() {
+        // asin(R/d) against the independent form atan(R / sqrt(d² - R²)).
+        for (radius_km, range_km) in [(696_000.0, 149_597_870.7), (6_378.136_6, 384_400.0)] {
+            let got = angular_radius_deg(radius_km, range_km);
+            let want = (radius_km / (range_km * range_km - radius_km * radius_km).sqrt())
+                .atan()
+                .to_degrees();
+            assert!((got - want).abs() < 1e-13, "{got} vs {want}");
+        }
+        // The Sun at 1 au is 0.2666° (696,000 km / 1 au = 4.6525e-3 rad).
+        assert!((angular_radius_deg(696_000.0, 149_597_870.7) - 0.266_56).abs() < 1e-5);
     }
 
     #[test]

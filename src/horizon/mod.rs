@@ -210,22 +210,6 @@ pub struct Horizon {
     pub distance_m: Vec<f64>,
 }
 
-impl Horizon {
-    /// The horizon elevation (deg) at any azimuth (deg, any real value): linear interpolation
-    /// between the samples, wrapping at 360°.
-    pub fn elevation_at_deg(&self, az_deg: f64) -> f64 {
-        let n = self.elevation_deg.len();
-        if n == 0 {
-            return -90.0;
-        }
-        let pos = az_deg.rem_euclid(360.0) / self.az_step_deg;
-        let i0 = (pos.floor() as usize).min(n - 1);
-        let frac = (pos - i0 as f64).clamp(0.0, 1.0);
-        let i1 = (i0 + 1) % n;
-        self.elevation_deg[i0] * (1.0 - frac) + self.elevation_deg[i1] * frac
-    }
-}
-
 /// Computes the horizon of a site on a terrain stack (builds a [`HorizonEngine`]; reuse an engine
 /// for many sites).
 pub fn horizon(
@@ -262,27 +246,5 @@ mod tests {
         for bad in [0.0, -1.0, 0.7, f64::NAN, 400.0, 1e-5] {
             assert!(azimuth_count(bad).is_err(), "{bad}");
         }
-    }
-
-    #[test]
-    fn interpolation_wraps_at_360() {
-        let h = Horizon {
-            lat_deg: 0.0,
-            lon_deg: 0.0,
-            ground_height_m: 0.0,
-            observer_height_m: 0.0,
-            ground_layer: String::new(),
-            min_distance_m: 0.0,
-            method: HorizonMethod::Exact,
-            az_step_deg: 90.0,
-            az_deg: vec![0.0, 90.0, 180.0, 270.0],
-            elevation_deg: vec![1.0, 2.0, 3.0, 5.0],
-            distance_m: vec![1.0; 4],
-        };
-        assert!((h.elevation_at_deg(45.0) - 1.5).abs() < 1e-12);
-        assert!((h.elevation_at_deg(315.0) - 3.0).abs() < 1e-12);
-        assert!((h.elevation_at_deg(-45.0) - 3.0).abs() < 1e-12);
-        assert!((h.elevation_at_deg(360.0) - 1.0).abs() < 1e-12);
-        assert!((h.elevation_at_deg(270.0) - 5.0).abs() < 1e-12);
     }
 }

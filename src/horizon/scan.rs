@@ -395,7 +395,7 @@ impl<'a> HorizonEngine<'a> {
                 best.fast && self.segment_bound_tan(obs, &start, &end) <= best.skip_below_tan;
             if !skip {
                 for li in 0..self.layers.len() {
-                    self.scan_layer_segment(obs, li, &start, &end, first, &mut bufs, &mut best);
+                    self.scan_layer_segment(obs, li, (&start, &end), first, &mut bufs, &mut best);
                 }
             }
             first = false;
@@ -432,19 +432,18 @@ impl<'a> HorizonEngine<'a> {
         bound_tan(obs.r0_m, h_max, a.sin_cos, b.sin_cos)
     }
 
-    /// Samples layer `li` along one segment: every crossing of a grid line (integer row or col:
-    /// the edges of the bilinear patches) or of the layer's outer edge, and inside each patch
-    /// piece the midpoint and the tangent point of the quadratic height profile. Samples where a
-    /// finer layer has a surface are left to that layer; where the segment crosses a finer
-    /// layer's outer edge this layer is sampled right at it (the limit of its surface just
-    /// outside: a coarser layer can rise there, within a pixel of an observer at the edge).
-    #[expect(clippy::too_many_arguments, reason = "internal hot loop helper")]
+    /// Samples layer `li` along the segment from `a` to `b`: every crossing of a grid line
+    /// (integer row or col: the edges of the bilinear patches) or of the layer's outer edge, and
+    /// inside each patch piece the midpoint and the tangent point of the quadratic height
+    /// profile. Samples where a finer layer has a surface are left to that layer; where the
+    /// segment crosses a finer layer's outer edge this layer is sampled right at it (the limit of
+    /// its surface just outside: a coarser layer can rise there, within a pixel of an observer at
+    /// the edge).
     fn scan_layer_segment(
         &self,
         obs: &Observer,
         li: usize,
-        a: &SegmentEnd,
-        b: &SegmentEnd,
+        (a, b): (&SegmentEnd, &SegmentEnd),
         include_start: bool,
         bufs: &mut Buffers,
         best: &mut Best,

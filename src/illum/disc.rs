@@ -113,17 +113,6 @@ pub struct Disc {
     pub radius_deg: f64,
 }
 
-impl Disc {
-    /// The angular radius (deg) of a sphere of radius `body_radius_km` seen from `range_km`
-    /// (exact: `asin(R/d)`; `range_km` must exceed `body_radius_km`).
-    pub fn angular_radius_deg(body_radius_km: f64, range_km: f64) -> f64 {
-        (body_radius_km / range_km)
-            .clamp(-1.0, 1.0)
-            .asin()
-            .to_degrees()
-    }
-}
-
 /// Method used to compute the visible fraction of a disc. See the module docs.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "kebab-case")]
@@ -142,8 +131,8 @@ pub enum DiscMethod {
 /// angle between the line of sight and the surface normal, `μ = sqrt(1 - ρ²/r²)` at angular
 /// distance `ρ` from the disc centre.
 ///
-/// The standard quadratic law `I(μ)/I(1) = 1 - u1(1-μ) - u2(1-μ)²` is
-/// [`LimbDarkening::quadratic`]`(u1, u2)`, i.e. `c0 = 1-u1-u2`, `c1 = u1+2u2`, `c2 = -u2`.
+/// The standard quadratic law `I(μ)/I(1) = 1 - u1(1-μ) - u2(1-μ)²` is `c0 = 1-u1-u2`,
+/// `c1 = u1+2u2`, `c2 = -u2`.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct LimbDarkening {
     /// Constant term.
@@ -178,22 +167,8 @@ impl LimbDarkening {
         c2: -0.23,
     };
 
-    /// The quadratic law `I(μ)/I(1) = 1 - u1(1-μ) - u2(1-μ)²`.
-    pub fn quadratic(u1: f64, u2: f64) -> Self {
-        Self {
-            c0: 1.0 - u1 - u2,
-            c1: u1 + 2.0 * u2,
-            c2: -u2,
-        }
-    }
-
-    /// Relative intensity `I(μ)/I(1)`.
-    pub fn intensity(&self, mu: f64) -> f64 {
-        self.c0 + self.c1 * mu + self.c2 * mu * mu
-    }
-
     /// Mean relative intensity over the disc, `(1/π) ∫∫_{unit disc} I dA = c0 + 2c1/3 + c2/2`.
-    pub fn disc_mean_intensity(&self) -> f64 {
+    fn disc_mean_intensity(&self) -> f64 {
         self.c0 + 2.0 * self.c1 / 3.0 + self.c2 / 2.0
     }
 

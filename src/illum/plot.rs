@@ -207,7 +207,7 @@ pub fn monthly_stats(series: &FractionSeries<'_>) -> Vec<MonthStats> {
 /// Renders the visible fraction of the Sun (and the Earth) over time as PNG bytes: the samples
 /// against dates for series up to [`AGGREGATE_AFTER_DAYS`], monthly bars ([`monthly_stats`]: mean
 /// visible %, longest darkness) beyond.
-pub fn render_fraction_plot_png(
+fn render_fraction_plot_png(
     title: &str,
     series: &FractionSeries<'_>,
     size_px: (u32, u32),
@@ -315,24 +315,23 @@ fn render_monthly_png(
             .draw()
             .map_err(plot_err(WHAT))?;
         let width = if has_earth { 0.42 } else { 0.84 };
-        chart
-            .draw_series(months.iter().enumerate().map(|(i, s)| {
-                let x0 = i as f64 + 0.08;
-                Rectangle::new([(x0, 0.0), (x0 + width, s.sun_pct)], SUN_COLOR.filled())
-            }))
-            .map_err(plot_err(WHAT))?
-            .label("Sun (disc-weighted)")
-            .legend(|(x, y)| Rectangle::new([(x, y - 5), (x + 15, y + 5)], SUN_COLOR.filled()));
-        if has_earth {
+        // The Sun's bars (body 0), then the Earth's beside them.
+        let bars = [
+            (0.08, SUN_COLOR, "Sun (disc-weighted)"),
+            (0.5, EARTH_COLOR, "Earth"),
+        ];
+        let n_bars = 1 + usize::from(has_earth);
+        for (body, (x_off, colour, name)) in bars.into_iter().enumerate().take(n_bars) {
             chart
                 .draw_series(months.iter().enumerate().map(|(i, s)| {
-                    let x0 = i as f64 + 0.5;
-                    Rectangle::new([(x0, 0.0), (x0 + width, s.earth_pct)], EARTH_COLOR.filled())
+                    let x0 = i as f64 + x_off;
+                    let pct = [s.sun_pct, s.earth_pct][body];
+                    Rectangle::new([(x0, 0.0), (x0 + width, pct)], colour.filled())
                 }))
                 .map_err(plot_err(WHAT))?
-                .label("Earth")
-                .legend(|(x, y)| {
-                    Rectangle::new([(x, y - 5), (x + 15, y + 5)], EARTH_COLOR.filled())
+                .label(name)
+                .legend(move |(x, y)| {
+                    Rectangle::new([(x, y - 5), (x + 15, y + 5)], colour.filled())
                 });
         }
         draw_legend(&mut chart, 14, SeriesLabelPosition::UpperRight, WHAT)?;
@@ -371,7 +370,7 @@ fn render_monthly_png(
     })
 }
 
-/// Writes [`render_fraction_plot_png`] to `path` atomically.
+/// Writes the fraction plot (`render_fraction_plot_png`) to `path` atomically.
 pub fn write_fraction_plot(
     path: &Path,
     title: &str,
@@ -478,7 +477,7 @@ fn draw_tracks<'a, DB: DrawingBackend + 'a, CT: CoordTranslate<From = (f64, f64)
 
 /// Renders the horizon profile (terrain filled) with the Sun's and the Earth's tracks on a
 /// rectangular azimuth (0–360°) × elevation plot, as PNG bytes.
-pub fn render_horizon_plot_png(
+fn render_horizon_plot_png(
     title: &str,
     horizon: &HorizonProfile<'_>,
     tracks: &SkyTracks<'_>,
@@ -523,7 +522,7 @@ pub fn render_horizon_plot_png(
 /// Renders the polar variant: azimuth clockwise from north (up), the radius linear in elevation
 /// with the highest elevation of the plot at the centre and the lowest on the rim (so a horizon a
 /// few degrees high stays readable, unlike a zenith-centred plot), as PNG bytes.
-pub fn render_horizon_polar_png(
+fn render_horizon_polar_png(
     title: &str,
     horizon: &HorizonProfile<'_>,
     tracks: &SkyTracks<'_>,
@@ -641,7 +640,7 @@ fn nice_ticks(lo: f64, hi: f64, count: usize) -> (Vec<f64>, usize) {
     (ticks, decimals)
 }
 
-/// Writes [`render_horizon_plot_png`] to `path` atomically.
+/// Writes the rectangular horizon plot (`render_horizon_plot_png`) to `path` atomically.
 pub fn write_horizon_plot(
     path: &Path,
     title: &str,
@@ -654,7 +653,7 @@ pub fn write_horizon_plot(
     Ok(())
 }
 
-/// Writes [`render_horizon_polar_png`] to `path` atomically.
+/// Writes the polar horizon plot (`render_horizon_polar_png`) to `path` atomically.
 pub fn write_horizon_polar_plot(
     path: &Path,
     title: &str,
@@ -684,7 +683,7 @@ pub enum MapLegend {
 }
 
 /// The viridis colour map (5 stops, linear in between), `t` in 0..=1.
-pub fn viridis(t: f64) -> RGBColor {
+fn viridis(t: f64) -> RGBColor {
     const STOPS: [(f64, f64, f64); 5] = [
         (68.0, 1.0, 84.0),
         (59.0, 82.0, 139.0),
@@ -706,7 +705,7 @@ pub fn viridis(t: f64) -> RGBColor {
 }
 
 /// Where a raster lies on the Moon: its grid and map projection (for the graticule, the scale
-/// bar and the north arrow of [`render_map_png`]).
+/// bar and the north arrow of [`write_map_preview`]).
 #[derive(Debug, Clone, Copy)]
 pub struct MapPlace {
     /// The raster's grid.
@@ -921,7 +920,7 @@ impl Overlay {
 /// a graticule (parallels and meridians, labelled), a scale bar (true at the centre) and the true
 /// north at the centre are drawn; without it, rows are drawn top to bottom and nothing is said of
 /// north.
-pub fn render_map_png(
+fn render_map_png(
     title: &str,
     values: &[f32],
     rows: usize,
@@ -1116,7 +1115,7 @@ pub fn render_map_png(
     })
 }
 
-/// Writes [`render_map_png`] to `path` atomically.
+/// Writes the raster preview (`render_map_png`) to `path` atomically.
 pub fn write_map_preview(
     path: &Path,
     title: &str,

@@ -208,7 +208,7 @@ pub struct SiteStats {
 }
 
 /// Statistics of one site's series.
-pub fn site_stats(series: &SiteSeries<'_>) -> Result<SiteStats, IllumError> {
+fn site_stats(series: &SiteSeries<'_>) -> Result<SiteStats, IllumError> {
     series.validate()?;
     let sun = series.sun_fraction;
     let earth = series.earth_fraction;
@@ -285,7 +285,7 @@ pub struct CombinedStats {
 }
 
 /// Combined statistics of several sites; they must share start epoch, step and length.
-pub fn combined_stats(all: &[SiteSeries<'_>]) -> Result<CombinedStats, IllumError> {
+fn combined_stats(all: &[SiteSeries<'_>]) -> Result<CombinedStats, IllumError> {
     let Some(first) = all.first() else {
         return Err(IllumError::EmptySeries {
             site: "(no sites)".to_string(),

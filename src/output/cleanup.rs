@@ -6,7 +6,7 @@
 //! - [`RunLock`] makes a run folder single-writer: `<dir>/.penumbra.lock` holds the owner's pid;
 //!   a second run into the same folder is refused while that process lives, and a lock left by a
 //!   killed process is taken over. The lock holder also removes temporary files that killed runs
-//!   left in its folder ([`remove_stale_temp_files`]).
+//!   left in its folder (`remove_stale_temp_files`).
 
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
@@ -47,7 +47,7 @@ pub fn remove_registered() -> usize {
 
 /// Removes `.penumbra-*.tmp` files in `dir` (not recursive) that no live process owns: call it
 /// only while holding the folder's [`RunLock`]. Returns how many were removed.
-pub fn remove_stale_temp_files(dir: &Path) -> usize {
+fn remove_stale_temp_files(dir: &Path) -> usize {
     let Ok(entries) = std::fs::read_dir(dir) else {
         return 0;
     };
@@ -75,7 +75,7 @@ pub struct RunLock {
 
 impl RunLock {
     /// Takes the lock of `dir` (created if missing), or errors naming the live owner.
-    pub fn acquire(dir: &Path) -> Result<Self, String> {
+    fn acquire(dir: &Path) -> Result<Self, String> {
         let created = (!dir.exists()).then(|| dir.to_path_buf());
         std::fs::create_dir_all(dir)
             .map_err(|e| format!("creating output folder {}: {e}", dir.display()))?;

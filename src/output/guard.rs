@@ -44,7 +44,7 @@ pub fn read_small_text(path: &Path, max_bytes: u64) -> std::io::Result<String> {
 
 /// The memory penumbra may allocate for one input, bytes: `PENUMBRA_MEMORY_BUDGET_GB`, else 80 %
 /// of `MemAvailable` (Linux), else 8 GiB.
-pub fn memory_budget_bytes() -> u64 {
+fn memory_budget_bytes() -> u64 {
     if let Some(gb) = std::env::var(MEMORY_BUDGET_ENV)
         .ok()
         .and_then(|v| v.trim().parse::<f64>().ok())

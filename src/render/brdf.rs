@@ -118,15 +118,6 @@ impl Brdf {
             Brdf::Hapke(p) => hapke_r_per_sr(p, cos_i, cos_e, cos_g) / cos_i.min(1.0),
         }
     }
-
-    /// The model number of the WGSL twin (`brdf_per_sr` in `shaders/shared/brdf.wgsl`):
-    /// 0 Lambert, 1 Hapke.
-    pub fn wgsl_model(&self) -> u32 {
-        match self {
-            Brdf::Lambert { .. } => 0,
-            Brdf::Hapke(_) => 1,
-        }
-    }
 }
 
 /// Hapke's (2002, eq. 13) approximation of Chandrasekhar's H-function for isotropic scatterers

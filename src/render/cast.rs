@@ -9,7 +9,7 @@
 //! centre hull (as `render::bilinear` clamps), over `u in [-0.5, cols - 0.5]`,
 //! `v in [-0.5, rows - 0.5]`.
 //!
-//! **Max-mipmap caster** ([`RayCaster::cast_mipmap`]). Level 0 of
+//! **Max-mipmap caster** ([`TraceMethod::MaxMipmap`]). Level 0 of
 //! [`crate::shadow::dp::MaxMipmap`] holds, per dual cell `[j, j+1] x [i, i+1]` (one bilinear
 //! patch), the maximum of its four corner heights, which bounds the patch; level `m` texel `J`
 //! covers `u in [J 2^m, (J+1) 2^m)`. The border strips are texels `-1` and `cols - 1` of level 0,
@@ -24,7 +24,7 @@
 //! first hit on the bilinear surface is found exactly, never missed (up to a `1e-9`-cell nudge
 //! at texel boundaries). Patches with a hole corner (NaN) are skipped: rays pass through holes.
 //!
-//! **Uniform caster** ([`RayCaster::cast_uniform`]): the first-cut renderer's method — steps of
+//! **Uniform caster** ([`TraceMethod::Uniform`]): the first-cut renderer's method — steps of
 //! `step_cells` cells horizontally (horizontal speed taken >= 0.05 for near-vertical rays), the
 //! first above-to-below sample pair refined by [`UNIFORM_BISECTIONS`] bisections. It misses
 //! features thinner than a step (silhouettes, grazing ridges).
@@ -219,7 +219,7 @@ impl<'a> RayCaster<'a> {
     }
 
     /// Max-mipmap casting (module docs): the exact first hit on the bilinear surface.
-    pub fn cast_mipmap(&self, origin: &Vector3<f64>, dir: &Vector3<f64>) -> Option<Vector3<f64>> {
+    fn cast_mipmap(&self, origin: &Vector3<f64>, dir: &Vector3<f64>) -> Option<Vector3<f64>> {
         let ray = GridRay::new(self.hf, origin, dir);
         let (t_in, t_out) = self.clip(&ray)?;
         let top = self.pyramid.levels.len() - 1;
@@ -315,7 +315,7 @@ impl<'a> RayCaster<'a> {
     }
 
     /// Uniform stepping (module docs) with a horizontal step of `step_cells` cells.
-    pub fn cast_uniform(
+    fn cast_uniform(
         &self,
         origin: &Vector3<f64>,
         dir: &Vector3<f64>,

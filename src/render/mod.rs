@@ -169,7 +169,7 @@ impl Camera {
 
     /// Unit ray direction (model space) through the centre of pixel (`px_row`, `px_col`) of a
     /// `width` x `height` image (row 0 at the top).
-    pub fn ray_dir(&self, px_row: u32, px_col: u32, width: u32, height: u32) -> Vector3<f64> {
+    fn ray_dir(&self, px_row: u32, px_col: u32, width: u32, height: u32) -> Vector3<f64> {
         let t = (self.fov_deg.to_radians() / 2.0).tan();
         let u = (2.0 * (f64::from(px_col) + 0.5) / f64::from(width) - 1.0) * t;
         let v = (1.0 - 2.0 * (f64::from(px_row) + 0.5) / f64::from(height)) * t * f64::from(height)
@@ -320,7 +320,7 @@ impl<'a> Scene<'a> {
     }
 
     /// Unit surface normal at model x/y from central differences (one cell each side).
-    pub fn normal_at(&self, x_m: f64, y_m: f64) -> Option<Vector3<f64>> {
+    fn normal_at(&self, x_m: f64, y_m: f64) -> Option<Vector3<f64>> {
         let d = self.hf.px_m;
         let zx0 = self.surface_z_m(x_m - d, y_m);
         let zx1 = self.surface_z_m(x_m + d, y_m);
@@ -343,19 +343,11 @@ impl<'a> Scene<'a> {
         Some(Vector3::new(-dzdx, -dzdy, 1.0).normalize())
     }
 
-    /// Radiance (W/(m² sr)) of the terrain at model x/y seen from straight above the facet
-    /// (viewer along the surface normal): [`Scene::radiance_toward`] with `to_viewer = n`. For
-    /// Lambert: `albedo / pi * (S * f_sun * max(0, n.sun) + E_earth * f_earth * max(0, n.earth))`.
-    pub fn radiance_at(&self, x_m: f64, y_m: f64) -> Option<f64> {
-        let n = self.normal_at(x_m, y_m)?;
-        self.radiance_toward(x_m, y_m, &n)
-    }
-
     /// Radiance (W/(m² sr)) of the terrain at model x/y towards the unit vector `to_viewer`:
     /// `f(i_sun, e, g_sun) * S * f_sun * cos i_sun + f(i_earth, e, g_earth) * E_earth * f_earth *
     /// cos i_earth` with `f` the scene's BRDF ([`Brdf::per_sr`]), `S` the solar constant and
     /// `E_earth` the earthshine irradiance ([`Lights::earth_irradiance_w_m2`]).
-    pub fn radiance_toward(&self, x_m: f64, y_m: f64, to_viewer: &Vector3<f64>) -> Option<f64> {
+    fn radiance_toward(&self, x_m: f64, y_m: f64, to_viewer: &Vector3<f64>) -> Option<f64> {
         let n = self.normal_at(x_m, y_m)?;
         let f_sun = bilinear(self.hf, &self.sun_fraction, x_m, y_m, true).unwrap_or(0.0);
         let f_earth = bilinear(self.hf, &self.earth_fraction, x_m, y_m, true).unwrap_or(0.0);
@@ -378,7 +370,7 @@ impl<'a> Scene<'a> {
 
     /// The first terrain crossing of the ray `origin + t * dir` (t > 0): model point, or `None`
     /// (by the scene's [`TraceMethod`], see [`cast`]).
-    pub fn trace(&self, origin: &Vector3<f64>, dir: &Vector3<f64>) -> Option<Vector3<f64>> {
+    fn trace(&self, origin: &Vector3<f64>, dir: &Vector3<f64>) -> Option<Vector3<f64>> {
         self.caster.cast(origin, dir, self.trace_method)
     }
 
@@ -411,7 +403,7 @@ impl<'a> Scene<'a> {
     /// `sin(earth_radius_rad)`) at `t = d.e - sqrt((d.e)^2 - cos^2 rho)`, where the outward normal
     /// `n = (t d - e) / sin rho` is lit when `n . sun > 0` (the Sun's direction from the Earth
     /// equals the one from the Moon within the Moon's parallax, ~0.15 deg).
-    pub fn earth_point_is_day(&self, dir: &Vector3<f64>) -> bool {
+    fn earth_point_is_day(&self, dir: &Vector3<f64>) -> bool {
         let e = Vector3::from(self.lights.earth);
         let (sin_r, cos_r) = self.lights.earth_radius_rad.sin_cos();
         let de = dir.dot(&e);
@@ -628,7 +620,7 @@ pub fn terrain_radiance_p99(samples: &[Sample]) -> Option<f64> {
 
 /// Exposure (1/(W m⁻² sr⁻¹)) that maps the 99th percentile of the terrain radiance to `x` =
 /// [`AUTO_EXPOSED_P99`] on the tone curve ([`tone_curve`]); 1 when no terrain is lit.
-pub fn auto_exposure(samples: &[Sample]) -> f64 {
+fn auto_exposure(samples: &[Sample]) -> f64 {
     terrain_radiance_p99(samples).map_or(1.0, |p99| AUTO_EXPOSED_P99 / p99)
 }
 
@@ -680,13 +672,7 @@ pub fn add_sun_glare(rgb: &mut [u8], scene: &Scene, camera: &Camera, width: u32,
     let sun = Vector3::from(l.sun);
     let rho = l.sun_radius_rad;
     // A frame perpendicular to the Sun's direction for the disc sample points.
-    let a = if sun.z.abs() < 0.9 {
-        Vector3::z()
-    } else {
-        Vector3::x()
-    };
-    let u = sun.cross(&a).normalize();
-    let w = sun.cross(&u);
+    let (u, w) = crate::frames::perpendicular_pair(&sun);
     let mut visible = 0;
     let mut total = 0;
     for (du, dw) in [

@@ -145,7 +145,7 @@ impl CameraPose {
 }
 
 /// Checks a keyframe list: at least 2 keyframes, strictly increasing epochs, one camera kind.
-pub fn check_keyframes(keyframes: &[Keyframe]) -> Result<()> {
+fn check_keyframes(keyframes: &[Keyframe]) -> Result<()> {
     if keyframes.len() < 2 {
         return Err(RenderError::BadPath(format!(
             "a camera path needs at least 2 keyframes, got {}",
@@ -169,7 +169,7 @@ pub fn check_keyframes(keyframes: &[Keyframe]) -> Result<()> {
 
 /// The pose at `epoch` (clamped to the keyframes' span), interpolated linearly between the two
 /// keyframes around it (a keyframe's own epoch gives its pose exactly).
-pub fn pose_at(keyframes: &[Keyframe], epoch: Epoch) -> Result<CameraPose> {
+fn pose_at(keyframes: &[Keyframe], epoch: Epoch) -> Result<CameraPose> {
     check_keyframes(keyframes)?;
     let k = keyframes
         .windows(2)

@@ -23,9 +23,8 @@
 use nalgebra::Vector3;
 
 use super::{
-    LightDir, MASK_LIT, MASK_NODATA, MASK_SHADOW, Observer, Observers, Result, ShadowError,
-    check_observer_height, check_radius, fraction_from_cost, map_cells, map_observers,
-    max_height_m, unit_light,
+    LightDir, Observer, Observers, Result, ShadowError, check_observer_height, check_radius,
+    fraction_from_cost, hard_mask_by, map_cells, map_observers, max_height_m, unit_light,
 };
 use crate::terrain::HeightField;
 
@@ -125,7 +124,7 @@ where
 /// Whether the ray from `obs` toward `dir` is blocked (see the module docs); crossings nearer
 /// than `min_s_cells` (horizontal, cells) are not sampled ([`super::Observers::Points`]).
 #[inline]
-pub(crate) fn ray_blocked(
+fn ray_blocked(
     hf: &HeightField,
     obs: &Observer,
     dir: &LightDir,
@@ -220,7 +219,7 @@ pub(crate) fn bilinear(hf: &HeightField, row: f64, col: f64) -> Option<f64> {
 
 /// Minimum shadow cost by **uniform ray stepping** (the baseline of paper 000/003): samples
 /// the bilinear surface every `step_cells` cells of horizontal distance along the centre ray.
-pub(crate) fn uniform_cost(
+fn uniform_cost(
     hf: &HeightField,
     obs: &Observer,
     dir: &LightDir,
@@ -257,31 +256,17 @@ pub fn hard_mask<'a>(
     observers: impl Into<Observers<'a>>,
     light_in_model: [f64; 3],
 ) -> Result<Vec<u8>> {
-    let observers = observers.into();
-    observers.check()?;
-    let dir = LightDir::new(unit_light(light_in_model)?);
-    let z_max = max_height_m(hf);
-    let min_s = observers.min_s_cells();
-    Ok(map_observers(hf, &observers, MASK_NODATA, |_, obs| {
-        if ray_blocked(hf, obs, &dir, z_max, min_s) {
-            MASK_SHADOW
-        } else {
-            MASK_LIT
-        }
-    }))
+    hard_mask_by(hf, observers.into(), light_in_model, |dir, min_s_cells| {
+        let z_max = max_height_m(hf);
+        move |obs: &Observer| ray_blocked(hf, obs, &dir, z_max, min_s_cells)
+    })
 }
 
 /// `n` unit directions spread uniformly over the spherical cap of angular radius `radius_rad`
 /// around `centre` (Vogel spiral; equal cap area per sample).
-pub fn disc_directions(centre: Vector3<f64>, radius_rad: f64, n: usize) -> Vec<Vector3<f64>> {
+fn disc_directions(centre: Vector3<f64>, radius_rad: f64, n: usize) -> Vec<Vector3<f64>> {
     let c = centre.normalize();
-    let helper = if c.z.abs() < 0.9 {
-        Vector3::z()
-    } else {
-        Vector3::x()
-    };
-    let e1 = c.cross(&helper).normalize();
-    let e2 = c.cross(&e1);
+    let (e1, e2) = crate::frames::perpendicular_pair(&c);
     let golden = std::f64::consts::PI * (3.0 - 5.0_f64.sqrt());
     let one_minus_cos_r = 1.0 - radius_rad.cos();
     (0..n)
@@ -317,7 +302,7 @@ fn disc_sample_dirs(
 }
 
 /// Brute-force visible fraction of a uniform disc: the fraction of `samples` directions over the
-/// disc ([`disc_directions`]) whose ray is unblocked. `NaN` for nodata.
+/// disc (a Vogel spiral, `disc_directions`) whose ray is unblocked. `NaN` for nodata.
 pub fn visible_fraction<'a>(
     hf: &HeightField,
     observers: impl Into<Observers<'a>>,
@@ -331,12 +316,23 @@ pub fn visible_fraction<'a>(
     let z_max = max_height_m(hf);
     let min_s = observers.min_s_cells();
     Ok(map_observers(hf, &observers, f32::NAN, |_, obs| {
-        let lit = dirs
-            .iter()
-            .filter(|d| !ray_blocked(hf, obs, d, z_max, min_s))
-            .count();
-        lit as f32 / samples as f32
+        lit_fraction(hf, obs, &dirs, z_max, min_s)
     }))
+}
+
+/// The fraction of the rays from `obs` toward `dirs` that are not blocked ([`ray_blocked`]).
+fn lit_fraction(
+    hf: &HeightField,
+    obs: &Observer,
+    dirs: &[LightDir],
+    z_max_m: f64,
+    min_s_cells: f64,
+) -> f32 {
+    let lit = dirs
+        .iter()
+        .filter(|d| !ray_blocked(hf, obs, d, z_max_m, min_s_cells))
+        .count();
+    lit as f32 / dirs.len() as f32
 }
 
 /// Brute-force visible fraction at selected cells only (`cells` as (row, col)); same model as
@@ -361,13 +357,7 @@ pub fn visible_fraction_at(
             }
             match super::observer_at(hf, row, col, observer_height_m) {
                 None => f32::NAN,
-                Some(obs) => {
-                    let lit = dirs
-                        .iter()
-                        .filter(|d| !ray_blocked(hf, &obs, d, z_max, 0.0))
-                        .count();
-                    lit as f32 / samples as f32
-                }
+                Some(obs) => lit_fraction(hf, &obs, &dirs, z_max, 0.0),
             }
         })
         .collect())
@@ -384,12 +374,13 @@ pub fn visible_fraction_exact_cost(
 ) -> Result<Vec<f32>> {
     check_observer_height(observer_height_m)?;
     check_radius(angular_radius_rad)?;
-    let dir = LightDir::new(unit_light(light_in_model)?);
-    let z_max = max_height_m(hf);
-    Ok(map_cells(hf, observer_height_m, f32::NAN, |_, _, obs| {
-        let j = exact_cost(hf, obs, &dir, z_max);
-        fraction_from_cost(j, &dir, angular_radius_rad) as f32
-    }))
+    fraction_from_costs(
+        hf,
+        observer_height_m,
+        light_in_model,
+        angular_radius_rad,
+        |o, d, z| exact_cost(hf, o, d, z),
+    )
 }
 
 /// Visible fraction by **uniform ray stepping** along the centre ray (step `step_cells` cells)
@@ -409,11 +400,28 @@ pub fn visible_fraction_uniform(
             reason: "must be finite and > 0",
         });
     }
+    fraction_from_costs(
+        hf,
+        observer_height_m,
+        light_in_model,
+        angular_radius_rad,
+        |o, d, z| uniform_cost(hf, o, d, z, step_cells),
+    )
+}
+
+/// The prism visible fraction of every cell from its centre ray's shadow cost
+/// `cost(observer, light, z_max_m)`. `NaN` for nodata.
+fn fraction_from_costs(
+    hf: &HeightField,
+    observer_height_m: f64,
+    light_in_model: [f64; 3],
+    angular_radius_rad: f64,
+    cost: impl Fn(&Observer, &LightDir, f64) -> f64 + Sync,
+) -> Result<Vec<f32>> {
     let dir = LightDir::new(unit_light(light_in_model)?);
     let z_max = max_height_m(hf);
     Ok(map_cells(hf, observer_height_m, f32::NAN, |_, _, obs| {
-        let j = uniform_cost(hf, obs, &dir, z_max, step_cells);
-        fraction_from_cost(j, &dir, angular_radius_rad) as f32
+        fraction_from_cost(cost(obs, &dir, z_max), &dir, angular_radius_rad) as f32
     }))
 }
 

@@ -49,10 +49,10 @@
 //! grid or no sample further out can lower the cost (or change the visible fraction).
 
 use super::brute::{bilinear, line_height};
-use super::smap::SMap;
+use super::smap::{SMap, shadowed};
 use super::{
-    LightDir, MASK_LIT, MASK_NODATA, MASK_SHADOW, Observer, Observers, Result, ShadowError,
-    check_radius, fraction_from_cost, limb_direction, map_observers, max_height_m, unit_light,
+    LightDir, Observer, Observers, Result, ShadowError, check_radius, fraction_from_cost,
+    hard_mask_by, limb_direction, map_observers, max_height_m, unit_light,
 };
 use crate::terrain::HeightField;
 
@@ -205,35 +205,26 @@ impl RaySearch<'_> {
         // twice (shared by two cells) is harmless.
         const TOL: f64 = 1e-9;
         let (lo, hi) = (s_in - TOL, s_out + TOL);
-        let (o, d) = (self.obs, self.dir);
-        if d.dcol != 0.0 {
-            self.sample_lines(false, j, o.col, d.dcol, o.row, d.drow, lo, hi);
+        if self.dir.dcol != 0.0 {
+            self.sample_lines(false, j, lo, hi);
         }
-        if d.drow != 0.0 {
-            self.sample_lines(true, i, o.row, d.drow, o.col, d.dcol, lo, hi);
+        if self.dir.drow != 0.0 {
+            self.sample_lines(true, i, lo, hi);
         }
     }
 
-    /// The crossings of [`Self::sample_cell`] with lines `k0` and `k0 + 1` of one family: column
-    /// lines (`along_row_line` false; position `p0 + s·d` along columns, `q0 + s·dq` along rows)
-    /// or row lines (roles swapped).
-    #[expect(
-        clippy::too_many_arguments,
-        reason = "one axis of sample_cell, inlined"
-    )]
+    /// The crossings of [`Self::sample_cell`] with lines `k0` and `k0 + 1` of one family inside
+    /// `[lo, hi]` (cells): column lines (`along_row_line` false; position `p0 + s·d` along
+    /// columns, `q0 + s·dq` along rows) or row lines (roles swapped).
     #[inline]
-    fn sample_lines(
-        &mut self,
-        along_row_line: bool,
-        k0: i64,
-        p0: f64,
-        d: f64,
-        q0: f64,
-        dq: f64,
-        lo: f64,
-        hi: f64,
-    ) {
+    fn sample_lines(&mut self, along_row_line: bool, k0: i64, lo: f64, hi: f64) {
         const TOL: f64 = 1e-9;
+        let (o, dir) = (self.obs, self.dir);
+        let (p0, d, q0, dq) = if along_row_line {
+            (o.row, dir.drow, o.col, dir.dcol)
+        } else {
+            (o.col, dir.dcol, o.row, dir.drow)
+        };
         let (max_k, max_q) = if along_row_line {
             ((self.hf.rows - 1) as f64, (self.hf.cols - 1) as f64)
         } else {
@@ -352,34 +343,33 @@ pub(crate) fn exit_distance(hf: &HeightField, obs: &Observer, dir: &LightDir) ->
         .max(0.0)
 }
 
-/// `J* = min Δh/t` over the centre ray by Algorithm 1 with interval concatenation; costs at or
-/// above `cap` may be reported as any value `>= cap`.
-pub(crate) fn dp_cost(
-    hf: &HeightField,
-    mip: &MaxMipmap,
-    obs: &Observer,
-    dir: &LightDir,
-    z_max_m: f64,
-    cap: f64,
-    cfg: &DpConfig,
-) -> f64 {
-    dp_cost_beyond(hf, mip, obs, dir, z_max_m, cap, cfg, 1e-9)
+/// What every ray search over one grid shares: the height field, its maximum mipmap, its
+/// highest cell (model z, m) and the search parameters.
+pub(crate) struct DpScene<'a> {
+    pub hf: &'a HeightField,
+    pub mip: &'a MaxMipmap,
+    pub z_max_m: f64,
+    pub cfg: &'a DpConfig,
 }
 
-/// [`dp_cost`] ignoring the crossings within `min_s_cells` of the observer (ray distance in
-/// cells) and sampling the bilinear surface at exactly `min_s_cells`: the per-site series engine
-/// ([`crate::compute::site_dp`]) skips the observer's own half cell, as the horizon engine does.
-#[expect(clippy::too_many_arguments, reason = "dp_cost plus the near-field cut")]
+/// `J* = min Δh/t` over the centre ray by Algorithm 1 with interval concatenation; costs at or
+/// above `cap` may be reported as any value `>= cap`. Crossings within `min_s_cells` of the
+/// observer (ray distance in cells) are ignored and the bilinear surface is sampled at exactly
+/// `min_s_cells`: the per-site series engine ([`crate::compute::site_dp`]) skips the observer's own
+/// half cell, as the horizon engine does; `0` samples from the observer on.
 pub(crate) fn dp_cost_beyond(
-    hf: &HeightField,
-    mip: &MaxMipmap,
+    scene: &DpScene,
     obs: &Observer,
     dir: &LightDir,
-    z_max_m: f64,
     cap: f64,
-    cfg: &DpConfig,
     min_s_cells: f64,
 ) -> f64 {
+    let &DpScene {
+        hf,
+        mip,
+        z_max_m,
+        cfg,
+    } = scene;
     if dir.hor == 0.0 {
         return f64::INFINITY;
     }
@@ -437,29 +427,6 @@ pub(crate) fn dp_cost_beyond(
     search.best
 }
 
-/// [`dp_cost`] for `min_s_cells` = 0 (grid cells), else [`dp_cost_beyond`] from that distance.
-#[expect(
-    clippy::too_many_arguments,
-    reason = "the DP search's inputs, as dp_cost_beyond"
-)]
-#[inline]
-fn dp_cost_from(
-    hf: &HeightField,
-    mip: &MaxMipmap,
-    obs: &Observer,
-    dir: &LightDir,
-    z_max_m: f64,
-    cap: f64,
-    cfg: &DpConfig,
-    min_s_cells: f64,
-) -> f64 {
-    if min_s_cells > 0.0 {
-        dp_cost_beyond(hf, mip, obs, dir, z_max_m, cap, cfg, min_s_cells)
-    } else {
-        dp_cost(hf, mip, obs, dir, z_max_m, cap, cfg)
-    }
-}
-
 /// Cost above which a disc of angular radius `r` is fully visible (`J* ≥ tan(e_c) − tan(e_c −
 /// r)`); `0` for `r = 0` (hard shadows only need the sign of `J*`).
 pub(crate) fn full_visibility_cap(dir: &LightDir, r: f64) -> f64 {
@@ -501,11 +468,16 @@ pub fn visible_fraction<'a>(
     check_config(cfg)?;
     let dir = LightDir::new(unit_light(light_in_model)?);
     let mip = MaxMipmap::new(hf);
-    let z_max = max_height_m(hf);
+    let scene = DpScene {
+        hf,
+        mip: &mip,
+        z_max_m: max_height_m(hf),
+        cfg,
+    };
     let cap = full_visibility_cap(&dir, angular_radius_rad);
     let min_s = observers.min_s_cells();
     Ok(map_observers(hf, &observers, f32::NAN, |_, obs| {
-        let j = dp_cost_from(hf, &mip, obs, &dir, z_max, cap, cfg, min_s);
+        let j = dp_cost_beyond(&scene, obs, &dir, cap, min_s);
         fraction_from_cost(j, &dir, angular_radius_rad) as f32
     }))
 }
@@ -517,17 +489,19 @@ pub fn hard_mask<'a>(
     observers: impl Into<Observers<'a>>,
     light_in_model: [f64; 3],
 ) -> Result<Vec<u8>> {
-    let observers = observers.into();
-    observers.check()?;
-    let dir = LightDir::new(unit_light(light_in_model)?);
-    let mip = MaxMipmap::new(hf);
-    let z_max = max_height_m(hf);
-    let cfg = DpConfig::default();
-    let min_s = observers.min_s_cells();
-    Ok(map_observers(hf, &observers, MASK_NODATA, |_, obs| {
-        let j = dp_cost_from(hf, &mip, obs, &dir, z_max, 0.0, &cfg, min_s);
-        if j < 0.0 { MASK_SHADOW } else { MASK_LIT }
-    }))
+    hard_mask_by(hf, observers.into(), light_in_model, |dir, min_s_cells| {
+        let (mip, cfg) = (MaxMipmap::new(hf), DpConfig::default());
+        let z_max_m = max_height_m(hf);
+        move |obs: &Observer| {
+            let scene = DpScene {
+                hf,
+                mip: &mip,
+                z_max_m,
+                cfg: &cfg,
+            };
+            dp_cost_beyond(&scene, obs, &dir, 0.0, min_s_cells) < 0.0
+        }
+    })
 }
 
 /// Statistics of [`soft_combined`].
@@ -570,23 +544,23 @@ pub fn soft_combined<'a>(
     let smap_upper = SMap::build(hf, upper);
     let smap_lower = SMap::build(hf, lower);
     let mip = MaxMipmap::new(hf);
-    let z_max = max_height_m(hf);
-    let cap = full_visibility_cap(&dir, angular_radius_rad);
-    let cfg = DpConfig::default();
-    let shadowed = |s: &Option<SMap>, d: &LightDir, obs: &Observer| match s {
-        Some(s) => s.is_shadow(obs),
-        None => d.unit.z < 0.0,
+    let scene = DpScene {
+        hf,
+        mip: &mip,
+        z_max_m: max_height_m(hf),
+        cfg: &DpConfig::default(),
     };
+    let cap = full_visibility_cap(&dir, angular_radius_rad);
     // Class codes: 0 dark, 1 lit, 2 DP, 3 nodata.
     let min_s = observers.min_s_cells();
     let out: Vec<(f32, u8)> = map_observers(hf, &observers, (f32::NAN, 3u8), |_, obs| {
-        if !shadowed(&smap_lower, &lower, obs) {
+        if !shadowed(smap_lower.as_ref(), &lower, obs) {
             return (1.0, 1);
         }
-        if shadowed(&smap_upper, &upper, obs) {
+        if shadowed(smap_upper.as_ref(), &upper, obs) {
             return (0.0, 0);
         }
-        let j = dp_cost_from(hf, &mip, obs, &dir, z_max, cap, &cfg, min_s);
+        let j = dp_cost_beyond(&scene, obs, &dir, cap, min_s);
         let f = fraction_from_cost(j, &dir, angular_radius_rad);
         (f as f32, 2)
     });
@@ -644,9 +618,42 @@ mod tests {
         }
     }
 
+    /// For every light at (`az_deg`, `el_deg`) and every observer 2 m above a cell of `hf`:
+    /// `check(light, its direction, the Sun's cap, (row, col), exact cost, DP cost)`.
+    fn compare_costs(
+        hf: &HeightField,
+        lights_deg: impl IntoIterator<Item = (f64, f64)>,
+        mut check: impl FnMut((f64, f64), &LightDir, f64, (usize, usize), f64, f64),
+    ) {
+        use crate::shadow::brute::exact_cost;
+        let mip = MaxMipmap::new(hf);
+        let z_max = max_height_m(hf);
+        let scene = DpScene {
+            hf,
+            mip: &mip,
+            z_max_m: z_max,
+            cfg: &DpConfig::default(),
+        };
+        for (az_deg, el_deg) in lights_deg {
+            let (az, el) = (az_deg.to_radians(), el_deg.to_radians());
+            let l = [az.sin() * el.cos(), az.cos() * el.cos(), el.sin()];
+            let dir = LightDir::new(unit_light(l).unwrap());
+            let cap = full_visibility_cap(&dir, crate::shadow::SUN_ANGULAR_RADIUS_RAD);
+            for r in 0..hf.rows {
+                for c in 0..hf.cols {
+                    let Some(obs) = crate::shadow::observer_at(hf, r, c, 2.0) else {
+                        continue;
+                    };
+                    let e = exact_cost(hf, &obs, &dir, z_max);
+                    let d = dp_cost_beyond(&scene, &obs, &dir, cap, 0.0);
+                    check((az_deg, el_deg), &dir, cap, (r, c), e, d);
+                }
+            }
+        }
+    }
+
     #[test]
     fn dp_cost_equals_exhaustive_cost_on_rough_terrain() {
-        use crate::shadow::brute::exact_cost;
         let n = 80;
         let mut hf = HeightField::flat(n, n, 120.0);
         for r in 0..n {
@@ -657,28 +664,14 @@ mod tests {
             }
         }
         hf.z_m[40 * n + 40] = f32::NAN;
-        let mip = MaxMipmap::new(&hf);
-        let z_max = max_height_m(&hf);
-        for (az_deg, el_deg) in [(37.0f64, 0.5f64), (90.0, 1.5), (180.0, 5.0), (301.0, 0.2)] {
-            let (az, el) = (az_deg.to_radians(), el_deg.to_radians());
-            let l = [az.sin() * el.cos(), az.cos() * el.cos(), el.sin()];
-            let dir = LightDir::new(unit_light(l).unwrap());
-            let cap = full_visibility_cap(&dir, crate::shadow::SUN_ANGULAR_RADIUS_RAD);
-            for r in 0..n {
-                for c in 0..n {
-                    let Some(obs) = crate::shadow::observer_at(&hf, r, c, 2.0) else {
-                        continue;
-                    };
-                    let e = exact_cost(&hf, &obs, &dir, z_max);
-                    let d = dp_cost(&hf, &mip, &obs, &dir, z_max, cap, &DpConfig::default());
-                    // Costs at or above the cap all mean "fully visible".
-                    assert!(
-                        (e.min(cap) - d.min(cap)).abs() < 1e-9,
-                        "az {az_deg} el {el_deg} r {r} c {c}: exact {e} dp {d}"
-                    );
-                }
-            }
-        }
+        let lights = [(37.0, 0.5), (90.0, 1.5), (180.0, 5.0), (301.0, 0.2)];
+        compare_costs(&hf, lights, |(az_deg, el_deg), _, cap, (r, c), e, d| {
+            // Costs at or above the cap all mean "fully visible".
+            assert!(
+                (e.min(cap) - d.min(cap)).abs() < 1e-9,
+                "az {az_deg} el {el_deg} r {r} c {c}: exact {e} dp {d}"
+            );
+        });
     }
 
     /// Regression: next to a nodata margin (as at the edge of a resampled DEM) the DP sampled
@@ -690,7 +683,6 @@ mod tests {
     /// cost to 1e-9 (and the prism fraction to 1e-6) in every cell.
     #[test]
     fn dp_cost_equals_exhaustive_cost_next_to_a_nodata_margin() {
-        use crate::shadow::brute::exact_cost;
         let n = 48;
         let mut hf = HeightField::flat(n, n, 100.0);
         for r in 0..n {
@@ -706,39 +698,23 @@ mod tests {
                 }
             }
         }
-        let mip = MaxMipmap::new(&hf);
-        let z_max = max_height_m(&hf);
         let r_sun = crate::shadow::SUN_ANGULAR_RADIUS_RAD;
         let (mut cells, mut blocked_near_margin) = (0, 0);
         let (mut wrong_costs, mut wrong_fractions) = (0, 0);
-        for k in 0..24 {
-            let (az_deg, el_deg) = (15.0 * k as f64 + 2.5, [0.5f64, 1.5, 4.0][k % 3]);
-            let (az, el) = (az_deg.to_radians(), el_deg.to_radians());
-            let l = [az.sin() * el.cos(), az.cos() * el.cos(), el.sin()];
-            let dir = LightDir::new(unit_light(l).unwrap());
-            let cap = full_visibility_cap(&dir, r_sun);
-            for r in 0..n {
-                for c in 0..n {
-                    let Some(obs) = crate::shadow::observer_at(&hf, r, c, 2.0) else {
-                        continue;
-                    };
-                    cells += 1;
-                    let e = exact_cost(&hf, &obs, &dir, z_max);
-                    let d = dp_cost(&hf, &mip, &obs, &dir, z_max, cap, &DpConfig::default());
-                    let fe = fraction_from_cost(e, &dir, r_sun);
-                    let fd = fraction_from_cost(d, &dir, r_sun);
-                    let bad_cost = (e.min(cap) - d.min(cap)).abs() >= 1e-9;
-                    let bad_fraction = (fe - fd).abs() >= 1e-6;
-                    if (bad_cost || bad_fraction) && wrong_costs < 3 {
-                        eprintln!("az {az_deg} el {el_deg} r {r} c {c}: exact {e} dp {d}");
-                    }
-                    wrong_costs += usize::from(bad_cost);
-                    wrong_fractions += usize::from(bad_fraction);
-                    blocked_near_margin +=
-                        usize::from(e < 0.0 && (r.min(c) < 8 || r.max(c) >= n - 8));
-                }
+        let lights = (0..24).map(|k| (15.0 * k as f64 + 2.5, [0.5f64, 1.5, 4.0][k % 3]));
+        compare_costs(&hf, lights, |(az_deg, el_deg), dir, cap, (r, c), e, d| {
+            cells += 1;
+            let fe = fraction_from_cost(e, dir, r_sun);
+            let fd = fraction_from_cost(d, dir, r_sun);
+            let bad_cost = (e.min(cap) - d.min(cap)).abs() >= 1e-9;
+            let bad_fraction = (fe - fd).abs() >= 1e-6;
+            if (bad_cost || bad_fraction) && wrong_costs < 3 {
+                eprintln!("az {az_deg} el {el_deg} r {r} c {c}: exact {e} dp {d}");
             }
-        }
+            wrong_costs += usize::from(bad_cost);
+            wrong_fractions += usize::from(bad_fraction);
+            blocked_near_margin += usize::from(e < 0.0 && (r.min(c) < 8 || r.max(c) >= n - 8));
+        });
         eprintln!(
             "{cells} cell-suns, {blocked_near_margin} blocked within 8 cells of the margin: \
              {wrong_costs} costs (|Δ| ≥ 1e-9) and {wrong_fractions} fractions (|Δ| ≥ 1e-6) wrong"

@@ -214,45 +214,66 @@ fn check_params(
     Ok(())
 }
 
-/// Horizon elevations (radians above the model x/y plane) of every cell of one row at `n_az`
-/// azimuths into `out` (`cols * n_az`, cell-major); `NaN` for holes.
-fn horizon_row(
-    hf: &HeightField,
+/// What the horizon sampling of every row shares: the height field, the observers' height
+/// above the ground (m), the horizontal directions of the sampled azimuths, the rays' reach
+/// (cells) and the field's highest cell (model z, m).
+struct HorizonSampler<'a> {
+    hf: &'a HeightField,
     observer_height_m: f64,
-    row: usize,
-    dirs: &[LightDir],
+    dirs: Vec<LightDir>,
     max_distance_cells: usize,
     z_max_m: f64,
-    out: &mut [f32],
-) {
-    let n_az = dirs.len();
-    let max_s = max_distance_cells as f64;
-    for col in 0..hf.cols {
-        let cell = &mut out[col * n_az..(col + 1) * n_az];
-        let observer = if hf.evaluates(row, col) {
-            observer_at(hf, row, col, observer_height_m)
-        } else {
-            None
-        };
-        let Some(obs) = observer else {
-            cell.fill(f32::NAN);
-            continue;
-        };
-        for (v, dir) in cell.iter_mut().zip(dirs) {
-            let mut best = sphere_floor_tan(hf, &obs, dir);
-            brute::march(hf, &obs, dir, |s, z| {
-                if s > max_s {
-                    return false;
-                }
-                let t_m = s * hf.px_m;
-                if let Some(z) = z {
-                    best = best.max((z - obs.z_m) / t_m);
-                }
-                // Beyond t no sample rises above (z_max - z_obs) / t' (t' >= t): the bound at t
-                // when the top is above the observer, else 0 (approached as t' grows).
-                ((z_max_m - obs.z_m) / t_m).max(0.0) > best
-            });
-            *v = best.atan() as f32;
+}
+
+impl<'a> HorizonSampler<'a> {
+    fn new(
+        hf: &'a HeightField,
+        observer_height_m: f64,
+        n_azimuths: usize,
+        max_distance_cells: usize,
+    ) -> Self {
+        HorizonSampler {
+            hf,
+            observer_height_m,
+            dirs: azimuth_dirs(n_azimuths),
+            max_distance_cells,
+            z_max_m: max_height_m(hf),
+        }
+    }
+
+    /// Horizon elevations (radians above the model x/y plane) of every cell of one row at the
+    /// `n_az` azimuths into `out` (`cols * n_az`, cell-major); `NaN` for holes.
+    fn row(&self, row: usize, out: &mut [f32]) {
+        let (hf, dirs, z_max_m) = (self.hf, &self.dirs, self.z_max_m);
+        let n_az = dirs.len();
+        let max_s = self.max_distance_cells as f64;
+        for col in 0..hf.cols {
+            let cell = &mut out[col * n_az..(col + 1) * n_az];
+            let observer = if hf.evaluates(row, col) {
+                observer_at(hf, row, col, self.observer_height_m)
+            } else {
+                None
+            };
+            let Some(obs) = observer else {
+                cell.fill(f32::NAN);
+                continue;
+            };
+            for (v, dir) in cell.iter_mut().zip(dirs) {
+                let mut best = sphere_floor_tan(hf, &obs, dir);
+                brute::march(hf, &obs, dir, |s, z| {
+                    if s > max_s {
+                        return false;
+                    }
+                    let t_m = s * hf.px_m;
+                    if let Some(z) = z {
+                        best = best.max((z - obs.z_m) / t_m);
+                    }
+                    // Beyond t no sample rises above (z_max - z_obs) / t' (t' >= t): the bound at
+                    // t when the top is above the observer, else 0 (approached as t' grows).
+                    ((z_max_m - obs.z_m) / t_m).max(0.0) > best
+                });
+                *v = best.atan() as f32;
+            }
         }
     }
 }
@@ -291,31 +312,20 @@ pub fn sampled_horizons_rad(
 ) -> Result<Vec<f32>, ShadowError> {
     check_observer_height(observer_height_m)?;
     check_params(n_azimuths, 1, max_distance_cells)?;
-    let dirs = azimuth_dirs(n_azimuths);
-    let z_max = max_height_m(hf);
+    let sampler = HorizonSampler::new(hf, observer_height_m, n_azimuths, max_distance_cells);
     let mut out = vec![f32::NAN; hf.rows * hf.cols * n_azimuths];
     if hf.cols == 0 {
         return Ok(out);
     }
     out.par_chunks_mut(hf.cols * n_azimuths)
         .enumerate()
-        .for_each(|(row, line)| {
-            horizon_row(
-                hf,
-                observer_height_m,
-                row,
-                &dirs,
-                max_distance_cells,
-                z_max,
-                line,
-            )
-        });
+        .for_each(|(row, line)| sampler.row(row, line));
     Ok(out)
 }
 
 /// Truncated real DFT of one sampled horizon with the eq. 3 weights folded in: `2 * n_coeffs`
 /// values `Re X_0, Im X_0, Re X_1, …` (see the module docs).
-pub fn truncated_dft(samples: &[f32], n_coeffs: usize) -> Vec<f64> {
+fn truncated_dft(samples: &[f32], n_coeffs: usize) -> Vec<f64> {
     let n = samples.len() as f64;
     let mut out = vec![0.0; 2 * n_coeffs];
     for k in 0..n_coeffs {
@@ -334,7 +344,7 @@ pub fn truncated_dft(samples: &[f32], n_coeffs: usize) -> Vec<f64> {
 
 /// Paper 001 eq. 3: `α_h(θ) = Σ_k (Re X_k cos kθ − Im X_k sin kθ)` over `coeffs` pairs.
 #[inline]
-pub fn eval_series(coeffs: impl Iterator<Item = (f32, f32)>, azimuth_rad: f64) -> f32 {
+fn eval_series(coeffs: impl Iterator<Item = (f32, f32)>, azimuth_rad: f64) -> f32 {
     let mut sum = 0.0f64;
     for (k, (re, im)) in coeffs.enumerate() {
         let (s, c) = (k as f64 * azimuth_rad).sin_cos();
@@ -377,8 +387,7 @@ impl HorizonMap {
             hf.rows as u128 * hf.cols as u128 * 4 * n_coeffs as u128,
         )
         .map_err(ShadowError::Budget)?;
-        let dirs = azimuth_dirs(n_azimuths);
-        let z_max = max_height_m(hf);
+        let sampler = HorizonSampler::new(hf, observer_height_m, n_azimuths, max_distance_cells);
         let per_cell = 2 * n_coeffs;
         let mut coeffs = vec![f16::NAN; hf.rows * hf.cols * per_cell];
         if hf.cols > 0 {
@@ -387,15 +396,7 @@ impl HorizonMap {
                 .enumerate()
                 .for_each(|(row, line)| {
                     let mut samples = vec![0.0f32; hf.cols * n_azimuths];
-                    horizon_row(
-                        hf,
-                        observer_height_m,
-                        row,
-                        &dirs,
-                        max_distance_cells,
-                        z_max,
-                        &mut samples,
-                    );
+                    sampler.row(row, &mut samples);
                     for col in 0..hf.cols {
                         let s = &samples[col * n_azimuths..(col + 1) * n_azimuths];
                         if s[0].is_nan() {

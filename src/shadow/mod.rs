@@ -289,7 +289,7 @@ pub(crate) fn observer_at(
 /// below the reference sphere there or meets it further on: the DEM is too small for that cell
 /// and that light, since the real Moon would block the ray. A ray that goes straight up never
 /// does; one straight down always does.
-pub(crate) fn exits_below_sphere(hf: &HeightField, obs: &Observer, light: &LightDir) -> bool {
+fn exits_below_sphere(hf: &HeightField, obs: &Observer, light: &LightDir) -> bool {
     if light.hor == 0.0 {
         return light.unit.z < 0.0;
     }
@@ -327,6 +327,27 @@ where
     let dir = LightDir::new(unit_light(light_in_model)?);
     Ok(map_observers(hf, &observers, false, |i, obs| {
         lit(i) && exits_below_sphere(hf, obs, &dir)
+    }))
+}
+
+/// Hard mask of every observer (see [`Observers`]): [`MASK_SHADOW`] where `shadowed(observer)`,
+/// else [`MASK_LIT`]; [`MASK_NODATA`] for the others. `engine(light, min_s_cells)` builds the
+/// test once the inputs are checked, from the light's direction and the nearest terrain sample
+/// (cells, [`Observers::min_s_cells`]).
+pub(crate) fn hard_mask_by<S>(
+    hf: &HeightField,
+    observers: Observers,
+    light_in_model: [f64; 3],
+    engine: impl FnOnce(LightDir, f64) -> S,
+) -> Result<Vec<u8>>
+where
+    S: Fn(&Observer) -> bool + Sync,
+{
+    observers.check()?;
+    let dir = LightDir::new(unit_light(light_in_model)?);
+    let shadowed = engine(dir, observers.min_s_cells());
+    Ok(map_observers(hf, &observers, MASK_NODATA, |_, obs| {
+        if shadowed(obs) { MASK_SHADOW } else { MASK_LIT }
     }))
 }
 

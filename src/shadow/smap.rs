@@ -37,10 +37,7 @@
 
 use rayon::prelude::*;
 
-use super::{
-    LightDir, MASK_LIT, MASK_NODATA, MASK_SHADOW, Observer, Observers, Result, map_observers,
-    max_height_m, unit_light,
-};
+use super::{LightDir, Observer, Observers, Result, hard_mask_by, max_height_m};
 use crate::terrain::HeightField;
 
 /// `NextV` value meaning "no Black line (yet / at all) toward the light".
@@ -135,12 +132,6 @@ impl SMap {
         smap.black = black;
         smap.next = next;
         Some(smap)
-    }
-
-    /// Fraction of (beam, line) elements that are Black (the paper reports 5.7% on its data).
-    pub fn black_fraction(&self) -> f64 {
-        let in_grid = self.black.len().max(1);
-        self.black.iter().filter(|&&b| b).count() as f64 / in_grid as f64
     }
 
     /// Canonical (u, v) of fractional grid (row, col).
@@ -348,7 +339,7 @@ fn positive_part(fp: f64, fq: f64) -> Option<(f64, f64)> {
 /// `FindNextV` with the quad merge (paper §6, "Optimization"): `next[v]` becomes the largest
 /// `v' < v` with `black[v']`, or [`NONE`]. Pass `DIST` merges four blocks of size `DIST` into
 /// one of `4·DIST`; passes run for `DIST = 1, 4, 16, …` (log₄ N passes).
-pub(crate) fn find_next_v_quad(black: &[bool], next: &mut [i32]) {
+fn find_next_v_quad(black: &[bool], next: &mut [i32]) {
     let n = black.len();
     next.fill(NONE);
     let mut dist = 1usize;
@@ -369,29 +360,25 @@ pub(crate) fn find_next_v_quad(black: &[bool], next: &mut [i32]) {
     }
 }
 
+/// Whether `obs` is in the shadow of `smap` (built for `dir`); without a map (a vertical light)
+/// a light from below is shadowed.
+pub(crate) fn shadowed(smap: Option<&SMap>, dir: &LightDir, obs: &Observer) -> bool {
+    match smap {
+        Some(s) => s.is_shadow(obs),
+        None => dir.unit.z < 0.0,
+    }
+}
+
 /// SMap hard mask of the light's centre direction: `1` lit, `0` shadow, `255` nodata.
 pub fn hard_mask<'a>(
     hf: &HeightField,
     observers: impl Into<Observers<'a>>,
     light_in_model: [f64; 3],
 ) -> Result<Vec<u8>> {
-    let observers = observers.into();
-    observers.check()?;
-    let dir = LightDir::new(unit_light(light_in_model)?);
-    let smap = SMap::build(hf, dir);
-    Ok(map_observers(hf, &observers, MASK_NODATA, |_, obs| {
-        let shadow = match &smap {
-            Some(s) => s.is_shadow(obs),
-            None => dir.unit.z < 0.0,
-        };
-        if shadow { MASK_SHADOW } else { MASK_LIT }
-    }))
-}
-
-/// Fraction of Black SMap elements for a light (diagnostics; `0` for a vertical light).
-pub fn black_fraction(hf: &HeightField, light_in_model: [f64; 3]) -> Result<f64> {
-    let dir = LightDir::new(unit_light(light_in_model)?);
-    Ok(SMap::build(hf, dir).map_or(0.0, |s| s.black_fraction()))
+    hard_mask_by(hf, observers.into(), light_in_model, |dir, _| {
+        let smap = SMap::build(hf, dir);
+        move |obs: &Observer| shadowed(smap.as_ref(), &dir, obs)
+    })
 }
 
 #[cfg(test)]

@@ -250,6 +250,7 @@ pub fn read_geotiff_from<R: Read + Seek>(
         })
         .transpose()
         .map_err(tiff_err)?;
+    let scaled = |x: f64| int_sample(x, nodata, scale, offset);
     for chunk in 0..n_chunks {
         let (w, h) = decoder.chunk_data_dimensions(chunk);
         let (w, h) = (w as usize, h as usize);
@@ -310,29 +311,21 @@ pub fn read_geotiff_from<R: Read + Seek>(
                     }
                 });
             }
+            // NaN nodata never equals itself: NaN samples are holes anyway.
             (SampleKind::F64, DecodingResult::F64(v)) => {
-                // NaN nodata never equals itself: NaN samples are holes anyway.
-                place.copy(&mut heights_m, &v, |x| int_sample(x, nodata, scale, offset));
+                place.copy_widened(&mut heights_m, &v, scaled)
             }
             (SampleKind::I32, DecodingResult::I32(v)) => {
-                place.copy(&mut heights_m, &v, |x| {
-                    int_sample(f64::from(x), nodata, scale, offset)
-                });
+                place.copy_widened(&mut heights_m, &v, scaled)
             }
             (SampleKind::I16, DecodingResult::I16(v)) => {
-                place.copy(&mut heights_m, &v, |x| {
-                    int_sample(f64::from(x), nodata, scale, offset)
-                });
+                place.copy_widened(&mut heights_m, &v, scaled)
             }
             (SampleKind::U16, DecodingResult::U16(v)) => {
-                place.copy(&mut heights_m, &v, |x| {
-                    int_sample(f64::from(x), nodata, scale, offset)
-                });
+                place.copy_widened(&mut heights_m, &v, scaled)
             }
             (SampleKind::U8, DecodingResult::U8(v)) => {
-                place.copy(&mut heights_m, &v, |x| {
-                    int_sample(f64::from(x), nodata, scale, offset)
-                });
+                place.copy_widened(&mut heights_m, &v, scaled)
             }
             (_, other) => {
                 return Err(DemError::Decode {
@@ -480,6 +473,16 @@ struct Placement {
 }
 
 impl Placement {
+    /// [`Self::copy`] of samples that `f64` holds exactly, converted by `conv`.
+    fn copy_widened<T: Copy + Into<f64>>(
+        &self,
+        out: &mut [f32],
+        src: &[T],
+        conv: impl Fn(f64) -> f32,
+    ) {
+        self.copy(out, src, |x| conv(x.into()));
+    }
+
     fn copy<T: Copy>(&self, out: &mut [f32], src: &[T], conv: impl Fn(T) -> f32) {
         let w = self.w.min(self.cols.saturating_sub(self.col0));
         let h = self.h.min(self.rows.saturating_sub(self.row0));

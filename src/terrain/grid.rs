@@ -152,7 +152,7 @@ impl Projection {
 }
 
 /// Wraps an angle in degrees into `(-180, 180]`.
-pub fn wrap_deg_180(deg: f64) -> f64 {
+fn wrap_deg_180(deg: f64) -> f64 {
     let mut d = deg % 360.0;
     if d <= -180.0 {
         d += 360.0;
@@ -338,7 +338,7 @@ impl Dem {
     }
 
     /// The heights part of [`Dem::check`].
-    pub fn check_heights(heights_m: &[f32]) -> Result<(), String> {
+    fn check_heights(heights_m: &[f32]) -> Result<(), String> {
         use bounds::*;
         let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
         for &h in heights_m {

@@ -145,23 +145,6 @@ impl HeightField {
     pub fn up_at(&self, x_m: f64, y_m: f64, z_m: f64) -> Vector3<f64> {
         Vector3::new(x_m, y_m, z_m + MOON_RADIUS_M).normalize()
     }
-
-    /// Model-space point (m) of a body-fixed position given in metres.
-    pub fn model_from_body_m(&self, p_body_m: &Vector3<f64>) -> Vector3<f64> {
-        let (slat, clat) = self.centre_lat_deg.to_radians().sin_cos();
-        let (slon, clon) = self.centre_lon_deg.to_radians().sin_cos();
-        let c_body_m = MOON_RADIUS_M * Vector3::new(clat * clon, clat * slon, slat);
-        self.model_from_moon_me() * (p_body_m - c_body_m)
-    }
-
-    /// Body-fixed position (m) of a model-space point. Inverse of
-    /// [`HeightField::model_from_body_m`].
-    pub fn body_from_model_m(&self, p_model_m: &Vector3<f64>) -> Vector3<f64> {
-        let (slat, clat) = self.centre_lat_deg.to_radians().sin_cos();
-        let (slon, clon) = self.centre_lon_deg.to_radians().sin_cos();
-        let c_body_m = MOON_RADIUS_M * Vector3::new(clat * clon, clat * slon, slat);
-        self.model_from_moon_me().transpose() * p_model_m + c_body_m
-    }
 }
 
 /// The rotation about the up axis by `rotation_rad` (counter-clockwise seen from above) that
@@ -169,27 +152,4 @@ impl HeightField {
 pub fn model_from_enu(rotation_rad: f64) -> Matrix3<f64> {
     let (s, c) = rotation_rad.sin_cos();
     Matrix3::new(c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::frames::site_in_moon_me_km;
-
-    #[test]
-    fn model_space_round_trip_and_curvature_drop() {
-        let mut hf = HeightField::flat(4, 4, 100.0);
-        hf.centre_lat_deg = -89.5;
-        hf.centre_lon_deg = 222.7;
-        let p = site_in_moon_me_km(-89.0, 100.0, 1500.0) * 1e3;
-        let m = hf.model_from_body_m(&p);
-        let back = hf.body_from_model_m(&m);
-        assert!((back - p).norm() < 1e-6);
-        // A point on the sphere at ground distance s from C lies R(1 - cos(s/R)) below the plane.
-        let q = site_in_moon_me_km(-89.0, 222.7, 0.0) * 1e3;
-        let mq = hf.model_from_body_m(&q);
-        let s = 0.5_f64.to_radians();
-        let expected_z = -MOON_RADIUS_M * (1.0 - s.cos());
-        assert!((mq.z - expected_z).abs() < 1e-6, "{} vs {expected_z}", mq.z);
-    }
 }

@@ -173,7 +173,7 @@ pub fn surface_z_m(
 }
 
 /// The rigid transform between body-fixed `MOON_ME` metres and model space at a centre `C`,
-/// precomputed (the same transform as [`HeightField::model_from_body_m`]).
+/// precomputed.
 #[derive(Debug, Clone, Copy)]
 pub struct ModelFrame {
     /// Rotation `MOON_ME` → model (rows: east, north, up at `C`).
@@ -236,11 +236,6 @@ impl ModelFrame {
         let b = (MOON_RADIUS_M + height_m) * Vector3::new(clat * clon, clat * slon, slat);
         self.model_from_body_m(&b)
     }
-}
-
-/// Latitude, east longitude (deg) and height (m) of a model-space point of `hf`.
-pub fn lat_lon_height_from_model(hf: &HeightField, p_model_m: &Vector3<f64>) -> (f64, f64, f64) {
-    ModelFrame::of(hf).lat_lon_height_from_model(p_model_m)
 }
 
 /// Model-space point (m) of `hf` for a latitude, east longitude (deg) and height (m).
@@ -380,9 +375,10 @@ mod tests {
             for col in 0..hf.cols {
                 let (x, y) = hf.xy_from_row_col(row as f64, col as f64);
                 let z = f64::from(hf.z_at(row as isize, col as isize).unwrap());
-                // Independent path: model → body (HeightField's own transform) → lat/lon/height
-                // with frames.rs, then the DEM sampled there.
-                let body_m = hf.body_from_model_m(&Vector3::new(x, y, z));
+                // Independent path: model → body (the height field's own rotation, its centre
+                // from frames.rs) → lat/lon/height with frames.rs, then the DEM sampled there.
+                let centre_m = site_in_moon_me_km(hf.centre_lat_deg, hf.centre_lon_deg, 0.0) * 1e3;
+                let body_m = hf.model_from_moon_me().transpose() * Vector3::new(x, y, z) + centre_m;
                 let (lat, lon, h) = lat_lon_height_from_moon_me_km(&(body_m * 1e-3));
                 let dem_h = dem.height_at_lat_lon_m(lat, lon).unwrap();
                 max_residual_m = max_residual_m.max((h - dem_h).abs());
@@ -475,5 +471,23 @@ mod tests {
         };
         let err = resample_to_model_space(&stack, &spec).unwrap_err();
         assert!(matches!(err, DemError::OutsideLayers { .. }), "{err}");
+    }
+
+    #[test]
+    fn model_space_round_trip_and_curvature_drop() {
+        let mut hf = HeightField::flat(4, 4, 100.0);
+        hf.centre_lat_deg = -89.5;
+        hf.centre_lon_deg = 222.7;
+        let p = site_in_moon_me_km(-89.0, 100.0, 1500.0) * 1e3;
+        let frame = ModelFrame::of(&hf);
+        let m = frame.model_from_body_m(&p);
+        let back = frame.body_from_model_m(&m);
+        assert!((back - p).norm() < 1e-6);
+        // A point on the sphere at ground distance s from C lies R(1 - cos(s/R)) below the plane.
+        let q = site_in_moon_me_km(-89.0, 222.7, 0.0) * 1e3;
+        let mq = frame.model_from_body_m(&q);
+        let s = 0.5_f64.to_radians();
+        let expected_z = -MOON_RADIUS_M * (1.0 - s.cos());
+        assert!((mq.z - expected_z).abs() < 1e-6, "{} vs {expected_z}", mq.z);
     }
 }

@@ -540,8 +540,8 @@ pub(super) fn read_heights(
     scaling: Scaling,
     bad: &dyn Fn(String) -> DemError,
 ) -> Result<Vec<f32>> {
-    let Layout {
-        data_path,
+    let &Layout {
+        ref data_path,
         offset_bytes,
         rows,
         cols,
@@ -549,22 +549,19 @@ pub(super) fn read_heights(
         prefix,
         suffix,
     } = layout;
-    let (rows, cols, sample, prefix, offset_bytes) =
-        (*rows, *cols, *sample, *prefix, *offset_bytes);
     let Scaling {
         scale,
         offset,
         to_m,
         missing,
     } = scaling;
+    let io_err = |source| DemError::Io {
+        path: data_path.display().to_string(),
+        source,
+    };
     let row_bytes = prefix + cols as u64 * sample.bytes() as u64 + suffix;
     let need = offset_bytes + row_bytes * rows as u64;
-    let file_len = std::fs::metadata(data_path)
-        .map_err(|source| DemError::Io {
-            path: data_path.display().to_string(),
-            source,
-        })?
-        .len();
+    let file_len = std::fs::metadata(data_path).map_err(io_err)?.len();
     if need > file_len {
         return Err(DemError::Truncated {
             path: data_path.display().to_string(),
@@ -589,22 +586,12 @@ pub(super) fn read_heights(
         0.0
     };
     let mut heights_m = vec![f32::NAN; rows * cols];
-    let mut f = crate::output::guard::open_regular(data_path).map_err(|source| DemError::Io {
-        path: data_path.display().to_string(),
-        source,
-    })?;
-    f.seek(SeekFrom::Start(offset_bytes))
-        .map_err(|source| DemError::Io {
-            path: data_path.display().to_string(),
-            source,
-        })?;
+    let mut f = crate::output::guard::open_regular(data_path).map_err(io_err)?;
+    f.seek(SeekFrom::Start(offset_bytes)).map_err(io_err)?;
     let mut reader = std::io::BufReader::new(f);
     let mut row = vec![0u8; row_bytes as usize];
     for r in 0..rows {
-        reader.read_exact(&mut row).map_err(|source| DemError::Io {
-            path: data_path.display().to_string(),
-            source,
-        })?;
+        reader.read_exact(&mut row).map_err(io_err)?;
         let data = &row[prefix as usize..prefix as usize + cols * sample.bytes()];
         for (c, b) in data.chunks_exact(sample.bytes()).enumerate() {
             let raw = sample.value(b);

@@ -11,16 +11,13 @@
 //! - a ridge (Gaussian cross-section, tapering ends) and a massif (a broad mound);
 //! - fractal roughness: fBm of a hash-based value noise (6 octaves, gain 0.5).
 //!
-//! The analytic DEMs ([`flat`], [`wall`], [`bowl_crater`]) sit on the same kind of grid; use
-//! [`flat_height_field`] to get them as a flat-plane [`HeightField`] (no curvature), which is
-//! what closed-form shadow tests need.
+//! The flat DEM ([`flat`]) and any DEM of a closed-form height function ([`dem_from_fn`],
+//! [`square_dem_at`]) sit on the same kind of grid.
 
-use nalgebra::Vector3;
 use rayon::prelude::*;
 
 use super::error::{DemError, Result};
 use super::grid::{Dem, GridGeometry, Projection};
-use super::heightfield::HeightField;
 
 /// Parameters of the synthetic south-polar DEM.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -45,7 +42,7 @@ impl Default for SynthParams {
 }
 
 /// A square south-polar stereographic grid of `n` x `n` cells of `px_m`, centred on the pole.
-pub fn polar_grid(rows: usize, cols: usize, px_m: f64) -> GridGeometry {
+fn polar_grid(rows: usize, cols: usize, px_m: f64) -> GridGeometry {
     GridGeometry {
         rows,
         cols,
@@ -56,7 +53,8 @@ pub fn polar_grid(rows: usize, cols: usize, px_m: f64) -> GridGeometry {
     }
 }
 
-/// Builds a DEM on [`polar_grid`] with heights `f(x_m, y_m)` at the cell centres.
+/// A DEM of `rows` x `cols` cells of `px_m` on a south-polar stereographic grid centred on the
+/// pole, with heights `f(x_m, y_m)` at the cell centres.
 pub fn dem_from_fn(
     rows: usize,
     cols: usize,
@@ -108,101 +106,6 @@ pub fn flat(rows: usize, cols: usize, px_m: f64, height_m: f64) -> Dem {
     dem_from_fn(rows, cols, px_m, "synth:flat", |_, _| height_m)
 }
 
-/// A wall: cells with `col >= wall_col` are at `height_m`, the others at 0 (grid x = east on
-/// a flat-plane height field). With the Sun due east (azimuth 90°) at elevation `e`, the ground
-/// west of the face is shadowed over a length `height_m / tan(e)` from the face (the face sits
-/// between the centres of columns `wall_col - 1` and `wall_col` for a point-sampled engine).
-pub fn wall(rows: usize, cols: usize, px_m: f64, wall_col: usize, height_m: f64) -> Dem {
-    let grid = polar_grid(rows, cols, px_m);
-    let heights_m = (0..rows * cols)
-        .map(|i| {
-            if i % cols >= wall_col {
-                height_m as f32
-            } else {
-                0.0
-            }
-        })
-        .collect();
-    Dem {
-        grid,
-        projection: Projection::LOLA_SOUTH_POLAR,
-        heights_m,
-        name: "synth:wall".into(),
-    }
-}
-
-/// Height (m) of a spherical bowl crater of rim radius `radius_m` and depth `depth_m` at distance
-/// `r_m` from its centre; the rim and the ground outside are at 0, the floor at `-depth_m`.
-pub fn bowl_crater_height_m(r_m: f64, radius_m: f64, depth_m: f64) -> f64 {
-    if r_m >= radius_m {
-        return 0.0;
-    }
-    let sphere_r = bowl_sphere_radius_m(radius_m, depth_m);
-    sphere_r - depth_m - (sphere_r * sphere_r - r_m * r_m).sqrt()
-}
-
-/// Radius of the sphere whose cap is the bowl: `(a² + d²) / 2d`.
-fn bowl_sphere_radius_m(radius_m: f64, depth_m: f64) -> f64 {
-    (radius_m * radius_m + depth_m * depth_m) / (2.0 * depth_m)
-}
-
-/// A spherical bowl crater (see [`bowl_crater_height_m`]) centred on the grid centre.
-pub fn bowl_crater(n: usize, px_m: f64, radius_m: f64, depth_m: f64) -> Dem {
-    dem_from_fn(n, n, px_m, "synth:bowl", |x, y| {
-        bowl_crater_height_m(x.hypot(y), radius_m, depth_m)
-    })
-}
-
-/// Closed-form illumination of the spherical bowl on a flat plane: whether the surface point
-/// above (`x_m`, `y_m`) (relative to the crater centre) sees the centre of a Sun in the unit
-/// direction `sun_dir` (local x east, y north, z up; `sun_dir.z > 0`).
-///
-/// Inside the bowl the ray from `P` towards the Sun runs along a chord of the sphere of centre
-/// `O` and leaves it at `Q = P + t s`, `t = −2 (P − O)·s`. `P` is lit iff its facet faces the Sun
-/// (`(O − P)·s > 0`) and the chord reaches the rim plane before the wall (`Q_z ≥ 0`), since the
-/// sphere below the rim plane *is* the bowl (Buhl, Welch & Rea 1968; Ingersoll et al. 1992).
-pub fn bowl_crater_is_lit(
-    x_m: f64,
-    y_m: f64,
-    radius_m: f64,
-    depth_m: f64,
-    sun_dir: &Vector3<f64>,
-) -> bool {
-    if sun_dir.z <= 0.0 {
-        return false;
-    }
-    let r = x_m.hypot(y_m);
-    if r >= radius_m {
-        return true;
-    }
-    let sphere_r = bowl_sphere_radius_m(radius_m, depth_m);
-    let o = Vector3::new(0.0, 0.0, sphere_r - depth_m);
-    let p = Vector3::new(x_m, y_m, bowl_crater_height_m(r, radius_m, depth_m));
-    let facing = (o - p).dot(sun_dir);
-    if facing <= 0.0 {
-        return false;
-    }
-    let t = -2.0 * (p - o).dot(sun_dir);
-    (p + t * sun_dir).z >= 0.0
-}
-
-/// The DEM's heights as a flat-plane model-space height field (no curvature: `z = h`, model
-/// x/y = map x/y). For analytic tests of shadow algorithms.
-pub fn flat_height_field(dem: &Dem) -> HeightField {
-    HeightField {
-        rows: dem.grid.rows,
-        cols: dem.grid.cols,
-        px_m: dem.grid.px_x_m,
-        x_left_m: dem.grid.x_left_m,
-        y_top_m: dem.grid.y_top_m,
-        z_m: dem.heights_m.clone(),
-        centre_lat_deg: -90.0,
-        centre_lon_deg: 0.0,
-        rotation_rad: 0.0,
-        window: None,
-    }
-}
-
 // ------------------------------------------------------------------------------------------------
 // Pseudo-random numbers and noise
 // ------------------------------------------------------------------------------------------------
@@ -241,7 +144,7 @@ fn lattice_value(ix: i64, iy: i64, salt: u64) -> f64 {
 
 /// Value noise: lattice values blended with the quintic fade `6t⁵ − 15t⁴ + 10t³` (Perlin 2002),
 /// so the surface is C² smooth. Range `[-1, 1]`.
-pub fn value_noise(x: f64, y: f64, salt: u64) -> f64 {
+fn value_noise(x: f64, y: f64, salt: u64) -> f64 {
     let (fx, fy) = (x.floor(), y.floor());
     let (ix, iy) = (fx as i64, fy as i64);
     let fade = |t: f64| t * t * t * (t * (t * 6.0 - 15.0) + 10.0);
@@ -255,7 +158,7 @@ pub fn value_noise(x: f64, y: f64, salt: u64) -> f64 {
     top + (bottom - top) * v
 }
 
-/// Fractional Brownian motion: `octaves` of [`value_noise`], each at twice the frequency and
+/// Fractional Brownian motion: `octaves` of a value noise, each at twice the frequency and
 /// `gain` times the amplitude of the previous one.
 pub fn fbm(x: f64, y: f64, octaves: u32, gain: f64, salt: u64) -> f64 {
     let (mut sum, mut amp, mut freq) = (0.0, 1.0, 1.0);
@@ -469,42 +372,6 @@ mod tests {
     }
 
     #[test]
-    fn bowl_crater_profile_and_closed_form_shadow() {
-        let (a, d) = (1000.0, 200.0);
-        assert!((bowl_crater_height_m(0.0, a, d) + d).abs() < 1e-9);
-        assert!(bowl_crater_height_m(a - 1e-9, a, d).abs() < 1e-3);
-        // Independent check: march the ray towards a Sun due east (0.5 m steps) through the
-        // analytic surface.
-        let e = 8.0_f64.to_radians();
-        let sun = Vector3::new(e.cos(), 0.0, e.sin());
-        let mut disagreements = 0;
-        for i in -19..20 {
-            for j in -19..20 {
-                let (x, y) = (f64::from(i) * 50.0, f64::from(j) * 50.0);
-                let closed = bowl_crater_is_lit(x, y, a, d, &sun);
-                let h0 = bowl_crater_height_m(x.hypot(y), a, d);
-                let mut lit = true;
-                let mut t = 0.5;
-                while t < 20_000.0 {
-                    let q = Vector3::new(x, y, h0) + t * sun;
-                    if q.z < bowl_crater_height_m(q.x.hypot(q.y), a, d) - 1e-9 {
-                        lit = false;
-                        break;
-                    }
-                    t += 0.5;
-                }
-                disagreements += usize::from(closed != lit);
-            }
-        }
-        assert_eq!(disagreements, 0);
-        // With the Sun low in the east, the floor centre and the east wall (facing west) are in
-        // shadow, the west wall (facing the Sun) is lit.
-        assert!(!bowl_crater_is_lit(0.0, 0.0, a, d, &sun));
-        assert!(!bowl_crater_is_lit(900.0, 0.0, a, d, &sun));
-        assert!(bowl_crater_is_lit(-900.0, 0.0, a, d, &sun));
-    }
-
-    #[test]
     fn value_noise_is_bounded_and_continuous() {
         let mut max_jump: f64 = 0.0;
         let mut prev = value_noise(0.0, 0.3, 1);
@@ -519,13 +386,9 @@ mod tests {
     }
 
     #[test]
-    fn wall_and_flat_fixtures() {
-        let w = wall(4, 6, 10.0, 3, 25.0);
-        assert_eq!(w.cell_height_m(1, 2), Some(0.0));
-        assert_eq!(w.cell_height_m(1, 3), Some(25.0));
+    fn flat_fixture() {
         let f = flat(3, 3, 10.0, 5.0);
-        let hf = flat_height_field(&f);
-        assert_eq!(hf.z_at(1, 1), Some(5.0));
-        assert_eq!(hf.xy_from_row_col(1.0, 1.0), (0.0, 0.0));
+        assert_eq!(f.cell_height_m(1, 1), Some(5.0));
+        assert_eq!(f.grid.xy_from_row_col(1.0, 1.0), (0.0, 0.0));
     }
 }

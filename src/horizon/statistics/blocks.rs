@@ -7,7 +7,7 @@ use std::ops::Range;
 use super::HorizonStatistics;
 use crate::output::BelowSphereExits;
 
-/// Where [`super::StatisticsEngine::run_with_store`] keeps finished row blocks.
+/// Where [`super::StatisticsEngine::run_rows_on`] keeps finished row blocks.
 pub trait BlockStore {
     /// The finished block of `rows`, if there is one (`None` → compute it).
     fn load(&mut self, rows: Range<usize>) -> Option<Vec<u8>>;
@@ -129,15 +129,13 @@ impl HorizonStatistics {
             self.nodata[first_px + i] = n != 0;
         }
         at += n_px;
+        let px = first_px..first_px + n_px;
         for a in [
             &mut self.sun_fraction_sum,
             &mut self.irradiance_horizontal_sum_w_m2,
             &mut self.irradiance_tracking_sum_w_m2,
         ] {
-            for (i, c) in bytes[at..at + 8 * n_px].chunks_exact(8).enumerate() {
-                a[first_px + i] = f64::from_le_bytes(c.try_into().expect("8 bytes"));
-            }
-            at += 8 * n_px;
+            read_le(bytes, &mut at, &mut a[px.clone()], f64::from_le_bytes);
         }
         for a in [
             &mut self.sun_visible_count,
@@ -147,15 +145,27 @@ impl HorizonStatistics {
             &mut self.longest_earth_hidden_epochs,
             &mut self.sun_and_earth_count,
         ] {
-            for (i, c) in bytes[at..at + 4 * n_px].chunks_exact(4).enumerate() {
-                a[first_px + i] = u32::from_le_bytes(c.try_into().expect("4 bytes"));
-            }
-            at += 4 * n_px;
+            read_le(bytes, &mut at, &mut a[px.clone()], u32::from_le_bytes);
         }
         self.below_sphere.cells += word(3);
         self.below_sphere.cell_epochs += word(4);
         true
     }
+}
+
+/// Reads `out.len()` little-endian values of `N` bytes each from `bytes` at `*at`, and moves
+/// `at` past them.
+fn read_le<const N: usize, T>(
+    bytes: &[u8],
+    at: &mut usize,
+    out: &mut [T],
+    from_le_bytes: fn([u8; N]) -> T,
+) {
+    let end = *at + N * out.len();
+    for (o, c) in out.iter_mut().zip(bytes[*at..end].chunks_exact(N)) {
+        *o = from_le_bytes(c.try_into().expect("N bytes"));
+    }
+    *at = end;
 }
 
 #[cfg(test)]

@@ -223,9 +223,8 @@ fn geometry_at(cell: &CellGeom, pos: [&[f32]; 3], j: usize, out: &mut Seen) {
 
 /// Pass 1 from the shared sector classification ([`super::sectors`]) over the epochs
 /// `from .. from + sector.len()` of the chunk: a disc decided full (or visible) or dark for
-/// every `ψ` of its sector gets 1 or 0 without any geometry; the other epochs are appended to
-/// `partial` from `count` (the new count returned).
-#[allow(clippy::too_many_arguments, reason = "the kernel's flat slices")]
+/// every `ψ` of its sector gets 1 or 0 without any geometry; the other epochs are flagged in
+/// `undecided` and appended to `partial` from `count` (the new count returned).
 #[inline(always)]
 fn classify_sectors(
     table: &[Entry],
@@ -233,8 +232,7 @@ fn classify_sectors(
     (sector, cos_e, sin_e): (&[u16], &[f32], &[f32]),
     from: usize,
     fraction: &mut [f32; CHUNK],
-    undecided: &mut [bool; CHUNK],
-    partial: &mut [u16; CHUNK],
+    (undecided, partial): (&mut [bool; CHUNK], &mut [u16; CHUNK]),
     mut count: usize,
 ) -> usize {
     let n = sector.len().min(CHUNK - from);
@@ -499,31 +497,28 @@ pub(super) struct Scratch {
     undecided: Box<[bool; CHUNK]>,
 }
 
-/// Runs `cells` (each with its `stride = n + 1` horizon values and 2 × [`BOUND_SECTORS`] bounds, the
-/// Sun's then the Earth's) over
-/// epochs `range` (in time order), updating `acc`.
-#[allow(
-    clippy::too_many_arguments,
-    reason = "the kernel's inputs are flat slices for the inner loop"
-)]
+/// Runs the task's `cells` (each with its `stride = n + 1` horizon values and 2 ×
+/// [`BOUND_SECTORS`] bounds, the Sun's then the Earth's) over epochs `range` (in time order),
+/// updating `acc`.
 #[inline(always)]
-pub(super) fn run_cells(
-    cells: &[CellGeom],
-    horizons: &[f32],
-    bounds: &[[f32; 2]],
-    tables: &[Entry],
-    block_bounds: &[f32],
-    stride: usize,
-    epochs: &Epochs,
-    range: std::ops::Range<usize>,
-    lookup: &AzimuthLookup,
-    chord_sun: &ChordTable,
-    chord_earth: &ChordTable,
-    th: Thresholds,
-    edges: &super::Edges,
-    scratch: &mut Scratch,
-    acc: &mut [CellAcc],
-) {
+fn run_cells(task: RunCells<'_>) {
+    let RunCells {
+        cells,
+        horizons,
+        bounds,
+        tables,
+        block_bounds,
+        stride,
+        epochs,
+        range,
+        lookup,
+        chord_sun,
+        chord_earth,
+        th,
+        edges,
+        scratch,
+        acc,
+    } = task;
     let Scratch {
         sun,
         earth,
@@ -659,8 +654,7 @@ pub(super) fn run_cells(
                                 (&sector[j0..j1], &cos_e[j0..j1], &sin_e[j0..j1]),
                                 j0,
                                 &mut seen.fraction,
-                                undecided,
-                                partial,
+                                (undecided, partial),
                                 count,
                             );
                             // The directions of the epochs left: the whole block in SIMD lanes
@@ -814,23 +808,7 @@ impl pulp::WithSimd for RunCells<'_> {
 
     #[inline(always)]
     fn with_simd<S: pulp::Simd>(self, _simd: S) {
-        run_cells(
-            self.cells,
-            self.horizons,
-            self.bounds,
-            self.tables,
-            self.block_bounds,
-            self.stride,
-            self.epochs,
-            self.range,
-            self.lookup,
-            self.chord_sun,
-            self.chord_earth,
-            self.th,
-            self.edges,
-            self.scratch,
-            self.acc,
-        );
+        run_cells(self);
     }
 }
 

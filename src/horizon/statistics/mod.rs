@@ -183,6 +183,18 @@ struct Edges {
     projector: UnitProjector,
 }
 
+/// The distance along a ray whose component on one axis is `d` (per unit distance) from `p` to
+/// where it leaves `[lo, hi]` on that axis (`inf` for `d = 0`).
+fn exit_along(p: f64, d: f64, lo: f64, hi: f64) -> f64 {
+    if d > 0.0 {
+        (hi - p) / d
+    } else if d < 0.0 {
+        (lo - p) / d
+    } else {
+        f64::INFINITY
+    }
+}
+
 impl BeyondDem {
     /// Whether a ray at `el_deg` (< 0) can meet the reference sphere at all: its closest
     /// approach to the Moon's centre, `r0 cos(el)`, is inside the sphere, i.e. it is below the
@@ -208,20 +220,10 @@ impl BeyondDem {
             if !(self.x_m >= x0 && self.x_m <= x1 && self.y_m >= y0 && self.y_m <= y1) {
                 continue;
             }
-            let tx = if dx > 0.0 {
-                (x1 - self.x_m) / dx
-            } else if dx < 0.0 {
-                (x0 - self.x_m) / dx
-            } else {
-                f64::INFINITY
-            };
-            let ty = if dy > 0.0 {
-                (y1 - self.y_m) / dy
-            } else if dy < 0.0 {
-                (y0 - self.y_m) / dy
-            } else {
-                f64::INFINITY
-            };
+            let (tx, ty) = (
+                exit_along(self.x_m, dx, x0, x1),
+                exit_along(self.y_m, dy, y0, y1),
+            );
             t_exit = t_exit.max(tx.min(ty));
         }
         if !t_exit.is_finite() {
@@ -479,7 +481,7 @@ impl<'a> StatisticsEngine<'a> {
     /// [`Self::run`], taking finished blocks of rows from `store` and giving it every block it
     /// computes (a resumed run gives the same bytes as an uninterrupted one: each pixel's
     /// statistics depend on its own horizon and the epochs only).
-    pub fn run_with_store(
+    fn run_with_store(
         &self,
         source: &mut dyn HorizonRows,
         epochs: &[EpochBodies],
@@ -487,28 +489,18 @@ impl<'a> StatisticsEngine<'a> {
         progress: impl FnMut(usize) -> bool,
     ) -> Result<HorizonStatistics, HorizonError> {
         let rows = 0..self.fine().grid.rows;
-        self.run_rows(source, epochs, store, rows, progress)
-    }
-
-    /// [`Self::run_with_store`] for the finest layer's `rows` only (a shard of a map): the
-    /// statistics returned hold those rows' pixels (pixel `i` is the grid's pixel
-    /// `rows.start * cols + i`), bit for bit the values of a whole run, and `progress` gets the
-    /// rows done from `rows.start`. `source` needs to hold those rows only.
-    pub fn run_rows(
-        &self,
-        source: &mut dyn HorizonRows,
-        epochs: &[EpochBodies],
-        store: &mut dyn BlockStore,
-        rows: std::ops::Range<usize>,
-        progress: impl FnMut(usize) -> bool,
-    ) -> Result<HorizonStatistics, HorizonError> {
         self.run_rows_on(source, epochs, store, rows, None, progress)
     }
 
-    /// [`Self::run_rows`] with the per-cell epoch loop on `kernel` (the GPU, or its CPU twin;
+    /// [`Self::run`] for the finest layer's `rows` only (a shard of a map), taking finished
+    /// blocks of rows from `store` and giving it every block it computes (a resumed run gives
+    /// the same bytes as an uninterrupted one: each pixel's statistics depend on its own horizon
+    /// and the epochs only), with the per-cell epoch loop on `kernel` (the GPU, or its CPU twin;
     /// `statistics/offload.rs` says what differs from the CPU engine), or on the CPU when `None`.
-    /// The geometry of the cells, the blocks, the store and the below-sphere tally are the
-    /// CPU engine's.
+    /// The statistics returned hold those rows' pixels (pixel `i` is the grid's pixel
+    /// `rows.start * cols + i`), bit for bit the values of a whole run, and `progress` gets the
+    /// rows done from `rows.start`. `source` needs to hold those rows only. The geometry of the
+    /// cells, the blocks, the store and the below-sphere tally are the CPU engine's.
     pub fn run_rows_on(
         &self,
         source: &mut dyn HorizonRows,

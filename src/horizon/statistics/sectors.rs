@@ -133,7 +133,7 @@ pub(super) const BLOCK_BOUNDS: usize = 2 * (SECTORS + BLOCK_MAX_SECTORS);
 /// `D = s_lo − max(cos e · a_hi)` over that range (`cos e · a` is linear in `cos e`: its ends).
 /// An epoch in the sector is full when `F + c sin e ≥ 0`, dark when `D − c sin e ≥ 0`.
 #[inline(always)]
-pub(super) fn append_block_bounds(entries: &[Entry], cos_e_range: [f32; 2], out: &mut Vec<f32>) {
+fn append_block_bounds(entries: &[Entry], cos_e_range: [f32; 2], out: &mut Vec<f32>) {
     let [ce0, ce1] = cos_e_range;
     let base = out.len();
     out.resize(base + BLOCK_BOUNDS, 0.0);
@@ -283,24 +283,25 @@ impl BodySectors {
         s
     }
 
-    /// Appends the [`SECTORS`] entries of a cell (radial `up`, map `east` and `north` on the
-    /// sphere, observer at `r_obs_km` from the Moon's centre; its horizon polyline `horizon`).
-    /// `visible_only`: the body's statistics need only whether any part of it is visible (more
-    /// than a fraction below [`VISIBLE_ONLY_MAX_FRACTION`]), not whether it is whole. Array passes over the visited sectors (the first and last vectorise).
-    #[allow(clippy::too_many_arguments, reason = "a cell's frame and horizon")]
+    /// Appends the [`SECTORS`] entries of `cell`. `visible_only`: the body's statistics need
+    /// only whether any part of it is visible (more than a fraction below
+    /// [`VISIBLE_ONLY_MAX_FRACTION`]), not whether it is whole. Array passes over the visited
+    /// sectors (the first and last vectorise).
     #[inline(always)]
-    pub fn append_entries(
+    fn append_entries(
         &self,
         reference: &MapFrame,
         edges: &[(f32, f32)],
-        cell: &MapFrame,
-        r_obs_km: f64,
-        horizon: &HorizonPolyline,
+        cell: &TableCell,
         visible_only: bool,
         scratch: &mut TableScratch,
         out: &mut Vec<Entry>,
     ) {
-        let MapFrame { up, east, north } = *cell;
+        let TableCell {
+            frame: &MapFrame { up, east, north },
+            r_obs_km,
+            ref horizon,
+        } = *cell;
         let base = out.len();
         out.resize(base + SECTORS, UNDECIDED);
         let out = &mut out[base..];
@@ -429,9 +430,13 @@ impl pulp::WithSimd for CellTables<'_> {
 
     #[inline(always)]
     fn with_simd<S: pulp::Simd>(self, _simd: S) {
-        let horizon = HorizonPolyline {
-            lookup: self.lookup,
-            h: self.h,
+        let cell = TableCell {
+            frame: self.frame,
+            r_obs_km: self.r_obs_km,
+            horizon: HorizonPolyline {
+                lookup: self.lookup,
+                h: self.h,
+            },
         };
         for (body, visible_only, needed) in self.bodies {
             let base = self.out.len();
@@ -439,9 +444,7 @@ impl pulp::WithSimd for CellTables<'_> {
                 body.append_entries(
                     self.reference,
                     self.edges,
-                    self.frame,
-                    self.r_obs_km,
-                    &horizon,
+                    &cell,
                     visible_only,
                     self.scratch,
                     self.out,
@@ -452,6 +455,14 @@ impl pulp::WithSimd for CellTables<'_> {
             append_block_bounds(&self.out[base..], body.cos_e_range, self.block_out);
         }
     }
+}
+
+/// A cell as its sector tables see it: its frame (radial `up`, map `east` and `north` on the
+/// sphere), the observer's distance from the Moon's centre (km) and its horizon polyline.
+struct TableCell<'a> {
+    frame: &'a MapFrame,
+    r_obs_km: f64,
+    horizon: HorizonPolyline<'a>,
 }
 
 /// Per-thread arrays of [`BodySectors::append_entries`] (one value per sector edge).

@@ -196,11 +196,6 @@ impl HorizonFile {
     pub fn projection(&self) -> Projection {
         self.reader.projection
     }
-
-    /// The file's path.
-    pub fn path(&self) -> &Path {
-        &self.path
-    }
 }
 
 impl HorizonRows for HorizonFile {

@@ -121,45 +121,32 @@ fn rough_terrain_params() -> StatisticsParams {
 
 /// Every statistic of `a` equals that of `b`, bit for bit (each field named on failure).
 fn assert_statistics_equal(a: &HorizonStatistics, b: &HorizonStatistics) {
-    assert_eq!(a.epochs, b.epochs, "epochs");
-    assert_eq!(a.nodata, b.nodata, "nodata");
-    assert_eq!(
-        a.sun_visible_count, b.sun_visible_count,
-        "sun_visible_count"
-    );
-    assert_eq!(a.sun_full_count, b.sun_full_count, "sun_full_count");
-    assert_eq!(
-        a.earth_visible_count, b.earth_visible_count,
-        "earth_visible_count"
-    );
-    assert_eq!(
-        a.sun_and_earth_count, b.sun_and_earth_count,
-        "sun_and_earth_count"
-    );
-    assert_eq!(
-        a.longest_dark_epochs, b.longest_dark_epochs,
-        "longest_dark_epochs"
-    );
-    assert_eq!(
-        a.longest_earth_hidden_epochs, b.longest_earth_hidden_epochs,
-        "longest_earth_hidden_epochs"
+    macro_rules! same {
+        ($($field:ident),*) => {$(
+            assert_eq!(a.$field, b.$field, stringify!($field));
+        )*};
+    }
+    same!(
+        epochs,
+        nodata,
+        sun_visible_count,
+        sun_full_count,
+        earth_visible_count,
+        sun_and_earth_count,
+        longest_dark_epochs,
+        longest_earth_hidden_epochs
     );
     // Bit for bit: compared as bits, so that a NaN in both also counts as equal.
     let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
-    assert_eq!(
-        bits(&a.sun_fraction_sum),
-        bits(&b.sun_fraction_sum),
-        "sun_fraction_sum"
-    );
-    assert_eq!(
-        bits(&a.irradiance_horizontal_sum_w_m2),
-        bits(&b.irradiance_horizontal_sum_w_m2),
-        "irradiance_horizontal_sum_w_m2"
-    );
-    assert_eq!(
-        bits(&a.irradiance_tracking_sum_w_m2),
-        bits(&b.irradiance_tracking_sum_w_m2),
-        "irradiance_tracking_sum_w_m2"
+    macro_rules! same_bits {
+        ($($field:ident),*) => {$(
+            assert_eq!(bits(&a.$field), bits(&b.$field), stringify!($field));
+        )*};
+    }
+    same_bits!(
+        sun_fraction_sum,
+        irradiance_horizontal_sum_w_m2,
+        irradiance_tracking_sum_w_m2
     );
     assert_eq!(a.below_sphere, b.below_sphere, "below_sphere");
 }

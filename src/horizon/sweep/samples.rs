@@ -270,7 +270,7 @@ pub(super) fn m_range(a: i64, b: i64, n: i64) -> Option<(i64, i64)> {
     })
 }
 
-pub(super) fn div_floor_i(a: i64, b: i64) -> i64 {
+fn div_floor_i(a: i64, b: i64) -> i64 {
     let d = a / b;
     if (a % b != 0) && ((a < 0) != (b < 0)) {
         d - 1
@@ -279,7 +279,7 @@ pub(super) fn div_floor_i(a: i64, b: i64) -> i64 {
     }
 }
 
-pub(super) fn div_ceil_i(a: i64, b: i64) -> i64 {
+fn div_ceil_i(a: i64, b: i64) -> i64 {
     let d = a / b;
     if (a % b != 0) && ((a < 0) == (b < 0)) {
         d + 1

@@ -50,49 +50,35 @@ fn first_valid<T: CogSample>(block: [Option<T>; 4], nodata: Option<T>) -> T {
         .unwrap_or_else(T::zero)
 }
 
-impl CogSample for u8 {
-    const BITS: u16 = 8;
-    const FORMAT: u16 = 1;
-    const PREDICTOR: u16 = 2;
-    fn is_nodata(self, nodata: Option<Self>) -> bool {
-        nodata == Some(self)
-    }
-    fn reduce(block: [Option<Self>; 4], nodata: Option<Self>) -> Self {
-        first_valid(block, nodata)
-    }
-    fn zero() -> Self {
-        0
-    }
-    fn predict_row(row: &[Self], out: &mut Vec<u8>) {
-        let mut prev = 0u8;
-        for &v in row {
-            out.push(v.wrapping_sub(prev));
-            prev = v;
+/// The unsigned integer classes: nodata by equality, the first valid pixel of a block, horizontal
+/// differencing.
+macro_rules! unsigned_cog_sample {
+    ($($t:ty),*) => {$(
+        impl CogSample for $t {
+            const BITS: u16 = <$t>::BITS as u16;
+            const FORMAT: u16 = 1;
+            const PREDICTOR: u16 = 2;
+            fn is_nodata(self, nodata: Option<Self>) -> bool {
+                nodata == Some(self)
+            }
+            fn reduce(block: [Option<Self>; 4], nodata: Option<Self>) -> Self {
+                first_valid(block, nodata)
+            }
+            fn zero() -> Self {
+                0
+            }
+            fn predict_row(row: &[Self], out: &mut Vec<u8>) {
+                let mut prev: $t = 0;
+                for &v in row {
+                    out.extend_from_slice(&v.wrapping_sub(prev).to_le_bytes());
+                    prev = v;
+                }
+            }
         }
-    }
+    )*};
 }
 
-impl CogSample for u16 {
-    const BITS: u16 = 16;
-    const FORMAT: u16 = 1;
-    const PREDICTOR: u16 = 2;
-    fn is_nodata(self, nodata: Option<Self>) -> bool {
-        nodata == Some(self)
-    }
-    fn reduce(block: [Option<Self>; 4], nodata: Option<Self>) -> Self {
-        first_valid(block, nodata)
-    }
-    fn zero() -> Self {
-        0
-    }
-    fn predict_row(row: &[Self], out: &mut Vec<u8>) {
-        let mut prev = 0u16;
-        for &v in row {
-            out.extend_from_slice(&v.wrapping_sub(prev).to_le_bytes());
-            prev = v;
-        }
-    }
-}
+unsigned_cog_sample!(u8, u16);
 
 impl CogSample for f32 {
     const BITS: u16 = 32;

@@ -47,7 +47,7 @@ pub(super) fn parse_gdal_metadata(xml: &str) -> Vec<MetadataItem> {
     items
 }
 
-pub(super) fn xml_unescape(s: &str) -> String {
+fn xml_unescape(s: &str) -> String {
     let mut out = String::with_capacity(s.len());
     let mut rest = s;
     while let Some(amp) = rest.find('&') {
@@ -85,7 +85,7 @@ pub(super) fn xml_unescape(s: &str) -> String {
 }
 
 /// Escapes text for XML and keeps it ASCII (TIFF ASCII tags): non-ASCII becomes `&#N;`.
-pub(super) fn xml_escape(s: &str) -> String {
+fn xml_escape(s: &str) -> String {
     let mut out = String::with_capacity(s.len());
     for c in s.chars() {
         match c {
@@ -101,7 +101,7 @@ pub(super) fn xml_escape(s: &str) -> String {
 }
 
 /// The GDAL_METADATA XML of `items` (dataset-level items).
-pub(super) fn gdal_metadata_xml(items: &[(&str, &str)]) -> String {
+fn gdal_metadata_xml(items: &[(&str, &str)]) -> String {
     gdal_metadata_xml_with_bands(items, &[])
 }
 

@@ -265,31 +265,25 @@ fn cog_tiles_overviews_and_predictors_round_trip_exactly() {
     let DecodingResult::F32(ovr) = d.read_image().unwrap() else {
         panic!("f32 overview")
     };
-    let mut lvl1 = vec![f32::NAN; 300 * 265];
-    for r in 0..265 {
-        for c in 0..300 {
-            let v: Vec<f64> = [(0, 0), (0, 1), (1, 0), (1, 1)]
-                .iter()
-                .map(|(dr, dc)| (2 * r + dr, 2 * c + dc))
-                .filter(|&(rr, cc)| rr < 530 && cc < 600)
-                .map(|(rr, cc)| f64::from(heights[rr * 600 + cc]))
-                .filter(|h| !h.is_nan())
-                .collect();
-            if !v.is_empty() {
-                lvl1[r * 300 + c] = (v.iter().sum::<f64>() / v.len() as f64) as f32;
-            }
-        }
-    }
-    let at = |r: usize, c: usize| {
+    // The mean of the valid pixels of the 2 x 2 block under overview pixel (r, c) of a
+    // `cols`-wide, `rows`-high image (`NaN` where none is valid).
+    let block_mean = |v: &[f32], (rows, cols): (usize, usize), r: usize, c: usize| {
         let v: Vec<f64> = [(0, 0), (0, 1), (1, 0), (1, 1)]
             .iter()
             .map(|(dr, dc)| (2 * r + dr, 2 * c + dc))
-            .filter(|&(rr, cc)| rr < 265 && cc < 300)
-            .map(|(rr, cc)| f64::from(lvl1[rr * 300 + cc]))
+            .filter(|&(rr, cc)| rr < rows && cc < cols)
+            .map(|(rr, cc)| f64::from(v[rr * cols + cc]))
             .filter(|h| !h.is_nan())
             .collect();
         (v.iter().sum::<f64>() / v.len() as f64) as f32
     };
+    let mut lvl1 = vec![f32::NAN; 300 * 265];
+    for r in 0..265 {
+        for c in 0..300 {
+            lvl1[r * 300 + c] = block_mean(&heights, (530, 600), r, c);
+        }
+    }
+    let at = |r: usize, c: usize| block_mean(&lvl1, (265, 300), r, c);
     assert_eq!(ovr.len(), 150 * 133);
     for (r, c) in [(0, 0), (7, 149), (132, 0), (132, 149), (60, 77)] {
         assert_eq!(ovr[r * 150 + c], at(r, c), "overview pixel ({r}, {c})");
