@@ -138,7 +138,7 @@ pub fn map_engine_on_gpu(engine: MapEngineKind, range: bool) -> OnGpu {
         MapEngineKind::Fourier => OnGpu::Never {
             what: "the fourier engine over an epoch range",
         },
-        MapEngineKind::Direct(Engine::Combined | Engine::Smap) => OnGpu::Never {
+        MapEngineKind::Direct(Engine::Combined) => OnGpu::Never {
             what: "the combined engine",
         },
         MapEngineKind::Direct(Engine::Brute) => OnGpu::Never {

@@ -125,7 +125,6 @@ impl MapEngineKind {
     pub fn name(self) -> &'static str {
         match self {
             MapEngineKind::Direct(Engine::Brute) => "brute",
-            MapEngineKind::Direct(Engine::Smap) => "smap",
             MapEngineKind::Direct(Engine::Dp) => "dp",
             MapEngineKind::Direct(Engine::Combined) => "combined",
             MapEngineKind::Fourier => "fourier",

@@ -103,9 +103,6 @@ pub enum Engine {
     /// Brute-force ray marching (the reference); soft fraction by disc sampling
     /// ([`brute::DEFAULT_DISC_SAMPLES`] directions).
     Brute,
-    /// SMap (paper 004) for hard masks; its soft fraction is [`dp::soft_combined`] (SMap has no
-    /// soft mode of its own).
-    Smap,
     /// DP maximum mipmaps (papers 000/003) for every pixel; the hard mask is `J* > 0`.
     Dp,
     /// SMap at the disc's upper and lower limbs + DP for the penumbra pixels only; the hard mask
@@ -124,7 +121,7 @@ impl Engine {
         let observers = observers.into();
         match self {
             Engine::Brute => brute::hard_mask(hf, observers, light_in_model),
-            Engine::Smap | Engine::Combined => smap::hard_mask(hf, observers, light_in_model),
+            Engine::Combined => smap::hard_mask(hf, observers, light_in_model),
             Engine::Dp => dp::hard_mask(hf, observers, light_in_model),
         }
     }
@@ -147,7 +144,7 @@ impl Engine {
                 angular_radius_rad,
                 brute::DEFAULT_DISC_SAMPLES,
             ),
-            Engine::Smap | Engine::Combined => {
+            Engine::Combined => {
                 dp::soft_combined(hf, observers, light_in_model, angular_radius_rad).map(|(f, _)| f)
             }
             Engine::Dp => dp::visible_fraction(

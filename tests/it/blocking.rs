@@ -308,7 +308,6 @@ fn sharp_mask_errors(dem: penumbra::terrain::Dem) -> Vec<(&'static str, f64, usi
         .collect();
     let engines = [
         ("brute", Engine::Brute),
-        ("smap", Engine::Smap),
         ("dp", Engine::Dp),
         ("combined", Engine::Combined),
     ];

@@ -72,7 +72,7 @@ fn flat_plane_is_lit_above_and_dark_below_the_horizon() {
     for az in [0.0, 33.0, 90.0, 251.0] {
         let up = light_az_el(az, 0.5);
         let down = light_az_el(az, -0.5);
-        for engine in [Engine::Brute, Engine::Smap, Engine::Dp, Engine::Combined] {
+        for engine in [Engine::Brute, Engine::Dp, Engine::Combined] {
             let lit = engine.hard_mask(&hf, 0.0, up).unwrap();
             assert!(lit.iter().all(|&v| v == MASK_LIT), "{engine:?} az {az}");
             // Only terrain blocks: a ray 0.5° down from 2 m meets the plane 229 m (2.3 cells)
@@ -111,7 +111,7 @@ fn invalid_inputs_are_errors_not_panics() {
         [f64::NAN, 0.0, 1.0],
         [0.0, f64::INFINITY, 0.1],
     ] {
-        for engine in [Engine::Brute, Engine::Smap, Engine::Dp, Engine::Combined] {
+        for engine in [Engine::Brute, Engine::Dp, Engine::Combined] {
             assert!(matches!(
                 engine.hard_mask(&hf, 2.0, bad),
                 Err(ShadowError::InvalidLight { .. })
@@ -128,7 +128,7 @@ fn invalid_inputs_are_errors_not_panics() {
         Err(ShadowError::InvalidAngularRadius(_))
     ));
     assert!(matches!(
-        Engine::Smap.hard_mask(&hf, f64::NAN, ok),
+        Engine::Combined.hard_mask(&hf, f64::NAN, ok),
         Err(ShadowError::InvalidObserverHeight(_))
     ));
     assert!(matches!(
@@ -136,7 +136,7 @@ fn invalid_inputs_are_errors_not_panics() {
         Err(ShadowError::InvalidParameter { .. })
     ));
     // A light at the zenith is valid: nothing blocks it.
-    for engine in [Engine::Brute, Engine::Smap, Engine::Dp] {
+    for engine in [Engine::Brute, Engine::Combined, Engine::Dp] {
         let m = engine.hard_mask(&hf, 0.0, [0.0, 0.0, 1.0]).unwrap();
         assert!(m.iter().all(|&v| v == MASK_LIT));
     }
@@ -168,7 +168,7 @@ fn wall_shadow_length_matches_h_over_tan_el() {
     for (az, el) in [(90.0, 2.0), (90.0, 0.5), (120.0, 2.0), (63.0, 1.0)] {
         let l = light_az_el(az, el);
         let expected = h * f64::sin(f64::to_radians(az)) / (100.0 * f64::to_radians(el).tan());
-        for engine in [Engine::Brute, Engine::Smap, Engine::Dp] {
+        for engine in [Engine::Brute, Engine::Combined, Engine::Dp] {
             let mask = engine.hard_mask(&hf, 0.0, l).unwrap();
             for row in [10, 20, 30] {
                 let run = shadow_run(&mask, row) as f64;
@@ -195,7 +195,7 @@ fn holes_let_rays_pass() {
         }
     }
     let l = light_az_el(90.0, 2.0);
-    for engine in [Engine::Brute, Engine::Smap, Engine::Dp] {
+    for engine in [Engine::Brute, Engine::Combined, Engine::Dp] {
         let mask = engine.hard_mask(&hf, 0.0, l).unwrap();
         // Through the gap (rows 16..=23, away from the wall ends) the light passes.
         assert_eq!(shadow_run(&mask, 20), 0, "{engine:?}");
@@ -267,7 +267,7 @@ fn spherical_bowl_matches_closed_form_shadow() {
             .collect();
         let shadow_cells = analytic.iter().filter(|&&v| v == MASK_SHADOW).count();
         assert!(shadow_cells > 200, "az {az} el {el}: shadow too small");
-        for engine in [Engine::Brute, Engine::Smap, Engine::Dp] {
+        for engine in [Engine::Brute, Engine::Combined, Engine::Dp] {
             let mask = engine.hard_mask(&hf, 0.0, l).unwrap();
             let cmp = compare_masks(&analytic, &mask, n, n);
             eprintln!(
@@ -290,7 +290,7 @@ fn smap_and_dp_hard_masks_match_brute_force_on_the_real_grid() {
         for az in AZIMUTHS_DEG {
             let l = light_az_el(az, el);
             let reference = brute::hard_mask(&hf, 2.0, l).unwrap();
-            for engine in [Engine::Smap, Engine::Dp] {
+            for engine in [Engine::Combined, Engine::Dp] {
                 let mask = engine.hard_mask(&hf, 2.0, l).unwrap();
                 let cmp = compare_masks(&reference, &mask, hf.rows, hf.cols);
                 eprintln!(
@@ -423,7 +423,7 @@ fn shadow_accuracy_table() {
             let l = light_az_el(az, el);
             let r = SUN_ANGULAR_RADIUS_RAD;
             let reference = brute::hard_mask(&hf, 2.0, l).unwrap();
-            let smap = Engine::Smap.hard_mask(&hf, 2.0, l).unwrap();
+            let smap = Engine::Combined.hard_mask(&hf, 2.0, l).unwrap();
             let dph = Engine::Dp.hard_mask(&hf, 2.0, l).unwrap();
             let cs = compare_masks(&reference, &smap, hf.rows, hf.cols);
             let cd = compare_masks(&reference, &dph, hf.rows, hf.cols);
