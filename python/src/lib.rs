@@ -804,7 +804,7 @@ fn map_light<'py>(
             radius_deg: sun_radius_deg,
         }
         .checked()
-        .map_err(py_err)?,
+        .map_err(|e| bad(format!("sun_az_deg, sun_el_deg, sun_radius_deg: {e}")))?,
         _ => {
             return Err(bad(
                 "give the light: utc, or sun_az_deg and sun_el_deg (not both)",

@@ -2,6 +2,7 @@
 
 use std::path::PathBuf;
 
+use anyhow::Context as _;
 use clap::{Args, ValueEnum};
 use penumbra::model::{MapEngineKind, ObserverHeight, ObserverPlacement};
 use penumbra::products::map::{
@@ -191,12 +192,16 @@ impl MapArgs {
             (_, Some(text), _) => Light::DirectionInMoonMe {
                 dir: parse_vector3(text)?,
                 radius_deg,
-            },
+            }
+            .checked()
+            .context("--sun-dir-body, --sun-radius-deg")?,
             (_, None, Some(az_deg)) => Light::AzElAtCentre {
                 az_deg,
                 el_deg: self.sun_el_deg.unwrap_or(0.0),
                 radius_deg,
-            },
+            }
+            .checked()
+            .context("--sun-az-deg, --sun-el-deg, --sun-radius-deg")?,
             _ => anyhow::bail!(
                 "give the light: --utc T, --sun-dir-body X,Y,Z or --sun-az-deg/--sun-el-deg"
             ),
