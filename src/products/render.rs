@@ -100,13 +100,9 @@ impl CameraSpec {
         }
         match self.kind {
             CameraKind::Site => {
-                // Below the ground is refused where the ground is known (place_camera).
-                if !(self.height_m.is_finite() && self.height_m <= MAX_CAMERA_HEIGHT_M) {
-                    anyhow::bail!(
-                        "camera height {} m above the ground must be finite and at most {MAX_CAMERA_HEIGHT_M} m",
-                        self.height_m
-                    );
-                }
+                // A site camera is an observer above the ground: the observer height's bound.
+                crate::model::ObserverHeight::new(self.height_m)
+                    .map_err(|e| anyhow::anyhow!("site camera: {e}"))?;
                 if !self.look_az_deg.is_finite() || !(-90.0..=90.0).contains(&self.look_el_deg) {
                     anyhow::bail!(
                         "view azimuth {} / elevation {} deg: the azimuth must be finite, the elevation within -90 .. 90",
@@ -186,8 +182,6 @@ pub struct RenderOptions {
     pub kernels: KernelSource,
 }
 
-/// Highest site camera above the ground, metres.
-pub const MAX_CAMERA_HEIGHT_M: f64 = 100_000.0;
 /// Highest orbit camera above the 1737.4 km sphere, kilometres (the Earth is ≈ 384,000 km away).
 pub const MAX_CAMERA_ALTITUDE_KM: f64 = 400_000.0;
 
