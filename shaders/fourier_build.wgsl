@@ -10,7 +10,7 @@
 // The last dispatch multiplies by the eq. 3 weights (1/N for k = 0, 2/N else).
 //
 // Dispatch: workgroups (ceil(cols / 8), ceil(band_rows / 8)); gid.x = col, gid.y = band row.
-// Bindings: 0 grid and 1 heights from shared/march.wgsl (2 and 3 are not used here); 4 (sin, cos)
+// Bindings: 0 grid and 1 heights from shared/march.wgsl; 4 (sin, cos)
 // of 2 pi m / N for m = 0 .. N - 1, computed in f64 on the CPU (the azimuth directions and the DFT
 // twiddles, index k n mod N: no large-argument sin/cos on the GPU); 5 build params; 6 coeffs
 // (band-relative cell * 2K + 2k + {0: Re, 1: Im}, f32; HOLE_COEFF for every value of a hole).

@@ -12,7 +12,7 @@
 //! band, 341 rows of a 1536-column grid), and each band's azimuths are split into dispatches of
 //! `azimuths_per_dispatch` (default [`DEFAULT_AZIMUTHS_PER_DISPATCH`]) so that no single dispatch
 //! runs long (watchdogs, lavapipe); the partial sums stay in the band buffer between dispatches.
-//! The heights are the [`GpuMarchGrid`] upload of the march kernels (4 B/cell, once).
+//! The heights are a [`GpuGrid`] upload (4 B/cell, once).
 //!
 //! **Evaluation.** [`GpuHorizonMap::upload`] packs each complex coefficient's two f16 into one
 //! u32 (the stored values, converted exactly by `unpack2x16float`) in row bands that each fit one
@@ -23,9 +23,9 @@ use wgpu::util::DeviceExt as _;
 
 use super::GpuError;
 use super::context::{
-    ErrorScope, GpuContext, Slot, compute_pipeline, layout_entry, slots_layout, storage_init, whole,
+    DEFAULT_BAND_BYTES, ErrorScope, GpuContext, GpuGrid, Slot, WORKGROUP_SIZE_XY, band_rows,
+    check_dispatch_cols, compute_pipeline, layout_entry, slots_layout, storage_init, whole,
 };
-use super::shadow_march::{GpuMarchGrid, band_buffer, check_dispatch_cols};
 use crate::shadow::ShadowError;
 use crate::shadow::fourier::{HorizonMap, HorizonMapMeta, HorizonMapParams};
 use crate::terrain::HeightField;
@@ -35,13 +35,9 @@ use crate::twins::fourier::{
 };
 use crate::twins::{MarchGrid, MarchGridError, NODATA_FRACTION};
 
-pub use super::shadow_march::DEFAULT_BAND_BYTES;
-
 /// Azimuths per build dispatch by default: 16 azimuths of a 1536² grid are ~38 M rays, well
 /// under a second on a data-centre GPU, and a 256² test grid stays a few seconds on lavapipe.
 pub const DEFAULT_AZIMUTHS_PER_DISPATCH: u32 = 16;
-/// Workgroup size of both kernels. Keep in sync with shaders/fourier_*.wgsl.
-const WORKGROUP_SIZE_XY: u32 = 8;
 
 const MARCH_WGSL: &str = wgsl!("shared/march.wgsl");
 const FOURIER_BUILD_WGSL: &str = wgsl!("fourier_build.wgsl");
@@ -132,25 +128,6 @@ impl Default for GpuBuildOptions {
     }
 }
 
-/// Rows per band for `bytes_per_cell` of output per cell within `band_bytes` (at least 1, at
-/// most `rows`, within the dispatch limit and one storage binding).
-fn rows_per_band(
-    ctx: &GpuContext,
-    rows: u32,
-    cols: u32,
-    bytes_per_cell: u64,
-    band_bytes: u64,
-) -> u32 {
-    let limits = ctx.limits();
-    let max_bytes = band_bytes
-        .min(limits.max_storage_buffer_binding_size)
-        .min(limits.max_buffer_size);
-    let by_budget = (max_bytes / (u64::from(cols) * bytes_per_cell)).max(1);
-    let by_dispatch =
-        u64::from(limits.max_compute_workgroups_per_dimension) * u64::from(WORKGROUP_SIZE_XY);
-    by_budget.min(by_dispatch).min(u64::from(rows)) as u32
-}
-
 /// Builds the horizon map of `hf` on the GPU with the default [`GpuBuildOptions`]: the same
 /// map as [`HorizonMap::build_with`] (layout, metadata, f16 storage) within the bounds measured in
 /// docs/gpu.md.
@@ -186,10 +163,10 @@ pub fn build_horizon_map_gpu_with(
         .into());
     }
     let march = MarchGrid::from_height_field(hf, params.observer_height_m)?;
-    let grid = GpuMarchGrid::upload(ctx, &march)?;
+    let grid = GpuGrid::upload(ctx, &march, "fourier_build")?;
     let per = 2 * params.n_coeffs as u64;
     let cols = u64::from(march.cols);
-    let band_rows = rows_per_band(ctx, march.rows, march.cols, per * 4, opts.band_bytes);
+    let band_rows = grid.band_rows(ctx, per * 4, opts.band_bytes);
     let dispatches = build_dispatches(
         march.rows,
         params.n_azimuths as u32,
@@ -208,11 +185,9 @@ pub fn build_horizon_map_gpu_with(
         "penumbra fourier_build params",
         size_of::<FourierBuildParams>() as u64,
     );
-    let out = band_buffer(
-        ctx,
+    let out = ctx.output_buffer(
         "penumbra fourier_build band",
-        u64::from(band_rows) * cols * per,
-        wgpu::BufferUsages::empty(),
+        u64::from(band_rows) * cols * per * 4,
     );
     let bind_group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
         label: Some("penumbra fourier_build bind group"),
@@ -297,17 +272,15 @@ impl GpuHorizonMap {
         let (rows, cols) = (rows as u32, cols as u32);
         check_dispatch_cols(ctx, cols, "fourier_eval")?;
         let packed = pack_coeffs(map);
-        let band_rows = rows_per_band(ctx, rows, cols, 4 * nk as u64, band_bytes);
+        let band_rows = band_rows(ctx, rows, cols, 4 * nk as u64, band_bytes);
         let scope = ErrorScope::push(&ctx.device);
         let params = ctx.uniform_buffer(
             "penumbra fourier_eval params",
             size_of::<FourierEvalParams>() as u64,
         );
-        let out = band_buffer(
-            ctx,
+        let out = ctx.output_buffer(
             "penumbra fourier_eval band",
-            u64::from(band_rows) * u64::from(cols),
-            wgpu::BufferUsages::empty(),
+            u64::from(band_rows) * u64::from(cols) * 4,
         );
         let mut bands = Vec::new();
         let mut row0 = 0;

@@ -6,10 +6,11 @@
 //! [`resolve_backend`] are always compiled so that the command line can offer
 //! `--backend cpu|gpu|auto` in every build.
 //!
-//! Layout (vello/rerun): [`GpuContext`] builds the instance, adapter, device, queue and every
-//! compute pipeline once; one module per shader (`shadow_march`, `sweep_accumulate`) holds its
-//! runner and its `mod gpu_data` mirror structs. The WGSL lives in `shaders/` at the crate root
-//! and is embedded with `include_str!` (through `wgsl!`).
+//! Layout (vello/rerun): [`GpuContext`] builds the instance, adapter, device and queue once and
+//! each kernel family's pipelines on first use, and holds the helpers the kernels share; one
+//! module per shader family (`dp`, `tiles`, `fourier`, …) holds its runners and its
+//! `mod gpu_data` mirror structs. The WGSL lives in `shaders/` at the crate root and is embedded
+//! at compile time.
 
 /// The text of a WGSL file under `shaders/` at the crate root, embedded at compile time:
 /// `wgsl!("dp_visible.wgsl")`.
@@ -41,14 +42,10 @@ pub mod line_sweep;
 #[cfg(feature = "gpu")]
 pub mod render;
 #[cfg(feature = "gpu")]
-pub mod shadow_march;
-#[cfg(feature = "gpu")]
-pub mod sweep_accumulate;
-#[cfg(feature = "gpu")]
 pub mod tiles;
 
 #[cfg(feature = "gpu")]
-pub use context::{AdapterSummary, GpuContext, adapter_report};
+pub use context::{AdapterSummary, DEFAULT_BAND_BYTES, GpuContext, GpuGrid, adapter_report};
 
 /// Stand-in for the GPU context in builds without the `gpu` feature: it has no values, so
 /// [`ResolvedBackend::Gpu`] can never be constructed there.

@@ -9,7 +9,7 @@
 //! (f32, metres relative to the mid height; holes -1e30), the level table, and the per-cell Sun
 //! and Earth visible fractions (computed on the CPU by the scene's shadow engine). Per frame
 //! ([`render_gpu`]): the camera uniform and the output in **row bands** of at most
-//! `band_bytes` (default [`super::shadow_march::DEFAULT_BAND_BYTES`], capped by the adapter's
+//! `band_bytes` (default [`DEFAULT_BAND_BYTES`], capped by the adapter's
 //! storage binding and buffer size), so images larger than one storage binding work.
 
 use bytemuck::{Pod, Zeroable};
@@ -17,13 +17,10 @@ use wgpu::util::DeviceExt as _;
 
 use super::GpuError;
 use super::context::{
-    ErrorScope, GpuContext, Slot, compute_pipeline, slots_layout, storage_init, whole,
+    DEFAULT_BAND_BYTES, ErrorScope, GpuContext, Slot, WORKGROUP_SIZE_XY, band_rows,
+    compute_pipeline, slots_layout, storage_init, whole,
 };
-use super::shadow_march::DEFAULT_BAND_BYTES;
 use crate::render::{Camera, Sample, Scene};
-
-/// Workgroup size (x and y). Keep in sync with shaders/render.wgsl.
-const WORKGROUP_SIZE_XY: u32 = 8;
 
 /// Hole marker in the uploaded heights and pyramid (the shader tests `< -1e29`).
 const HOLE_M: f32 = -1e30;
@@ -161,10 +158,7 @@ impl GpuRenderScene {
             .zip(earth_f)
             .map(|(&s, &e)| [frac(s), frac(e)])
             .collect();
-        let limit = ctx
-            .limits()
-            .max_storage_buffer_binding_size
-            .min(ctx.limits().max_buffer_size);
+        let limit = ctx.max_storage_binding_bytes();
         let biggest = (fractions.len() * 8).max(texels.len() * 4) as u64;
         if biggest > limit || texels.len() > u32::MAX as usize {
             return Err(invalid(format!(
@@ -246,18 +240,8 @@ pub fn render_radiance_gpu(
 ) -> Result<Vec<f32>, GpuError> {
     let render = ctx.pipelines::<RenderPipeline>()?;
     crate::render::check_size(width, height).map_err(|e| invalid(e.to_string()))?;
-    let limits = ctx.limits();
-    let cap = limits
-        .max_storage_buffer_binding_size
-        .min(limits.max_buffer_size)
-        .min(options.band_bytes.max(4 * u64::from(width)));
-    let by_dispatch =
-        u64::from(limits.max_compute_workgroups_per_dimension) * u64::from(WORKGROUP_SIZE_XY);
-    let band_rows = (cap / (4 * u64::from(width)))
-        .max(1)
-        .min(by_dispatch)
-        .min(u64::from(height)) as u32;
-    if width.div_ceil(WORKGROUP_SIZE_XY) > limits.max_compute_workgroups_per_dimension {
+    let band_rows = band_rows(ctx, height, width, 4, options.band_bytes);
+    if width.div_ceil(WORKGROUP_SIZE_XY) > ctx.limits().max_compute_workgroups_per_dimension {
         return Err(invalid(format!("{width} px exceed one dispatch row")));
     }
     let px = scene.px_m;

@@ -222,9 +222,9 @@ fn to_mask(f: &[f32]) -> Vec<u8> {
 
 #[cfg(feature = "gpu")]
 mod on_gpu {
+    use penumbra::gpu::DEFAULT_BAND_BYTES;
     use penumbra::gpu::fourier::{
-        DEFAULT_BAND_BYTES, GpuBuildOptions, GpuHorizonMap, build_horizon_map_gpu,
-        build_horizon_map_gpu_with,
+        GpuBuildOptions, GpuHorizonMap, build_horizon_map_gpu, build_horizon_map_gpu_with,
     };
 
     use super::*;
