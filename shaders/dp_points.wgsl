@@ -1,4 +1,3 @@
-// requires: shared/dp.wgsl
 // DP map from given observers (issue 13: a map pixel stands where a series site at its centre
 // stands): out[i] = visible fraction of the disc dp_lights[dp_step.light0] (unit direction +
 // angular radius; radius 0 gives the hard mask 1/0) seen from point i, i in [band_row0,

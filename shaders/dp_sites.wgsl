@@ -1,4 +1,3 @@
-// requires: shared/dp.wgsl
 // Per-site DP horizons for `penumbra series --engine smap-dp` on the GPU: one invocation per
 // (site, entry), entry k of site i being the disc dp_lights[i * dp_step.count + k] (unit direction
 // in model space in xyz, angular radius in w; w < 0: no cap, the exact horizon). The output is the

@@ -1,4 +1,3 @@
-// requires: shared/dp.wgsl
 // Soft epoch sweep: for the epochs [light0, light0 + count) of the light table (two entries per
 // epoch: the Sun at 2e, the Earth at 2e + 1, each a unit direction + angular radius), the visible
 // fractions of both discs (shared/dp.wgsl) are folded into per-cell running statistics with the

@@ -1,4 +1,3 @@
-// requires: shared/dp.wgsl
 // Tiled DP, pass 1 (docs/gpu.md, "Large grids"): for each cell of one output tile, the shadow cost
 // J* of the ray towards dp_lights[dp_step.light0] over the samples inside the bound source tile,
 // min-combined with the tile's running cost (cost[k]; DP_FAR when dp_step.first_source = 1).

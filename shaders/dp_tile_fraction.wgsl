@@ -1,4 +1,3 @@
-// requires: shared/dp.wgsl
 // Tiled DP, pass 2 (docs/gpu.md, "Large grids"): turns the output tile's shadow costs (pass 1,
 // dp_tile_cost.wgsl, min over every source tile) into the visible fraction of the disc
 // dp_lights[dp_step.light0] in place (radius 0: the hard mask 1/0), -1 for nodata. Dispatch: one

@@ -1,4 +1,3 @@
-// requires: shared/dp.wgsl
 // Tiled soft sweep, pass 2 (docs/gpu.md, "Large grids"): for each cell of one output tile, the
 // epochs [light0, light0 + count) in time order: the Sun's and the Earth's visible fractions from
 // the batch's costs (pass 1, dp_tile_sweep_cost.wgsl) folded into the cell's statistics with the

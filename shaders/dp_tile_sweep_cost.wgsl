@@ -1,4 +1,3 @@
-// requires: shared/dp.wgsl
 // Tiled soft sweep, pass 1 (docs/gpu.md, "Large grids"): for each cell of one output tile and each
 // epoch e of [light0, light0 + count) the shadow costs of the Sun (disc 2e) and the Earth (2e + 1)
 // over the samples inside the bound source tile, min-combined with the running costs

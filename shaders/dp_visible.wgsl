@@ -1,4 +1,3 @@
-// requires: shared/dp.wgsl
 // DP soft-shadow map: out[cell] = visible fraction of the disc dp_lights[dp_step.light0] (unit
 // direction + angular radius; radius 0 gives the hard mask 1/0), -1 for nodata. Dispatch: one
 // invocation per cell of one row band, workgroups (ceil(cols/8), ceil(band_rows/8)). Bindings:

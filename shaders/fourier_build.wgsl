@@ -1,4 +1,3 @@
-// requires: shared/march.wgsl
 // Fourier horizon-map build (paper 001 §3.2, the CPU engine src/shadow/fourier.rs): one
 // invocation per cell of one row band. For each azimuth theta_n = 2 pi n / N of this dispatch
 // (n = az0 .. az0 + az_count) it marches the horizontal ray over every crossing with the lattice

@@ -1,4 +1,3 @@
-// requires: shared/bilinear.wgsl
 // Per-site terrain horizons: one invocation per (azimuth, site) scans the great circle that leaves
 // the observer with that azimuth over every DEM layer of the stack (native polar stereographic
 // grids, finest layer with a surface wins) and writes the largest tan(elevation) and the ground

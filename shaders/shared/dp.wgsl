@@ -1,6 +1,6 @@
-// Shared by dp_visible.wgsl and dp_sweep.wgsl (prepended by the Rust side and by the naga test):
-// the DP / maximum-mipmap shadow cost of one cell towards one disc and the disc's visible
-// fraction. CPU twin: `dp_cell_fraction` and friends in src/shadow/gpu_twins.rs (line by line).
+// Shared part of every dp_*.wgsl (composed before it, src/gpu/shaders.rs): the DP /
+// maximum-mipmap shadow cost of one cell towards one disc and the disc's visible fraction.
+// CPU twins: `dp_cost`, `dp_fraction` and friends in src/twins/dp.rs (line by line).
 //
 // Shadow cost (papers 000/003, eq. 2): J* = min over the ray of dh / t, dh the ray's height above
 // the surface at horizontal distance t, evaluated at every crossing of the ray with the lattice

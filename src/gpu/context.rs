@@ -18,6 +18,7 @@ use bytemuck::{Pod, Zeroable};
 use wgpu::util::DeviceExt as _;
 
 use super::GpuError;
+use super::shaders::Shader;
 use crate::twins::MarchGrid;
 
 /// Output bytes per row band by default (64 MiB): small against any GPU, large enough that a
@@ -499,28 +500,28 @@ pub(crate) fn slots_layout(
     })
 }
 
-/// The compute pipeline of `entry_point` in the WGSL `source` with the one bind group `layout`.
+/// The compute pipeline of `shader` (its entry point is its name) with the one bind group
+/// `layout`.
 pub(crate) fn compute_pipeline(
     device: &wgpu::Device,
     layout: &wgpu::BindGroupLayout,
-    label: &str,
-    source: &str,
-    entry_point: &str,
+    shader: &Shader,
 ) -> wgpu::ComputePipeline {
+    let label = Some(shader.name);
     let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-        label: Some(label),
-        source: wgpu::ShaderSource::Wgsl(source.into()),
+        label,
+        source: wgpu::ShaderSource::Wgsl(shader.source.into()),
     });
     let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-        label: Some(label),
+        label,
         bind_group_layouts: &[Some(layout)],
         immediate_size: 0,
     });
     device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-        label: Some(label),
+        label,
         layout: Some(&pipeline_layout),
         module: &module,
-        entry_point: Some(entry_point),
+        entry_point: Some(shader.name),
         compilation_options: Default::default(),
         cache: None,
     })

@@ -18,26 +18,17 @@ use super::context::{
     DEFAULT_BAND_BYTES, ErrorScope, GpuContext, GpuGrid, WORKGROUP_SIZE_XY, buffer_layout_entry,
     check_dispatch_cols, compute_pipeline, layout_entry, sized, slot_offset, storage_init, whole,
 };
+use super::shaders;
 use crate::twins::{DpCellStats, DpMip, MarchGrid};
 /// Epochs per dispatch of the soft sweep by default (each invocation loops over them).
 pub const DEFAULT_EPOCHS_PER_DISPATCH: u32 = 16;
 /// Dispatches per queue submit of the soft sweep by default.
 pub const DEFAULT_DISPATCHES_PER_SUBMIT: u32 = 16;
 
-const SHARED_DP_WGSL: &str = wgsl!("shared/dp.wgsl");
-const DP_VISIBLE_WGSL: &str = wgsl!("dp_visible.wgsl");
-const DP_SWEEP_WGSL: &str = wgsl!("dp_sweep.wgsl");
-const DP_SITES_WGSL: &str = wgsl!("dp_sites.wgsl");
 /// Workgroup size of `shaders/dp_sites.wgsl` (along the entries). Keep in sync.
 const SITES_WORKGROUP_SIZE_X: u32 = 64;
-const DP_POINTS_WGSL: &str = wgsl!("dp_points.wgsl");
-const DP_POINTS_SWEEP_WGSL: &str = wgsl!("dp_points_sweep.wgsl");
 /// Workgroup size of `shaders/dp_points.wgsl` and `dp_points_sweep.wgsl`. Keep in sync.
 const POINTS_WORKGROUP_SIZE_X: u32 = 64;
-const DP_TILE_COST_WGSL: &str = wgsl!("dp_tile_cost.wgsl");
-const DP_TILE_FRACTION_WGSL: &str = wgsl!("dp_tile_fraction.wgsl");
-const DP_TILE_SWEEP_COST_WGSL: &str = wgsl!("dp_tile_sweep_cost.wgsl");
-const DP_TILE_SWEEP_ACCUMULATE_WGSL: &str = wgsl!("dp_tile_sweep_accumulate.wgsl");
 
 /// Mirrors of the WGSL structs.
 pub(crate) mod gpu_data {
@@ -205,52 +196,20 @@ impl super::context::Pipelines for DpPipelines {
             "penumbra dp tile sweep layout",
             &[read, Storage { read_only: false }],
         );
-        let tile_sweep_cost = compute_pipeline(
-            device,
-            &tile_sweep_layout,
-            "dp_tile_sweep_cost",
-            &format!("{SHARED_DP_WGSL}{DP_TILE_SWEEP_COST_WGSL}"),
-            "dp_tile_sweep_cost",
-        );
+        let tile_sweep_cost =
+            compute_pipeline(device, &tile_sweep_layout, &shaders::DP_TILE_SWEEP_COST);
         let tile_sweep_accumulate = compute_pipeline(
             device,
             &tile_sweep_layout,
-            "dp_tile_sweep_accumulate",
-            &format!("{SHARED_DP_WGSL}{DP_TILE_SWEEP_ACCUMULATE_WGSL}"),
-            "dp_tile_sweep_accumulate",
+            &shaders::DP_TILE_SWEEP_ACCUMULATE,
         );
-        let visible_src = format!("{SHARED_DP_WGSL}{DP_VISIBLE_WGSL}");
-        let sweep_src = format!("{SHARED_DP_WGSL}{DP_SWEEP_WGSL}");
-        let tile_cost_src = format!("{SHARED_DP_WGSL}{DP_TILE_COST_WGSL}");
-        let tile_fraction_src = format!("{SHARED_DP_WGSL}{DP_TILE_FRACTION_WGSL}");
-        let visible = compute_pipeline(device, &layout, "dp_visible", &visible_src, "dp_visible");
-        let sweep = compute_pipeline(device, &layout, "dp_sweep", &sweep_src, "dp_sweep");
-        let sites_src = format!("{SHARED_DP_WGSL}{DP_SITES_WGSL}");
-        let sites = compute_pipeline(device, &tile_layout, "dp_sites", &sites_src, "dp_sites");
-        let points_src = format!("{SHARED_DP_WGSL}{DP_POINTS_WGSL}");
-        let points = compute_pipeline(device, &tile_layout, "dp_points", &points_src, "dp_points");
-        let points_sweep_src = format!("{SHARED_DP_WGSL}{DP_POINTS_SWEEP_WGSL}");
-        let points_sweep = compute_pipeline(
-            device,
-            &tile_layout,
-            "dp_points_sweep",
-            &points_sweep_src,
-            "dp_points_sweep",
-        );
-        let tile_cost = compute_pipeline(
-            device,
-            &tile_layout,
-            "dp_tile_cost",
-            &tile_cost_src,
-            "dp_tile_cost",
-        );
-        let tile_fraction = compute_pipeline(
-            device,
-            &tile_layout,
-            "dp_tile_fraction",
-            &tile_fraction_src,
-            "dp_tile_fraction",
-        );
+        let visible = compute_pipeline(device, &layout, &shaders::DP_VISIBLE);
+        let sweep = compute_pipeline(device, &layout, &shaders::DP_SWEEP);
+        let sites = compute_pipeline(device, &tile_layout, &shaders::DP_SITES);
+        let points = compute_pipeline(device, &tile_layout, &shaders::DP_POINTS);
+        let points_sweep = compute_pipeline(device, &tile_layout, &shaders::DP_POINTS_SWEEP);
+        let tile_cost = compute_pipeline(device, &tile_layout, &shaders::DP_TILE_COST);
+        let tile_fraction = compute_pipeline(device, &tile_layout, &shaders::DP_TILE_FRACTION);
         DpPipelines {
             layout,
             visible,

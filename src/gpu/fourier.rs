@@ -26,6 +26,7 @@ use super::context::{
     DEFAULT_BAND_BYTES, ErrorScope, GpuContext, GpuGrid, Slot, WORKGROUP_SIZE_XY, band_rows,
     check_dispatch_cols, compute_pipeline, layout_entry, slots_layout, storage_init, whole,
 };
+use super::shaders;
 use crate::shadow::ShadowError;
 use crate::shadow::fourier::{HorizonMap, HorizonMapMeta, HorizonMapParams};
 use crate::terrain::HeightField;
@@ -38,10 +39,6 @@ use crate::twins::{MarchGrid, MarchGridError, NODATA_FRACTION};
 /// Azimuths per build dispatch by default: 16 azimuths of a 1536² grid are ~38 M rays, well
 /// under a second on a data-centre GPU, and a 256² test grid stays a few seconds on lavapipe.
 pub const DEFAULT_AZIMUTHS_PER_DISPATCH: u32 = 16;
-
-const MARCH_WGSL: &str = wgsl!("shared/march.wgsl");
-const FOURIER_BUILD_WGSL: &str = wgsl!("fourier_build.wgsl");
-const FOURIER_EVAL_WGSL: &str = wgsl!("fourier_eval.wgsl");
 
 /// Errors of the GPU horizon maps.
 #[derive(Debug, thiserror::Error)]
@@ -81,26 +78,13 @@ impl super::context::Pipelines for FourierPipelines {
                 layout_entry(6, Storage { read_only: false }),
             ],
         });
-        let build_src = format!("{MARCH_WGSL}{FOURIER_BUILD_WGSL}");
-        let build = compute_pipeline(
-            device,
-            &build_layout,
-            "fourier_build",
-            &build_src,
-            "fourier_build",
-        );
+        let build = compute_pipeline(device, &build_layout, &shaders::FOURIER_BUILD);
         let eval_layout = slots_layout(
             device,
             "penumbra fourier_eval layout",
             &[Slot::Uniform, Slot::Read, Slot::ReadWrite],
         );
-        let eval = compute_pipeline(
-            device,
-            &eval_layout,
-            "fourier_eval",
-            FOURIER_EVAL_WGSL,
-            "fourier_eval",
-        );
+        let eval = compute_pipeline(device, &eval_layout, &shaders::FOURIER_EVAL);
         FourierPipelines {
             build_layout,
             build,

@@ -12,6 +12,7 @@ use super::GpuError;
 use super::context::{
     ErrorScope, GpuContext, Slot, compute_pipeline, slots_layout, storage_init, whole,
 };
+use super::shaders;
 use crate::horizon::{Horizon, HorizonEngine, HorizonError};
 use crate::terrain::TerrainStack;
 use crate::twins::horizon_scan::{
@@ -22,9 +23,6 @@ use crate::twins::horizon_scan::{
 pub const SITES_PER_DISPATCH: u32 = 64;
 /// Workgroup size along the azimuths. Keep in sync with shaders/horizon_scan.wgsl.
 const WORKGROUP_SIZE: u32 = 64;
-
-const SHARED_BILINEAR_WGSL: &str = wgsl!("shared/bilinear.wgsl");
-const HORIZON_SCAN_WGSL: &str = wgsl!("horizon_scan.wgsl");
 
 /// Errors of the GPU horizon path: a bad site or terrain (as on the CPU), or a GPU failure.
 #[derive(Debug, thiserror::Error)]
@@ -78,13 +76,7 @@ impl GpuHorizonScan {
                 Slot::ReadWrite,
             ],
         );
-        let pipeline = compute_pipeline(
-            &ctx.device,
-            &layout,
-            "horizon_scan",
-            &format!("{SHARED_BILINEAR_WGSL}{HORIZON_SCAN_WGSL}"),
-            "horizon_scan",
-        );
+        let pipeline = compute_pipeline(&ctx.device, &layout, &shaders::HORIZON_SCAN);
         let params_buf = ctx.uniform_buffer(
             "penumbra horizon_scan params",
             size_of::<ScanParams>() as u64,

@@ -12,13 +12,12 @@ use super::GpuError;
 use super::context::{
     ErrorScope, GpuContext, Slot, compute_pipeline, slots_layout, storage_init, whole,
 };
+use super::shaders;
 use crate::horizon::HorizonError;
 use crate::horizon::statistics::{CellKernel, KernelAcc, KernelCell, KernelShared};
 use crate::twins::horizon_stats::{
     EPOCHS_PER_BATCH, HorizonStatsParams, WORKGROUP_SIZE, packed_tables,
 };
-
-const HORIZON_STATS_WGSL: &str = wgsl!("horizon_stats.wgsl");
 
 /// What a run shares, resident on the GPU.
 struct Resident {
@@ -61,13 +60,7 @@ impl<'a> GpuHorizonStats<'a> {
                 Slot::ReadWrite,
             ],
         );
-        let pipeline = compute_pipeline(
-            &ctx.device,
-            &layout,
-            "horizon_stats",
-            HORIZON_STATS_WGSL,
-            "horizon_stats",
-        );
+        let pipeline = compute_pipeline(&ctx.device, &layout, &shaders::HORIZON_STATS);
         let params_buf = ctx.uniform_buffer(
             "penumbra horizon_stats params",
             size_of::<HorizonStatsParams>() as u64,

@@ -11,13 +11,11 @@ use super::GpuError;
 use super::context::{
     ErrorScope, GpuContext, Slot, compute_pipeline, slots_layout, storage_init, whole,
 };
+use super::shaders;
 use crate::horizon::{HorizonSweep, SweepBand};
 use crate::twins::line_sweep::{
     LineBatch, LineSweepParams, SweepGrid, WORKGROUP_SIZE, sweep_batched,
 };
-
-const SHARED_BILINEAR_WGSL: &str = wgsl!("shared/bilinear.wgsl");
-const LINE_SWEEP_WGSL: &str = wgsl!("line_sweep.wgsl");
 
 /// Largest batch, samples (the hull scratch is 32 B per sample: 256 MiB).
 pub const MAX_BATCH_SAMPLES: usize = 1 << 23;
@@ -65,13 +63,7 @@ impl GpuLineSweep {
                 Slot::ReadWrite,
             ],
         );
-        let pipeline = compute_pipeline(
-            &ctx.device,
-            &layout,
-            "line_sweep",
-            &format!("{SHARED_BILINEAR_WGSL}{LINE_SWEEP_WGSL}"),
-            "line_sweep",
-        );
+        let pipeline = compute_pipeline(&ctx.device, &layout, &shaders::LINE_SWEEP);
         let params_buf = ctx.uniform_buffer(
             "penumbra line_sweep params",
             size_of::<LineSweepParams>() as u64,

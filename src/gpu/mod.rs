@@ -4,25 +4,18 @@
 //! This is the only module that imports `wgpu`, and only behind the `gpu` cargo feature (on by
 //! default; `--no-default-features` builds a CPU-only binary). [`Backend`], [`GpuError`] and
 //! [`resolve_backend`] are always compiled so that the command line can offer
-//! `--backend cpu|gpu|auto` in every build.
+//! `--backend cpu|gpu|auto` in every build, and so is the shader table ([`shaders`]) so that
+//! every build validates the shaders.
 //!
 //! Layout (vello/rerun): [`GpuContext`] builds the instance, adapter, device and queue once and
 //! each kernel family's pipelines on first use, and holds the helpers the kernels share; one
 //! module per shader family (`dp`, `tiles`, `fourier`, …) holds its runners and its
-//! `mod gpu_data` mirror structs. The WGSL lives in `shaders/` at the crate root and is embedded
-//! at compile time.
-
-/// The text of a WGSL file under `shaders/` at the crate root, embedded at compile time:
-/// `wgsl!("dp_visible.wgsl")`.
-#[cfg(feature = "gpu")]
-macro_rules! wgsl {
-    ($path:literal) => {
-        include_str!(concat!(env!("CARGO_MANIFEST_DIR"), "/shaders/", $path))
-    };
-}
+//! `mod gpu_data` mirror structs. The WGSL lives in `shaders/` at the crate root; [`shaders`] says
+//! which shared parts each kernel is composed of and embeds the result at compile time.
 
 mod backend;
 mod error;
+pub mod shaders;
 
 pub use backend::{Backend, ResolvedBackend, resolve_backend};
 pub use error::GpuError;

@@ -20,6 +20,7 @@ use super::context::{
     DEFAULT_BAND_BYTES, ErrorScope, GpuContext, Slot, WORKGROUP_SIZE_XY, band_rows,
     compute_pipeline, slots_layout, storage_init, whole,
 };
+use super::shaders;
 use crate::render::{Camera, Sample, Scene};
 
 /// Hole marker in the uploaded heights and pyramid (the shader tests `< -1e29`).
@@ -33,8 +34,6 @@ pub const CODE_SUN: f32 = -2.0;
 pub const CODE_EARTH: f32 = -3.0;
 /// Output code of a pixel that shows the night side of the Earth's disc.
 pub const CODE_EARTH_NIGHT: f32 = -4.0;
-
-const RENDER_WGSL: &str = concat!(wgsl!("shared/brdf.wgsl"), wgsl!("render.wgsl"));
 
 /// Mirrors of the WGSL structs.
 mod gpu_data {
@@ -81,7 +80,7 @@ impl super::context::Pipelines for RenderPipeline {
                 Slot::ReadWrite,
             ],
         );
-        let pipeline = compute_pipeline(device, &layout, "render", RENDER_WGSL, "render");
+        let pipeline = compute_pipeline(device, &layout, &shaders::RENDER);
         RenderPipeline { layout, pipeline }
     }
 }

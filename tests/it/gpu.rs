@@ -7,68 +7,62 @@
 use crate::util::OutputWithin as _;
 use std::path::Path;
 
-/// The shader source as a pipeline sees it: the `// requires: X` files first, then the file.
-fn composed_source(path: &Path) -> String {
-    let text = std::fs::read_to_string(path).unwrap();
-    let mut src = String::new();
-    for line in text.lines() {
-        if let Some(dep) = line.strip_prefix("// requires: ") {
-            let dep_path = path.parent().unwrap().join(dep.trim());
-            src.push_str(&std::fs::read_to_string(&dep_path).unwrap());
-        }
-    }
-    src.push_str(&text);
-    src
+/// The `.wgsl` files of `shaders/<sub>`, sorted.
+fn wgsl_files(sub: &str) -> Vec<std::path::PathBuf> {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("shaders")
+        .join(sub);
+    let mut paths: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "wgsl"))
+        .collect();
+    paths.sort();
+    paths
 }
 
-fn validate(name: &str, src: &str) -> naga::Module {
-    let module = naga::front::wgsl::parse_str(src)
-        .unwrap_or_else(|e| panic!("{name}: WGSL parse error:\n{}", e.emit_to_string(src)));
-    naga::valid::Validator::new(
-        naga::valid::ValidationFlags::all(),
-        naga::valid::Capabilities::all(),
-    )
-    .validate(&module)
-    .unwrap_or_else(|e| panic!("{name}: naga validation error:\n{}", e.emit_to_string(src)));
-    module
-}
-
-/// Every `shaders/*.wgsl` (with its `// requires:` helpers) and every `shaders/shared/*.wgsl`
-/// parses and validates, and each kernel file has exactly one entry point named like the file.
+/// Every shader of the table (`penumbra::gpu::shaders`, from which the pipelines are built)
+/// parses and validates as composed, with exactly one entry point named like its file; the table
+/// holds every `shaders/*.wgsl` once and every `shaders/shared/*.wgsl` is a part of some shader;
+/// the shared parts that stand alone (not marked `// fragment:`) validate alone too.
 #[test]
 fn naga_validates_every_shader() {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("shaders");
-    let mut kernels = 0;
-    for sub in [dir.clone(), dir.join("shared")] {
-        let mut paths: Vec<_> = std::fs::read_dir(&sub)
-            .unwrap()
-            .map(|e| e.unwrap().path())
-            .filter(|p| p.extension().is_some_and(|e| e == "wgsl"))
+    use penumbra::gpu::shaders::SHADERS;
+    for shader in SHADERS {
+        let module = crate::util::naga_validate(shader.name, shader.source);
+        let entries: Vec<_> = module
+            .entry_points
+            .iter()
+            .map(|e| e.name.as_str())
             .collect();
-        paths.sort();
-        for path in paths {
-            let name = path.file_stem().unwrap().to_string_lossy().into_owned();
-            let src = composed_source(&path);
-            if sub != dir && src.starts_with("// fragment:") {
-                continue; // validated within the kernels that require it
-            }
-            let module = validate(&name, &src);
-            if sub == dir {
-                kernels += 1;
-                let entries: Vec<_> = module
-                    .entry_points
-                    .iter()
-                    .map(|e| e.name.as_str())
-                    .collect();
-                assert_eq!(
-                    entries,
-                    [name.as_str()],
-                    "{name}: one entry point named like the file"
-                );
-            }
+        assert_eq!(
+            entries,
+            [shader.name],
+            "{}: one entry point named like the file",
+            shader.name
+        );
+    }
+    let mut in_table: Vec<_> = SHADERS.iter().map(|s| s.name).collect();
+    in_table.sort_unstable();
+    let on_disk: Vec<_> = wgsl_files("")
+        .iter()
+        .map(|p| p.file_stem().unwrap().to_string_lossy().into_owned())
+        .collect();
+    assert_eq!(
+        in_table, on_disk,
+        "the table lists every kernel of shaders/ once"
+    );
+    for path in wgsl_files("shared") {
+        let part = format!("shared/{}", path.file_name().unwrap().to_string_lossy());
+        assert!(
+            SHADERS.iter().any(|s| s.parts.contains(&part.as_str())),
+            "{part} is a part of no shader"
+        );
+        let src = std::fs::read_to_string(&path).unwrap();
+        if !src.starts_with("// fragment:") {
+            crate::util::naga_validate(&part, &src);
         }
     }
-    assert!(kernels >= 3, "found only {kernels} kernel shaders");
 }
 
 /// Runs `penumbra` with `WGPU_BACKEND` set to `wgpu_backend` (or inherited when `None`).

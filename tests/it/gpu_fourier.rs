@@ -3,7 +3,7 @@
 //! twin and the engine, band/chunk seams, and the CLI (`horizon-map build --backend`, `map
 //! --engine fourier --backend gpu`). GPU tests skip with a printed reason when no adapter exists
 //! (a failure with `PENUMBRA_REQUIRE_GPU=1`). naga validation of both shaders is part of
-//! `gpu::naga_validates_every_shader` (every `shaders/*.wgsl` with its `// requires:` lines).
+//! `gpu::naga_validates_every_shader` (every shader of `penumbra::gpu::shaders`).
 
 use crate::util::OutputWithin as _;
 use penumbra::shadow::fourier::{self, HorizonMap, HorizonMapMeta, HorizonMapParams};

@@ -52,7 +52,7 @@ const SYNTH_SITES: [(f64, f64); 4] = [(-90.0, 0.0), (-89.9, 45.0), (-89.8, 200.0
 /// The shader's structs have the sizes of their Rust mirrors (naga's layouter); never skipped.
 #[test]
 fn horizon_scan_struct_layout_matches_rust() {
-    let sizes = crate::util::wgsl_struct_sizes("horizon_scan.wgsl");
+    let sizes = crate::util::wgsl_struct_sizes(&penumbra::gpu::shaders::HORIZON_SCAN);
     let size = |name: &str| sizes[name];
     assert_eq!(size("ScanParams"), size_of::<ScanParams>());
     assert_eq!(size("Site"), size_of::<SiteParams>());

@@ -107,7 +107,7 @@ const TWO_LAYER_PARAMS: SweepParams = SweepParams {
 /// The shader's structs have the sizes of their Rust mirrors (naga's layouter); never skipped.
 #[test]
 fn line_sweep_struct_layout_matches_rust() {
-    let sizes = crate::util::wgsl_struct_sizes("line_sweep.wgsl");
+    let sizes = crate::util::wgsl_struct_sizes(&penumbra::gpu::shaders::LINE_SWEEP);
     let size = |name: &str| sizes[name];
     assert_eq!(size("Params"), size_of::<line_sweep::LineSweepParams>());
     assert_eq!(size("Line"), size_of::<line_sweep::LineRecord>());
