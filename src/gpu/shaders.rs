@@ -41,10 +41,10 @@ shader_table! {
     DP_POINTS_SWEEP = "dp_points_sweep" ["shared/dp.wgsl"];
     DP_SITES = "dp_sites" ["shared/dp.wgsl"];
     DP_SWEEP = "dp_sweep" ["shared/dp.wgsl"];
-    DP_TILE_COST = "dp_tile_cost" ["shared/dp.wgsl"];
-    DP_TILE_FRACTION = "dp_tile_fraction" ["shared/dp.wgsl"];
-    DP_TILE_SWEEP_ACCUMULATE = "dp_tile_sweep_accumulate" ["shared/dp.wgsl"];
-    DP_TILE_SWEEP_COST = "dp_tile_sweep_cost" ["shared/dp.wgsl"];
+    DP_TILE_COST = "dp_tile_cost" ["shared/dp.wgsl", "shared/dp_tile.wgsl"];
+    DP_TILE_FRACTION = "dp_tile_fraction" ["shared/dp.wgsl", "shared/dp_tile.wgsl"];
+    DP_TILE_SWEEP_ACCUMULATE = "dp_tile_sweep_accumulate" ["shared/dp.wgsl", "shared/dp_tile.wgsl"];
+    DP_TILE_SWEEP_COST = "dp_tile_sweep_cost" ["shared/dp.wgsl", "shared/dp_tile.wgsl"];
     DP_VISIBLE = "dp_visible" ["shared/dp.wgsl"];
     FOURIER_BUILD = "fourier_build" ["shared/march.wgsl"];
     FOURIER_EVAL = "fourier_eval" [];
