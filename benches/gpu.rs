@@ -256,7 +256,7 @@ fn bench_line_sweep(c: &mut Criterion, ctx: Option<&GpuContext>) {
     use penumbra::horizon::{HorizonSweep, SweepParams, SweepScratch};
     use penumbra::terrain::TerrainStack;
     use penumbra::twins::line_sweep::{
-        LineBatch, SweepGrid, TWIN_BATCH_SAMPLES, line_sweep_twin, sweep_twin,
+        LineBatch, SweepGrid, TWIN_BATCH_SAMPLES, line_sweep, sweep_twin,
     };
     let n = 256;
     let dem = penumbra::terrain::synth::square_dem_at(n, 100.0, (40e3, -45e3), "hills", |x, y| {
@@ -320,7 +320,7 @@ fn bench_line_sweep(c: &mut Criterion, ctx: Option<&GpuContext>) {
     }
     group.throughput(Throughput::Elements((n * n * looks) as u64));
     group.bench_function(BenchmarkId::new("looks_twin", n), |b| {
-        b.iter(|| line_sweep_twin(&grid, &batch))
+        b.iter(|| line_sweep(&grid, &batch))
     });
     if let Some(ctx) = ctx {
         let runner = penumbra::gpu::line_sweep::GpuLineSweep::new(ctx, &grid).expect("runner");

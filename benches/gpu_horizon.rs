@@ -22,7 +22,7 @@ use penumbra::horizon::{HorizonEngine, HorizonMethod, HorizonParams};
 use penumbra::terrain::TerrainStack;
 use penumbra::terrain::synth::{SynthParams, south_polar_dem};
 use penumbra::twins::horizon_scan::{
-    ScanTerrain, SiteParams, azimuth_table, scan_twin, site_setup,
+    ScanTerrain, SiteParams, azimuth_table, horizon_scan, site_setup,
 };
 
 const SITES: usize = 100;
@@ -78,7 +78,7 @@ fn bench_site_horizons(c: &mut Criterion) {
         });
     }
     group.bench_function(BenchmarkId::new("cpu_twin", &id), |b| {
-        b.iter(|| scan_twin(&terrain, &recs, &azimuths))
+        b.iter(|| horizon_scan(&terrain, &recs, &azimuths))
     });
     match GpuContext::new() {
         Ok(ctx) => {

@@ -347,7 +347,7 @@ fn dp_is_hole(row: u32, col: u32) -> bool {
 const VISIBLE_MIN_FRACTION: f32 = 1.0e-6;
 
 // Running per-cell statistics of the soft epoch sweeps (dp_sweep.wgsl,
-// dp_tile_sweep_accumulate.wgsl). Keep in sync with `DpCellStats` in src/shadow/gpu_twins.rs.
+// dp_tile_sweep_accumulate.wgsl). Keep in sync with `DpCellStats` in src/twins/dp.rs.
 struct DpCellStats {
     sun_fraction_sum: f32,
     sun_fraction_comp: f32,
@@ -362,7 +362,7 @@ struct DpCellStats {
 // Folds one epoch's Sun (`fs`) and Earth (`fe`) visible fractions into `s` with the definitions
 // of the CPU `map::sweep`: Kahan-compensated f32 sum of the Sun's fraction, visible = fraction
 // > 1e-6, dark runs of the Sun, Earth and Sun-and-Earth counts. CPU twin: `dp_sweep_accumulate`
-// in src/shadow/gpu_twins.rs (line by line).
+// in src/twins/dp.rs (line by line).
 fn dp_sweep_accumulate(s: ptr<function, DpCellStats>, fs: f32, fe: f32) {
     // Kahan summation of the Sun's fraction.
     let y = fs - (*s).sun_fraction_comp;

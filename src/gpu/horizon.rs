@@ -97,7 +97,7 @@ impl GpuHorizonScan {
     }
 
     /// `(tan el, ground angle rad)` for every (site, azimuth), `site * n_az + az` (as the twin
-    /// [`crate::twins::horizon_scan::scan_twin`]).
+    /// [`crate::twins::horizon_scan::horizon_scan`]).
     pub fn scan(
         &self,
         ctx: &GpuContext,

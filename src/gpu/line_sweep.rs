@@ -90,7 +90,7 @@ impl GpuLineSweep {
     }
 
     /// `(tan el, Δψ)` for every observer and look of `batch`, `2 · observer + look` (as the twin
-    /// [`crate::twins::line_sweep::line_sweep_twin`]).
+    /// [`crate::twins::line_sweep::line_sweep`]).
     pub fn run_batch(
         &self,
         ctx: &GpuContext,

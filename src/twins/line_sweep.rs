@@ -50,7 +50,7 @@ pub const LOOK_FORWARD: u32 = 1;
 /// Bit of [`LineRecord::looks`]: the backward look is wanted.
 pub const LOOK_BACKWARD: u32 = 2;
 /// Most hull vertices the tangent climbs from the binary search's vertex (see
-/// [`line_sweep_twin`]). Keep in sync with the WGSL.
+/// [`line_sweep`]). Keep in sync with the WGSL.
 pub const CLIMB_STEPS: usize = 64;
 /// Samples of a line closer than this along it (map metres; the f32 spacing of the hull frame
 /// is ≤ 0.06 m) are packed as one
@@ -369,7 +369,7 @@ struct Vertex {
 
 /// The kernel twin: `out[2 · observer + look]` = `(tan el, Δψ rad)` for every line and wanted
 /// look of `batch` (look 0 forward, 1 backward; unwanted looks stay `[0, 0]`).
-pub fn line_sweep_twin(grid: &SweepGrid, batch: &LineBatch) -> Vec<[f32; 2]> {
+pub fn line_sweep(grid: &SweepGrid, batch: &LineBatch) -> Vec<[f32; 2]> {
     let params = LineSweepParams {
         n_lines: batch.lines.len() as u32,
         n_samples: batch.samples.len() as u32,
@@ -577,7 +577,7 @@ fn pack_chunk(
         })
 }
 
-/// The whole sweep with the looks run by `run_batch` (the twin [`line_sweep_twin`] or the GPU),
+/// The whole sweep with the looks run by `run_batch` (the twin [`line_sweep`] or the GPU),
 /// in batches of at most `max_samples` samples: bands handed to `sink` as
 /// [`HorizonSweep::run`] does (the same band order and layout).
 ///
@@ -681,7 +681,7 @@ pub fn sweep_batched<E>(
 /// Largest batch of [`sweep_twin`], samples (as lavapipe's, 128 MiB / 32 B).
 pub const TWIN_BATCH_SAMPLES: usize = 1 << 22;
 
-/// The whole sweep through the twin: [`sweep_batched`] with [`line_sweep_twin`] (the GPU
+/// The whole sweep through the twin: [`sweep_batched`] with [`line_sweep`] (the GPU
 /// kernel's arithmetic on the CPU; the parity oracle of the GPU runner).
 pub fn sweep_twin<E>(
     sweep: &HorizonSweep,
@@ -692,7 +692,7 @@ pub fn sweep_twin<E>(
     sweep_batched(
         sweep,
         TWIN_BATCH_SAMPLES,
-        |batch| Ok(line_sweep_twin(&grid, batch)),
+        |batch| Ok(line_sweep(&grid, batch)),
         sink,
         progress,
     )

@@ -12,7 +12,7 @@
 //! |---|---|
 //! | [`march`] | `shared/march.wgsl` (the grid and the DDA of `fourier_build.wgsl`) |
 //! | [`dp`] | `shared/dp.wgsl`, `dp_visible.wgsl`, `dp_sweep.wgsl`, `dp_sites.wgsl`, `dp_points.wgsl`, `dp_points_sweep.wgsl` |
-//! | [`dp_tiles`] | `dp_tile_cost.wgsl`, `dp_tile_fraction.wgsl`, `dp_tile_sweep_cost.wgsl`, `dp_tile_sweep_accumulate.wgsl` |
+//! | [`dp_tiles`] | `shared/dp_tile.wgsl`, `dp_tile_cost.wgsl`, `dp_tile_fraction.wgsl`, `dp_tile_sweep_cost.wgsl`, `dp_tile_sweep_accumulate.wgsl` |
 //! | [`fourier`] | `fourier_build.wgsl`, `fourier_eval.wgsl` |
 //! | [`horizon_scan`] | `horizon_scan.wgsl` |
 //! | [`horizon_stats`] | `horizon_stats.wgsl` |

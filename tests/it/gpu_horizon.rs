@@ -158,7 +158,7 @@ const REAL_SITES: [(f64, f64); 2] = [(-89.45, 222.7), (-89.68, 200.0)];
 #[cfg(feature = "gpu")]
 mod on_gpu {
     use penumbra::gpu::horizon::{GpuHorizonScan, horizons_gpu};
-    use penumbra::twins::horizon_scan::{ScanTerrain, azimuth_table, scan_twin, site_setup};
+    use penumbra::twins::horizon_scan::{ScanTerrain, azimuth_table, horizon_scan, site_setup};
 
     use super::*;
 
@@ -179,7 +179,7 @@ mod on_gpu {
         let az = azimuth_table(1.0).unwrap();
         let scan = GpuHorizonScan::new(ctx, &terrain).unwrap();
         let gpu = scan.scan(ctx, &sites, &az).unwrap();
-        let twin = scan_twin(&terrain, &sites, &az);
+        let twin = horizon_scan(&terrain, &sites, &az);
         assert_eq!(gpu.len(), twin.len());
         let max_deg = gpu
             .iter()
