@@ -465,39 +465,65 @@ pub fn adapter_report() -> Vec<AdapterSummary> {
         .collect()
 }
 
-/// What one binding of a kernel's bind group holds ([`slots_layout`]).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) enum Slot {
-    /// A uniform buffer.
-    Uniform,
-    /// A read-only storage buffer.
-    Read,
-    /// A read-write storage buffer.
-    ReadWrite,
+/// A kernel with one pipeline whose bindings are a uniform (0), then [`Self::READS`] read-only
+/// storage buffers, then [`Self::READ_WRITES`] read-write ones, none at a dynamic offset; its
+/// [`KernelPipeline`] is built on first use ([`GpuContext::pipelines`]).
+pub(crate) trait SingleKernel: Send + Sync + 'static {
+    /// The shader.
+    const SHADER: Shader;
+    /// Read-only storage buffers, bindings 1 ..= `READS`.
+    const READS: u32;
+    /// Read-write storage buffers, after the read-only ones.
+    const READ_WRITES: u32;
+    /// What building the pipeline is, for its error message.
+    const WHAT: &'static str;
 }
 
-/// The bind group layout of a kernel whose bindings `0, 1, …` are the plain buffers `slots`
-/// (no dynamic offsets), for the compute stage.
-pub(crate) fn slots_layout(
-    device: &wgpu::Device,
-    label: &str,
-    slots: &[Slot],
-) -> wgpu::BindGroupLayout {
-    let entries: Vec<_> = (0..)
-        .zip(slots)
-        .map(|(binding, slot)| {
-            let ty = match slot {
-                Slot::Uniform => wgpu::BufferBindingType::Uniform,
-                Slot::Read => wgpu::BufferBindingType::Storage { read_only: true },
-                Slot::ReadWrite => wgpu::BufferBindingType::Storage { read_only: false },
-            };
-            layout_entry(binding, ty)
+/// The bind group layout and pipeline of the [`SingleKernel`] `K`.
+pub(crate) struct KernelPipeline<K> {
+    pub(crate) layout: wgpu::BindGroupLayout,
+    pub(crate) pipeline: wgpu::ComputePipeline,
+    kernel: std::marker::PhantomData<fn() -> K>,
+}
+
+impl<K: SingleKernel> Pipelines for KernelPipeline<K> {
+    const WHAT: &'static str = K::WHAT;
+
+    fn build(device: &wgpu::Device) -> Self {
+        use wgpu::BufferBindingType::{Storage, Uniform};
+        let types = std::iter::once(Uniform)
+            .chain((0..K::READS).map(|_| Storage { read_only: true }))
+            .chain((0..K::READ_WRITES).map(|_| Storage { read_only: false }));
+        let entries: Vec<_> = (0..)
+            .zip(types)
+            .map(|(b, ty)| layout_entry(b, ty))
+            .collect();
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some(K::SHADER.name),
+            entries: &entries,
+        });
+        let pipeline = compute_pipeline(device, &layout, &K::SHADER);
+        KernelPipeline {
+            layout,
+            pipeline,
+            kernel: std::marker::PhantomData,
+        }
+    }
+}
+
+impl<K: SingleKernel> KernelPipeline<K> {
+    /// The bind group of `buffers`, bound whole at bindings 0, 1, … in this order.
+    pub(crate) fn bind(&self, ctx: &GpuContext, buffers: &[&wgpu::Buffer]) -> wgpu::BindGroup {
+        let entries: Vec<_> = (0..)
+            .zip(buffers)
+            .map(|(binding, buffer)| whole(binding, buffer))
+            .collect();
+        ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some(K::SHADER.name),
+            layout: &self.layout,
+            entries: &entries,
         })
-        .collect();
-    device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-        label: Some(label),
-        entries: &entries,
-    })
+    }
 }
 
 /// The compute pipeline of `shader` (its entry point is its name) with the one bind group

@@ -83,7 +83,8 @@ pub(crate) mod gpu_data {
 }
 use gpu_data::DpStep;
 
-/// Bind group layout and pipelines of the DP kernels (built once, in [`GpuContext::new`]).
+/// Bind group layouts and pipelines of the DP kernels (built on first use,
+/// [`GpuContext::pipelines`]).
 pub(crate) struct DpPipelines {
     layout: wgpu::BindGroupLayout,
     visible: wgpu::ComputePipeline,

@@ -23,10 +23,12 @@ use wgpu::util::DeviceExt as _;
 
 use super::GpuError;
 use super::context::{
-    DEFAULT_BAND_BYTES, ErrorScope, GpuContext, GpuGrid, Slot, WORKGROUP_SIZE_XY, band_rows,
-    check_dispatch_cols, compute_pipeline, layout_entry, slots_layout, storage_init, whole,
+    DEFAULT_BAND_BYTES, ErrorScope, GpuContext, GpuGrid, KernelPipeline, SingleKernel,
+    WORKGROUP_SIZE_XY, band_rows, check_dispatch_cols, compute_pipeline, layout_entry,
+    storage_init, whole,
 };
 use super::shaders;
+use super::shaders::Shader;
 use crate::shadow::ShadowError;
 use crate::shadow::fourier::{HorizonMap, HorizonMapMeta, HorizonMapParams};
 use crate::terrain::HeightField;
@@ -54,21 +56,19 @@ pub enum GpuFourierError {
     Gpu(#[from] GpuError),
 }
 
-/// Bind group layouts and pipelines of the two Fourier kernels (built once, in
-/// [`GpuContext::new`]).
-pub(crate) struct FourierPipelines {
-    build_layout: wgpu::BindGroupLayout,
-    build: wgpu::ComputePipeline,
-    eval_layout: wgpu::BindGroupLayout,
-    eval: wgpu::ComputePipeline,
+/// Bind group layout and pipeline of the Fourier build (bindings 0 and 1 of shared/march.wgsl,
+/// then 4..6).
+pub(crate) struct FourierBuildPipeline {
+    layout: wgpu::BindGroupLayout,
+    pipeline: wgpu::ComputePipeline,
 }
 
-impl super::context::Pipelines for FourierPipelines {
+impl super::context::Pipelines for FourierBuildPipeline {
     const WHAT: &'static str = "building the Fourier pipelines";
 
     fn build(device: &wgpu::Device) -> Self {
         use wgpu::BufferBindingType::{Storage, Uniform};
-        let build_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("penumbra fourier_build layout"),
             entries: &[
                 layout_entry(0, Uniform),
@@ -78,20 +78,19 @@ impl super::context::Pipelines for FourierPipelines {
                 layout_entry(6, Storage { read_only: false }),
             ],
         });
-        let build = compute_pipeline(device, &build_layout, &shaders::FOURIER_BUILD);
-        let eval_layout = slots_layout(
-            device,
-            "penumbra fourier_eval layout",
-            &[Slot::Uniform, Slot::Read, Slot::ReadWrite],
-        );
-        let eval = compute_pipeline(device, &eval_layout, &shaders::FOURIER_EVAL);
-        FourierPipelines {
-            build_layout,
-            build,
-            eval_layout,
-            eval,
-        }
+        let pipeline = compute_pipeline(device, &layout, &shaders::FOURIER_BUILD);
+        FourierBuildPipeline { layout, pipeline }
     }
+}
+
+/// The Fourier evaluation: params; packed coefficients; output.
+pub(crate) struct FourierEvalKernel;
+
+impl SingleKernel for FourierEvalKernel {
+    const SHADER: Shader = shaders::FOURIER_EVAL;
+    const READS: u32 = 1;
+    const READ_WRITES: u32 = 1;
+    const WHAT: &'static str = "building the Fourier pipelines";
 }
 
 /// How the GPU build splits its work (the result does not depend on it, bit for bit).
@@ -130,7 +129,7 @@ pub fn build_horizon_map_gpu_with(
     params: &HorizonMapParams,
     opts: &GpuBuildOptions,
 ) -> Result<HorizonMap, GpuFourierError> {
-    let fourier = ctx.pipelines::<FourierPipelines>()?;
+    let fourier = ctx.pipelines::<FourierBuildPipeline>()?;
     params.check()?;
     if params.n_coeffs > MAX_GPU_COEFFS {
         return Err(ShadowError::InvalidParameter {
@@ -175,7 +174,7 @@ pub fn build_horizon_map_gpu_with(
     );
     let bind_group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
         label: Some("penumbra fourier_build bind group"),
-        layout: &fourier.build_layout,
+        layout: &fourier.layout,
         entries: &[
             whole(0, &grid.params),
             whole(1, &grid.heights),
@@ -190,7 +189,7 @@ pub fn build_horizon_map_gpu_with(
         ctx.queue.write_buffer(&fb_buf, 0, bytemuck::bytes_of(fb));
         ctx.dispatch(
             "fourier_build",
-            &fourier.build,
+            &fourier.pipeline,
             &bind_group,
             &[],
             [
@@ -241,7 +240,7 @@ impl GpuHorizonMap {
         map: &HorizonMap,
         band_bytes: u64,
     ) -> Result<Self, GpuFourierError> {
-        let fourier = ctx.pipelines::<FourierPipelines>()?;
+        let eval = ctx.pipelines::<KernelPipeline<FourierEvalKernel>>()?;
         let (rows, cols, nk) = (map.meta.rows, map.meta.cols, map.meta.n_coeffs);
         if rows == 0 || cols == 0 || nk == 0 || map.coeffs.len() != rows * cols * 2 * nk {
             return Err(GpuError::InvalidInput {
@@ -286,13 +285,7 @@ impl GpuHorizonMap {
         }
         let bind_groups = bands
             .iter()
-            .map(|(_, _, buf)| {
-                ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-                    label: Some("penumbra fourier_eval bind group"),
-                    layout: &fourier.eval_layout,
-                    entries: &[whole(0, &params), whole(1, buf), whole(2, &out)],
-                })
-            })
+            .map(|(_, _, buf)| eval.bind(ctx, &[&params, buf, &out]))
             .collect();
         scope.pop("uploading the horizon map")?;
         Ok(GpuHorizonMap {
@@ -316,7 +309,7 @@ impl GpuHorizonMap {
         light_in_model: [f64; 3],
         angular_radius_rad: f64,
     ) -> Result<Vec<f32>, GpuFourierError> {
-        let fourier = ctx.pipelines::<FourierPipelines>()?;
+        let eval = ctx.pipelines::<KernelPipeline<FourierEvalKernel>>()?;
         let base = FourierEvalParams::new(&self.meta, light_in_model, angular_radius_rad)?;
         let scope = ErrorScope::push(&ctx.device);
         let mut values: Vec<f32> = Vec::with_capacity(self.rows as usize * self.cols as usize);
@@ -330,7 +323,7 @@ impl GpuHorizonMap {
                 .write_buffer(&self.params, 0, bytemuck::bytes_of(&fe));
             ctx.dispatch(
                 "fourier_eval",
-                &fourier.eval,
+                &eval.pipeline,
                 bind_group,
                 &[],
                 [

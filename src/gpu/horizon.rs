@@ -9,10 +9,11 @@
 //! angle)` pairs back once. [`horizons_gpu`] is the whole path from sites to [`Horizon`]s.
 
 use super::GpuError;
-use super::context::{
-    ErrorScope, GpuContext, Slot, compute_pipeline, slots_layout, storage_init, whole,
-};
+use std::sync::Arc;
+
+use super::context::{ErrorScope, GpuContext, KernelPipeline, SingleKernel, storage_init};
 use super::shaders;
+use super::shaders::Shader;
 use crate::horizon::{Horizon, HorizonEngine, HorizonError};
 use crate::terrain::TerrainStack;
 use crate::twins::horizon_scan::{
@@ -35,10 +36,19 @@ pub enum GpuHorizonError {
     Gpu(#[from] GpuError),
 }
 
+/// The horizon scan: params; heights, sites, azimuths; output.
+pub(crate) struct HorizonScanKernel;
+
+impl SingleKernel for HorizonScanKernel {
+    const SHADER: Shader = shaders::HORIZON_SCAN;
+    const READS: u32 = 3;
+    const READ_WRITES: u32 = 1;
+    const WHAT: &'static str = "building the horizon_scan pipeline";
+}
+
 /// The horizon-scan pipeline and a terrain stack resident on the GPU.
 pub struct GpuHorizonScan {
-    layout: wgpu::BindGroupLayout,
-    pipeline: wgpu::ComputePipeline,
+    kernel: Arc<KernelPipeline<HorizonScanKernel>>,
     params: ScanParams,
     params_buf: wgpu::Buffer,
     heights: wgpu::Buffer,
@@ -64,19 +74,8 @@ impl GpuHorizonScan {
                 ),
             });
         }
+        let kernel = ctx.pipelines::<KernelPipeline<HorizonScanKernel>>()?;
         let scope = ErrorScope::push(&ctx.device);
-        let layout = slots_layout(
-            &ctx.device,
-            "penumbra horizon_scan layout",
-            &[
-                Slot::Uniform,
-                Slot::Read,
-                Slot::Read,
-                Slot::Read,
-                Slot::ReadWrite,
-            ],
-        );
-        let pipeline = compute_pipeline(&ctx.device, &layout, &shaders::HORIZON_SCAN);
         let params_buf = ctx.uniform_buffer(
             "penumbra horizon_scan params",
             size_of::<ScanParams>() as u64,
@@ -86,10 +85,9 @@ impl GpuHorizonScan {
             "penumbra horizon_scan heights",
             bytemuck::cast_slice(&terrain.heights_m),
         );
-        scope.pop("building the horizon_scan pipeline")?;
+        scope.pop("uploading the horizon_scan terrain")?;
         Ok(GpuHorizonScan {
-            layout,
-            pipeline,
+            kernel,
             params: terrain.params,
             params_buf,
             heights,
@@ -127,17 +125,10 @@ impl GpuHorizonScan {
             bytemuck::cast_slice(azimuths),
         );
         let out = ctx.output_buffer("penumbra horizon_scan out", n_out * 8);
-        let bind_group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("penumbra horizon_scan bind group"),
-            layout: &self.layout,
-            entries: &[
-                whole(0, &self.params_buf),
-                whole(1, &self.heights),
-                whole(2, &site_buf),
-                whole(3, &az_buf),
-                whole(4, &out),
-            ],
-        });
+        let bind_group = self.kernel.bind(
+            ctx,
+            &[&self.params_buf, &self.heights, &site_buf, &az_buf, &out],
+        );
         let n_sites = sites.len() as u32;
         let mut site0 = 0;
         while site0 < n_sites {
@@ -152,7 +143,7 @@ impl GpuHorizonScan {
                 .write_buffer(&self.params_buf, 0, bytemuck::bytes_of(&params));
             ctx.dispatch(
                 "horizon_scan",
-                &self.pipeline,
+                &self.kernel.pipeline,
                 &bind_group,
                 &[],
                 [groups_x, chunk, 1],

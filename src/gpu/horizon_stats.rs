@@ -9,10 +9,9 @@
 use std::sync::Arc;
 
 use super::GpuError;
-use super::context::{
-    ErrorScope, GpuContext, Slot, compute_pipeline, slots_layout, storage_init, whole,
-};
+use super::context::{ErrorScope, GpuContext, KernelPipeline, SingleKernel, storage_init};
 use super::shaders;
+use super::shaders::Shader;
 use crate::horizon::HorizonError;
 use crate::horizon::statistics::{CellKernel, KernelAcc, KernelCell, KernelShared};
 use crate::twins::horizon_stats::{
@@ -27,11 +26,21 @@ struct Resident {
     index: wgpu::Buffer,
 }
 
+/// The statistics kernel: params; cells, horizons, epochs, tables, azimuth index; the
+/// statistics.
+pub(crate) struct HorizonStatsKernel;
+
+impl SingleKernel for HorizonStatsKernel {
+    const SHADER: Shader = shaders::HORIZON_STATS;
+    const READS: u32 = 5;
+    const READ_WRITES: u32 = 1;
+    const WHAT: &'static str = "building the horizon_stats pipeline";
+}
+
 /// The statistics kernel on a GPU.
 pub struct GpuHorizonStats<'a> {
     ctx: &'a GpuContext,
-    layout: wgpu::BindGroupLayout,
-    pipeline: wgpu::ComputePipeline,
+    kernel: Arc<KernelPipeline<HorizonStatsKernel>>,
     params_buf: wgpu::Buffer,
     resident: Option<Resident>,
 }
@@ -43,33 +52,18 @@ impl From<GpuError> for HorizonError {
 }
 
 impl<'a> GpuHorizonStats<'a> {
-    /// Builds the pipeline.
+    /// The kernel on `ctx` (its pipeline built on first use).
     pub fn new(ctx: &'a GpuContext) -> Result<Self, GpuError> {
+        let kernel = ctx.pipelines::<KernelPipeline<HorizonStatsKernel>>()?;
         let scope = ErrorScope::push(&ctx.device);
-        // params, cells, horizons, epochs, tables, azimuth index; the statistics.
-        let layout = slots_layout(
-            &ctx.device,
-            "penumbra horizon_stats layout",
-            &[
-                Slot::Uniform,
-                Slot::Read,
-                Slot::Read,
-                Slot::Read,
-                Slot::Read,
-                Slot::Read,
-                Slot::ReadWrite,
-            ],
-        );
-        let pipeline = compute_pipeline(&ctx.device, &layout, &shaders::HORIZON_STATS);
         let params_buf = ctx.uniform_buffer(
             "penumbra horizon_stats params",
             size_of::<HorizonStatsParams>() as u64,
         );
-        scope.pop("building the horizon_stats pipeline")?;
+        scope.pop("creating the horizon_stats params")?;
         Ok(GpuHorizonStats {
             ctx,
-            layout,
-            pipeline,
+            kernel,
             params_buf,
             resident: None,
         })
@@ -97,19 +91,18 @@ impl<'a> GpuHorizonStats<'a> {
         let acc_bytes = (cells.len() * size_of::<KernelAcc>()) as u64;
         // wgpu zero-initialises new buffers: the statistics start empty.
         let acc = ctx.output_buffer("penumbra horizon_stats acc", acc_bytes);
-        let bind_group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("penumbra horizon_stats bind group"),
-            layout: &self.layout,
-            entries: &[
-                whole(0, &self.params_buf),
-                whole(1, &cells_buf),
-                whole(2, &horizons_buf),
-                whole(3, &r.epochs),
-                whole(4, &r.tables),
-                whole(5, &r.index),
-                whole(6, &acc),
+        let bind_group = self.kernel.bind(
+            ctx,
+            &[
+                &self.params_buf,
+                &cells_buf,
+                &horizons_buf,
+                &r.epochs,
+                &r.tables,
+                &r.index,
+                &acc,
             ],
-        });
+        );
         let groups = (cells.len() as u32).div_ceil(WORKGROUP_SIZE);
         let groups_x = groups.min(ctx.limits().max_compute_workgroups_per_dimension);
         let groups_y = groups.div_ceil(groups_x);
@@ -128,7 +121,7 @@ impl<'a> GpuHorizonStats<'a> {
                 .write_buffer(&self.params_buf, 0, bytemuck::bytes_of(&params));
             ctx.dispatch(
                 "horizon_stats",
-                &self.pipeline,
+                &self.kernel.pipeline,
                 &bind_group,
                 &[],
                 [groups_x, groups_y, 1],

@@ -8,10 +8,11 @@
 //! [`HorizonSweep::run`] does.
 
 use super::GpuError;
-use super::context::{
-    ErrorScope, GpuContext, Slot, compute_pipeline, slots_layout, storage_init, whole,
-};
+use std::sync::Arc;
+
+use super::context::{ErrorScope, GpuContext, KernelPipeline, SingleKernel, storage_init};
 use super::shaders;
+use super::shaders::Shader;
 use crate::horizon::{HorizonSweep, SweepBand};
 use crate::twins::line_sweep::{
     LineBatch, LineSweepParams, SweepGrid, WORKGROUP_SIZE, sweep_batched,
@@ -20,10 +21,20 @@ use crate::twins::line_sweep::{
 /// Largest batch, samples (the hull scratch is 32 B per sample: 256 MiB).
 pub const MAX_BATCH_SAMPLES: usize = 1 << 23;
 
+/// The line sweep's looks: params; lines, samples, observers, heights; the hull scratch and the
+/// output.
+pub(crate) struct LineSweepKernel;
+
+impl SingleKernel for LineSweepKernel {
+    const SHADER: Shader = shaders::LINE_SWEEP;
+    const READS: u32 = 4;
+    const READ_WRITES: u32 = 2;
+    const WHAT: &'static str = "building the line_sweep pipeline";
+}
+
 /// The line-sweep pipeline and the finest layer resident on the GPU.
 pub struct GpuLineSweep {
-    layout: wgpu::BindGroupLayout,
-    pipeline: wgpu::ComputePipeline,
+    kernel: Arc<KernelPipeline<LineSweepKernel>>,
     params: LineSweepParams,
     params_buf: wgpu::Buffer,
     heights: wgpu::Buffer,
@@ -49,21 +60,8 @@ impl GpuLineSweep {
         let max_samples = usize::try_from(max_binding / 32)
             .unwrap_or(usize::MAX)
             .min(MAX_BATCH_SAMPLES);
+        let kernel = ctx.pipelines::<KernelPipeline<LineSweepKernel>>()?;
         let scope = ErrorScope::push(&ctx.device);
-        let layout = slots_layout(
-            &ctx.device,
-            "penumbra line_sweep layout",
-            &[
-                Slot::Uniform,
-                Slot::Read,
-                Slot::Read,
-                Slot::Read,
-                Slot::Read,
-                Slot::ReadWrite,
-                Slot::ReadWrite,
-            ],
-        );
-        let pipeline = compute_pipeline(&ctx.device, &layout, &shaders::LINE_SWEEP);
         let params_buf = ctx.uniform_buffer(
             "penumbra line_sweep params",
             size_of::<LineSweepParams>() as u64,
@@ -73,10 +71,9 @@ impl GpuLineSweep {
             "penumbra line_sweep heights",
             bytemuck::cast_slice(&grid.heights_m),
         );
-        scope.pop("building the line_sweep pipeline")?;
+        scope.pop("uploading the line_sweep heights")?;
         Ok(GpuLineSweep {
-            layout,
-            pipeline,
+            kernel,
             params: grid.params,
             params_buf,
             heights,
@@ -143,22 +140,21 @@ impl GpuLineSweep {
         let out = ctx.output_buffer("penumbra line_sweep out", n_out * 8);
         ctx.queue
             .write_buffer(&self.params_buf, 0, bytemuck::bytes_of(&params));
-        let bind_group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("penumbra line_sweep bind group"),
-            layout: &self.layout,
-            entries: &[
-                whole(0, &self.params_buf),
-                whole(1, &lines),
-                whole(2, &samples),
-                whole(3, &observers),
-                whole(4, &self.heights),
-                whole(5, &hull),
-                whole(6, &out),
+        let bind_group = self.kernel.bind(
+            ctx,
+            &[
+                &self.params_buf,
+                &lines,
+                &samples,
+                &observers,
+                &self.heights,
+                &hull,
+                &out,
             ],
-        });
+        );
         ctx.dispatch(
             "line_sweep",
-            &self.pipeline,
+            &self.kernel.pipeline,
             &bind_group,
             &[],
             [groups_x, groups_y, 1],

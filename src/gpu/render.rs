@@ -17,10 +17,11 @@ use wgpu::util::DeviceExt as _;
 
 use super::GpuError;
 use super::context::{
-    DEFAULT_BAND_BYTES, ErrorScope, GpuContext, Slot, WORKGROUP_SIZE_XY, band_rows,
-    compute_pipeline, slots_layout, storage_init, whole,
+    DEFAULT_BAND_BYTES, ErrorScope, GpuContext, KernelPipeline, SingleKernel, WORKGROUP_SIZE_XY,
+    band_rows, storage_init,
 };
 use super::shaders;
+use super::shaders::Shader;
 use crate::render::{Camera, Sample, Scene};
 
 /// Hole marker in the uploaded heights and pyramid (the shader tests `< -1e29`).
@@ -58,31 +59,14 @@ mod gpu_data {
 }
 use gpu_data::Params;
 
-/// Bind group layout and pipeline of the render kernel (built once, in [`GpuContext::new`]).
-pub(crate) struct RenderPipeline {
-    layout: wgpu::BindGroupLayout,
-    pipeline: wgpu::ComputePipeline,
-}
+/// The render kernel: params; heights, pyramid, levels, fractions; output.
+pub(crate) struct RenderKernel;
 
-impl super::context::Pipelines for RenderPipeline {
+impl SingleKernel for RenderKernel {
+    const SHADER: Shader = shaders::RENDER;
+    const READS: u32 = 4;
+    const READ_WRITES: u32 = 1;
     const WHAT: &'static str = "building the render pipeline";
-
-    fn build(device: &wgpu::Device) -> Self {
-        let layout = slots_layout(
-            device,
-            "penumbra render layout",
-            &[
-                Slot::Uniform,
-                Slot::Read,
-                Slot::Read,
-                Slot::Read,
-                Slot::Read,
-                Slot::ReadWrite,
-            ],
-        );
-        let pipeline = compute_pipeline(device, &layout, &shaders::RENDER);
-        RenderPipeline { layout, pipeline }
-    }
 }
 
 /// A scene uploaded to the GPU: heights, maximum mipmap, level table, visible fractions, and the
@@ -237,7 +221,7 @@ pub fn render_radiance_gpu(
     height: u32,
     options: RenderGpuOptions,
 ) -> Result<Vec<f32>, GpuError> {
-    let render = ctx.pipelines::<RenderPipeline>()?;
+    let render = ctx.pipelines::<KernelPipeline<RenderKernel>>()?;
     crate::render::check_size(width, height).map_err(|e| invalid(e.to_string()))?;
     let band_rows = band_rows(ctx, height, width, 4, options.band_bytes);
     if width.div_ceil(WORKGROUP_SIZE_XY) > ctx.limits().max_compute_workgroups_per_dimension {
@@ -283,18 +267,17 @@ pub fn render_radiance_gpu(
         });
     let band_bytes = u64::from(band_rows) * u64::from(width) * 4;
     let output = ctx.output_buffer("penumbra render output band", band_bytes);
-    let bind_group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-        label: Some("penumbra render bind group"),
-        layout: &render.layout,
-        entries: &[
-            whole(0, &uniform),
-            whole(1, &scene.heights),
-            whole(2, &scene.pyramid),
-            whole(3, &scene.levels),
-            whole(4, &scene.fractions),
-            whole(5, &output),
+    let bind_group = render.bind(
+        ctx,
+        &[
+            &uniform,
+            &scene.heights,
+            &scene.pyramid,
+            &scene.levels,
+            &scene.fractions,
+            &output,
         ],
-    });
+    );
     let mut all = Vec::with_capacity(width as usize * height as usize);
     let mut row0 = 0;
     while row0 < height {
