@@ -554,11 +554,11 @@ pub(crate) fn compute_pipeline(
 }
 
 /// Uploads `data` as a read-only storage buffer.
-pub(crate) fn storage_init(ctx: &GpuContext, label: &str, data: &[u8]) -> wgpu::Buffer {
+pub(crate) fn storage_init<T: Pod>(ctx: &GpuContext, label: &str, data: &[T]) -> wgpu::Buffer {
     ctx.device
         .create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some(label),
-            contents: data,
+            contents: bytemuck::cast_slice(data),
             usage: wgpu::BufferUsages::STORAGE,
         })
 }
@@ -651,11 +651,7 @@ impl GpuGrid {
     pub(crate) fn new(ctx: &GpuContext, grid: &MarchGrid) -> Self {
         GpuGrid {
             params: grid_params_buffer(ctx, "penumbra grid params", grid),
-            heights: storage_init(
-                ctx,
-                "penumbra heights",
-                bytemuck::cast_slice(&grid.heights_m),
-            ),
+            heights: storage_init(ctx, "penumbra heights", &grid.heights_m),
             rows: grid.rows,
             cols: grid.cols,
         }

@@ -256,12 +256,8 @@ impl GpuDpGrid {
         let scope = ErrorScope::push(&ctx.device);
         let on_gpu = GpuDpGrid {
             grid: GpuGrid::new(ctx, grid),
-            mip: storage_init(ctx, "penumbra dp mipmap", bytemuck::cast_slice(&mip.texels)),
-            levels: storage_init(
-                ctx,
-                "penumbra dp mipmap levels",
-                bytemuck::cast_slice(&mip.levels),
-            ),
+            mip: storage_init(ctx, "penumbra dp mipmap", &mip.texels),
+            levels: storage_init(ctx, "penumbra dp mipmap levels", &mip.levels),
         };
         scope.pop("uploading the height field and its maximum mipmap")?;
         Ok(on_gpu)
@@ -325,7 +321,7 @@ pub fn dp_visible_gpu(
     let (rows, cols) = (grid.grid.rows, grid.grid.cols);
     let band_rows = grid.grid.band_rows(ctx, 4, band_bytes);
     let scope = ErrorScope::push(&ctx.device);
-    let lights = storage_init(ctx, "penumbra dp light", bytemuck::cast_slice(&[light]));
+    let lights = storage_init(ctx, "penumbra dp light", &[light]);
     let slots = ctx.slot_buffer(1);
     let out = ctx.output_buffer(
         "penumbra dp band",
@@ -413,12 +409,8 @@ pub fn dp_points_gpu(
         message: format!("{} points exceed 2^32", points.len()),
     })?;
     let scope = ErrorScope::push(&ctx.device);
-    let lights = storage_init(
-        ctx,
-        "penumbra dp points light",
-        bytemuck::cast_slice(&[light]),
-    );
-    let obs = storage_init(ctx, "penumbra dp points", bytemuck::cast_slice(points));
+    let lights = storage_init(ctx, "penumbra dp points light", &[light]);
+    let obs = storage_init(ctx, "penumbra dp points", points);
     let slots = ctx.slot_buffer(1);
     let out = ctx.output_buffer("penumbra dp points out", u64::from(chunk.min(n)) * 4);
     let bind_group = grid.bind_group(ctx, &dp.tile_layout, (&lights, &slots, &out), &[&obs]);
@@ -467,16 +459,8 @@ pub fn dp_points_sweep_gpu(
     let stats_bytes = size_of::<DpCellStats>() as u64;
     let chunk = points_per_chunk(ctx, options.band_bytes, stats_bytes).min(n);
     let scope = ErrorScope::push(&ctx.device);
-    let table = storage_init(
-        ctx,
-        "penumbra dp points light table",
-        bytemuck::cast_slice(lights),
-    );
-    let obs = storage_init(
-        ctx,
-        "penumbra dp sweep points",
-        bytemuck::cast_slice(points),
-    );
+    let table = storage_init(ctx, "penumbra dp points light table", lights);
+    let obs = storage_init(ctx, "penumbra dp sweep points", points);
     let slots = ctx.slot_buffer(options.dispatches_per_submit);
     let stats = ctx.output_buffer(
         "penumbra dp points sweep stats",
@@ -558,7 +542,7 @@ pub fn dp_sweep_gpu(
     let band_rows = grid.grid.band_rows(ctx, stats_bytes, options.band_bytes);
     let scope = ErrorScope::push(&ctx.device);
     // Uploaded once for the whole sweep.
-    let table = storage_init(ctx, "penumbra dp light table", bytemuck::cast_slice(lights));
+    let table = storage_init(ctx, "penumbra dp light table", lights);
     let slots = ctx.slot_buffer(options.dispatches_per_submit);
     let band_cells = u64::from(band_rows) * u64::from(cols);
     let stats = ctx.output_buffer("penumbra dp sweep stats", band_cells * stats_bytes);
@@ -730,16 +714,8 @@ pub fn dp_sites_gpu(
     }
     let out_bytes = lights.len() as u64 * 4;
     let scope = ErrorScope::push(&ctx.device);
-    let table = storage_init(
-        ctx,
-        "penumbra dp sites lights",
-        bytemuck::cast_slice(lights),
-    );
-    let obs = storage_init(
-        ctx,
-        "penumbra dp sites observers",
-        bytemuck::cast_slice(observers),
-    );
+    let table = storage_init(ctx, "penumbra dp sites lights", lights);
+    let obs = storage_init(ctx, "penumbra dp sites observers", observers);
     let out = ctx.output_buffer("penumbra dp sites out", out_bytes);
     let slots = ctx.slot_buffer(steps.len() as u32);
     let step_values: Vec<DpStep> = steps.iter().map(|s| s.0).collect();

@@ -23,12 +23,10 @@ use wgpu::util::DeviceExt as _;
 
 use super::GpuError;
 use super::context::{
-    DEFAULT_BAND_BYTES, ErrorScope, GpuContext, GpuGrid, KernelPipeline, SingleKernel,
-    WORKGROUP_SIZE_XY, band_rows, check_dispatch_cols, compute_pipeline, layout_entry,
-    storage_init, whole,
+    DEFAULT_BAND_BYTES, ErrorScope, GpuContext, GpuGrid, KernelPipeline, WORKGROUP_SIZE_XY,
+    band_rows, check_dispatch_cols, compute_pipeline, layout_entry, storage_init, whole,
 };
 use super::shaders;
-use super::shaders::Shader;
 use crate::shadow::ShadowError;
 use crate::shadow::fourier::{HorizonMap, HorizonMapMeta, HorizonMapParams};
 use crate::terrain::HeightField;
@@ -83,14 +81,9 @@ impl super::context::Pipelines for FourierBuildPipeline {
     }
 }
 
-/// The Fourier evaluation: params; packed coefficients; output.
-pub(crate) struct FourierEvalKernel;
-
-impl SingleKernel for FourierEvalKernel {
-    const SHADER: Shader = shaders::FOURIER_EVAL;
-    const READS: u32 = 1;
-    const READ_WRITES: u32 = 1;
-    const WHAT: &'static str = "building the Fourier pipelines";
+single_kernel! {
+    /// The Fourier evaluation: params; packed coefficients; output.
+    FourierEvalKernel = FOURIER_EVAL, 1, 1, "building the Fourier pipelines"
 }
 
 /// How the GPU build splits its work (the result does not depend on it, bit for bit).
@@ -162,7 +155,7 @@ pub fn build_horizon_map_gpu_with(
     let sincos = storage_init(
         ctx,
         "penumbra fourier sincos",
-        bytemuck::cast_slice(&azimuth_table(params.n_azimuths)),
+        &azimuth_table(params.n_azimuths),
     );
     let fb_buf = ctx.uniform_buffer(
         "penumbra fourier_build params",

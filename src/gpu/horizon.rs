@@ -11,9 +11,7 @@
 use super::GpuError;
 use std::sync::Arc;
 
-use super::context::{ErrorScope, GpuContext, KernelPipeline, SingleKernel, storage_init};
-use super::shaders;
-use super::shaders::Shader;
+use super::context::{ErrorScope, GpuContext, KernelPipeline, storage_init};
 use crate::horizon::{Horizon, HorizonEngine, HorizonError};
 use crate::terrain::TerrainStack;
 use crate::twins::horizon_scan::{
@@ -36,14 +34,9 @@ pub enum GpuHorizonError {
     Gpu(#[from] GpuError),
 }
 
-/// The horizon scan: params; heights, sites, azimuths; output.
-pub(crate) struct HorizonScanKernel;
-
-impl SingleKernel for HorizonScanKernel {
-    const SHADER: Shader = shaders::HORIZON_SCAN;
-    const READS: u32 = 3;
-    const READ_WRITES: u32 = 1;
-    const WHAT: &'static str = "building the horizon_scan pipeline";
+single_kernel! {
+    /// The horizon scan: params; heights, sites, azimuths; output.
+    HorizonScanKernel = HORIZON_SCAN, 3, 1, "building the horizon_scan pipeline"
 }
 
 /// The horizon-scan pipeline and a terrain stack resident on the GPU.
@@ -80,11 +73,7 @@ impl GpuHorizonScan {
             "penumbra horizon_scan params",
             size_of::<ScanParams>() as u64,
         );
-        let heights = storage_init(
-            ctx,
-            "penumbra horizon_scan heights",
-            bytemuck::cast_slice(&terrain.heights_m),
-        );
+        let heights = storage_init(ctx, "penumbra horizon_scan heights", &terrain.heights_m);
         scope.pop("uploading the horizon_scan terrain")?;
         Ok(GpuHorizonScan {
             kernel,
@@ -114,16 +103,8 @@ impl GpuHorizonScan {
             });
         }
         let scope = ErrorScope::push(&ctx.device);
-        let site_buf = storage_init(
-            ctx,
-            "penumbra horizon_scan sites",
-            bytemuck::cast_slice(sites),
-        );
-        let az_buf = storage_init(
-            ctx,
-            "penumbra horizon_scan azimuths",
-            bytemuck::cast_slice(azimuths),
-        );
+        let site_buf = storage_init(ctx, "penumbra horizon_scan sites", sites);
+        let az_buf = storage_init(ctx, "penumbra horizon_scan azimuths", azimuths);
         let out = ctx.output_buffer("penumbra horizon_scan out", n_out * 8);
         let bind_group = self.kernel.bind(
             ctx,

@@ -9,9 +9,7 @@
 use std::sync::Arc;
 
 use super::GpuError;
-use super::context::{ErrorScope, GpuContext, KernelPipeline, SingleKernel, storage_init};
-use super::shaders;
-use super::shaders::Shader;
+use super::context::{ErrorScope, GpuContext, KernelPipeline, storage_init};
 use crate::horizon::HorizonError;
 use crate::horizon::statistics::{CellKernel, KernelAcc, KernelCell, KernelShared};
 use crate::twins::horizon_stats::{
@@ -26,15 +24,10 @@ struct Resident {
     index: wgpu::Buffer,
 }
 
-/// The statistics kernel: params; cells, horizons, epochs, tables, azimuth index; the
-/// statistics.
-pub(crate) struct HorizonStatsKernel;
-
-impl SingleKernel for HorizonStatsKernel {
-    const SHADER: Shader = shaders::HORIZON_STATS;
-    const READS: u32 = 5;
-    const READ_WRITES: u32 = 1;
-    const WHAT: &'static str = "building the horizon_stats pipeline";
+single_kernel! {
+    /// The statistics kernel: params; cells, horizons, epochs, tables, azimuth index; the
+    /// statistics.
+    HorizonStatsKernel = HORIZON_STATS, 5, 1, "building the horizon_stats pipeline"
 }
 
 /// The statistics kernel on a GPU.
@@ -78,16 +71,8 @@ impl<'a> GpuHorizonStats<'a> {
     ) -> Result<Vec<KernelAcc>, GpuError> {
         let ctx = self.ctx;
         let scope = ErrorScope::push(&ctx.device);
-        let cells_buf = storage_init(
-            ctx,
-            "penumbra horizon_stats cells",
-            bytemuck::cast_slice(cells),
-        );
-        let horizons_buf = storage_init(
-            ctx,
-            "penumbra horizon_stats horizons",
-            bytemuck::cast_slice(horizons),
-        );
+        let cells_buf = storage_init(ctx, "penumbra horizon_stats cells", cells);
+        let horizons_buf = storage_init(ctx, "penumbra horizon_stats horizons", horizons);
         let acc_bytes = (cells.len() * size_of::<KernelAcc>()) as u64;
         // wgpu zero-initialises new buffers: the statistics start empty.
         let acc = ctx.output_buffer("penumbra horizon_stats acc", acc_bytes);
@@ -154,13 +139,9 @@ impl CellKernel for GpuHorizonStats<'_> {
             tables: storage_init(
                 self.ctx,
                 "penumbra horizon_stats tables",
-                bytemuck::cast_slice(&packed_tables(&shared)),
+                &packed_tables(&shared),
             ),
-            index: storage_init(
-                self.ctx,
-                "penumbra horizon_stats index",
-                bytemuck::cast_slice(&shared.index),
-            ),
+            index: storage_init(self.ctx, "penumbra horizon_stats index", &shared.index),
             shared,
         });
         scope.pop("uploading the horizon_stats epochs")?;

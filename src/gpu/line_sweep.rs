@@ -10,9 +10,7 @@
 use super::GpuError;
 use std::sync::Arc;
 
-use super::context::{ErrorScope, GpuContext, KernelPipeline, SingleKernel, storage_init};
-use super::shaders;
-use super::shaders::Shader;
+use super::context::{ErrorScope, GpuContext, KernelPipeline, storage_init};
 use crate::horizon::{HorizonSweep, SweepBand};
 use crate::twins::line_sweep::{
     LineBatch, LineSweepParams, SweepGrid, WORKGROUP_SIZE, sweep_batched,
@@ -21,15 +19,10 @@ use crate::twins::line_sweep::{
 /// Largest batch, samples (the hull scratch is 32 B per sample: 256 MiB).
 pub const MAX_BATCH_SAMPLES: usize = 1 << 23;
 
-/// The line sweep's looks: params; lines, samples, observers, heights; the hull scratch and the
-/// output.
-pub(crate) struct LineSweepKernel;
-
-impl SingleKernel for LineSweepKernel {
-    const SHADER: Shader = shaders::LINE_SWEEP;
-    const READS: u32 = 4;
-    const READ_WRITES: u32 = 2;
-    const WHAT: &'static str = "building the line_sweep pipeline";
+single_kernel! {
+    /// The line sweep's looks: params; lines, samples, observers, heights; the hull scratch and
+    /// the output.
+    LineSweepKernel = LINE_SWEEP, 4, 2, "building the line_sweep pipeline"
 }
 
 /// The line-sweep pipeline and the finest layer resident on the GPU.
@@ -66,11 +59,7 @@ impl GpuLineSweep {
             "penumbra line_sweep params",
             size_of::<LineSweepParams>() as u64,
         );
-        let heights = storage_init(
-            ctx,
-            "penumbra line_sweep heights",
-            bytemuck::cast_slice(&grid.heights_m),
-        );
+        let heights = storage_init(ctx, "penumbra line_sweep heights", &grid.heights_m);
         scope.pop("uploading the line_sweep heights")?;
         Ok(GpuLineSweep {
             kernel,
@@ -118,19 +107,9 @@ impl GpuLineSweep {
             ..self.params
         };
         let scope = ErrorScope::push(&ctx.device);
-        let init = |label: &str, contents: &[u8]| storage_init(ctx, label, contents);
-        let lines = init(
-            "penumbra line_sweep lines",
-            bytemuck::cast_slice(&batch.lines),
-        );
-        let samples = init(
-            "penumbra line_sweep samples",
-            bytemuck::cast_slice(&batch.samples),
-        );
-        let observers = init(
-            "penumbra line_sweep observers",
-            bytemuck::cast_slice(&batch.observers),
-        );
+        let lines = storage_init(ctx, "penumbra line_sweep lines", &batch.lines);
+        let samples = storage_init(ctx, "penumbra line_sweep samples", &batch.samples);
+        let observers = storage_init(ctx, "penumbra line_sweep observers", &batch.observers);
         let hull = ctx.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("penumbra line_sweep hull"),
             size: 2 * batch.samples.len() as u64 * 16,

@@ -13,6 +13,24 @@
 //! `mod gpu_data` mirror structs. The WGSL lives in `shaders/` at the crate root; [`shaders`] says
 //! which shared parts each kernel is composed of and embeds the result at compile time.
 
+/// Declares `$name`, a [`context::SingleKernel`] of the shader `$shader` with `$reads` read-only
+/// and `$read_writes` read-write storage buffers after its uniform; `$what` names its pipeline
+/// build in errors.
+#[cfg(feature = "gpu")]
+macro_rules! single_kernel {
+    ($(#[$doc:meta])* $name:ident = $shader:ident, $reads:literal, $read_writes:literal, $what:literal) => {
+        $(#[$doc])*
+        pub(crate) struct $name;
+
+        impl super::context::SingleKernel for $name {
+            const SHADER: super::shaders::Shader = super::shaders::$shader;
+            const READS: u32 = $reads;
+            const READ_WRITES: u32 = $read_writes;
+            const WHAT: &'static str = $what;
+        }
+    };
+}
+
 mod backend;
 mod error;
 pub mod shaders;

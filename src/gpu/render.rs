@@ -17,11 +17,9 @@ use wgpu::util::DeviceExt as _;
 
 use super::GpuError;
 use super::context::{
-    DEFAULT_BAND_BYTES, ErrorScope, GpuContext, KernelPipeline, SingleKernel, WORKGROUP_SIZE_XY,
-    band_rows, storage_init,
+    DEFAULT_BAND_BYTES, ErrorScope, GpuContext, KernelPipeline, WORKGROUP_SIZE_XY, band_rows,
+    storage_init,
 };
-use super::shaders;
-use super::shaders::Shader;
 use crate::render::{Camera, Sample, Scene};
 
 /// Hole marker in the uploaded heights and pyramid (the shader tests `< -1e29`).
@@ -59,14 +57,9 @@ mod gpu_data {
 }
 use gpu_data::Params;
 
-/// The render kernel: params; heights, pyramid, levels, fractions; output.
-pub(crate) struct RenderKernel;
-
-impl SingleKernel for RenderKernel {
-    const SHADER: Shader = shaders::RENDER;
-    const READS: u32 = 4;
-    const READ_WRITES: u32 = 1;
-    const WHAT: &'static str = "building the render pipeline";
+single_kernel! {
+    /// The render kernel: params; heights, pyramid, levels, fractions; output.
+    RenderKernel = RENDER, 4, 1, "building the render pipeline"
 }
 
 /// A scene uploaded to the GPU: heights, maximum mipmap, level table, visible fractions, and the
@@ -154,22 +147,10 @@ impl GpuRenderScene {
         let unit = |v: [f64; 3], r: f64| [v[0] as f32, v[1] as f32, v[2] as f32, r.sin() as f32];
         let scope = ErrorScope::push(&ctx.device);
         let out = GpuRenderScene {
-            heights: storage_init(
-                ctx,
-                "penumbra render heights",
-                bytemuck::cast_slice(&heights),
-            ),
-            pyramid: storage_init(
-                ctx,
-                "penumbra render pyramid",
-                bytemuck::cast_slice(&texels),
-            ),
-            levels: storage_init(ctx, "penumbra render levels", bytemuck::cast_slice(&levels)),
-            fractions: storage_init(
-                ctx,
-                "penumbra render fractions",
-                bytemuck::cast_slice(&fractions),
-            ),
+            heights: storage_init(ctx, "penumbra render heights", &heights),
+            pyramid: storage_init(ctx, "penumbra render pyramid", &texels),
+            levels: storage_init(ctx, "penumbra render levels", &levels),
+            fractions: storage_init(ctx, "penumbra render fractions", &fractions),
             rows: hf.rows as u32,
             cols: hf.cols as u32,
             n_levels: levels.len() as u32,

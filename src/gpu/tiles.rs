@@ -142,17 +142,9 @@ impl GpuTileBlock {
         let DpMip { levels, texels } = &block.mip;
         GpuTileBlock {
             rect: block.rect,
-            heights: storage_init(
-                ctx,
-                "penumbra dp tile heights",
-                bytemuck::cast_slice(&block.heights_m),
-            ),
-            mip: storage_init(ctx, "penumbra dp tile mipmap", bytemuck::cast_slice(texels)),
-            levels: storage_init(
-                ctx,
-                "penumbra dp tile mipmap levels",
-                bytemuck::cast_slice(levels),
-            ),
+            heights: storage_init(ctx, "penumbra dp tile heights", &block.heights_m),
+            mip: storage_init(ctx, "penumbra dp tile mipmap", texels),
+            levels: storage_init(ctx, "penumbra dp tile mipmap levels", levels),
             bytes: block.bytes(),
         }
     }
@@ -312,7 +304,7 @@ impl<'a> TiledRun<'a> {
             bounds,
             max_tile_cells,
             params: grid_params_buffer(ctx, "penumbra dp tile grid params", grid),
-            lights: storage_init(ctx, "penumbra dp tile lights", bytemuck::cast_slice(lights)),
+            lights: storage_init(ctx, "penumbra dp tile lights", lights),
             slots: ctx.slot_buffer(plan.len() as u32 + 1),
             cache: BlockCache::new(plan.len(), cache_bytes),
             stats: TileRunStats {
