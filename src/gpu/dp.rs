@@ -348,12 +348,12 @@ pub fn dp_visible_gpu(
 }
 
 /// Checks point records (`[col, row, z − z_ref, min_s]`) for `kernel`: inside the lattice, with
-/// a finite height and a finite, non-negative nearest distance.
+/// a finite height and a finite, non-negative nearest distance, and fewer than 2^32; their number.
 fn check_points(
     grid: &GpuDpGrid,
     points: &[[f32; 4]],
     kernel: &'static str,
-) -> Result<(), GpuError> {
+) -> Result<u32, GpuError> {
     let (rows, cols) = (f64::from(grid.grid.rows - 1), f64::from(grid.grid.cols - 1));
     for o in points {
         let (col, row, z, min_s) = (f64::from(o[0]), f64::from(o[1]), o[2], o[3]);
@@ -372,7 +372,10 @@ fn check_points(
             });
         }
     }
-    Ok(())
+    u32::try_from(points.len()).map_err(|_| GpuError::InvalidInput {
+        kernel,
+        message: format!("{} points exceed 2^32", points.len()),
+    })
 }
 
 /// Points per chunk of a points kernel: `budget_bytes` of `bytes_per_point` outputs, at least 1
@@ -399,15 +402,11 @@ pub fn dp_points_gpu(
 ) -> Result<Vec<f32>, GpuError> {
     let dp = ctx.pipelines::<DpPipelines>()?;
     check_light(light, "dp_points")?;
-    check_points(grid, points, "dp_points")?;
-    if points.is_empty() {
+    let n = check_points(grid, points, "dp_points")?;
+    if n == 0 {
         return Ok(Vec::new());
     }
     let chunk = points_per_chunk(ctx, band_bytes, 4);
-    let n = u32::try_from(points.len()).map_err(|_| GpuError::InvalidInput {
-        kernel: "dp_points",
-        message: format!("{} points exceed 2^32", points.len()),
-    })?;
     let scope = ErrorScope::push(&ctx.device);
     let lights = storage_init(ctx, "penumbra dp points light", &[light]);
     let obs = storage_init(ctx, "penumbra dp points", points);
@@ -448,14 +447,10 @@ pub fn dp_points_sweep_gpu(
         OPTIONS_NONZERO,
         "dp_points_sweep",
     )?;
-    check_points(grid, points, "dp_points_sweep")?;
-    if points.is_empty() {
+    let n = check_points(grid, points, "dp_points_sweep")?;
+    if n == 0 {
         return Ok(Vec::new());
     }
-    let n = u32::try_from(points.len()).map_err(|_| GpuError::InvalidInput {
-        kernel: "dp_points_sweep",
-        message: format!("{} points exceed 2^32", points.len()),
-    })?;
     let stats_bytes = size_of::<DpCellStats>() as u64;
     let chunk = points_per_chunk(ctx, options.band_bytes, stats_bytes).min(n);
     let scope = ErrorScope::push(&ctx.device);
