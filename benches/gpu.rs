@@ -331,7 +331,7 @@ fn bench_line_sweep(c: &mut Criterion, ctx: Option<&GpuContext>) {
     group.finish();
 }
 
-/// The horizons engine's epoch loop (issue 15): the CPU engine (sector tables, SIMD), its f32
+/// The horizons engine's epoch loop: the CPU engine (sector tables, SIMD), its f32
 /// twin kernel (rayon) and `horizon_stats.wgsl`, each over every pixel of a rough 128² × 150 m
 /// synthetic DEM round the pole (180-azimuth horizons in memory) and 2027 every 6 h (1,460
 /// epochs, Sun and Earth); the block geometry and the below-sphere re-runs are inside the timing,

@@ -1,4 +1,4 @@
-//! Per-site horizons, CPU engines next to the GPU scan at the same size (issue 7 item 4): 100
+//! Per-site horizons, CPU engines next to the GPU scan at the same size: 100
 //! sites on the synthetic south-polar DEM (400² × 100 m), 2 m observer, azimuth step
 //! `PENUMBRA_BENCH_AZ_STEP_DEG` (default 1°, i.e. 360 azimuths; 0.25 gives the CLI default 1440).
 //! Throughput is site-azimuths. Variants: `cpu_exact` / `cpu_fast` (`HorizonEngine`, rayon over

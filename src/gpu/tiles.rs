@@ -1,12 +1,11 @@
-//! 2-D tiled DP shadow maps on the GPU (issue 7 item 4; docs/gpu.md, "Large grids"): for grids
-//! whose heights or maximum mipmap exceed one storage binding (or a memory budget), the one-light
-//! DP map is computed per output tile, walking the rays through one source tile at a time
+//! 2-D tiled DP shadow maps on the GPU (docs/gpu.md, "Large grids"): for grids whose heights or
+//! maximum mipmap exceed one storage binding (or a memory budget), the one-light DP map is
+//! computed per output tile, walking the rays through one source tile at a time
 //! (`shaders/dp_tile_cost.wgsl`, min-accumulating the shadow cost in a per-tile cost buffer),
 //! then turned into fractions (`shaders/dp_tile_fraction.wgsl`); the soft epoch sweep likewise
 //! per batch of epochs (`shaders/dp_tile_sweep_cost.wgsl`, `dp_tile_sweep_accumulate.wgsl`,
-//! [`dp_sweep_tiled_gpu`]). The tile plan, the choice of
-//! source tiles and the CPU twin live in [`crate::twins::dp_tiles`] (why the result is exact is
-//! explained there).
+//! [`dp_sweep_tiled_gpu`]). The tile plan, the choice of source tiles and the CPU twins live in
+//! [`crate::twins::dp_tiles`] (why the result is exact is explained there).
 //!
 //! GPU memory: the output tile's cost buffer and readback staging, `2 × 4 (T + 1)²` B, plus the
 //! resident source blocks (heights `4 (T + 3)²` B + mipmap ≈ `4 · 4/3 · T²` B each) of an LRU

@@ -1,25 +1,23 @@
 //! 2-D tiling of the DP shadow maps for grids larger than one GPU storage binding or than GPU
-//! memory (issue 7 item 4; docs/gpu.md, "Large grids"): the tile plan, the per-tile bounds that
-//! decide which source tiles an output tile needs, and the CPU f32 twins of the tiled kernels
+//! memory (docs/gpu.md, "Large grids"): the tile plan, the per-tile bounds that decide which
+//! source tiles an output tile needs, and the f32 twins of the tiled kernels
 //! (`shaders/dp_tile_*.wgsl`, one function per entry point, over a [`TileSet`]).
 //!
 //! **Why it is exact.** The shadow cost of a cell is a minimum over the samples of its ray
-//! (papers 000/003 eq. 2, `J* = min Δh/t` at the lattice-line crossings). A minimum decomposes over
-//! any cover of the ray: `J* = min_S J*_S`, where `J*_S` only uses the samples inside source tile
-//! `S`. The tiles partition the dual cells (the squares between four cell centres), every crossing
-//! is the exit of some dual cell along the ray, and the walk computes positions, crossing
-//! distances and sample heights in global cell units ([`super::dp::dp_cost_in`]), so a
-//! sample has the same f32 value whichever tile evaluates it. Each tile's walk starts from the
-//! running minimum of the tiles already walked, which also prunes it (`min(best, cap)`); a tile
-//! whose highest texel cannot bring the cost below the disc's cap is skipped altogether. The
-//! result equals the untiled walk's wherever the untiled `J*` is below the cap (where it is not,
-//! the disc is entirely visible in both).
+//! (papers 000/003 eq. 2, `J* = min Δh/t` at the lattice-line crossings), so it decomposes over
+//! any cover of the ray: `J* = min_S J*_S`, `J*_S` using the samples inside source tile `S` only.
+//! The tiles partition the dual cells (the squares between four cell centres), every crossing is
+//! the exit of some dual cell, and the walk works in global cell units
+//! ([`super::dp::dp_cost_in`]), so a sample has the same f32 value in any tile. Each tile's walk
+//! starts from the running minimum of the tiles already walked, which also prunes it
+//! (`min(best, cap)`); a tile whose highest texel cannot bring the cost below the disc's cap is
+//! skipped. The result equals the untiled walk's wherever the untiled `J*` is below the cap
+//! (elsewhere the disc is entirely visible in both).
 //!
-//! **Layout.** Tile `(a, b)` with side `T` owns output cells `[aT, (a+1)T)` (the last tile row
-//! or column absorbs the remainder, so every tile has at least one dual cell) and the dual cells
-//! with the same indices (`[aT, rows − 1)` for the last); its heights block adds one row/column
-//! before and two after (clamped to the grid), which holds every height a sample inside the tile
-//! reads, including the neighbours that f32 rounding of a crossing's position can pick.
+//! **Layout.** Tile `(a, b)` of side `T` owns cells and dual cells `[aT, (a+1)T)` (the last
+//! tile row or column absorbs the remainder, so every tile has a dual cell); its heights block
+//! adds one row/column before and two after (clamped to the grid): every height a sample inside
+//! the tile reads, f32 rounding of its position included.
 
 use rayon::prelude::*;
 

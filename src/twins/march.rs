@@ -1,6 +1,6 @@
 //! The f32 grid every grid kernel reads ([`MarchGrid`]: heights relative to a local origin, as
 //! the GPU sees them), the light reduced to f32 ([`light_to_f32`]), the band of rows a dispatch
-//! covers ([`RowBand`]), and the twin of the 2-D DDA of `shaders/shared/march.wgsl` ([`Dda`],
+//! covers ([`RowBand`]), and the twin of the 2-D DDA of `shaders/shared/march.wgsl` (`Dda`,
 //! used by the Fourier build).
 //!
 //! Ray model (`shaders/shared/march.wgsl`): an observer stands `observer_height_m` above the cell

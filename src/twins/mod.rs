@@ -2,11 +2,12 @@
 //! one file per shader family, each function named as the WGSL entry point it mirrors, written
 //! in f32 to be compared line by line with the WGSL.
 //!
-//! They are the parity oracle of the GPU backend (tests/it/gpu*.rs) and the CPU fallback of the
-//! GPU sweep. They are *not* the f64 reference engines of [`crate::shadow`] and
-//! [`crate::horizon`]: the twins reproduce the GPU's arithmetic (f32 heights relative to a local
-//! origin, f32 light vectors), so that a GPU-vs-twin difference can only come from the GPU
-//! (rounding, FMA contraction) or from a bug, never from a different algorithm.
+//! They are the parity oracle of the GPU backend (tests/it/gpu*.rs), *not* the f64 reference
+//! engines of [`crate::shadow`] and [`crate::horizon`]: they reproduce the GPU's arithmetic (f32
+//! heights relative to a local origin, f32 light vectors), so that a GPU-vs-twin difference can
+//! only come from the GPU (rounding, FMA contraction) or from a bug. The sentinels the kernels
+//! share are defined here once. `render.wgsl` has no twin here: its CPU counterpart is the f64
+//! renderer ([`crate::render`]).
 //!
 //! | file | shaders |
 //! |---|---|
@@ -17,8 +18,6 @@
 //! | [`horizon_scan`] | `horizon_scan.wgsl` |
 //! | [`horizon_stats`] | `horizon_stats.wgsl` |
 //! | [`line_sweep`] | `line_sweep.wgsl` |
-//!
-//! The sentinels the kernels share (hole markers, nodata outputs) are defined here once.
 
 pub mod dp;
 pub mod dp_tiles;
