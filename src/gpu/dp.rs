@@ -462,28 +462,22 @@ pub fn dp_points_sweep_gpu(
         u64::from(chunk) * stats_bytes,
     );
     let bind_group = grid.bind_group(ctx, &dp.tile_layout, (&table, &slots, &stats), &[&obs]);
-    let mut all = Vec::with_capacity(points.len());
-    let mut point0 = 0;
-    while point0 < n {
-        let count = chunk.min(n - point0);
-        let sweep = SweepBatches {
-            stats: &stats,
-            slots: &slots,
-            pipeline: &dp.points_sweep,
-            bind_group: &bind_group,
-            workgroups: [count.div_ceil(POINTS_WORKGROUP_SIZE_X), 1, 1],
-        };
-        sweep.run(ctx, epochs, options, |first, epochs_here| {
-            grid.step(first, epochs_here, (point0, count))
-        });
-        let bytes = ctx.read_back(
-            &stats,
-            u64::from(count) * stats_bytes,
-            "DP sweep statistics of points",
-        )?;
-        all.extend_from_slice(bytemuck::cast_slice(&bytes));
-        point0 += count;
-    }
+    let sweep = SoftSweep {
+        grid,
+        stats: &stats,
+        slots: &slots,
+        pipeline: &dp.points_sweep,
+        bind_group: &bind_group,
+        epochs,
+        options,
+    };
+    let all = sweep.run(
+        ctx,
+        (n, chunk),
+        |count| [count.div_ceil(POINTS_WORKGROUP_SIZE_X), 1, 1],
+        u64::from,
+        "DP sweep statistics of points",
+    )?;
     scope.pop("running the DP epoch sweep of points")?;
     Ok(all)
 }
@@ -542,29 +536,28 @@ pub fn dp_sweep_gpu(
     let band_cells = u64::from(band_rows) * u64::from(cols);
     let stats = ctx.output_buffer("penumbra dp sweep stats", band_cells * stats_bytes);
     let bind_group = grid.bind_group(ctx, &dp.layout, (&table, &slots, &stats), &[]);
-    let mut all: Vec<DpCellStats> = Vec::with_capacity(rows as usize * cols as usize);
-    let mut row0 = 0;
-    while row0 < rows {
-        let band = band_rows.min(rows - row0);
-        let sweep = SweepBatches {
-            stats: &stats,
-            slots: &slots,
-            pipeline: &dp.sweep,
-            bind_group: &bind_group,
-            workgroups: [
+    let sweep = SoftSweep {
+        grid,
+        stats: &stats,
+        slots: &slots,
+        pipeline: &dp.sweep,
+        bind_group: &bind_group,
+        epochs,
+        options,
+    };
+    let all = sweep.run(
+        ctx,
+        (rows, band_rows),
+        |band| {
+            [
                 cols.div_ceil(WORKGROUP_SIZE_XY),
                 band.div_ceil(WORKGROUP_SIZE_XY),
                 1,
-            ],
-        };
-        sweep.run(ctx, epochs, options, |first, count| {
-            grid.step(first, count, (row0, band))
-        });
-        let cells = u64::from(band) * u64::from(cols);
-        let bytes = ctx.read_back(&stats, cells * stats_bytes, "DP sweep statistics")?;
-        all.extend_from_slice(bytemuck::cast_slice(&bytes));
-        row0 += band;
-    }
+            ]
+        },
+        |band| u64::from(band) * u64::from(cols),
+        "DP sweep statistics",
+    )?;
     scope.pop("running the DP epoch sweep")?;
     Ok(all)
 }
@@ -595,36 +588,56 @@ pub(crate) fn check_sweep_table(
     })
 }
 
-/// One band of a soft sweep: the statistics buffer it folds into, the step slots, and the
-/// kernel's pipeline, bind group and workgroups.
-struct SweepBatches<'a> {
+/// One soft sweep: the grid, the statistics buffer the epochs fold into, the step slots, the
+/// kernel's pipeline and bind group, and the epochs with their batching.
+struct SoftSweep<'a> {
+    grid: &'a GpuDpGrid,
     stats: &'a wgpu::Buffer,
     slots: &'a wgpu::Buffer,
     pipeline: &'a wgpu::ComputePipeline,
     bind_group: &'a wgpu::BindGroup,
-    workgroups: [u32; 3],
+    epochs: u32,
+    options: DpSweepOptions,
 }
 
-impl SweepBatches<'_> {
-    /// Clears the statistics, then folds all `epochs` in, in dispatches of
-    /// `options.epochs_per_dispatch` epochs (`step(first, count)` their [`DpStep`]), submitted
-    /// `options.dispatches_per_submit` at a time; nothing is read back.
+impl SoftSweep<'_> {
+    /// The statistics of `total` items (rows of the grid, or points), `chunk` items at a time:
+    /// per chunk of `count` items the statistics are cleared, every epoch is folded in
+    /// (dispatches of `workgroups(count)`) and the `cells(count)` statistics are read back.
     fn run(
         &self,
         ctx: &GpuContext,
-        epochs: u32,
-        options: DpSweepOptions,
-        step: impl Fn(u32, u32) -> DpStep,
-    ) {
+        (total, chunk): (u32, u32),
+        workgroups: impl Fn(u32) -> [u32; 3],
+        cells: impl Fn(u32) -> u64,
+        what: &'static str,
+    ) -> Result<Vec<DpCellStats>, GpuError> {
+        let stats_bytes = size_of::<DpCellStats>() as u64;
+        let mut all = Vec::with_capacity(cells(total) as usize);
+        let mut first = 0;
+        while first < total {
+            let count = chunk.min(total - first);
+            self.fold_epochs(ctx, (first, count), workgroups(count));
+            let bytes = ctx.read_back(self.stats, cells(count) * stats_bytes, what)?;
+            all.extend_from_slice(bytemuck::cast_slice(&bytes));
+            first += count;
+        }
+        Ok(all)
+    }
+
+    /// Clears the statistics, then folds all epochs in for the items `band`, in dispatches of
+    /// `options.epochs_per_dispatch` epochs submitted `options.dispatches_per_submit` at a time;
+    /// nothing is read back.
+    fn fold_epochs(&self, ctx: &GpuContext, band: (u32, u32), [x, y, z]: [u32; 3]) {
+        let (epochs, options) = (self.epochs, self.options);
         let per_submit = options.dispatches_per_submit as usize;
         ctx.clear("penumbra dp sweep clear", self.stats);
-        let [x, y, z] = self.workgroups;
         let mut first = 0_u32;
         while first < epochs {
             let mut steps = Vec::with_capacity(per_submit);
             while first < epochs && steps.len() < per_submit {
                 let count = options.epochs_per_dispatch.min(epochs - first);
-                steps.push(step(first, count));
+                steps.push(self.grid.step(first, count, band));
                 first += count;
             }
             ctx.write_slots(self.slots, &steps);
