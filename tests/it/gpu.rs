@@ -12,13 +12,7 @@ fn wgsl_files(sub: &str) -> Vec<std::path::PathBuf> {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("shaders")
         .join(sub);
-    let mut paths: Vec<_> = std::fs::read_dir(&dir)
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .filter(|p| p.extension().is_some_and(|e| e == "wgsl"))
-        .collect();
-    paths.sort();
-    paths
+    crate::util::files_with_extension(&dir, "wgsl")
 }
 
 /// Every shader of the table (`penumbra::gpu::shaders`, from which the pipelines are built)

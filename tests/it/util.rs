@@ -267,6 +267,17 @@ pub fn sweep_lights(epochs: usize) -> Vec<[f32; 4]> {
         .collect()
 }
 
+/// The files of `dir` whose extension is `ext`, sorted.
+pub fn files_with_extension(dir: &Path, ext: &str) -> Vec<PathBuf> {
+    let mut paths: Vec<PathBuf> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == ext))
+        .collect();
+    paths.sort();
+    paths
+}
+
 /// `src` (the WGSL of `name`) parsed and validated by naga with every validation flag and
 /// capability; a failure panics with naga's message and the span it points at.
 pub fn naga_validate(name: &str, src: &str) -> naga::Module {
