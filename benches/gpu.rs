@@ -1,7 +1,6 @@
-//! GPU vs CPU twin, side by side in one criterion group per kernel (anise `crit_*` layout):
-//! the hard-shadow march (one Sun direction, 1.5° elevation) and the epoch sweep (32 epochs)
-//! on synthetic hills of 128² and 256² cells. Throughput is cells (march) or cell-epochs (sweep).
-//! Also `dp_soft` (one soft map, from the cells and from the same observers as point records) and `fourier_build` / `fourier_eval` (Fourier horizon maps,
+//! GPU vs CPU twin, side by side in one criterion group per kernel (anise `crit_*` layout), on
+//! synthetic hills: `dp_soft` (one soft map at 1.5°, from the cells and from the same observers
+//! as point records; throughput cells), `fourier_build` / `fourier_eval` (Fourier horizon maps,
 //! CPU engine vs GPU; throughput rays = cells × azimuths, and cells), and `line_sweep` (the
 //! whole-grid line sweep: the f64 CPU sweep, the twin and the GPU path end to end, and the looks
 //! alone on one packed batch, twin vs GPU; throughput pixel-azimuths), and `horizon_stats` (the
@@ -19,14 +18,9 @@ use std::time::Duration;
 
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use nalgebra::Vector3;
-use penumbra::gpu::GpuContext;
-use penumbra::gpu::shadow_march::{DEFAULT_BAND_BYTES, GpuMarchGrid, shadow_march_gpu};
-use penumbra::gpu::sweep_accumulate::{SweepOptions, sweep_stats_gpu};
+use penumbra::gpu::{DEFAULT_BAND_BYTES, GpuContext};
 use penumbra::terrain::HeightField;
 use penumbra::twins::{self, MarchGrid, RowBand};
-
-const SIZES: [usize; 2] = [128, 256];
-const SWEEP_EPOCHS: usize = 32;
 
 fn sun_dir(az_deg: f64, el_deg: f64) -> Vector3<f64> {
     let (az, el) = (az_deg.to_radians(), el_deg.to_radians());
@@ -75,60 +69,6 @@ fn context() -> Option<GpuContext> {
             None
         }
     }
-}
-
-fn bench_march(c: &mut Criterion, ctx: Option<&GpuContext>) {
-    let mut group = c.benchmark_group("shadow_march");
-    group
-        .sample_size(10)
-        .measurement_time(Duration::from_secs(4));
-    let light = twins::light_to_f32(&sun_dir(151.0, 1.5));
-    for n in SIZES {
-        let grid = hills(n);
-        group.throughput(Throughput::Elements(grid.cells() as u64));
-        group.bench_with_input(BenchmarkId::new("cpu_twin", n), &grid, |b, grid| {
-            b.iter(|| twins::shadow_march(grid, &[light], 0, RowBand::whole(grid)))
-        });
-        if let Some(ctx) = ctx {
-            let gpu_grid = GpuMarchGrid::upload(ctx, &grid).expect("upload");
-            group.bench_with_input(BenchmarkId::new("gpu", n), &gpu_grid, |b, gpu_grid| {
-                b.iter(|| {
-                    shadow_march_gpu(ctx, gpu_grid, light, DEFAULT_BAND_BYTES).expect("gpu march")
-                })
-            });
-        }
-    }
-    group.finish();
-}
-
-fn bench_sweep(c: &mut Criterion, ctx: Option<&GpuContext>) {
-    let mut group = c.benchmark_group("sweep_accumulate");
-    group
-        .sample_size(10)
-        .measurement_time(Duration::from_secs(6));
-    let lights: Vec<[f32; 4]> = (0..SWEEP_EPOCHS)
-        .map(|k| {
-            let phase = k as f64 / SWEEP_EPOCHS as f64;
-            twins::light_to_f32(&sun_dir(360.0 * phase, 1.5 + (8.0 * phase).sin()))
-        })
-        .collect();
-    for n in SIZES {
-        let grid = hills(n);
-        group.throughput(Throughput::Elements((grid.cells() * SWEEP_EPOCHS) as u64));
-        group.bench_with_input(BenchmarkId::new("cpu_twin", n), &grid, |b, grid| {
-            b.iter(|| twins::sweep_stats(grid, &lights, RowBand::whole(grid)))
-        });
-        if let Some(ctx) = ctx {
-            let gpu_grid = GpuMarchGrid::upload(ctx, &grid).expect("upload");
-            group.bench_with_input(BenchmarkId::new("gpu", n), &gpu_grid, |b, gpu_grid| {
-                b.iter(|| {
-                    sweep_stats_gpu(ctx, gpu_grid, &lights, SweepOptions::default())
-                        .expect("gpu sweep")
-                })
-            });
-        }
-    }
-    group.finish();
 }
 
 /// One soft-shadow map (Sun disc, DP max-mipmap cost + disc occlusion) at 1.5°: the f64 CPU
@@ -316,7 +256,7 @@ fn bench_line_sweep(c: &mut Criterion, ctx: Option<&GpuContext>) {
     use penumbra::horizon::{HorizonSweep, SweepParams, SweepScratch};
     use penumbra::terrain::TerrainStack;
     use penumbra::twins::line_sweep::{
-        LineBatch, SweepGrid, TWIN_BATCH_SAMPLES, line_sweep_twin, sweep_twin,
+        LineBatch, SweepGrid, TWIN_BATCH_SAMPLES, line_sweep, sweep_twin,
     };
     let n = 256;
     let dem = penumbra::terrain::synth::square_dem_at(n, 100.0, (40e3, -45e3), "hills", |x, y| {
@@ -380,7 +320,7 @@ fn bench_line_sweep(c: &mut Criterion, ctx: Option<&GpuContext>) {
     }
     group.throughput(Throughput::Elements((n * n * looks) as u64));
     group.bench_function(BenchmarkId::new("looks_twin", n), |b| {
-        b.iter(|| line_sweep_twin(&grid, &batch))
+        b.iter(|| line_sweep(&grid, &batch))
     });
     if let Some(ctx) = ctx {
         let runner = penumbra::gpu::line_sweep::GpuLineSweep::new(ctx, &grid).expect("runner");
@@ -391,7 +331,7 @@ fn bench_line_sweep(c: &mut Criterion, ctx: Option<&GpuContext>) {
     group.finish();
 }
 
-/// The horizons engine's epoch loop (issue 15): the CPU engine (sector tables, SIMD), its f32
+/// The horizons engine's epoch loop: the CPU engine (sector tables, SIMD), its f32
 /// twin kernel (rayon) and `horizon_stats.wgsl`, each over every pixel of a rough 128² × 150 m
 /// synthetic DEM round the pole (180-azimuth horizons in memory) and 2027 every 6 h (1,460
 /// epochs, Sun and Earth); the block geometry and the below-sphere re-runs are inside the timing,
@@ -439,8 +379,6 @@ fn bench_horizon_stats(c: &mut Criterion, ctx: Option<&GpuContext>) {
 
 fn bench_gpu(c: &mut Criterion) {
     let ctx = context();
-    bench_march(c, ctx.as_ref());
-    bench_sweep(c, ctx.as_ref());
     bench_dp_soft(c, ctx.as_ref());
     bench_fourier(c, ctx.as_ref());
     bench_dp_tiled(c, ctx.as_ref());

@@ -1,4 +1,4 @@
-//! Per-site horizons, CPU engines next to the GPU scan at the same size (issue 7 item 4): 100
+//! Per-site horizons, CPU engines next to the GPU scan at the same size: 100
 //! sites on the synthetic south-polar DEM (400² × 100 m), 2 m observer, azimuth step
 //! `PENUMBRA_BENCH_AZ_STEP_DEG` (default 1°, i.e. 360 azimuths; 0.25 gives the CLI default 1440).
 //! Throughput is site-azimuths. Variants: `cpu_exact` / `cpu_fast` (`HorizonEngine`, rayon over
@@ -22,7 +22,7 @@ use penumbra::horizon::{HorizonEngine, HorizonMethod, HorizonParams};
 use penumbra::terrain::TerrainStack;
 use penumbra::terrain::synth::{SynthParams, south_polar_dem};
 use penumbra::twins::horizon_scan::{
-    ScanTerrain, SiteParams, azimuth_table, scan_twin, site_setup,
+    ScanTerrain, SiteParams, azimuth_table, horizon_scan, site_setup,
 };
 
 const SITES: usize = 100;
@@ -78,7 +78,7 @@ fn bench_site_horizons(c: &mut Criterion) {
         });
     }
     group.bench_function(BenchmarkId::new("cpu_twin", &id), |b| {
-        b.iter(|| scan_twin(&terrain, &recs, &azimuths))
+        b.iter(|| horizon_scan(&terrain, &recs, &azimuths))
     });
     match GpuContext::new() {
         Ok(ctx) => {

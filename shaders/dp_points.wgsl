@@ -1,7 +1,6 @@
-// requires: shared/dp.wgsl
-// DP map from given observers (issue 13: a map pixel stands where a series site at its centre
-// stands): out[i] = visible fraction of the disc dp_lights[dp_step.light0] (unit direction +
-// angular radius; radius 0 gives the hard mask 1/0) seen from point i, i in [band_row0,
+// DP map from given observers (a map pixel stands where a series site at its centre stands):
+// out[i] = visible fraction of the disc dp_lights[dp_step.light0] (unit direction + angular
+// radius; radius 0 gives the hard mask 1/0) seen from point i, i in [band_row0,
 // band_row0 + band_rows) of this dispatch, out indexed from band_row0. Points are records
 // (col, row, z relative to z_ref in m, min_s in cells) at fractional positions (a DEM pixel's own
 // surface point, observer height included); the crossings within min_s cells are the observer's

@@ -1,4 +1,3 @@
-// requires: shared/dp.wgsl
 // Soft epoch sweep from given observers (dp_points.wgsl's points, dp_sweep.wgsl's statistics):
 // for the epochs [light0, light0 + count) of the light table (Sun at 2e, Earth at 2e + 1), the
 // visible fractions of both discs seen from point i are folded into stats[i - band_row0] with

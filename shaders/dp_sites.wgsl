@@ -1,4 +1,3 @@
-// requires: shared/dp.wgsl
 // Per-site DP horizons for `penumbra series --engine smap-dp` on the GPU: one invocation per
 // (site, entry), entry k of site i being the disc dp_lights[i * dp_step.count + k] (unit direction
 // in model space in xyz, angular radius in w; w < 0: no cap, the exact horizon). The output is the
@@ -13,7 +12,7 @@
 // Dispatch: workgroups (ceil(entries / 64), sites); the DpStep fields are reused: light0 = first
 // entry of this dispatch, count = entries per site, band_row0 = first site of this dispatch,
 // band_rows = sites in this dispatch. Bindings: 0..5 from shared/dp.wgsl; 6 out (f32, indexed
-// like dp_lights); 7 site_observers. CPU twin: `dp_sites` in src/shadow/gpu_twins.rs.
+// like dp_lights); 7 site_observers. CPU twin: `dp_sites` in src/twins/dp.rs.
 
 const WORKGROUP_SIZE_X: u32 = 64u;
 

@@ -1,4 +1,3 @@
-// requires: shared/dp.wgsl
 // Soft epoch sweep: for the epochs [light0, light0 + count) of the light table (two entries per
 // epoch: the Sun at 2e, the Earth at 2e + 1, each a unit direction + angular radius), the visible
 // fractions of both discs (shared/dp.wgsl) are folded into per-cell running statistics with the
@@ -6,7 +5,7 @@
 // fraction > 1e-6 (any part of the disc), dark runs of the Sun, Earth and Sun-and-Earth counts.
 // Dispatch: one invocation per cell of one row band, workgroups (ceil(cols/8), ceil(band_rows/8)),
 // repeatedly with consecutive epoch ranges; nothing is read back in between. Bindings: 0..5 from
-// shared/dp.wgsl; 6 stats (band-relative, read_write). CPU twin: `dp_sweep` in gpu_twins.rs.
+// shared/dp.wgsl; 6 stats (band-relative, read_write). CPU twin: `dp_sweep` in src/twins/dp.rs.
 
 const WORKGROUP_SIZE_X: u32 = 8u;
 const WORKGROUP_SIZE_Y: u32 = 8u;

@@ -1,9 +1,8 @@
-// requires: shared/dp.wgsl
 // DP soft-shadow map: out[cell] = visible fraction of the disc dp_lights[dp_step.light0] (unit
 // direction + angular radius; radius 0 gives the hard mask 1/0), -1 for nodata. Dispatch: one
 // invocation per cell of one row band, workgroups (ceil(cols/8), ceil(band_rows/8)). Bindings:
 // 0..5 from shared/dp.wgsl; 6 out (f32, band-relative). Precision: shared/dp.wgsl.
-// CPU twin: `dp_visible` in src/shadow/gpu_twins.rs.
+// CPU twin: `dp_visible` in src/twins/dp.rs.
 
 const WORKGROUP_SIZE_X: u32 = 8u;
 const WORKGROUP_SIZE_Y: u32 = 8u;

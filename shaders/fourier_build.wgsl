@@ -1,4 +1,3 @@
-// requires: shared/march.wgsl
 // Fourier horizon-map build (paper 001 §3.2, the CPU engine src/shadow/fourier.rs): one
 // invocation per cell of one row band. For each azimuth theta_n = 2 pi n / N of this dispatch
 // (n = az0 .. az0 + az_count) it marches the horizontal ray over every crossing with the lattice
@@ -10,11 +9,11 @@
 // The last dispatch multiplies by the eq. 3 weights (1/N for k = 0, 2/N else).
 //
 // Dispatch: workgroups (ceil(cols / 8), ceil(band_rows / 8)); gid.x = col, gid.y = band row.
-// Bindings: 0 grid and 1 heights from shared/march.wgsl (2 and 3 are not used here); 4 (sin, cos)
+// Bindings: 0 grid and 1 heights from shared/march.wgsl; 4 (sin, cos)
 // of 2 pi m / N for m = 0 .. N - 1, computed in f64 on the CPU (the azimuth directions and the DFT
 // twiddles, index k n mod N: no large-argument sin/cos on the GPU); 5 build params; 6 coeffs
 // (band-relative cell * 2K + 2k + {0: Re, 1: Im}, f32; HOLE_COEFF for every value of a hole).
-// CPU twin: `fourier_build` in src/shadow/fourier_twin.rs (line by line).
+// CPU twin: `fourier_build` in src/twins/fourier.rs (line by line).
 //
 // Precision (f32): heights relative to z_ref and cell-unit positions as in shared/march.wgsl;
 // tan el = (z - z0) / t_m with t_m >= ~1 cell; atan per the WGSL accuracy rules (a few ulp on a
@@ -33,7 +32,7 @@ const FB_EDGE_TOL_CELLS: f32 = 1.0e-3;
 // Written for every value of a hole cell (no NaN on the GPU).
 const HOLE_COEFF: f32 = -1.0e30;
 
-// Keep in sync with `FourierBuildParams` in src/shadow/fourier_twin.rs.
+// Keep in sync with `FourierBuildParams` in src/twins/fourier.rs.
 struct FourierBuildParams {
     band_row0: u32,
     band_rows: u32,

@@ -8,7 +8,7 @@
 // coefficients, one u32 per complex coefficient holding the two f16 of the stored map (low half
 // Re X_k, high half Im X_k; unpack2x16float converts exactly); a hole has Re X_0 = -65504
 // (f16::MIN; no NaN on the GPU); 2 out (f32, band-relative).
-// CPU twin: `fourier_eval` in src/shadow/fourier_twin.rs (line by line).
+// CPU twin: `fourier_eval` in src/twins/fourier.rs (line by line).
 //
 // Precision (f32): cos k theta and sin k theta come from the (cos, sin) of theta (f64 on the CPU)
 // by the rotation recurrence (error ~ k * 1e-7), not from sin/cos of large arguments (WGSL
@@ -21,7 +21,7 @@ const FE_NODATA_FRACTION: f32 = -1.0;
 const FE_HOLE_TEST: f32 = -60000.0;
 const FE_PI: f32 = 3.14159265358979;
 
-// Keep in sync with `FourierEvalParams` in src/shadow/fourier_twin.rs.
+// Keep in sync with `FourierEvalParams` in src/twins/fourier.rs.
 struct FourierEvalParams {
     rows: u32,
     cols: u32,

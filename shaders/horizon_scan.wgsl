@@ -1,4 +1,3 @@
-// requires: shared/bilinear.wgsl
 // Per-site terrain horizons: one invocation per (azimuth, site) scans the great circle that leaves
 // the observer with that azimuth over every DEM layer of the stack (native polar stereographic
 // grids, finest layer with a surface wins) and writes the largest tan(elevation) and the ground
@@ -9,7 +8,8 @@
 // Dispatch: workgroups (ceil(n_az / 64), n_sites); gid.x = azimuth, gid.y = site - site0.
 // Bindings: 0 params (uniform), 1 heights (all layers, row-major, concatenated), 2 sites,
 // 3 azimuths (sin, cos) computed in f64 on the CPU, 4 out (tan el, ground angle rad) per
-// site * n_az + az. CPU twin: `scan_azimuth` in src/horizon/gpu_twin.rs (line by line).
+// site * n_az + az. CPU twin: `horizon_scan` (one invocation: `scan_azimuth`) in
+// src/twins/horizon_scan.rs.
 //
 // Precision budget (f32): the path point u(theta) = up + d sin(theta) - up (1 - cos(theta)) is a
 // unit vector with ~1e-9 absolute error in its small components (0.003-0.03 m on the map); the
@@ -37,7 +37,7 @@ const FAR_T: f32 = 1.0e30;
 // Below this ground angle (rad) sin and 1 - cos are Taylor series; above, the built-ins.
 const SERIES_MAX_RAD: f32 = 0.6;
 
-// Keep in sync with `LayerParams` in src/horizon/gpu_twin.rs.
+// Keep in sync with `LayerParams` in src/twins/horizon_scan.rs.
 struct Layer {
     rows: u32,
     cols: u32,
@@ -56,7 +56,7 @@ struct Layer {
     px_min_m: f32,
 }
 
-// Keep in sync with `ScanParams` in src/horizon/gpu_twin.rs.
+// Keep in sync with `ScanParams` in src/twins/horizon_scan.rs.
 struct ScanParams {
     n_layers: u32,
     n_sites: u32,
@@ -66,7 +66,7 @@ struct ScanParams {
     layers: array<Layer, MAX_LAYERS>,
 }
 
-// Keep in sync with `SiteParams` in src/horizon/gpu_twin.rs.
+// Keep in sync with `SiteParams` in src/twins/horizon_scan.rs.
 struct Site {
     // MOON_ME unit vectors of the observer's radial, north and east directions (w unused).
     up: vec4<f32>,

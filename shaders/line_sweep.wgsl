@@ -1,4 +1,3 @@
-// requires: shared/bilinear.wgsl
 // Whole-grid horizons, the looks of the line sweep: one invocation per (line, look). The CPU
 // builds every line's samples as its own sweep does (src/horizon/sweep/) and packs them in f32
 // (src/twins/line_sweep.rs, which also holds the CPU twin of this kernel, line by line, and the

@@ -1,4 +1,3 @@
-// requires: shared/brdf.wgsl
 //
 // One invocation per pixel: the camera ray, max-mipmap ray casting through the height field
 // (the GPU twin of src/render/cast.rs `RayCaster::cast_mipmap`), the bilinear surface normal,

@@ -7,9 +7,9 @@
 #                                  ~25 MB: small enough to carry to a GPU machine);
 #   tools/gpu-bench.sh [DIR]       (on the GPU machine, DIR defaults to target/gpu-bench) prints
 #                                  `penumbra gpu-info`, runs the GPU-vs-CPU parity tests with
-#                                  PENUMBRA_REQUIRE_GPU=1, then the criterion groups
-#                                  shadow_march and sweep_accumulate (GPU and CPU twin side by
-#                                  side), the per-site horizons, series_engines (smap-dp on the
+#                                  PENUMBRA_REQUIRE_GPU=1, then the criterion groups of
+#                                  benches/gpu.rs (GPU and CPU twin side by side), the per-site
+#                                  horizons, series_engines (smap-dp on the
 #                                  CPU and the GPU) and the renderer, with WGPU_BACKEND=vulkan
 #                                  (the GL backend fails on NVIDIA);
 #   tools/gpu-bench.sh [DIR] --only stats,sweep
@@ -100,7 +100,7 @@ if want parity; then
         grep -E "adapter|differ|gpu vs|GPU vs|max \|Δ\||equal stats|test result|FAILED|panicked" || true
 fi
 if want criterion; then
-    echo "== criterion: shadow_march, sweep_accumulate, dp_soft, fourier_build, fourier_eval, dp_tiled (512^2), line_sweep"
+    echo "== criterion: dp_soft, fourier_build, fourier_eval, dp_tiled (512^2), line_sweep"
     "$dir/gpu-bench" --bench 2>&1 | grep -Ev "^\s*$|Warming up|Collecting|Analyzing|Benchmarking .*: (Warming|Collecting|Analyzing)"
 fi
 if want fourier; then

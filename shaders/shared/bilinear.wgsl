@@ -1,8 +1,8 @@
-// fragment: uses `heights`, NO_SAMPLE and HOLE_TEST_M of the kernel that requires it, so it is
-// validated within those kernels only.
+// fragment: uses `heights`, NO_SAMPLE and HOLE_TEST_M of the kernels it is composed with, so it
+// is validated within those kernels only.
 // Nodata-aware bilinear heights of row-major layers stored one after another in `heights`
-// (prepended by the Rust side and by the naga tests to horizon_scan.wgsl and line_sweep.wgsl,
-// which bind `heights: array<f32>` and define NO_SAMPLE and HOLE_TEST_M). CPU twin:
+// (composed before horizon_scan.wgsl and line_sweep.wgsl, src/gpu/shaders.rs, which bind
+// `heights: array<f32>` and define NO_SAMPLE and HOLE_TEST_M). CPU twin:
 // `twins::bilinear_with_holes`; f64 original: `Dem::height_at_row_col`.
 
 // Height of cell (row, col) of the layer stored from `heights[base]` with `rows` x `cols`

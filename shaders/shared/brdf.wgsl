@@ -1,6 +1,6 @@
-// Surface BRDF of the renderer (prepended to a render kernel by the Rust side and by the naga
-// test). CPU twin: `Brdf::per_sr` / `hapke_r_per_sr` in src/render/brdf.rs (same equations,
-// same order): `brdf_per_sr` returns f (1/sr) with radiance L = f * E_normal * cos_i.
+// Surface BRDF of the renderer (composed before render.wgsl, src/gpu/shaders.rs). CPU twin:
+// `Brdf::per_sr` / `hapke_r_per_sr` in src/render/brdf.rs (same equations, same order):
+// `brdf_per_sr` returns f (1/sr) with radiance L = f * E_normal * cos_i.
 // model 0: Lambert, f = albedo / pi. model 1: Hapke (2012) as in Sato et al. (2014), JGR Planets
 // 119:1775, with their whole-Moon constants K = 1, B_C0 = 0, theta_bar = 23.657 deg and the
 // 643 nm values of HapkeParams::MOON_643NM (w, b, c, B_S0, h_S; keep in sync).

@@ -1,6 +1,6 @@
-// Shared by dp_visible.wgsl and dp_sweep.wgsl (prepended by the Rust side and by the naga test):
-// the DP / maximum-mipmap shadow cost of one cell towards one disc and the disc's visible
-// fraction. CPU twin: `dp_cell_fraction` and friends in src/shadow/gpu_twins.rs (line by line).
+// Shared part of every dp_*.wgsl (composed before it, src/gpu/shaders.rs): the DP /
+// maximum-mipmap shadow cost of one cell towards one disc and the disc's visible fraction.
+// CPU twins: `dp_cost`, `dp_fraction` and friends in src/twins/dp.rs (line by line).
 //
 // Shadow cost (papers 000/003, eq. 2): J* = min over the ray of dh / t, dh the ray's height above
 // the surface at horizontal distance t, evaluated at every crossing of the ray with the lattice
@@ -347,7 +347,7 @@ fn dp_is_hole(row: u32, col: u32) -> bool {
 const VISIBLE_MIN_FRACTION: f32 = 1.0e-6;
 
 // Running per-cell statistics of the soft epoch sweeps (dp_sweep.wgsl,
-// dp_tile_sweep_accumulate.wgsl). Keep in sync with `DpCellStats` in src/shadow/gpu_twins.rs.
+// dp_tile_sweep_accumulate.wgsl). Keep in sync with `DpCellStats` in src/twins/dp.rs.
 struct DpCellStats {
     sun_fraction_sum: f32,
     sun_fraction_comp: f32,
@@ -362,7 +362,7 @@ struct DpCellStats {
 // Folds one epoch's Sun (`fs`) and Earth (`fe`) visible fractions into `s` with the definitions
 // of the CPU `map::sweep`: Kahan-compensated f32 sum of the Sun's fraction, visible = fraction
 // > 1e-6, dark runs of the Sun, Earth and Sun-and-Earth counts. CPU twin: `dp_sweep_accumulate`
-// in src/shadow/gpu_twins.rs (line by line).
+// in src/twins/dp.rs (line by line).
 fn dp_sweep_accumulate(s: ptr<function, DpCellStats>, fs: f32, fe: f32) {
     // Kahan summation of the Sun's fraction.
     let y = fs - (*s).sun_fraction_comp;

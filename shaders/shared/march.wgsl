@@ -1,7 +1,6 @@
-// Shared by shadow_march.wgsl and shadow_march_soft.wgsl (prepended by the Rust side and by the
-// naga test): the grid bindings 0..3, the 2-D DDA over the lattice lines (`dda_start`, `dda_next`,
-// also used by fourier_build.wgsl) and `march_hard`, the ray march of one cell towards one light
-// direction. CPU twin: `march_hard` in src/shadow/gpu_twins.rs (line by line).
+// Shared part of fourier_build.wgsl (composed before it, src/gpu/shaders.rs): the grid bindings
+// 0 and 1 and the 2-D DDA over the lattice lines (`dda_start`, `dda_next`). CPU twin: `Dda` in
+// src/twins/march.rs (line by line).
 //
 // Surface: the bilinear interpolant of the cell-centre heights. In grid units (u = col, v = row,
 // cell centres at integers) the ray is tested at every crossing of a lattice line u = k or
@@ -13,7 +12,7 @@
 // to an f32 unit vector on the CPU (error ~6e-8 rad, i.e. 0.6 mm of ray height per 10 km).
 // Holes are stored as HOLE_Z_M (no NaN on the GPU: WGSL does not promise NaN semantics).
 
-// Keep in sync with `GridParams` in src/gpu/shadow_march.rs (mod gpu_data).
+// Keep in sync with `GridParams` in src/gpu/context.rs (mod gpu_data).
 struct GridParams {
     rows: u32,
     cols: u32,
@@ -28,29 +27,12 @@ struct GridParams {
     z_ref_plus_radius_m: f32,
 }
 
-// Keep in sync with `StepParams` in src/gpu/shadow_march.rs (mod gpu_data).
-struct StepParams {
-    // Index into `lights` (the epoch in a sweep; 0 for a single map).
-    light_index: u32,
-    // First row of the band this dispatch writes, and its number of rows.
-    band_row0: u32,
-    band_rows: u32,
-    _pad: u32,
-}
-
-const LIT: u32 = 1u;
-const SHADOW: u32 = 0u;
-const NODATA: u32 = 255u;
 // Heights below this are holes (stored as -1e30 m).
 const HOLE_TEST_M: f32 = -1.0e29;
 const FAR_CELLS: f32 = 1.0e30;
-// A light with a horizontal component below this goes straight up or down.
-const MIN_HORIZ: f32 = 1.0e-7;
 
 @group(0) @binding(0) var<uniform> grid: GridParams;
 @group(0) @binding(1) var<storage, read> heights: array<f32>;
-@group(0) @binding(2) var<storage, read> lights: array<vec4<f32>>;
-@group(0) @binding(3) var<uniform> step_params: StepParams;
 
 fn height_at(row: i32, col: i32) -> f32 {
     return heights[u32(row) * grid.cols + u32(col)];
@@ -107,7 +89,7 @@ fn dda_start(u0: f32, v0: f32, du: f32, dv: f32) -> Dda {
 
 // Advances the DDA to the next crossing with a lattice line u = k or v = k and samples the
 // surface there (linear between the two lattice heights on that line). A crossing at most
-// `edge_tol_cells` outside the lattice is clamped onto its edge line (0 for march_hard).
+// `edge_tol_cells` outside the lattice is clamped onto its edge line.
 fn dda_next(dda: ptr<function, Dda>, edge_tol_cells: f32) -> DdaCrossing {
     let rows = i32(grid.rows);
     let cols = i32(grid.cols);
@@ -147,44 +129,4 @@ fn dda_next(dda: ptr<function, Dda>, edge_tol_cells: f32) -> DdaCrossing {
     }
     c.inside = true;
     return c;
-}
-
-// 1 lit, 0 shadow, 255 nodata for cell (row, col) and light direction `light` (model space).
-fn march_hard(row: u32, col: u32, light: vec3<f32>) -> u32 {
-    let z_cell = heights[row * grid.cols + col];
-    if z_cell < HOLE_TEST_M {
-        return NODATA;
-    }
-    // Observer: observer_height_m above the surface along the radial direction.
-    let x_m = grid.x0_m + f32(col) * grid.px_m;
-    let y_m = grid.y0_m - f32(row) * grid.px_m;
-    let up = normalize(vec3<f32>(x_m, y_m, z_cell + grid.z_ref_plus_radius_m));
-    let u0 = f32(col) + grid.observer_height_m * up.x / grid.px_m;
-    let v0 = f32(row) - grid.observer_height_m * up.y / grid.px_m;
-    let z0 = z_cell + grid.observer_height_m * up.z;
-    let horiz_len = sqrt(light.x * light.x + light.y * light.y);
-    if horiz_len < MIN_HORIZ {
-        return select(SHADOW, LIT, light.z > 0.0);
-    }
-    // Direction in grid units (rows grow southwards) and ray rise per cell of horizontal travel.
-    let du = light.x / horiz_len;
-    let dv = -light.y / horiz_len;
-    let rise_m_per_cell = light.z / horiz_len * grid.px_m;
-    var dda = dda_start(u0, v0, du, dv);
-    let max_steps = i32(grid.rows) + i32(grid.cols) + 4;
-    for (var i = 0; i < max_steps; i++) {
-        let c = dda_next(&dda, 0.0);
-        if !c.inside {
-            return LIT;
-        }
-        let z_ray = z0 + c.t * rise_m_per_cell;
-        // Above all terrain and not descending: lit (a descending ray comes down again).
-        if z_ray > grid.z_max_m && rise_m_per_cell >= 0.0 {
-            return LIT;
-        }
-        if c.z_surf > z_ray {
-            return SHADOW;
-        }
-    }
-    return LIT;
 }

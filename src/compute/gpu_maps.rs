@@ -117,8 +117,8 @@ pub fn visible_fraction_gpu(
     angular_radius_rad: f64,
     tiling: crate::gpu::tiles::DpTiling,
 ) -> anyhow::Result<Vec<f32>> {
+    use crate::gpu::DEFAULT_BAND_BYTES;
     use crate::gpu::dp::{GpuDpGrid, dp_visible_gpu};
-    use crate::gpu::shadow_march::DEFAULT_BAND_BYTES;
     use crate::gpu::tiles::{DpTileOptions, dp_visible_tiled_gpu};
     use crate::twins::{DpMip, MarchGrid, disc_light_to_f32};
     let march = MarchGrid::from_height_field(hf, observer_height_m)?;
@@ -161,8 +161,8 @@ impl GpuSceneFractions {
         ctx: &crate::gpu::GpuContext,
         lights: &crate::render::Lights,
     ) -> anyhow::Result<(Vec<f32>, Vec<f32>)> {
+        use crate::gpu::DEFAULT_BAND_BYTES;
         use crate::gpu::dp::dp_visible_gpu;
-        use crate::gpu::shadow_march::DEFAULT_BAND_BYTES;
         use crate::twins::disc_light_to_f32;
         let one = |dir: [f64; 3], radius_rad: f64| -> anyhow::Result<Vec<f32>> {
             let light = disc_light_to_f32(&Vector3::from(dir), radius_rad);
@@ -315,7 +315,7 @@ impl GpuPixelMaps {
         light_in_model: [f64; 3],
         radius_rad: f64,
     ) -> anyhow::Result<Vec<f32>> {
-        use crate::gpu::shadow_march::DEFAULT_BAND_BYTES;
+        use crate::gpu::DEFAULT_BAND_BYTES;
         let light = crate::twins::disc_light_to_f32(&Vector3::from(light_in_model), radius_rad);
         let values = crate::gpu::dp::dp_points_gpu(
             ctx,

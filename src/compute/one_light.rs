@@ -64,12 +64,8 @@ impl<'a> Prepared<'a> {
         let gpu_fourier = match (backend, &engine) {
             (ResolvedBackend::Gpu(ctx), MapEngine::Fourier(map)) => Some({
                 use anyhow::Context as _;
-                crate::gpu::fourier::GpuHorizonMap::upload(
-                    ctx,
-                    map,
-                    crate::gpu::fourier::DEFAULT_BAND_BYTES,
-                )
-                .context("uploading the horizon map")?
+                crate::gpu::fourier::GpuHorizonMap::upload(ctx, map, crate::gpu::DEFAULT_BAND_BYTES)
+                    .context("uploading the horizon map")?
             }),
             _ => None,
         };

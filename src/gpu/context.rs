@@ -5,15 +5,69 @@
 //!
 //! The context knows no kernel: a kernel module implements [`Pipelines`] for its pipeline set
 //! and asks for it with [`GpuContext::pipelines`], so the kernel modules import the context and
-//! never the other way round.
+//! never the other way round. The helpers every kernel shares live here too: buffers, the one
+//! dispatch path ([`GpuContext::compute_pass`], [`GpuContext::dispatch`],
+//! [`GpuContext::read_back`]), the dynamic-offset step slots, bind group layouts, and the grid
+//! the grid kernels read ([`GpuGrid`]).
 
 use std::any::{Any, TypeId};
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex, mpsc};
 
+use bytemuck::{Pod, Zeroable};
 use wgpu::util::DeviceExt as _;
 
 use super::GpuError;
+use super::shaders::Shader;
+use crate::twins::MarchGrid;
+
+/// Output bytes per row band by default (64 MiB): small against any GPU, large enough that a
+/// 4,096² map of 4-byte values is one band. Bands bound the output and readback memory (the
+/// inputs are uploaded whole) and keep each dispatch within the per-dimension workgroup limit.
+pub const DEFAULT_BAND_BYTES: u64 = 64 << 20;
+/// Workgroup side of the 2-D grid kernels (`dp_visible`, `dp_sweep`, `dp_tile_*`, `fourier_*`,
+/// `render`). Keep in sync with their `@workgroup_size`.
+pub(crate) const WORKGROUP_SIZE_XY: u32 = 8;
+/// Stride of the dynamic-offset step slots (the largest allowed
+/// `min_uniform_buffer_offset_alignment`, so valid on every adapter).
+pub(crate) const STEP_SLOT_BYTES: u64 = 256;
+
+/// Mirrors of the WGSL structs.
+mod gpu_data {
+    use super::{Pod, Zeroable};
+
+    /// Keep in sync with `GridParams` in shaders/shared/march.wgsl and `DpGridParams` in
+    /// shaders/shared/dp.wgsl (the same layout).
+    #[repr(C)]
+    #[derive(Debug, Clone, Copy, Pod, Zeroable)]
+    pub(super) struct GridParams {
+        pub rows: u32,
+        pub cols: u32,
+        pub px_m: f32,
+        pub observer_height_m: f32,
+        pub x0_m: f32,
+        pub y0_m: f32,
+        pub z_max_m: f32,
+        pub z_ref_plus_radius_m: f32,
+    }
+    const _: () = assert!(size_of::<GridParams>() == 32);
+
+    impl GridParams {
+        /// The uniform of `grid`.
+        pub(super) fn of(grid: &crate::twins::MarchGrid) -> Self {
+            GridParams {
+                rows: grid.rows,
+                cols: grid.cols,
+                px_m: grid.px_m,
+                observer_height_m: grid.observer_height_m,
+                x0_m: grid.x0_m,
+                y0_m: grid.y0_m,
+                z_max_m: grid.z_max_m,
+                z_ref_plus_radius_m: grid.z_ref_plus_radius_m,
+            }
+        }
+    }
+}
 
 /// A kernel family's pipelines and layouts, built once per device on first use.
 pub(crate) trait Pipelines: Send + Sync + 'static {
@@ -152,15 +206,58 @@ impl GpuContext {
         })
     }
 
-    /// A storage buffer of `size` bytes that a kernel writes and [`Self::read_back`] copies out
-    /// (wgpu zero-initialises it).
+    /// A storage buffer of `size` bytes that a kernel writes, [`Self::clear`] zeroes and
+    /// [`Self::read_back`] copies out (wgpu zero-initialises it).
     pub(crate) fn output_buffer(&self, label: &str, size: u64) -> wgpu::Buffer {
         self.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some(label),
             size,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            usage: wgpu::BufferUsages::STORAGE
+                | wgpu::BufferUsages::COPY_SRC
+                | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         })
+    }
+
+    /// A uniform buffer of `slots` (at least one) step slots, [`STEP_SLOT_BYTES`] apart, each
+    /// bound at a dynamic offset and filled by [`Self::write_slots`].
+    pub(crate) fn slot_buffer(&self, slots: u32) -> wgpu::Buffer {
+        self.uniform_buffer(
+            "penumbra step slots",
+            u64::from(slots.max(1)) * STEP_SLOT_BYTES,
+        )
+    }
+
+    /// Writes `steps` into consecutive slots of `slots` (queue writes land before the next
+    /// submit and after the earlier ones, so no wait is needed).
+    pub(crate) fn write_slots<T: Pod>(&self, slots: &wgpu::Buffer, steps: &[T]) {
+        let mut bytes = Vec::with_capacity(steps.len() * STEP_SLOT_BYTES as usize);
+        for step in steps {
+            let mut slot = [0_u8; STEP_SLOT_BYTES as usize];
+            slot[..size_of::<T>()].copy_from_slice(bytemuck::bytes_of(step));
+            bytes.extend_from_slice(&slot);
+        }
+        self.queue.write_buffer(slots, 0, &bytes);
+    }
+
+    /// Encodes one compute pass, recorded by `record`, and submits it: the one place that
+    /// encodes dispatches.
+    pub(crate) fn compute_pass(
+        &self,
+        label: &str,
+        record: impl FnOnce(&mut wgpu::ComputePass<'_>),
+    ) {
+        let mut encoder = self
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some(label) });
+        {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some(label),
+                timestamp_writes: None,
+            });
+            record(&mut pass);
+        }
+        self.queue.submit([encoder.finish()]);
     }
 
     /// Encodes one compute pass of `pipeline` over `workgroups` (x, y, z) with `bind_group` at
@@ -173,18 +270,19 @@ impl GpuContext {
         offsets: &[u32],
         workgroups: [u32; 3],
     ) {
-        let mut encoder = self
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some(label) });
-        {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some(label),
-                timestamp_writes: None,
-            });
+        self.compute_pass(label, |pass| {
             pass.set_pipeline(pipeline);
             pass.set_bind_group(0, bind_group, offsets);
             pass.dispatch_workgroups(workgroups[0], workgroups[1], workgroups[2]);
-        }
+        });
+    }
+
+    /// Zeroes `buffer` (an [`Self::output_buffer`]) in its own submit.
+    pub(crate) fn clear(&self, label: &str, buffer: &wgpu::Buffer) {
+        let mut encoder = self
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some(label) });
+        encoder.clear_buffer(buffer, 0, None);
         self.queue.submit([encoder.finish()]);
     }
 
@@ -367,74 +465,200 @@ pub fn adapter_report() -> Vec<AdapterSummary> {
         .collect()
 }
 
-/// What one binding of a kernel's bind group holds ([`slots_layout`]).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) enum Slot {
-    /// A uniform buffer.
-    Uniform,
-    /// A read-only storage buffer.
-    Read,
-    /// A read-write storage buffer.
-    ReadWrite,
+/// A kernel with one pipeline whose bindings are a uniform (0), then [`Self::READS`] read-only
+/// storage buffers, then [`Self::READ_WRITES`] read-write ones, none at a dynamic offset; its
+/// [`KernelPipeline`] is built on first use ([`GpuContext::pipelines`]).
+pub(crate) trait SingleKernel: Send + Sync + 'static {
+    /// The shader.
+    const SHADER: Shader;
+    /// Read-only storage buffers, bindings 1 ..= `READS`.
+    const READS: u32;
+    /// Read-write storage buffers, after the read-only ones.
+    const READ_WRITES: u32;
+    /// What building the pipeline is, for its error message.
+    const WHAT: &'static str;
 }
 
-/// The bind group layout of a kernel whose bindings `0, 1, …` are the plain buffers `slots`
-/// (no dynamic offsets), for the compute stage.
-pub(crate) fn slots_layout(
-    device: &wgpu::Device,
-    label: &str,
-    slots: &[Slot],
-) -> wgpu::BindGroupLayout {
-    let entries: Vec<_> = (0..)
-        .zip(slots)
-        .map(|(binding, slot)| {
-            let ty = match slot {
-                Slot::Uniform => wgpu::BufferBindingType::Uniform,
-                Slot::Read => wgpu::BufferBindingType::Storage { read_only: true },
-                Slot::ReadWrite => wgpu::BufferBindingType::Storage { read_only: false },
-            };
-            layout_entry(binding, ty)
+/// The bind group layout and pipeline of the [`SingleKernel`] `K`.
+pub(crate) struct KernelPipeline<K> {
+    pub(crate) layout: wgpu::BindGroupLayout,
+    pub(crate) pipeline: wgpu::ComputePipeline,
+    kernel: std::marker::PhantomData<fn() -> K>,
+}
+
+impl<K: SingleKernel> Pipelines for KernelPipeline<K> {
+    const WHAT: &'static str = K::WHAT;
+
+    fn build(device: &wgpu::Device) -> Self {
+        use wgpu::BufferBindingType::{Storage, Uniform};
+        let types = std::iter::once(Uniform)
+            .chain((0..K::READS).map(|_| Storage { read_only: true }))
+            .chain((0..K::READ_WRITES).map(|_| Storage { read_only: false }));
+        let entries: Vec<_> = (0..)
+            .zip(types)
+            .map(|(b, ty)| layout_entry(b, ty))
+            .collect();
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some(K::SHADER.name),
+            entries: &entries,
+        });
+        let pipeline = compute_pipeline(device, &layout, &K::SHADER);
+        KernelPipeline {
+            layout,
+            pipeline,
+            kernel: std::marker::PhantomData,
+        }
+    }
+}
+
+impl<K: SingleKernel> KernelPipeline<K> {
+    /// The bind group of `buffers`, bound whole at bindings 0, 1, … in this order.
+    pub(crate) fn bind(&self, ctx: &GpuContext, buffers: &[&wgpu::Buffer]) -> wgpu::BindGroup {
+        let entries: Vec<_> = (0..)
+            .zip(buffers)
+            .map(|(binding, buffer)| whole(binding, buffer))
+            .collect();
+        ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some(K::SHADER.name),
+            layout: &self.layout,
+            entries: &entries,
         })
-        .collect();
-    device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-        label: Some(label),
-        entries: &entries,
-    })
+    }
 }
 
-/// The compute pipeline of `entry_point` in the WGSL `source` with the one bind group `layout`.
+/// The compute pipeline of `shader` (its entry point is its name) with the one bind group
+/// `layout`.
 pub(crate) fn compute_pipeline(
     device: &wgpu::Device,
     layout: &wgpu::BindGroupLayout,
-    label: &str,
-    source: &str,
-    entry_point: &str,
+    shader: &Shader,
 ) -> wgpu::ComputePipeline {
+    let label = Some(shader.name);
     let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-        label: Some(label),
-        source: wgpu::ShaderSource::Wgsl(source.into()),
+        label,
+        source: wgpu::ShaderSource::Wgsl(shader.source.into()),
     });
     let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-        label: Some(label),
+        label,
         bind_group_layouts: &[Some(layout)],
         immediate_size: 0,
     });
     device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-        label: Some(label),
+        label,
         layout: Some(&pipeline_layout),
         module: &module,
-        entry_point: Some(entry_point),
+        entry_point: Some(shader.name),
         compilation_options: Default::default(),
         cache: None,
     })
 }
 
 /// Uploads `data` as a read-only storage buffer.
-pub(crate) fn storage_init(ctx: &GpuContext, label: &str, data: &[u8]) -> wgpu::Buffer {
+pub(crate) fn storage_init<T: Pod>(ctx: &GpuContext, label: &str, data: &[T]) -> wgpu::Buffer {
     ctx.device
         .create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some(label),
-            contents: data,
+            contents: bytemuck::cast_slice(data),
             usage: wgpu::BufferUsages::STORAGE,
         })
+}
+
+/// The dynamic offset of step slot `slot` ([`GpuContext::slot_buffer`]).
+pub(crate) fn slot_offset(slot: usize) -> u32 {
+    slot as u32 * STEP_SLOT_BYTES as u32
+}
+
+/// Rows per band of a `rows` × `cols` grid for `bytes_per_cell` of output per cell within
+/// `band_bytes`: at least 1, at most `rows`, within one storage binding and within the dispatch
+/// limit of the 2-D kernels.
+pub(crate) fn band_rows(
+    ctx: &GpuContext,
+    rows: u32,
+    cols: u32,
+    bytes_per_cell: u64,
+    band_bytes: u64,
+) -> u32 {
+    let max_bytes = band_bytes.min(ctx.max_storage_binding_bytes());
+    let by_budget = (max_bytes / (u64::from(cols) * bytes_per_cell)).max(1);
+    let by_dispatch =
+        u64::from(ctx.limits().max_compute_workgroups_per_dimension) * u64::from(WORKGROUP_SIZE_XY);
+    by_budget.min(by_dispatch).min(u64::from(rows)) as u32
+}
+
+/// [`GpuError::InvalidInput`] for `kernel` when `cols` columns need more workgroups of the 2-D
+/// kernels than one dispatch row allows.
+pub(crate) fn check_dispatch_cols(
+    ctx: &GpuContext,
+    cols: u32,
+    kernel: &'static str,
+) -> Result<(), GpuError> {
+    if cols.div_ceil(WORKGROUP_SIZE_XY) > ctx.limits().max_compute_workgroups_per_dimension {
+        return Err(GpuError::InvalidInput {
+            kernel,
+            message: format!("{cols} columns exceed one dispatch row"),
+        });
+    }
+    Ok(())
+}
+
+/// The `GridParams` uniform of `grid` (`shaders/shared/march.wgsl`; `DpGridParams` of
+/// `shaders/shared/dp.wgsl` has the same layout).
+pub(crate) fn grid_params_buffer(ctx: &GpuContext, label: &str, grid: &MarchGrid) -> wgpu::Buffer {
+    ctx.device
+        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some(label),
+            contents: bytemuck::bytes_of(&gpu_data::GridParams::of(grid)),
+            usage: wgpu::BufferUsages::UNIFORM,
+        })
+}
+
+/// A [`MarchGrid`] resident on the GPU: the grid uniform (binding 0 of the grid kernels) and the
+/// heights (binding 1), uploaded once and reused by every map and every epoch.
+pub struct GpuGrid {
+    pub(crate) params: wgpu::Buffer,
+    pub(crate) heights: wgpu::Buffer,
+    pub(crate) rows: u32,
+    pub(crate) cols: u32,
+}
+
+impl GpuGrid {
+    /// Uploads `grid` for `kernel`. Fails when the heights exceed the device's storage binding
+    /// limit or the grid is wider than one dispatch row allows.
+    pub fn upload(
+        ctx: &GpuContext,
+        grid: &MarchGrid,
+        kernel: &'static str,
+    ) -> Result<Self, GpuError> {
+        let heights_bytes = grid.heights_m.len() as u64 * 4;
+        if heights_bytes > ctx.max_storage_binding_bytes() {
+            return Err(GpuError::InvalidInput {
+                kernel,
+                message: format!(
+                    "the height field ({heights_bytes} B) exceeds the adapter's storage binding \
+                     limit ({} B)",
+                    ctx.limits().max_storage_buffer_binding_size
+                ),
+            });
+        }
+        check_dispatch_cols(ctx, grid.cols, kernel)?;
+        let scope = ErrorScope::push(&ctx.device);
+        let on_gpu = Self::new(ctx, grid);
+        scope.pop("uploading the height field")?;
+        Ok(on_gpu)
+    }
+
+    /// Uploads `grid` without checks (the caller has checked it and holds an error scope).
+    pub(crate) fn new(ctx: &GpuContext, grid: &MarchGrid) -> Self {
+        GpuGrid {
+            params: grid_params_buffer(ctx, "penumbra grid params", grid),
+            heights: storage_init(ctx, "penumbra heights", &grid.heights_m),
+            rows: grid.rows,
+            cols: grid.cols,
+        }
+    }
+
+    /// Rows per band of this grid ([`band_rows`]).
+    pub(crate) fn band_rows(&self, ctx: &GpuContext, bytes_per_cell: u64, band_bytes: u64) -> u32 {
+        band_rows(ctx, self.rows, self.cols, bytes_per_cell, band_bytes)
+    }
 }

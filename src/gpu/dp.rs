@@ -9,39 +9,26 @@
 //!
 //! The heights and every mipmap level are uploaded once ([`GpuDpGrid::upload`]: 4 B/cell + about
 //! 4/3 × 4 B/cell), the light table once per map or sweep. Outputs are computed in row bands
-//! (as [`super::shadow_march`]) so that output memory is bounded by the band, not the grid.
+//! (or chunks of points) so that output memory is bounded by the band, not the grid.
 
 use bytemuck::{Pod, Zeroable};
 
 use super::GpuError;
 use super::context::{
-    ErrorScope, GpuContext, buffer_layout_entry, compute_pipeline, layout_entry, sized,
-    storage_init, whole,
+    DEFAULT_BAND_BYTES, ErrorScope, GpuContext, GpuGrid, WORKGROUP_SIZE_XY, buffer_layout_entry,
+    check_dispatch_cols, compute_pipeline, layout_entry, sized, slot_offset, storage_init, whole,
 };
-use super::shadow_march::{STEP_SLOT_BYTES, band_buffer, check_dispatch_cols, grid_params_buffer};
+use super::shaders;
 use crate::twins::{DpCellStats, DpMip, MarchGrid};
-
-/// Workgroup size of the DP kernels. Keep in sync with shaders/dp_*.wgsl.
-const WORKGROUP_SIZE_XY: u32 = 8;
 /// Epochs per dispatch of the soft sweep by default (each invocation loops over them).
 pub const DEFAULT_EPOCHS_PER_DISPATCH: u32 = 16;
 /// Dispatches per queue submit of the soft sweep by default.
 pub const DEFAULT_DISPATCHES_PER_SUBMIT: u32 = 16;
 
-const SHARED_DP_WGSL: &str = wgsl!("shared/dp.wgsl");
-const DP_VISIBLE_WGSL: &str = wgsl!("dp_visible.wgsl");
-const DP_SWEEP_WGSL: &str = wgsl!("dp_sweep.wgsl");
-const DP_SITES_WGSL: &str = wgsl!("dp_sites.wgsl");
 /// Workgroup size of `shaders/dp_sites.wgsl` (along the entries). Keep in sync.
 const SITES_WORKGROUP_SIZE_X: u32 = 64;
-const DP_POINTS_WGSL: &str = wgsl!("dp_points.wgsl");
-const DP_POINTS_SWEEP_WGSL: &str = wgsl!("dp_points_sweep.wgsl");
 /// Workgroup size of `shaders/dp_points.wgsl` and `dp_points_sweep.wgsl`. Keep in sync.
 const POINTS_WORKGROUP_SIZE_X: u32 = 64;
-const DP_TILE_COST_WGSL: &str = wgsl!("dp_tile_cost.wgsl");
-const DP_TILE_FRACTION_WGSL: &str = wgsl!("dp_tile_fraction.wgsl");
-const DP_TILE_SWEEP_COST_WGSL: &str = wgsl!("dp_tile_sweep_cost.wgsl");
-const DP_TILE_SWEEP_ACCUMULATE_WGSL: &str = wgsl!("dp_tile_sweep_accumulate.wgsl");
 
 /// Mirrors of the WGSL structs.
 pub(crate) mod gpu_data {
@@ -96,7 +83,8 @@ pub(crate) mod gpu_data {
 }
 use gpu_data::DpStep;
 
-/// Bind group layout and pipelines of the DP kernels (built once, in [`GpuContext::new`]).
+/// Bind group layouts and pipelines of the DP kernels (built on first use,
+/// [`GpuContext::pipelines`]).
 pub(crate) struct DpPipelines {
     layout: wgpu::BindGroupLayout,
     visible: wgpu::ComputePipeline,
@@ -209,52 +197,20 @@ impl super::context::Pipelines for DpPipelines {
             "penumbra dp tile sweep layout",
             &[read, Storage { read_only: false }],
         );
-        let tile_sweep_cost = compute_pipeline(
-            device,
-            &tile_sweep_layout,
-            "dp_tile_sweep_cost",
-            &format!("{SHARED_DP_WGSL}{DP_TILE_SWEEP_COST_WGSL}"),
-            "dp_tile_sweep_cost",
-        );
+        let tile_sweep_cost =
+            compute_pipeline(device, &tile_sweep_layout, &shaders::DP_TILE_SWEEP_COST);
         let tile_sweep_accumulate = compute_pipeline(
             device,
             &tile_sweep_layout,
-            "dp_tile_sweep_accumulate",
-            &format!("{SHARED_DP_WGSL}{DP_TILE_SWEEP_ACCUMULATE_WGSL}"),
-            "dp_tile_sweep_accumulate",
+            &shaders::DP_TILE_SWEEP_ACCUMULATE,
         );
-        let visible_src = format!("{SHARED_DP_WGSL}{DP_VISIBLE_WGSL}");
-        let sweep_src = format!("{SHARED_DP_WGSL}{DP_SWEEP_WGSL}");
-        let tile_cost_src = format!("{SHARED_DP_WGSL}{DP_TILE_COST_WGSL}");
-        let tile_fraction_src = format!("{SHARED_DP_WGSL}{DP_TILE_FRACTION_WGSL}");
-        let visible = compute_pipeline(device, &layout, "dp_visible", &visible_src, "dp_visible");
-        let sweep = compute_pipeline(device, &layout, "dp_sweep", &sweep_src, "dp_sweep");
-        let sites_src = format!("{SHARED_DP_WGSL}{DP_SITES_WGSL}");
-        let sites = compute_pipeline(device, &tile_layout, "dp_sites", &sites_src, "dp_sites");
-        let points_src = format!("{SHARED_DP_WGSL}{DP_POINTS_WGSL}");
-        let points = compute_pipeline(device, &tile_layout, "dp_points", &points_src, "dp_points");
-        let points_sweep_src = format!("{SHARED_DP_WGSL}{DP_POINTS_SWEEP_WGSL}");
-        let points_sweep = compute_pipeline(
-            device,
-            &tile_layout,
-            "dp_points_sweep",
-            &points_sweep_src,
-            "dp_points_sweep",
-        );
-        let tile_cost = compute_pipeline(
-            device,
-            &tile_layout,
-            "dp_tile_cost",
-            &tile_cost_src,
-            "dp_tile_cost",
-        );
-        let tile_fraction = compute_pipeline(
-            device,
-            &tile_layout,
-            "dp_tile_fraction",
-            &tile_fraction_src,
-            "dp_tile_fraction",
-        );
+        let visible = compute_pipeline(device, &layout, &shaders::DP_VISIBLE);
+        let sweep = compute_pipeline(device, &layout, &shaders::DP_SWEEP);
+        let sites = compute_pipeline(device, &tile_layout, &shaders::DP_SITES);
+        let points = compute_pipeline(device, &tile_layout, &shaders::DP_POINTS);
+        let points_sweep = compute_pipeline(device, &tile_layout, &shaders::DP_POINTS_SWEEP);
+        let tile_cost = compute_pipeline(device, &tile_layout, &shaders::DP_TILE_COST);
+        let tile_fraction = compute_pipeline(device, &tile_layout, &shaders::DP_TILE_FRACTION);
         DpPipelines {
             layout,
             visible,
@@ -275,22 +231,16 @@ impl super::context::Pipelines for DpPipelines {
 /// A [`MarchGrid`] and its [`DpMip`] resident on the GPU, uploaded once and reused by every map
 /// and every epoch.
 pub struct GpuDpGrid {
-    params: wgpu::Buffer,
-    heights: wgpu::Buffer,
+    grid: GpuGrid,
     mip: wgpu::Buffer,
     levels: wgpu::Buffer,
-    rows: u32,
-    cols: u32,
 }
 
 impl GpuDpGrid {
     /// Uploads `grid` and `mip` (from [`DpMip::build`] of the same grid). Fails when a buffer
     /// exceeds the device's storage binding limit or the grid is too wide for one dispatch row.
     pub fn upload(ctx: &GpuContext, grid: &MarchGrid, mip: &DpMip) -> Result<Self, GpuError> {
-        let limits = ctx.limits();
-        let max_binding = limits
-            .max_storage_buffer_binding_size
-            .min(limits.max_buffer_size);
+        let max_binding = ctx.max_storage_binding_bytes();
         let biggest = (grid.heights_m.len().max(mip.texels.len()) as u64) * 4;
         if biggest > max_binding {
             return Err(GpuError::InvalidInput {
@@ -304,78 +254,41 @@ impl GpuDpGrid {
         }
         check_dispatch_cols(ctx, grid.cols, "dp_visible")?;
         let scope = ErrorScope::push(&ctx.device);
-        let params = grid_params_buffer(ctx, "penumbra dp grid params", grid);
-        let heights = storage_init(
-            ctx,
-            "penumbra dp heights",
-            bytemuck::cast_slice(&grid.heights_m),
-        );
-        let mip_buf = storage_init(ctx, "penumbra dp mipmap", bytemuck::cast_slice(&mip.texels));
-        let levels = storage_init(
-            ctx,
-            "penumbra dp mipmap levels",
-            bytemuck::cast_slice(&mip.levels),
-        );
+        let on_gpu = GpuDpGrid {
+            grid: GpuGrid::new(ctx, grid),
+            mip: storage_init(ctx, "penumbra dp mipmap", &mip.texels),
+            levels: storage_init(ctx, "penumbra dp mipmap levels", &mip.levels),
+        };
         scope.pop("uploading the height field and its maximum mipmap")?;
-        Ok(GpuDpGrid {
-            params,
-            heights,
-            mip: mip_buf,
-            levels,
-            rows: grid.rows,
-            cols: grid.cols,
-        })
+        Ok(on_gpu)
     }
 
-    /// Rows per band for `band_bytes` of `bytes_per_cell` outputs (at least 1, at most the grid
-    /// and the dispatch limit).
-    fn band_rows(&self, ctx: &GpuContext, band_bytes: u64, bytes_per_cell: u64) -> u32 {
-        let by_budget = (band_bytes / (u64::from(self.cols) * bytes_per_cell)).max(1);
-        let by_dispatch = u64::from(ctx.limits().max_compute_workgroups_per_dimension)
-            * u64::from(WORKGROUP_SIZE_XY);
-        by_budget.min(by_dispatch).min(u64::from(self.rows)) as u32
-    }
-
+    /// The bind group of this grid for `layout`: the [`DpBindings`] with `lights`, `slots`, `out`
+    /// and the kernel's `extra` buffers.
     fn bind_group(
         &self,
         ctx: &GpuContext,
         layout: &wgpu::BindGroupLayout,
-        lights: &wgpu::Buffer,
-        slots: &wgpu::Buffer,
-        out: &wgpu::Buffer,
+        (lights, slots, out): (&wgpu::Buffer, &wgpu::Buffer, &wgpu::Buffer),
+        extra: &[&wgpu::Buffer],
     ) -> wgpu::BindGroup {
         DpBindings {
-            params: &self.params,
-            heights: &self.heights,
+            params: &self.grid.params,
+            heights: &self.grid.heights,
             mip: &self.mip,
             levels: &self.levels,
             lights,
             slots,
             out,
-            extra: &[],
+            extra,
         }
         .bind_group(ctx, "penumbra dp bind group", layout)
     }
-}
 
-/// Writes `steps` into consecutive [`STEP_SLOT_BYTES`]-strided slots of `slots`.
-pub(crate) fn write_dp_steps(ctx: &GpuContext, slots: &wgpu::Buffer, steps: &[DpStep]) {
-    let mut bytes = Vec::with_capacity(steps.len() * STEP_SLOT_BYTES as usize);
-    for step in steps {
-        let mut slot = [0_u8; STEP_SLOT_BYTES as usize];
-        slot[..size_of::<DpStep>()].copy_from_slice(bytemuck::bytes_of(step));
-        bytes.extend_from_slice(&slot);
+    /// A [`DpStep`] over the whole grid as one source region ([`DpStep::whole`]).
+    fn step(&self, light0: u32, count: u32, band: (u32, u32)) -> DpStep {
+        DpStep::whole(self.grid.rows, self.grid.cols, light0, count, band)
     }
-    ctx.queue.write_buffer(slots, 0, &bytes);
-}
-
-pub(crate) fn slot_buffer(ctx: &GpuContext, slots: u32) -> wgpu::Buffer {
-    ctx.device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("penumbra dp step slots"),
-        size: u64::from(slots.max(1)) * STEP_SLOT_BYTES,
-        usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-        mapped_at_creation: false,
-    })
 }
 
 pub(crate) fn check_light(light: [f32; 4], kernel: &'static str) -> Result<(), GpuError> {
@@ -396,8 +309,7 @@ pub(crate) fn check_light(light: [f32; 4], kernel: &'static str) -> Result<(), G
 
 /// GPU `dp_visible`: per cell (row-major) the visible fraction of the disc `light` (from
 /// [`crate::twins::disc_light_to_f32`]; radius 0: 1 lit / 0 shadow), -1 for nodata,
-/// computed in row bands of at most `band_bytes` of output
-/// (use [`super::shadow_march::DEFAULT_BAND_BYTES`]).
+/// computed in row bands of at most `band_bytes` of output (use [`DEFAULT_BAND_BYTES`]).
 pub fn dp_visible_gpu(
     ctx: &GpuContext,
     grid: &GpuDpGrid,
@@ -406,59 +318,43 @@ pub fn dp_visible_gpu(
 ) -> Result<Vec<f32>, GpuError> {
     let dp = ctx.pipelines::<DpPipelines>()?;
     check_light(light, "dp_visible")?;
-    let band_rows = grid.band_rows(ctx, band_bytes, 4);
-    let cols = u64::from(grid.cols);
+    let (rows, cols) = (grid.grid.rows, grid.grid.cols);
+    let band_rows = grid.grid.band_rows(ctx, 4, band_bytes);
     let scope = ErrorScope::push(&ctx.device);
-    let lights = storage_init(ctx, "penumbra dp light", bytemuck::cast_slice(&[light]));
-    let slots = slot_buffer(ctx, 1);
-    let out = band_buffer(
-        ctx,
+    let lights = storage_init(ctx, "penumbra dp light", &[light]);
+    let slots = ctx.slot_buffer(1);
+    let out = ctx.output_buffer(
         "penumbra dp band",
-        u64::from(band_rows) * cols,
-        wgpu::BufferUsages::empty(),
+        u64::from(band_rows) * u64::from(cols) * 4,
     );
-    let bind_group = grid.bind_group(ctx, &dp.layout, &lights, &slots, &out);
-    let mut map: Vec<f32> = Vec::with_capacity(grid.rows as usize * grid.cols as usize);
+    let bind_group = grid.bind_group(ctx, &dp.layout, (&lights, &slots, &out), &[]);
+    let mut map: Vec<f32> = Vec::with_capacity(rows as usize * cols as usize);
     let mut row0 = 0;
-    while row0 < grid.rows {
-        let rows = band_rows.min(grid.rows - row0);
-        let step = DpStep::whole(grid.rows, grid.cols, 0, 1, (row0, rows));
-        write_dp_steps(ctx, &slots, &[step]);
-        let mut encoder = ctx
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("dp_visible"),
-            });
-        {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("dp_visible"),
-                timestamp_writes: None,
-            });
-            pass.set_pipeline(&dp.visible);
-            pass.set_bind_group(0, &bind_group, &[0]);
-            pass.dispatch_workgroups(
-                grid.cols.div_ceil(WORKGROUP_SIZE_XY),
-                rows.div_ceil(WORKGROUP_SIZE_XY),
-                1,
-            );
-        }
-        ctx.queue.submit([encoder.finish()]);
-        let bytes = ctx.read_back(&out, u64::from(rows) * cols * 4, "a DP band")?;
+    while row0 < rows {
+        let band = band_rows.min(rows - row0);
+        ctx.write_slots(&slots, &[grid.step(0, 1, (row0, band))]);
+        let workgroups = [
+            cols.div_ceil(WORKGROUP_SIZE_XY),
+            band.div_ceil(WORKGROUP_SIZE_XY),
+            1,
+        ];
+        ctx.dispatch("dp_visible", &dp.visible, &bind_group, &[0], workgroups);
+        let bytes = ctx.read_back(&out, u64::from(band) * u64::from(cols) * 4, "a DP band")?;
         map.extend_from_slice(bytemuck::cast_slice(&bytes));
-        row0 += rows;
+        row0 += band;
     }
     scope.pop("running dp_visible")?;
     Ok(map)
 }
 
 /// Checks point records (`[col, row, z − z_ref, min_s]`) for `kernel`: inside the lattice, with
-/// a finite height and a finite, non-negative nearest distance.
+/// a finite height and a finite, non-negative nearest distance, and fewer than 2^32; their number.
 fn check_points(
     grid: &GpuDpGrid,
     points: &[[f32; 4]],
     kernel: &'static str,
-) -> Result<(), GpuError> {
-    let (rows, cols) = (f64::from(grid.rows - 1), f64::from(grid.cols - 1));
+) -> Result<u32, GpuError> {
+    let (rows, cols) = (f64::from(grid.grid.rows - 1), f64::from(grid.grid.cols - 1));
     for o in points {
         let (col, row, z, min_s) = (f64::from(o[0]), f64::from(o[1]), o[2], o[3]);
         if !((0.0..=cols).contains(&col)
@@ -476,7 +372,10 @@ fn check_points(
             });
         }
     }
-    Ok(())
+    u32::try_from(points.len()).map_err(|_| GpuError::InvalidInput {
+        kernel,
+        message: format!("{} points exceed 2^32", points.len()),
+    })
 }
 
 /// Points per chunk of a points kernel: `budget_bytes` of `bytes_per_point` outputs, at least 1
@@ -503,64 +402,24 @@ pub fn dp_points_gpu(
 ) -> Result<Vec<f32>, GpuError> {
     let dp = ctx.pipelines::<DpPipelines>()?;
     check_light(light, "dp_points")?;
-    check_points(grid, points, "dp_points")?;
-    if points.is_empty() {
+    let n = check_points(grid, points, "dp_points")?;
+    if n == 0 {
         return Ok(Vec::new());
     }
     let chunk = points_per_chunk(ctx, band_bytes, 4);
-    let n = u32::try_from(points.len()).map_err(|_| GpuError::InvalidInput {
-        kernel: "dp_points",
-        message: format!("{} points exceed 2^32", points.len()),
-    })?;
     let scope = ErrorScope::push(&ctx.device);
-    let lights = storage_init(
-        ctx,
-        "penumbra dp points light",
-        bytemuck::cast_slice(&[light]),
-    );
-    let obs = storage_init(ctx, "penumbra dp points", bytemuck::cast_slice(points));
-    let slots = slot_buffer(ctx, 1);
-    let out = band_buffer(
-        ctx,
-        "penumbra dp points out",
-        u64::from(chunk.min(n)),
-        wgpu::BufferUsages::empty(),
-    );
-    let bind_group = DpBindings {
-        params: &grid.params,
-        heights: &grid.heights,
-        mip: &grid.mip,
-        levels: &grid.levels,
-        lights: &lights,
-        slots: &slots,
-        out: &out,
-        extra: &[&obs],
-    }
-    .bind_group(ctx, "penumbra dp points bind group", &dp.tile_layout);
+    let lights = storage_init(ctx, "penumbra dp points light", &[light]);
+    let obs = storage_init(ctx, "penumbra dp points", points);
+    let slots = ctx.slot_buffer(1);
+    let out = ctx.output_buffer("penumbra dp points out", u64::from(chunk.min(n)) * 4);
+    let bind_group = grid.bind_group(ctx, &dp.tile_layout, (&lights, &slots, &out), &[&obs]);
     let mut values = Vec::with_capacity(points.len());
     let mut first = 0;
     while first < n {
         let count = chunk.min(n - first);
-        write_dp_steps(
-            ctx,
-            &slots,
-            &[DpStep::whole(grid.rows, grid.cols, 0, 1, (first, count))],
-        );
-        let mut encoder = ctx
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("dp_points"),
-            });
-        {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("dp_points"),
-                timestamp_writes: None,
-            });
-            pass.set_pipeline(&dp.points);
-            pass.set_bind_group(0, &bind_group, &[0]);
-            pass.dispatch_workgroups(count.div_ceil(POINTS_WORKGROUP_SIZE_X), 1, 1);
-        }
-        ctx.queue.submit([encoder.finish()]);
+        ctx.write_slots(&slots, &[grid.step(0, 1, (first, count))]);
+        let workgroups = [count.div_ceil(POINTS_WORKGROUP_SIZE_X), 1, 1];
+        ctx.dispatch("dp_points", &dp.points, &bind_group, &[0], workgroups);
         let bytes = ctx.read_back(&out, u64::from(count) * 4, "DP fractions of points")?;
         values.extend_from_slice(bytemuck::cast_slice(&bytes));
         first += count;
@@ -582,67 +441,43 @@ pub fn dp_points_sweep_gpu(
     options: DpSweepOptions,
 ) -> Result<Vec<DpCellStats>, GpuError> {
     let dp = ctx.pipelines::<DpPipelines>()?;
-    let epochs = check_sweep_table(lights, options, "dp_points_sweep")?;
-    check_points(grid, points, "dp_points_sweep")?;
-    if points.is_empty() {
+    let epochs = check_sweep_table(
+        lights,
+        options.is_valid(),
+        OPTIONS_NONZERO,
+        "dp_points_sweep",
+    )?;
+    let n = check_points(grid, points, "dp_points_sweep")?;
+    if n == 0 {
         return Ok(Vec::new());
     }
-    let n = u32::try_from(points.len()).map_err(|_| GpuError::InvalidInput {
-        kernel: "dp_points_sweep",
-        message: format!("{} points exceed 2^32", points.len()),
-    })?;
     let stats_bytes = size_of::<DpCellStats>() as u64;
     let chunk = points_per_chunk(ctx, options.band_bytes, stats_bytes).min(n);
     let scope = ErrorScope::push(&ctx.device);
-    let table = storage_init(
-        ctx,
-        "penumbra dp points light table",
-        bytemuck::cast_slice(lights),
+    let table = storage_init(ctx, "penumbra dp points light table", lights);
+    let obs = storage_init(ctx, "penumbra dp sweep points", points);
+    let slots = ctx.slot_buffer(options.dispatches_per_submit);
+    let stats = ctx.output_buffer(
+        "penumbra dp points sweep stats",
+        u64::from(chunk) * stats_bytes,
     );
-    let obs = storage_init(
-        ctx,
-        "penumbra dp sweep points",
-        bytemuck::cast_slice(points),
-    );
-    let slots = slot_buffer(ctx, options.dispatches_per_submit);
-    let stats = stats_buffer(ctx, "penumbra dp points sweep stats", u64::from(chunk));
-    let bind_group = DpBindings {
-        params: &grid.params,
-        heights: &grid.heights,
-        mip: &grid.mip,
-        levels: &grid.levels,
-        lights: &table,
+    let bind_group = grid.bind_group(ctx, &dp.tile_layout, (&table, &slots, &stats), &[&obs]);
+    let sweep = SoftSweep {
+        grid,
+        stats: &stats,
         slots: &slots,
-        out: &stats,
-        extra: &[&obs],
-    }
-    .bind_group(ctx, "penumbra dp points sweep bind group", &dp.tile_layout);
-    let mut all = Vec::with_capacity(points.len());
-    let mut point0 = 0;
-    while point0 < n {
-        let count = chunk.min(n - point0);
-        let band = (point0, count);
-        run_sweep_batches(
-            ctx,
-            &stats,
-            &slots,
-            epochs,
-            options,
-            |first, epochs_here| DpStep::whole(grid.rows, grid.cols, first, epochs_here, band),
-            |pass, j| {
-                pass.set_pipeline(&dp.points_sweep);
-                pass.set_bind_group(0, &bind_group, &[j * STEP_SLOT_BYTES as u32]);
-                pass.dispatch_workgroups(count.div_ceil(POINTS_WORKGROUP_SIZE_X), 1, 1);
-            },
-        );
-        let bytes = ctx.read_back(
-            &stats,
-            u64::from(count) * stats_bytes,
-            "DP sweep statistics of points",
-        )?;
-        all.extend_from_slice(bytemuck::cast_slice(&bytes));
-        point0 += count;
-    }
+        pipeline: &dp.points_sweep,
+        bind_group: &bind_group,
+        epochs,
+        options,
+    };
+    let all = sweep.run(
+        ctx,
+        (n, chunk),
+        |count| [count.div_ceil(POINTS_WORKGROUP_SIZE_X), 1, 1],
+        u64::from,
+        "DP sweep statistics of points",
+    )?;
     scope.pop("running the DP epoch sweep of points")?;
     Ok(all)
 }
@@ -663,10 +498,20 @@ impl Default for DpSweepOptions {
         DpSweepOptions {
             epochs_per_dispatch: DEFAULT_EPOCHS_PER_DISPATCH,
             dispatches_per_submit: DEFAULT_DISPATCHES_PER_SUBMIT,
-            band_bytes: super::shadow_march::DEFAULT_BAND_BYTES,
+            band_bytes: DEFAULT_BAND_BYTES,
         }
     }
 }
+
+impl DpSweepOptions {
+    /// Whether the epochs per dispatch and the dispatches per submit are non-zero.
+    fn is_valid(&self) -> bool {
+        self.epochs_per_dispatch > 0 && self.dispatches_per_submit > 0
+    }
+}
+
+/// What [`check_sweep_table`] says of invalid [`DpSweepOptions`].
+const OPTIONS_NONZERO: &str = "non-zero epochs per dispatch / dispatches per submit";
 
 /// GPU soft epoch sweep: the [`DpCellStats`] of every cell (row-major) over the epochs of
 /// `lights` (two discs per epoch, Sun then Earth, from
@@ -680,64 +525,58 @@ pub fn dp_sweep_gpu(
     options: DpSweepOptions,
 ) -> Result<Vec<DpCellStats>, GpuError> {
     let dp = ctx.pipelines::<DpPipelines>()?;
-    let epochs = check_sweep_table(lights, options, "dp_sweep")?;
+    let epochs = check_sweep_table(lights, options.is_valid(), OPTIONS_NONZERO, "dp_sweep")?;
+    let (rows, cols) = (grid.grid.rows, grid.grid.cols);
     let stats_bytes = size_of::<DpCellStats>() as u64;
-    let band_rows = grid.band_rows(ctx, options.band_bytes, stats_bytes);
-    let cols = u64::from(grid.cols);
+    let band_rows = grid.grid.band_rows(ctx, stats_bytes, options.band_bytes);
     let scope = ErrorScope::push(&ctx.device);
     // Uploaded once for the whole sweep.
-    let table = storage_init(ctx, "penumbra dp light table", bytemuck::cast_slice(lights));
-    let slots = slot_buffer(ctx, options.dispatches_per_submit);
-    let band_cells = u64::from(band_rows) * cols;
-    let stats = stats_buffer(ctx, "penumbra dp sweep stats", band_cells);
-    let bind_group = grid.bind_group(ctx, &dp.layout, &table, &slots, &stats);
-    let mut all: Vec<DpCellStats> = Vec::with_capacity(grid.rows as usize * grid.cols as usize);
-    let mut row0 = 0;
-    while row0 < grid.rows {
-        let rows = band_rows.min(grid.rows - row0);
-        let cells = u64::from(rows) * cols;
-        run_sweep_batches(
-            ctx,
-            &stats,
-            &slots,
-            epochs,
-            options,
-            |first, count| DpStep::whole(grid.rows, grid.cols, first, count, (row0, rows)),
-            |pass, j| {
-                pass.set_pipeline(&dp.sweep);
-                pass.set_bind_group(0, &bind_group, &[j * STEP_SLOT_BYTES as u32]);
-                pass.dispatch_workgroups(
-                    grid.cols.div_ceil(WORKGROUP_SIZE_XY),
-                    rows.div_ceil(WORKGROUP_SIZE_XY),
-                    1,
-                );
-            },
-        );
-        let bytes = ctx.read_back(&stats, cells * stats_bytes, "DP sweep statistics")?;
-        all.extend_from_slice(bytemuck::cast_slice(&bytes));
-        row0 += rows;
-    }
+    let table = storage_init(ctx, "penumbra dp light table", lights);
+    let slots = ctx.slot_buffer(options.dispatches_per_submit);
+    let band_cells = u64::from(band_rows) * u64::from(cols);
+    let stats = ctx.output_buffer("penumbra dp sweep stats", band_cells * stats_bytes);
+    let bind_group = grid.bind_group(ctx, &dp.layout, (&table, &slots, &stats), &[]);
+    let sweep = SoftSweep {
+        grid,
+        stats: &stats,
+        slots: &slots,
+        pipeline: &dp.sweep,
+        bind_group: &bind_group,
+        epochs,
+        options,
+    };
+    let all = sweep.run(
+        ctx,
+        (rows, band_rows),
+        |band| {
+            [
+                cols.div_ceil(WORKGROUP_SIZE_XY),
+                band.div_ceil(WORKGROUP_SIZE_XY),
+                1,
+            ]
+        },
+        |band| u64::from(band) * u64::from(cols),
+        "DP sweep statistics",
+    )?;
     scope.pop("running the DP epoch sweep")?;
     Ok(all)
 }
 
 /// Checks the light table of a soft sweep (Sun and Earth discs for at least one epoch, each a
-/// valid disc) and `options`; the number of epochs.
-fn check_sweep_table(
+/// valid disc) and that the run's options are valid (`options_valid`, else the error says
+/// "and `nonzero`"); the number of epochs.
+pub(crate) fn check_sweep_table(
     lights: &[[f32; 4]],
-    options: DpSweepOptions,
+    options_valid: bool,
+    nonzero: &str,
     kernel: &'static str,
 ) -> Result<u32, GpuError> {
-    if lights.is_empty()
-        || !lights.len().is_multiple_of(2)
-        || options.epochs_per_dispatch == 0
-        || options.dispatches_per_submit == 0
-    {
+    if lights.is_empty() || !lights.len().is_multiple_of(2) || !options_valid {
         return Err(GpuError::InvalidInput {
             kernel,
-            message: "the light table needs Sun and Earth discs for at least one epoch (and \
-                      non-zero epochs per dispatch / dispatches per submit)"
-                .into(),
+            message: format!(
+                "the light table needs Sun and Earth discs for at least one epoch (and {nonzero})"
+            ),
         });
     }
     for &l in lights {
@@ -749,65 +588,69 @@ fn check_sweep_table(
     })
 }
 
-/// A statistics buffer of `cells` [`DpCellStats`] (at least one).
-fn stats_buffer(ctx: &GpuContext, label: &str, cells: u64) -> wgpu::Buffer {
-    ctx.device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some(label),
-        size: cells.max(1) * size_of::<DpCellStats>() as u64,
-        usage: wgpu::BufferUsages::STORAGE
-            | wgpu::BufferUsages::COPY_SRC
-            | wgpu::BufferUsages::COPY_DST,
-        mapped_at_creation: false,
-    })
-}
-
-/// Runs one band of a soft sweep: clears `stats`, then folds all `epochs` in, in dispatches of
-/// `options.epochs_per_dispatch` epochs (`step(first, count)` their [`DpStep`], `dispatch(pass,
-/// slot)` sets the pipeline and bind group at that slot and dispatches), submitted
-/// `options.dispatches_per_submit` at a time; nothing is read back.
-fn run_sweep_batches(
-    ctx: &GpuContext,
-    stats: &wgpu::Buffer,
-    slots: &wgpu::Buffer,
+/// One soft sweep: the grid, the statistics buffer the epochs fold into, the step slots, the
+/// kernel's pipeline and bind group, and the epochs with their batching.
+struct SoftSweep<'a> {
+    grid: &'a GpuDpGrid,
+    stats: &'a wgpu::Buffer,
+    slots: &'a wgpu::Buffer,
+    pipeline: &'a wgpu::ComputePipeline,
+    bind_group: &'a wgpu::BindGroup,
     epochs: u32,
     options: DpSweepOptions,
-    step: impl Fn(u32, u32) -> DpStep,
-    dispatch: impl Fn(&mut wgpu::ComputePass<'_>, u32),
-) {
-    let per_submit = options.dispatches_per_submit as usize;
-    let mut clear = ctx
-        .device
-        .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-            label: Some("penumbra dp sweep clear"),
-        });
-    clear.clear_buffer(stats, 0, None);
-    ctx.queue.submit([clear.finish()]);
-    let mut first = 0_u32;
-    while first < epochs {
-        let mut steps = Vec::with_capacity(per_submit);
-        while first < epochs && steps.len() < per_submit {
-            let count = options.epochs_per_dispatch.min(epochs - first);
-            steps.push(step(first, count));
+}
+
+impl SoftSweep<'_> {
+    /// The statistics of `total` items (rows of the grid, or points), `chunk` items at a time:
+    /// per chunk of `count` items the statistics are cleared, every epoch is folded in
+    /// (dispatches of `workgroups(count)`) and the `cells(count)` statistics are read back.
+    fn run(
+        &self,
+        ctx: &GpuContext,
+        (total, chunk): (u32, u32),
+        workgroups: impl Fn(u32) -> [u32; 3],
+        cells: impl Fn(u32) -> u64,
+        what: &'static str,
+    ) -> Result<Vec<DpCellStats>, GpuError> {
+        let stats_bytes = size_of::<DpCellStats>() as u64;
+        let mut all = Vec::with_capacity(cells(total) as usize);
+        let mut first = 0;
+        while first < total {
+            let count = chunk.min(total - first);
+            self.fold_epochs(ctx, (first, count), workgroups(count));
+            let bytes = ctx.read_back(self.stats, cells(count) * stats_bytes, what)?;
+            all.extend_from_slice(bytemuck::cast_slice(&bytes));
             first += count;
         }
-        write_dp_steps(ctx, slots, &steps);
-        let mut encoder = ctx
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("penumbra dp sweep batch"),
-            });
-        {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("penumbra dp sweep batch"),
-                timestamp_writes: None,
-            });
-            for j in 0..steps.len() as u32 {
-                dispatch(&mut pass, j);
+        Ok(all)
+    }
+
+    /// Clears the statistics, then folds all epochs in for the items `band`, in dispatches of
+    /// `options.epochs_per_dispatch` epochs submitted `options.dispatches_per_submit` at a time;
+    /// nothing is read back.
+    fn fold_epochs(&self, ctx: &GpuContext, band: (u32, u32), [x, y, z]: [u32; 3]) {
+        let (epochs, options) = (self.epochs, self.options);
+        let per_submit = options.dispatches_per_submit as usize;
+        ctx.clear("penumbra dp sweep clear", self.stats);
+        let mut first = 0_u32;
+        while first < epochs {
+            let mut steps = Vec::with_capacity(per_submit);
+            while first < epochs && steps.len() < per_submit {
+                let count = options.epochs_per_dispatch.min(epochs - first);
+                steps.push(self.grid.step(first, count, band));
+                first += count;
             }
+            ctx.write_slots(self.slots, &steps);
+            ctx.compute_pass("penumbra dp sweep batch", |pass| {
+                pass.set_pipeline(self.pipeline);
+                for j in 0..steps.len() {
+                    pass.set_bind_group(0, self.bind_group, &[slot_offset(j)]);
+                    pass.dispatch_workgroups(x, y, z);
+                }
+            });
+            // Reclaim finished submissions without waiting, so staging memory stays bounded.
+            ctx.device.poll(wgpu::PollType::Poll).ok();
         }
-        ctx.queue.submit([encoder.finish()]);
-        // Reclaim finished submissions without waiting, so staging memory stays bounded.
-        ctx.device.poll(wgpu::PollType::Poll).ok();
     }
 }
 
@@ -851,10 +694,7 @@ pub fn dp_sites_gpu(
         .map_err(|_| invalid(format!("{} discs per site exceed 2^32", lights.len())))?;
     let n_sites = u32::try_from(observers.len())
         .map_err(|_| invalid(format!("{} sites exceed 2^32", observers.len())))?;
-    let limits = ctx.limits();
-    let max_binding = limits
-        .max_storage_buffer_binding_size
-        .min(limits.max_buffer_size);
+    let max_binding = ctx.max_storage_binding_bytes();
     let table_bytes = std::mem::size_of_val(lights) as u64;
     if table_bytes > max_binding {
         return Err(invalid(format!(
@@ -862,7 +702,7 @@ pub fn dp_sites_gpu(
              ({max_binding} B); pass fewer epochs per call"
         )));
     }
-    let max_groups = limits.max_compute_workgroups_per_dimension;
+    let max_groups = ctx.limits().max_compute_workgroups_per_dimension;
     let entries_per_dispatch = max_groups.saturating_mul(SITES_WORKGROUP_SIZE_X);
     let mut steps = Vec::new();
     let mut site0 = 0;
@@ -873,7 +713,7 @@ pub fn dp_sites_gpu(
             let count = entries_per_dispatch.min(per_site - k0);
             steps.push((
                 // The whole grid is the one source region; band = the sites of this dispatch.
-                DpStep::whole(grid.rows, grid.cols, k0, per_site, (site0, sites)),
+                grid.step(k0, per_site, (site0, sites)),
                 count.div_ceil(SITES_WORKGROUP_SIZE_X),
             ));
             k0 += count;
@@ -882,53 +722,20 @@ pub fn dp_sites_gpu(
     }
     let out_bytes = lights.len() as u64 * 4;
     let scope = ErrorScope::push(&ctx.device);
-    let table = storage_init(
-        ctx,
-        "penumbra dp sites lights",
-        bytemuck::cast_slice(lights),
-    );
-    let obs = storage_init(
-        ctx,
-        "penumbra dp sites observers",
-        bytemuck::cast_slice(observers),
-    );
-    let out = band_buffer(
-        ctx,
-        "penumbra dp sites out",
-        lights.len() as u64,
-        wgpu::BufferUsages::empty(),
-    );
-    let slots = slot_buffer(ctx, steps.len() as u32);
+    let table = storage_init(ctx, "penumbra dp sites lights", lights);
+    let obs = storage_init(ctx, "penumbra dp sites observers", observers);
+    let out = ctx.output_buffer("penumbra dp sites out", out_bytes);
+    let slots = ctx.slot_buffer(steps.len() as u32);
     let step_values: Vec<DpStep> = steps.iter().map(|s| s.0).collect();
-    write_dp_steps(ctx, &slots, &step_values);
-    let bind_group = DpBindings {
-        params: &grid.params,
-        heights: &grid.heights,
-        mip: &grid.mip,
-        levels: &grid.levels,
-        lights: &table,
-        slots: &slots,
-        out: &out,
-        extra: &[&obs],
-    }
-    .bind_group(ctx, "penumbra dp sites bind group", &dp.tile_layout);
-    let mut encoder = ctx
-        .device
-        .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-            label: Some("dp_sites"),
-        });
-    {
-        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some("dp_sites"),
-            timestamp_writes: None,
-        });
+    ctx.write_slots(&slots, &step_values);
+    let bind_group = grid.bind_group(ctx, &dp.tile_layout, (&table, &slots, &out), &[&obs]);
+    ctx.compute_pass("dp_sites", |pass| {
         pass.set_pipeline(&dp.sites);
         for (j, (step, groups_x)) in steps.iter().enumerate() {
-            pass.set_bind_group(0, &bind_group, &[j as u32 * STEP_SLOT_BYTES as u32]);
+            pass.set_bind_group(0, &bind_group, &[slot_offset(j)]);
             pass.dispatch_workgroups(*groups_x, step.band_rows, 1);
         }
-    }
-    ctx.queue.submit([encoder.finish()]);
+    });
     let bytes = ctx.read_back(&out, out_bytes, "per-site DP horizons")?;
     scope.pop("running dp_sites")?;
     Ok(bytemuck::pod_collect_to_vec(&bytes))

@@ -12,7 +12,7 @@
 //! band, 341 rows of a 1536-column grid), and each band's azimuths are split into dispatches of
 //! `azimuths_per_dispatch` (default [`DEFAULT_AZIMUTHS_PER_DISPATCH`]) so that no single dispatch
 //! runs long (watchdogs, lavapipe); the partial sums stay in the band buffer between dispatches.
-//! The heights are the [`GpuMarchGrid`] upload of the march kernels (4 B/cell, once).
+//! The heights are a [`GpuGrid`] upload (4 B/cell, once).
 //!
 //! **Evaluation.** [`GpuHorizonMap::upload`] packs each complex coefficient's two f16 into one
 //! u32 (the stored values, converted exactly by `unpack2x16float`) in row bands that each fit one
@@ -23,9 +23,10 @@ use wgpu::util::DeviceExt as _;
 
 use super::GpuError;
 use super::context::{
-    ErrorScope, GpuContext, Slot, compute_pipeline, layout_entry, slots_layout, storage_init, whole,
+    DEFAULT_BAND_BYTES, ErrorScope, GpuContext, GpuGrid, KernelPipeline, WORKGROUP_SIZE_XY,
+    band_rows, check_dispatch_cols, compute_pipeline, layout_entry, storage_init, whole,
 };
-use super::shadow_march::{GpuMarchGrid, band_buffer, check_dispatch_cols};
+use super::shaders;
 use crate::shadow::ShadowError;
 use crate::shadow::fourier::{HorizonMap, HorizonMapMeta, HorizonMapParams};
 use crate::terrain::HeightField;
@@ -35,17 +36,9 @@ use crate::twins::fourier::{
 };
 use crate::twins::{MarchGrid, MarchGridError, NODATA_FRACTION};
 
-pub use super::shadow_march::DEFAULT_BAND_BYTES;
-
 /// Azimuths per build dispatch by default: 16 azimuths of a 1536² grid are ~38 M rays, well
 /// under a second on a data-centre GPU, and a 256² test grid stays a few seconds on lavapipe.
 pub const DEFAULT_AZIMUTHS_PER_DISPATCH: u32 = 16;
-/// Workgroup size of both kernels. Keep in sync with shaders/fourier_*.wgsl.
-const WORKGROUP_SIZE_XY: u32 = 8;
-
-const MARCH_WGSL: &str = wgsl!("shared/march.wgsl");
-const FOURIER_BUILD_WGSL: &str = wgsl!("fourier_build.wgsl");
-const FOURIER_EVAL_WGSL: &str = wgsl!("fourier_eval.wgsl");
 
 /// Errors of the GPU horizon maps.
 #[derive(Debug, thiserror::Error)]
@@ -61,21 +54,19 @@ pub enum GpuFourierError {
     Gpu(#[from] GpuError),
 }
 
-/// Bind group layouts and pipelines of the two Fourier kernels (built once, in
-/// [`GpuContext::new`]).
-pub(crate) struct FourierPipelines {
-    build_layout: wgpu::BindGroupLayout,
-    build: wgpu::ComputePipeline,
-    eval_layout: wgpu::BindGroupLayout,
-    eval: wgpu::ComputePipeline,
+/// Bind group layout and pipeline of the Fourier build (bindings 0 and 1 of shared/march.wgsl,
+/// then 4..6).
+pub(crate) struct FourierBuildPipeline {
+    layout: wgpu::BindGroupLayout,
+    pipeline: wgpu::ComputePipeline,
 }
 
-impl super::context::Pipelines for FourierPipelines {
+impl super::context::Pipelines for FourierBuildPipeline {
     const WHAT: &'static str = "building the Fourier pipelines";
 
     fn build(device: &wgpu::Device) -> Self {
         use wgpu::BufferBindingType::{Storage, Uniform};
-        let build_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("penumbra fourier_build layout"),
             entries: &[
                 layout_entry(0, Uniform),
@@ -85,33 +76,14 @@ impl super::context::Pipelines for FourierPipelines {
                 layout_entry(6, Storage { read_only: false }),
             ],
         });
-        let build_src = format!("{MARCH_WGSL}{FOURIER_BUILD_WGSL}");
-        let build = compute_pipeline(
-            device,
-            &build_layout,
-            "fourier_build",
-            &build_src,
-            "fourier_build",
-        );
-        let eval_layout = slots_layout(
-            device,
-            "penumbra fourier_eval layout",
-            &[Slot::Uniform, Slot::Read, Slot::ReadWrite],
-        );
-        let eval = compute_pipeline(
-            device,
-            &eval_layout,
-            "fourier_eval",
-            FOURIER_EVAL_WGSL,
-            "fourier_eval",
-        );
-        FourierPipelines {
-            build_layout,
-            build,
-            eval_layout,
-            eval,
-        }
+        let pipeline = compute_pipeline(device, &layout, &shaders::FOURIER_BUILD);
+        FourierBuildPipeline { layout, pipeline }
     }
+}
+
+single_kernel! {
+    /// The Fourier evaluation: params; packed coefficients; output.
+    FourierEvalKernel = FOURIER_EVAL, 1, 1, "building the Fourier pipelines"
 }
 
 /// How the GPU build splits its work (the result does not depend on it, bit for bit).
@@ -132,25 +104,6 @@ impl Default for GpuBuildOptions {
     }
 }
 
-/// Rows per band for `bytes_per_cell` of output per cell within `band_bytes` (at least 1, at
-/// most `rows`, within the dispatch limit and one storage binding).
-fn rows_per_band(
-    ctx: &GpuContext,
-    rows: u32,
-    cols: u32,
-    bytes_per_cell: u64,
-    band_bytes: u64,
-) -> u32 {
-    let limits = ctx.limits();
-    let max_bytes = band_bytes
-        .min(limits.max_storage_buffer_binding_size)
-        .min(limits.max_buffer_size);
-    let by_budget = (max_bytes / (u64::from(cols) * bytes_per_cell)).max(1);
-    let by_dispatch =
-        u64::from(limits.max_compute_workgroups_per_dimension) * u64::from(WORKGROUP_SIZE_XY);
-    by_budget.min(by_dispatch).min(u64::from(rows)) as u32
-}
-
 /// Builds the horizon map of `hf` on the GPU with the default [`GpuBuildOptions`]: the same
 /// map as [`HorizonMap::build_with`] (layout, metadata, f16 storage) within the bounds measured in
 /// docs/gpu.md.
@@ -169,7 +122,7 @@ pub fn build_horizon_map_gpu_with(
     params: &HorizonMapParams,
     opts: &GpuBuildOptions,
 ) -> Result<HorizonMap, GpuFourierError> {
-    let fourier = ctx.pipelines::<FourierPipelines>()?;
+    let fourier = ctx.pipelines::<FourierBuildPipeline>()?;
     params.check()?;
     if params.n_coeffs > MAX_GPU_COEFFS {
         return Err(ShadowError::InvalidParameter {
@@ -186,10 +139,10 @@ pub fn build_horizon_map_gpu_with(
         .into());
     }
     let march = MarchGrid::from_height_field(hf, params.observer_height_m)?;
-    let grid = GpuMarchGrid::upload(ctx, &march)?;
+    let grid = GpuGrid::upload(ctx, &march, "fourier_build")?;
     let per = 2 * params.n_coeffs as u64;
     let cols = u64::from(march.cols);
-    let band_rows = rows_per_band(ctx, march.rows, march.cols, per * 4, opts.band_bytes);
+    let band_rows = grid.band_rows(ctx, per * 4, opts.band_bytes);
     let dispatches = build_dispatches(
         march.rows,
         params.n_azimuths as u32,
@@ -202,21 +155,19 @@ pub fn build_horizon_map_gpu_with(
     let sincos = storage_init(
         ctx,
         "penumbra fourier sincos",
-        bytemuck::cast_slice(&azimuth_table(params.n_azimuths)),
+        &azimuth_table(params.n_azimuths),
     );
     let fb_buf = ctx.uniform_buffer(
         "penumbra fourier_build params",
         size_of::<FourierBuildParams>() as u64,
     );
-    let out = band_buffer(
-        ctx,
+    let out = ctx.output_buffer(
         "penumbra fourier_build band",
-        u64::from(band_rows) * cols * per,
-        wgpu::BufferUsages::empty(),
+        u64::from(band_rows) * cols * per * 4,
     );
     let bind_group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
         label: Some("penumbra fourier_build bind group"),
-        layout: &fourier.build_layout,
+        layout: &fourier.layout,
         entries: &[
             whole(0, &grid.params),
             whole(1, &grid.heights),
@@ -231,7 +182,7 @@ pub fn build_horizon_map_gpu_with(
         ctx.queue.write_buffer(&fb_buf, 0, bytemuck::bytes_of(fb));
         ctx.dispatch(
             "fourier_build",
-            &fourier.build,
+            &fourier.pipeline,
             &bind_group,
             &[],
             [
@@ -282,7 +233,7 @@ impl GpuHorizonMap {
         map: &HorizonMap,
         band_bytes: u64,
     ) -> Result<Self, GpuFourierError> {
-        let fourier = ctx.pipelines::<FourierPipelines>()?;
+        let eval = ctx.pipelines::<KernelPipeline<FourierEvalKernel>>()?;
         let (rows, cols, nk) = (map.meta.rows, map.meta.cols, map.meta.n_coeffs);
         if rows == 0 || cols == 0 || nk == 0 || map.coeffs.len() != rows * cols * 2 * nk {
             return Err(GpuError::InvalidInput {
@@ -297,17 +248,15 @@ impl GpuHorizonMap {
         let (rows, cols) = (rows as u32, cols as u32);
         check_dispatch_cols(ctx, cols, "fourier_eval")?;
         let packed = pack_coeffs(map);
-        let band_rows = rows_per_band(ctx, rows, cols, 4 * nk as u64, band_bytes);
+        let band_rows = band_rows(ctx, rows, cols, 4 * nk as u64, band_bytes);
         let scope = ErrorScope::push(&ctx.device);
         let params = ctx.uniform_buffer(
             "penumbra fourier_eval params",
             size_of::<FourierEvalParams>() as u64,
         );
-        let out = band_buffer(
-            ctx,
+        let out = ctx.output_buffer(
             "penumbra fourier_eval band",
-            u64::from(band_rows) * u64::from(cols),
-            wgpu::BufferUsages::empty(),
+            u64::from(band_rows) * u64::from(cols) * 4,
         );
         let mut bands = Vec::new();
         let mut row0 = 0;
@@ -329,13 +278,7 @@ impl GpuHorizonMap {
         }
         let bind_groups = bands
             .iter()
-            .map(|(_, _, buf)| {
-                ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-                    label: Some("penumbra fourier_eval bind group"),
-                    layout: &fourier.eval_layout,
-                    entries: &[whole(0, &params), whole(1, buf), whole(2, &out)],
-                })
-            })
+            .map(|(_, _, buf)| eval.bind(ctx, &[&params, buf, &out]))
             .collect();
         scope.pop("uploading the horizon map")?;
         Ok(GpuHorizonMap {
@@ -359,7 +302,7 @@ impl GpuHorizonMap {
         light_in_model: [f64; 3],
         angular_radius_rad: f64,
     ) -> Result<Vec<f32>, GpuFourierError> {
-        let fourier = ctx.pipelines::<FourierPipelines>()?;
+        let eval = ctx.pipelines::<KernelPipeline<FourierEvalKernel>>()?;
         let base = FourierEvalParams::new(&self.meta, light_in_model, angular_radius_rad)?;
         let scope = ErrorScope::push(&ctx.device);
         let mut values: Vec<f32> = Vec::with_capacity(self.rows as usize * self.cols as usize);
@@ -373,7 +316,7 @@ impl GpuHorizonMap {
                 .write_buffer(&self.params, 0, bytemuck::bytes_of(&fe));
             ctx.dispatch(
                 "fourier_eval",
-                &fourier.eval,
+                &eval.pipeline,
                 bind_group,
                 &[],
                 [

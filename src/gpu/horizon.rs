@@ -9,9 +9,9 @@
 //! angle)` pairs back once. [`horizons_gpu`] is the whole path from sites to [`Horizon`]s.
 
 use super::GpuError;
-use super::context::{
-    ErrorScope, GpuContext, Slot, compute_pipeline, slots_layout, storage_init, whole,
-};
+use std::sync::Arc;
+
+use super::context::{ErrorScope, GpuContext, KernelPipeline, storage_init};
 use crate::horizon::{Horizon, HorizonEngine, HorizonError};
 use crate::terrain::TerrainStack;
 use crate::twins::horizon_scan::{
@@ -22,9 +22,6 @@ use crate::twins::horizon_scan::{
 pub const SITES_PER_DISPATCH: u32 = 64;
 /// Workgroup size along the azimuths. Keep in sync with shaders/horizon_scan.wgsl.
 const WORKGROUP_SIZE: u32 = 64;
-
-const SHARED_BILINEAR_WGSL: &str = wgsl!("shared/bilinear.wgsl");
-const HORIZON_SCAN_WGSL: &str = wgsl!("horizon_scan.wgsl");
 
 /// Errors of the GPU horizon path: a bad site or terrain (as on the CPU), or a GPU failure.
 #[derive(Debug, thiserror::Error)]
@@ -37,10 +34,14 @@ pub enum GpuHorizonError {
     Gpu(#[from] GpuError),
 }
 
+single_kernel! {
+    /// The horizon scan: params; heights, sites, azimuths; output.
+    HorizonScanKernel = HORIZON_SCAN, 3, 1, "building the horizon_scan pipeline"
+}
+
 /// The horizon-scan pipeline and a terrain stack resident on the GPU.
 pub struct GpuHorizonScan {
-    layout: wgpu::BindGroupLayout,
-    pipeline: wgpu::ComputePipeline,
+    kernel: Arc<KernelPipeline<HorizonScanKernel>>,
     params: ScanParams,
     params_buf: wgpu::Buffer,
     heights: wgpu::Buffer,
@@ -66,38 +67,16 @@ impl GpuHorizonScan {
                 ),
             });
         }
+        let kernel = ctx.pipelines::<KernelPipeline<HorizonScanKernel>>()?;
         let scope = ErrorScope::push(&ctx.device);
-        let layout = slots_layout(
-            &ctx.device,
-            "penumbra horizon_scan layout",
-            &[
-                Slot::Uniform,
-                Slot::Read,
-                Slot::Read,
-                Slot::Read,
-                Slot::ReadWrite,
-            ],
-        );
-        let pipeline = compute_pipeline(
-            &ctx.device,
-            &layout,
-            "horizon_scan",
-            &format!("{SHARED_BILINEAR_WGSL}{HORIZON_SCAN_WGSL}"),
-            "horizon_scan",
-        );
         let params_buf = ctx.uniform_buffer(
             "penumbra horizon_scan params",
             size_of::<ScanParams>() as u64,
         );
-        let heights = storage_init(
-            ctx,
-            "penumbra horizon_scan heights",
-            bytemuck::cast_slice(&terrain.heights_m),
-        );
-        scope.pop("building the horizon_scan pipeline")?;
+        let heights = storage_init(ctx, "penumbra horizon_scan heights", &terrain.heights_m);
+        scope.pop("uploading the horizon_scan terrain")?;
         Ok(GpuHorizonScan {
-            layout,
-            pipeline,
+            kernel,
             params: terrain.params,
             params_buf,
             heights,
@@ -105,7 +84,7 @@ impl GpuHorizonScan {
     }
 
     /// `(tan el, ground angle rad)` for every (site, azimuth), `site * n_az + az` (as the twin
-    /// [`crate::twins::horizon_scan::scan_twin`]).
+    /// [`crate::twins::horizon_scan::horizon_scan`]).
     pub fn scan(
         &self,
         ctx: &GpuContext,
@@ -124,28 +103,13 @@ impl GpuHorizonScan {
             });
         }
         let scope = ErrorScope::push(&ctx.device);
-        let site_buf = storage_init(
-            ctx,
-            "penumbra horizon_scan sites",
-            bytemuck::cast_slice(sites),
-        );
-        let az_buf = storage_init(
-            ctx,
-            "penumbra horizon_scan azimuths",
-            bytemuck::cast_slice(azimuths),
-        );
+        let site_buf = storage_init(ctx, "penumbra horizon_scan sites", sites);
+        let az_buf = storage_init(ctx, "penumbra horizon_scan azimuths", azimuths);
         let out = ctx.output_buffer("penumbra horizon_scan out", n_out * 8);
-        let bind_group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("penumbra horizon_scan bind group"),
-            layout: &self.layout,
-            entries: &[
-                whole(0, &self.params_buf),
-                whole(1, &self.heights),
-                whole(2, &site_buf),
-                whole(3, &az_buf),
-                whole(4, &out),
-            ],
-        });
+        let bind_group = self.kernel.bind(
+            ctx,
+            &[&self.params_buf, &self.heights, &site_buf, &az_buf, &out],
+        );
         let n_sites = sites.len() as u32;
         let mut site0 = 0;
         while site0 < n_sites {
@@ -160,7 +124,7 @@ impl GpuHorizonScan {
                 .write_buffer(&self.params_buf, 0, bytemuck::bytes_of(&params));
             ctx.dispatch(
                 "horizon_scan",
-                &self.pipeline,
+                &self.kernel.pipeline,
                 &bind_group,
                 &[],
                 [groups_x, chunk, 1],

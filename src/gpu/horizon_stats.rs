@@ -9,16 +9,12 @@
 use std::sync::Arc;
 
 use super::GpuError;
-use super::context::{
-    ErrorScope, GpuContext, Slot, compute_pipeline, slots_layout, storage_init, whole,
-};
+use super::context::{ErrorScope, GpuContext, KernelPipeline, storage_init};
 use crate::horizon::HorizonError;
 use crate::horizon::statistics::{CellKernel, KernelAcc, KernelCell, KernelShared};
 use crate::twins::horizon_stats::{
     EPOCHS_PER_BATCH, HorizonStatsParams, WORKGROUP_SIZE, packed_tables,
 };
-
-const HORIZON_STATS_WGSL: &str = wgsl!("horizon_stats.wgsl");
 
 /// What a run shares, resident on the GPU.
 struct Resident {
@@ -28,11 +24,16 @@ struct Resident {
     index: wgpu::Buffer,
 }
 
+single_kernel! {
+    /// The statistics kernel: params; cells, horizons, epochs, tables, azimuth index; the
+    /// statistics.
+    HorizonStatsKernel = HORIZON_STATS, 5, 1, "building the horizon_stats pipeline"
+}
+
 /// The statistics kernel on a GPU.
 pub struct GpuHorizonStats<'a> {
     ctx: &'a GpuContext,
-    layout: wgpu::BindGroupLayout,
-    pipeline: wgpu::ComputePipeline,
+    kernel: Arc<KernelPipeline<HorizonStatsKernel>>,
     params_buf: wgpu::Buffer,
     resident: Option<Resident>,
 }
@@ -44,39 +45,18 @@ impl From<GpuError> for HorizonError {
 }
 
 impl<'a> GpuHorizonStats<'a> {
-    /// Builds the pipeline.
+    /// The kernel on `ctx` (its pipeline built on first use).
     pub fn new(ctx: &'a GpuContext) -> Result<Self, GpuError> {
+        let kernel = ctx.pipelines::<KernelPipeline<HorizonStatsKernel>>()?;
         let scope = ErrorScope::push(&ctx.device);
-        // params, cells, horizons, epochs, tables, azimuth index; the statistics.
-        let layout = slots_layout(
-            &ctx.device,
-            "penumbra horizon_stats layout",
-            &[
-                Slot::Uniform,
-                Slot::Read,
-                Slot::Read,
-                Slot::Read,
-                Slot::Read,
-                Slot::Read,
-                Slot::ReadWrite,
-            ],
-        );
-        let pipeline = compute_pipeline(
-            &ctx.device,
-            &layout,
-            "horizon_stats",
-            HORIZON_STATS_WGSL,
-            "horizon_stats",
-        );
         let params_buf = ctx.uniform_buffer(
             "penumbra horizon_stats params",
             size_of::<HorizonStatsParams>() as u64,
         );
-        scope.pop("building the horizon_stats pipeline")?;
+        scope.pop("creating the horizon_stats params")?;
         Ok(GpuHorizonStats {
             ctx,
-            layout,
-            pipeline,
+            kernel,
             params_buf,
             resident: None,
         })
@@ -91,32 +71,23 @@ impl<'a> GpuHorizonStats<'a> {
     ) -> Result<Vec<KernelAcc>, GpuError> {
         let ctx = self.ctx;
         let scope = ErrorScope::push(&ctx.device);
-        let cells_buf = storage_init(
-            ctx,
-            "penumbra horizon_stats cells",
-            bytemuck::cast_slice(cells),
-        );
-        let horizons_buf = storage_init(
-            ctx,
-            "penumbra horizon_stats horizons",
-            bytemuck::cast_slice(horizons),
-        );
+        let cells_buf = storage_init(ctx, "penumbra horizon_stats cells", cells);
+        let horizons_buf = storage_init(ctx, "penumbra horizon_stats horizons", horizons);
         let acc_bytes = (cells.len() * size_of::<KernelAcc>()) as u64;
         // wgpu zero-initialises new buffers: the statistics start empty.
         let acc = ctx.output_buffer("penumbra horizon_stats acc", acc_bytes);
-        let bind_group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("penumbra horizon_stats bind group"),
-            layout: &self.layout,
-            entries: &[
-                whole(0, &self.params_buf),
-                whole(1, &cells_buf),
-                whole(2, &horizons_buf),
-                whole(3, &r.epochs),
-                whole(4, &r.tables),
-                whole(5, &r.index),
-                whole(6, &acc),
+        let bind_group = self.kernel.bind(
+            ctx,
+            &[
+                &self.params_buf,
+                &cells_buf,
+                &horizons_buf,
+                &r.epochs,
+                &r.tables,
+                &r.index,
+                &acc,
             ],
-        });
+        );
         let groups = (cells.len() as u32).div_ceil(WORKGROUP_SIZE);
         let groups_x = groups.min(ctx.limits().max_compute_workgroups_per_dimension);
         let groups_y = groups.div_ceil(groups_x);
@@ -135,7 +106,7 @@ impl<'a> GpuHorizonStats<'a> {
                 .write_buffer(&self.params_buf, 0, bytemuck::bytes_of(&params));
             ctx.dispatch(
                 "horizon_stats",
-                &self.pipeline,
+                &self.kernel.pipeline,
                 &bind_group,
                 &[],
                 [groups_x, groups_y, 1],
@@ -168,13 +139,9 @@ impl CellKernel for GpuHorizonStats<'_> {
             tables: storage_init(
                 self.ctx,
                 "penumbra horizon_stats tables",
-                bytemuck::cast_slice(&packed_tables(&shared)),
+                &packed_tables(&shared),
             ),
-            index: storage_init(
-                self.ctx,
-                "penumbra horizon_stats index",
-                bytemuck::cast_slice(&shared.index),
-            ),
+            index: storage_init(self.ctx, "penumbra horizon_stats index", &shared.index),
             shared,
         });
         scope.pop("uploading the horizon_stats epochs")?;

@@ -8,24 +8,26 @@
 //! [`HorizonSweep::run`] does.
 
 use super::GpuError;
-use super::context::{
-    ErrorScope, GpuContext, Slot, compute_pipeline, slots_layout, storage_init, whole,
-};
+use std::sync::Arc;
+
+use super::context::{ErrorScope, GpuContext, KernelPipeline, storage_init};
 use crate::horizon::{HorizonSweep, SweepBand};
 use crate::twins::line_sweep::{
     LineBatch, LineSweepParams, SweepGrid, WORKGROUP_SIZE, sweep_batched,
 };
 
-const SHARED_BILINEAR_WGSL: &str = wgsl!("shared/bilinear.wgsl");
-const LINE_SWEEP_WGSL: &str = wgsl!("line_sweep.wgsl");
-
 /// Largest batch, samples (the hull scratch is 32 B per sample: 256 MiB).
 pub const MAX_BATCH_SAMPLES: usize = 1 << 23;
 
+single_kernel! {
+    /// The line sweep's looks: params; lines, samples, observers, heights; the hull scratch and
+    /// the output.
+    LineSweepKernel = LINE_SWEEP, 4, 2, "building the line_sweep pipeline"
+}
+
 /// The line-sweep pipeline and the finest layer resident on the GPU.
 pub struct GpuLineSweep {
-    layout: wgpu::BindGroupLayout,
-    pipeline: wgpu::ComputePipeline,
+    kernel: Arc<KernelPipeline<LineSweepKernel>>,
     params: LineSweepParams,
     params_buf: wgpu::Buffer,
     heights: wgpu::Buffer,
@@ -51,40 +53,16 @@ impl GpuLineSweep {
         let max_samples = usize::try_from(max_binding / 32)
             .unwrap_or(usize::MAX)
             .min(MAX_BATCH_SAMPLES);
+        let kernel = ctx.pipelines::<KernelPipeline<LineSweepKernel>>()?;
         let scope = ErrorScope::push(&ctx.device);
-        let layout = slots_layout(
-            &ctx.device,
-            "penumbra line_sweep layout",
-            &[
-                Slot::Uniform,
-                Slot::Read,
-                Slot::Read,
-                Slot::Read,
-                Slot::Read,
-                Slot::ReadWrite,
-                Slot::ReadWrite,
-            ],
-        );
-        let pipeline = compute_pipeline(
-            &ctx.device,
-            &layout,
-            "line_sweep",
-            &format!("{SHARED_BILINEAR_WGSL}{LINE_SWEEP_WGSL}"),
-            "line_sweep",
-        );
         let params_buf = ctx.uniform_buffer(
             "penumbra line_sweep params",
             size_of::<LineSweepParams>() as u64,
         );
-        let heights = storage_init(
-            ctx,
-            "penumbra line_sweep heights",
-            bytemuck::cast_slice(&grid.heights_m),
-        );
-        scope.pop("building the line_sweep pipeline")?;
+        let heights = storage_init(ctx, "penumbra line_sweep heights", &grid.heights_m);
+        scope.pop("uploading the line_sweep heights")?;
         Ok(GpuLineSweep {
-            layout,
-            pipeline,
+            kernel,
             params: grid.params,
             params_buf,
             heights,
@@ -98,7 +76,7 @@ impl GpuLineSweep {
     }
 
     /// `(tan el, Δψ)` for every observer and look of `batch`, `2 · observer + look` (as the twin
-    /// [`crate::twins::line_sweep::line_sweep_twin`]).
+    /// [`crate::twins::line_sweep::line_sweep`]).
     pub fn run_batch(
         &self,
         ctx: &GpuContext,
@@ -129,19 +107,9 @@ impl GpuLineSweep {
             ..self.params
         };
         let scope = ErrorScope::push(&ctx.device);
-        let init = |label: &str, contents: &[u8]| storage_init(ctx, label, contents);
-        let lines = init(
-            "penumbra line_sweep lines",
-            bytemuck::cast_slice(&batch.lines),
-        );
-        let samples = init(
-            "penumbra line_sweep samples",
-            bytemuck::cast_slice(&batch.samples),
-        );
-        let observers = init(
-            "penumbra line_sweep observers",
-            bytemuck::cast_slice(&batch.observers),
-        );
+        let lines = storage_init(ctx, "penumbra line_sweep lines", &batch.lines);
+        let samples = storage_init(ctx, "penumbra line_sweep samples", &batch.samples);
+        let observers = storage_init(ctx, "penumbra line_sweep observers", &batch.observers);
         let hull = ctx.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("penumbra line_sweep hull"),
             size: 2 * batch.samples.len() as u64 * 16,
@@ -151,22 +119,21 @@ impl GpuLineSweep {
         let out = ctx.output_buffer("penumbra line_sweep out", n_out * 8);
         ctx.queue
             .write_buffer(&self.params_buf, 0, bytemuck::bytes_of(&params));
-        let bind_group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("penumbra line_sweep bind group"),
-            layout: &self.layout,
-            entries: &[
-                whole(0, &self.params_buf),
-                whole(1, &lines),
-                whole(2, &samples),
-                whole(3, &observers),
-                whole(4, &self.heights),
-                whole(5, &hull),
-                whole(6, &out),
+        let bind_group = self.kernel.bind(
+            ctx,
+            &[
+                &self.params_buf,
+                &lines,
+                &samples,
+                &observers,
+                &self.heights,
+                &hull,
+                &out,
             ],
-        });
+        );
         ctx.dispatch(
             "line_sweep",
-            &self.pipeline,
+            &self.kernel.pipeline,
             &bind_group,
             &[],
             [groups_x, groups_y, 1],

@@ -4,24 +4,36 @@
 //! This is the only module that imports `wgpu`, and only behind the `gpu` cargo feature (on by
 //! default; `--no-default-features` builds a CPU-only binary). [`Backend`], [`GpuError`] and
 //! [`resolve_backend`] are always compiled so that the command line can offer
-//! `--backend cpu|gpu|auto` in every build.
+//! `--backend cpu|gpu|auto` in every build, and so is the shader table ([`shaders`]) so that
+//! every build validates the shaders.
 //!
-//! Layout (vello/rerun): [`GpuContext`] builds the instance, adapter, device, queue and every
-//! compute pipeline once; one module per shader (`shadow_march`, `sweep_accumulate`) holds its
-//! runner and its `mod gpu_data` mirror structs. The WGSL lives in `shaders/` at the crate root
-//! and is embedded with `include_str!` (through `wgsl!`).
+//! Layout (vello/rerun): [`GpuContext`] builds the instance, adapter, device and queue once and
+//! each kernel family's pipelines on first use, and holds the helpers the kernels share; one
+//! module per shader family (`dp`, `tiles`, `fourier`, …) holds its runners and its
+//! `mod gpu_data` mirror structs. The WGSL lives in `shaders/` at the crate root; [`shaders`] says
+//! which shared parts each kernel is composed of and embeds the result at compile time.
 
-/// The text of a WGSL file under `shaders/` at the crate root, embedded at compile time:
-/// `wgsl!("dp_visible.wgsl")`.
+/// Declares `$name`, a [`context::SingleKernel`] of the shader `$shader` with `$reads` read-only
+/// and `$read_writes` read-write storage buffers after its uniform; `$what` names its pipeline
+/// build in errors.
 #[cfg(feature = "gpu")]
-macro_rules! wgsl {
-    ($path:literal) => {
-        include_str!(concat!(env!("CARGO_MANIFEST_DIR"), "/shaders/", $path))
+macro_rules! single_kernel {
+    ($(#[$doc:meta])* $name:ident = $shader:ident, $reads:literal, $read_writes:literal, $what:literal) => {
+        $(#[$doc])*
+        pub(crate) struct $name;
+
+        impl super::context::SingleKernel for $name {
+            const SHADER: super::shaders::Shader = super::shaders::$shader;
+            const READS: u32 = $reads;
+            const READ_WRITES: u32 = $read_writes;
+            const WHAT: &'static str = $what;
+        }
     };
 }
 
 mod backend;
 mod error;
+pub mod shaders;
 
 pub use backend::{Backend, ResolvedBackend, resolve_backend};
 pub use error::GpuError;
@@ -41,14 +53,10 @@ pub mod line_sweep;
 #[cfg(feature = "gpu")]
 pub mod render;
 #[cfg(feature = "gpu")]
-pub mod shadow_march;
-#[cfg(feature = "gpu")]
-pub mod sweep_accumulate;
-#[cfg(feature = "gpu")]
 pub mod tiles;
 
 #[cfg(feature = "gpu")]
-pub use context::{AdapterSummary, GpuContext, adapter_report};
+pub use context::{AdapterSummary, DEFAULT_BAND_BYTES, GpuContext, GpuGrid, adapter_report};
 
 /// Stand-in for the GPU context in builds without the `gpu` feature: it has no values, so
 /// [`ResolvedBackend::Gpu`] can never be constructed there.

@@ -9,7 +9,7 @@
 //! (f32, metres relative to the mid height; holes -1e30), the level table, and the per-cell Sun
 //! and Earth visible fractions (computed on the CPU by the scene's shadow engine). Per frame
 //! ([`render_gpu`]): the camera uniform and the output in **row bands** of at most
-//! `band_bytes` (default [`super::shadow_march::DEFAULT_BAND_BYTES`], capped by the adapter's
+//! `band_bytes` (default [`DEFAULT_BAND_BYTES`], capped by the adapter's
 //! storage binding and buffer size), so images larger than one storage binding work.
 
 use bytemuck::{Pod, Zeroable};
@@ -17,13 +17,10 @@ use wgpu::util::DeviceExt as _;
 
 use super::GpuError;
 use super::context::{
-    ErrorScope, GpuContext, Slot, compute_pipeline, slots_layout, storage_init, whole,
+    DEFAULT_BAND_BYTES, ErrorScope, GpuContext, KernelPipeline, WORKGROUP_SIZE_XY, band_rows,
+    storage_init,
 };
-use super::shadow_march::DEFAULT_BAND_BYTES;
 use crate::render::{Camera, Sample, Scene};
-
-/// Workgroup size (x and y). Keep in sync with shaders/render.wgsl.
-const WORKGROUP_SIZE_XY: u32 = 8;
 
 /// Hole marker in the uploaded heights and pyramid (the shader tests `< -1e29`).
 const HOLE_M: f32 = -1e30;
@@ -36,8 +33,6 @@ pub const CODE_SUN: f32 = -2.0;
 pub const CODE_EARTH: f32 = -3.0;
 /// Output code of a pixel that shows the night side of the Earth's disc.
 pub const CODE_EARTH_NIGHT: f32 = -4.0;
-
-const RENDER_WGSL: &str = concat!(wgsl!("shared/brdf.wgsl"), wgsl!("render.wgsl"));
 
 /// Mirrors of the WGSL structs.
 mod gpu_data {
@@ -62,31 +57,9 @@ mod gpu_data {
 }
 use gpu_data::Params;
 
-/// Bind group layout and pipeline of the render kernel (built once, in [`GpuContext::new`]).
-pub(crate) struct RenderPipeline {
-    layout: wgpu::BindGroupLayout,
-    pipeline: wgpu::ComputePipeline,
-}
-
-impl super::context::Pipelines for RenderPipeline {
-    const WHAT: &'static str = "building the render pipeline";
-
-    fn build(device: &wgpu::Device) -> Self {
-        let layout = slots_layout(
-            device,
-            "penumbra render layout",
-            &[
-                Slot::Uniform,
-                Slot::Read,
-                Slot::Read,
-                Slot::Read,
-                Slot::Read,
-                Slot::ReadWrite,
-            ],
-        );
-        let pipeline = compute_pipeline(device, &layout, "render", RENDER_WGSL, "render");
-        RenderPipeline { layout, pipeline }
-    }
+single_kernel! {
+    /// The render kernel: params; heights, pyramid, levels, fractions; output.
+    RenderKernel = RENDER, 4, 1, "building the render pipeline"
 }
 
 /// A scene uploaded to the GPU: heights, maximum mipmap, level table, visible fractions, and the
@@ -161,10 +134,7 @@ impl GpuRenderScene {
             .zip(earth_f)
             .map(|(&s, &e)| [frac(s), frac(e)])
             .collect();
-        let limit = ctx
-            .limits()
-            .max_storage_buffer_binding_size
-            .min(ctx.limits().max_buffer_size);
+        let limit = ctx.max_storage_binding_bytes();
         let biggest = (fractions.len() * 8).max(texels.len() * 4) as u64;
         if biggest > limit || texels.len() > u32::MAX as usize {
             return Err(invalid(format!(
@@ -177,22 +147,10 @@ impl GpuRenderScene {
         let unit = |v: [f64; 3], r: f64| [v[0] as f32, v[1] as f32, v[2] as f32, r.sin() as f32];
         let scope = ErrorScope::push(&ctx.device);
         let out = GpuRenderScene {
-            heights: storage_init(
-                ctx,
-                "penumbra render heights",
-                bytemuck::cast_slice(&heights),
-            ),
-            pyramid: storage_init(
-                ctx,
-                "penumbra render pyramid",
-                bytemuck::cast_slice(&texels),
-            ),
-            levels: storage_init(ctx, "penumbra render levels", bytemuck::cast_slice(&levels)),
-            fractions: storage_init(
-                ctx,
-                "penumbra render fractions",
-                bytemuck::cast_slice(&fractions),
-            ),
+            heights: storage_init(ctx, "penumbra render heights", &heights),
+            pyramid: storage_init(ctx, "penumbra render pyramid", &texels),
+            levels: storage_init(ctx, "penumbra render levels", &levels),
+            fractions: storage_init(ctx, "penumbra render fractions", &fractions),
             rows: hf.rows as u32,
             cols: hf.cols as u32,
             n_levels: levels.len() as u32,
@@ -244,20 +202,10 @@ pub fn render_radiance_gpu(
     height: u32,
     options: RenderGpuOptions,
 ) -> Result<Vec<f32>, GpuError> {
-    let render = ctx.pipelines::<RenderPipeline>()?;
+    let render = ctx.pipelines::<KernelPipeline<RenderKernel>>()?;
     crate::render::check_size(width, height).map_err(|e| invalid(e.to_string()))?;
-    let limits = ctx.limits();
-    let cap = limits
-        .max_storage_buffer_binding_size
-        .min(limits.max_buffer_size)
-        .min(options.band_bytes.max(4 * u64::from(width)));
-    let by_dispatch =
-        u64::from(limits.max_compute_workgroups_per_dimension) * u64::from(WORKGROUP_SIZE_XY);
-    let band_rows = (cap / (4 * u64::from(width)))
-        .max(1)
-        .min(by_dispatch)
-        .min(u64::from(height)) as u32;
-    if width.div_ceil(WORKGROUP_SIZE_XY) > limits.max_compute_workgroups_per_dimension {
+    let band_rows = band_rows(ctx, height, width, 4, options.band_bytes);
+    if width.div_ceil(WORKGROUP_SIZE_XY) > ctx.limits().max_compute_workgroups_per_dimension {
         return Err(invalid(format!("{width} px exceed one dispatch row")));
     }
     let px = scene.px_m;
@@ -300,18 +248,17 @@ pub fn render_radiance_gpu(
         });
     let band_bytes = u64::from(band_rows) * u64::from(width) * 4;
     let output = ctx.output_buffer("penumbra render output band", band_bytes);
-    let bind_group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-        label: Some("penumbra render bind group"),
-        layout: &render.layout,
-        entries: &[
-            whole(0, &uniform),
-            whole(1, &scene.heights),
-            whole(2, &scene.pyramid),
-            whole(3, &scene.levels),
-            whole(4, &scene.fractions),
-            whole(5, &output),
+    let bind_group = render.bind(
+        ctx,
+        &[
+            &uniform,
+            &scene.heights,
+            &scene.pyramid,
+            &scene.levels,
+            &scene.fractions,
+            &output,
         ],
-    });
+    );
     let mut all = Vec::with_capacity(width as usize * height as usize);
     let mut row0 = 0;
     while row0 < height {

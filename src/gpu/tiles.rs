@@ -1,12 +1,11 @@
-//! 2-D tiled DP shadow maps on the GPU (issue 7 item 4; docs/gpu.md, "Large grids"): for grids
-//! whose heights or maximum mipmap exceed one storage binding (or a memory budget), the one-light
-//! DP map is computed per output tile, walking the rays through one source tile at a time
+//! 2-D tiled DP shadow maps on the GPU (docs/gpu.md, "Large grids"): for grids whose heights or
+//! maximum mipmap exceed one storage binding (or a memory budget), the one-light DP map is
+//! computed per output tile, walking the rays through one source tile at a time
 //! (`shaders/dp_tile_cost.wgsl`, min-accumulating the shadow cost in a per-tile cost buffer),
 //! then turned into fractions (`shaders/dp_tile_fraction.wgsl`); the soft epoch sweep likewise
 //! per batch of epochs (`shaders/dp_tile_sweep_cost.wgsl`, `dp_tile_sweep_accumulate.wgsl`,
-//! [`dp_sweep_tiled_gpu`]). The tile plan, the choice of
-//! source tiles and the CPU twin live in [`crate::twins::dp_tiles`] (why the result is exact is
-//! explained there).
+//! [`dp_sweep_tiled_gpu`]). The tile plan, the choice of source tiles and the CPU twins live in
+//! [`crate::twins::dp_tiles`] (why the result is exact is explained there).
 //!
 //! GPU memory: the output tile's cost buffer and readback staging, `2 × 4 (T + 1)²` B, plus the
 //! resident source blocks (heights `4 (T + 3)²` B + mipmap ≈ `4 · 4/3 · T²` B each) of an LRU
@@ -15,21 +14,21 @@
 use std::collections::HashMap;
 use std::rc::Rc;
 
+use bytemuck::Pod;
+
 use super::GpuError;
-use super::context::storage_init;
-use super::context::{ErrorScope, GpuContext};
+use super::context::{
+    ErrorScope, GpuContext, WORKGROUP_SIZE_XY, grid_params_buffer, slot_offset, storage_init,
+};
 use super::dp::gpu_data::DpStep;
-use super::dp::{DpBindings, check_light, slot_buffer, write_dp_steps};
-use super::shadow_march::{STEP_SLOT_BYTES, band_buffer, grid_params_buffer};
+use super::dp::{DpBindings, DpPipelines, check_light, check_sweep_table};
 pub use crate::twins::dp_tiles::{DEFAULT_RESIDENT_BUDGET_BYTES, DEFAULT_TILE_CELLS};
 use crate::twins::dp_tiles::{
-    TileBlock, TileLimits, TilePlan, TileRect, choose_tile_cells, sources_for, sources_for_batch,
-    tile_bounds,
+    TileBlock, TileBounds, TileLimits, TilePlan, TileRect, choose_tile_cells, sources_for,
+    sources_for_batch, tile_bounds,
 };
 use crate::twins::{DpCellStats, DpMip, MarchGrid};
 
-/// Workgroup size of the tiled kernels. Keep in sync with shaders/dp_tile_*.wgsl.
-const WORKGROUP_SIZE_XY: u32 = 8;
 /// Resident source blocks kept by default, bytes (25 blocks of 2048²).
 pub const DEFAULT_CACHE_BYTES: u64 = 1 << 30;
 
@@ -66,12 +65,9 @@ impl DpTiling {
         grid: &MarchGrid,
         out_bytes_per_cell: u64,
     ) -> Result<Option<u32>, GpuError> {
-        let limits = ctx.limits();
         let tile_limits = TileLimits {
-            max_binding_bytes: limits
-                .max_storage_buffer_binding_size
-                .min(limits.max_buffer_size),
-            max_dispatch_cells: u64::from(limits.max_compute_workgroups_per_dimension)
+            max_binding_bytes: ctx.max_storage_binding_bytes(),
+            max_dispatch_cells: u64::from(ctx.limits().max_compute_workgroups_per_dimension)
                 * u64::from(WORKGROUP_SIZE_XY),
         };
         choose_tile_cells(
@@ -145,17 +141,9 @@ impl GpuTileBlock {
         let DpMip { levels, texels } = &block.mip;
         GpuTileBlock {
             rect: block.rect,
-            heights: storage_init(
-                ctx,
-                "penumbra dp tile heights",
-                bytemuck::cast_slice(&block.heights_m),
-            ),
-            mip: storage_init(ctx, "penumbra dp tile mipmap", bytemuck::cast_slice(texels)),
-            levels: storage_init(
-                ctx,
-                "penumbra dp tile mipmap levels",
-                bytemuck::cast_slice(levels),
-            ),
+            heights: storage_init(ctx, "penumbra dp tile heights", &block.heights_m),
+            mip: storage_init(ctx, "penumbra dp tile mipmap", texels),
+            levels: storage_init(ctx, "penumbra dp tile mipmap levels", levels),
             bytes: block.bytes(),
         }
     }
@@ -249,35 +237,6 @@ fn tile_step(
     }
 }
 
-/// Encodes and submits one dispatch of `pipeline` over output tile `o` with step slot `slot`.
-fn dispatch_tile(
-    ctx: &GpuContext,
-    pipeline: &wgpu::ComputePipeline,
-    group: &wgpu::BindGroup,
-    slot: usize,
-    o: TileRect,
-) {
-    let mut encoder = ctx
-        .device
-        .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-            label: Some("dp_tile"),
-        });
-    {
-        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some("dp_tile"),
-            timestamp_writes: None,
-        });
-        pass.set_pipeline(pipeline);
-        pass.set_bind_group(0, group, &[slot as u32 * STEP_SLOT_BYTES as u32]);
-        pass.dispatch_workgroups(
-            (o.col1 - o.col0).div_ceil(WORKGROUP_SIZE_XY),
-            (o.row1 - o.row0).div_ceil(WORKGROUP_SIZE_XY),
-            1,
-        );
-    }
-    ctx.queue.submit([encoder.finish()]);
-}
-
 /// After a source dispatch: reclaim finished work; when the cache is full wait for the GPU, so
 /// that evicted blocks still referenced by queued dispatches are freed and in-flight memory stays
 /// bounded too.
@@ -290,57 +249,168 @@ fn settle(ctx: &GpuContext, cache: &BlockCache) {
     ctx.device.poll(wait).ok();
 }
 
-/// The GPU passes of one output tile shared by the tiled map and sweep: the `cost` kernel once
-/// per source tile (own tile first), then the `finish` kernel on the output tile.
-struct TilePasses<'a, F> {
-    ctx: &'a GpuContext,
-    grid: &'a MarchGrid,
-    plan: &'a TilePlan,
-    slots: &'a wgpu::Buffer,
+/// The kernels of one tiled run: `cost` once per source tile (own tile first), then `finish`
+/// on the output tile, both with `layout`, writing `out`, with `extra` bound after the output
+/// tile's heights.
+struct TileKernels<'a> {
+    layout: &'a wgpu::BindGroupLayout,
     cost: &'a wgpu::ComputePipeline,
     finish: &'a wgpu::ComputePipeline,
-    /// The bind group of (source block, output tile's block).
-    bind_group: F,
+    out: &'a wgpu::Buffer,
+    extra: &'a [&'a wgpu::Buffer],
 }
 
-impl<F: Fn(&GpuTileBlock, &GpuTileBlock) -> wgpu::BindGroup> TilePasses<'_, F> {
-    /// Writes the step slots of output tile `out` (block `own`) for the epochs
-    /// `[first, first + count)` and dispatches the passes over `sources`, counting them in `run`.
-    fn run(
+/// What the tiled map and the tiled sweep share: the tile plan (checked against the device) and
+/// the tiles' bounds, then inside one error scope the grid uniform, the light table, one step
+/// slot per source tile plus one, and the LRU cache of source blocks; and the run's counters.
+struct TiledRun<'a> {
+    ctx: &'a GpuContext,
+    grid: &'a MarchGrid,
+    plan: TilePlan,
+    bounds: Vec<TileBounds>,
+    /// Cells of the largest output tile.
+    max_tile_cells: usize,
+    scope: ErrorScope,
+    params: wgpu::Buffer,
+    lights: wgpu::Buffer,
+    slots: wgpu::Buffer,
+    cache: BlockCache,
+    stats: TileRunStats,
+}
+
+impl<'a> TiledRun<'a> {
+    /// Plans tiles of `tile_cells` over `grid` (`out_bytes_per_cell` of output per cell, errors
+    /// reported for `kernel`) and uploads what every output tile needs, `lights` included.
+    fn new(
+        ctx: &'a GpuContext,
+        grid: &'a MarchGrid,
+        lights: &[[f32; 4]],
+        (tile_cells, cache_bytes): (u32, u64),
+        out_bytes_per_cell: u64,
+        kernel: &'static str,
+    ) -> Result<Self, GpuError> {
+        let plan = tile_plan(grid, tile_cells, kernel)?;
+        DpTiling {
+            tile_cells: Some(tile_cells),
+        }
+        .resolve_for(ctx, grid, out_bytes_per_cell)?;
+        let bounds = tile_bounds(grid, &plan);
+        let (_, max_tile_cells) = plan.max_block_and_tile_cells();
+        let scope = ErrorScope::push(&ctx.device);
+        Ok(TiledRun {
+            ctx,
+            grid,
+            bounds,
+            max_tile_cells,
+            params: grid_params_buffer(ctx, "penumbra dp tile grid params", grid),
+            lights: storage_init(ctx, "penumbra dp tile lights", lights),
+            slots: ctx.slot_buffer(plan.len() as u32 + 1),
+            cache: BlockCache::new(plan.len(), cache_bytes),
+            stats: TileRunStats {
+                output_tiles: plan.len(),
+                ..Default::default()
+            },
+            plan,
+            scope,
+        })
+    }
+
+    /// The block of output tile `out` (from the cache).
+    fn own_block(&mut self, out: usize) -> Rc<GpuTileBlock> {
+        self.cache
+            .get(self.ctx, self.grid, &self.plan, out, &mut self.stats)
+    }
+
+    /// The bind group of `k` walking source block `src` for the observers of block `obs`.
+    fn bind_group(
         &self,
-        cache: &mut BlockCache,
-        run: &mut TileRunStats,
+        k: &TileKernels<'_>,
+        src: &GpuTileBlock,
+        obs: &GpuTileBlock,
+    ) -> wgpu::BindGroup {
+        let mut extra = vec![&obs.heights];
+        extra.extend_from_slice(k.extra);
+        DpBindings {
+            params: &self.params,
+            heights: &src.heights,
+            mip: &src.mip,
+            levels: &src.levels,
+            lights: &self.lights,
+            slots: &self.slots,
+            out: k.out,
+            extra: &extra,
+        }
+        .bind_group(self.ctx, "penumbra dp tile bind group", k.layout)
+    }
+
+    /// Writes the step slots of output tile `out` (block `own`) for the epochs
+    /// `[first, first + count)` and dispatches the passes of `k` over `sources`, counting them.
+    fn passes(
+        &mut self,
+        k: &TileKernels<'_>,
         out: usize,
         own: &Rc<GpuTileBlock>,
         sources: &[usize],
         (first, count): (u32, u32),
     ) {
-        let (ctx, o) = (self.ctx, self.plan.rect(out));
-        run.source_dispatches += sources.len();
-        run.max_sources = run.max_sources.max(sources.len());
+        let o = self.plan.rect(out);
+        self.stats.source_dispatches += sources.len();
+        self.stats.max_sources = self.stats.max_sources.max(sources.len());
         let mut steps: Vec<DpStep> = sources
             .iter()
             .enumerate()
-            .map(|(k, &s)| tile_step(o, own.rect, self.plan.rect(s), k == 0, first, count))
+            .map(|(j, &s)| tile_step(o, own.rect, self.plan.rect(s), j == 0, first, count))
             .collect();
         steps.push(tile_step(o, own.rect, o, false, first, count));
-        write_dp_steps(ctx, self.slots, &steps);
-        for (k, &s) in sources.iter().enumerate() {
+        self.ctx.write_slots(&self.slots, &steps);
+        let workgroups = [
+            (o.col1 - o.col0).div_ceil(WORKGROUP_SIZE_XY),
+            (o.row1 - o.row0).div_ceil(WORKGROUP_SIZE_XY),
+            1,
+        ];
+        for (j, &s) in sources.iter().enumerate() {
             let src = if s == out {
                 Rc::clone(own)
             } else {
-                cache.get(ctx, self.grid, self.plan, s, run)
+                self.cache
+                    .get(self.ctx, self.grid, &self.plan, s, &mut self.stats)
             };
-            dispatch_tile(ctx, self.cost, &(self.bind_group)(&src, own), k, o);
-            settle(ctx, cache);
+            let group = self.bind_group(k, &src, own);
+            self.ctx
+                .dispatch("dp_tile", k.cost, &group, &[slot_offset(j)], workgroups);
+            settle(self.ctx, &self.cache);
         }
-        dispatch_tile(
-            ctx,
-            self.finish,
-            &(self.bind_group)(own, own),
-            sources.len(),
+        let group = self.bind_group(k, own, own);
+        let finish_slot = [slot_offset(sources.len())];
+        self.ctx
+            .dispatch("dp_tile", k.finish, &group, &finish_slot, workgroups);
+    }
+
+    /// Reads output tile `out` back from `buffer` into the grid-sized `dst`.
+    fn read_tile<T: Pod>(
+        &self,
+        buffer: &wgpu::Buffer,
+        out: usize,
+        dst: &mut [T],
+        what: &'static str,
+    ) -> Result<(), GpuError> {
+        let o = self.plan.rect(out);
+        let bytes = self
+            .ctx
+            .read_back(buffer, (o.cells() * size_of::<T>()) as u64, what)?;
+        scatter_tile(
+            dst,
+            self.grid.cols as usize,
             o,
+            &bytemuck::pod_collect_to_vec(&bytes),
         );
+        Ok(())
+    }
+
+    /// Pops the error scope (`action` names the run) and returns the counters.
+    fn finish(self, action: &'static str) -> Result<TileRunStats, GpuError> {
+        self.scope.pop(action)?;
+        Ok(self.stats)
     }
 }
 
@@ -378,67 +448,26 @@ pub fn dp_visible_tiled_gpu(
     light: [f32; 4],
     options: DpTileOptions,
 ) -> Result<TiledMap, GpuError> {
-    let dp = ctx.pipelines::<super::dp::DpPipelines>()?;
+    let dp = ctx.pipelines::<DpPipelines>()?;
     check_light(light, "dp_tile_cost")?;
-    let plan = tile_plan(grid, options.tile_cells, "dp_tile_cost")?;
-    DpTiling {
-        tile_cells: Some(options.tile_cells),
-    }
-    .resolve(ctx, grid)?;
-    let bounds = tile_bounds(grid, &plan);
-    let (_, max_tile_cells) = plan.max_block_and_tile_cells();
-    let cols = grid.cols as usize;
-    let mut stats = TileRunStats {
-        output_tiles: plan.len(),
-        ..Default::default()
-    };
-    let scope = ErrorScope::push(&ctx.device);
-    let params = grid_params_buffer(ctx, "penumbra dp tile grid params", grid);
-    let lights = storage_init(
-        ctx,
-        "penumbra dp tile light",
-        bytemuck::cast_slice(&[light]),
-    );
-    let slots = slot_buffer(ctx, plan.len() as u32 + 1);
-    let cost = band_buffer(
-        ctx,
-        "penumbra dp tile cost",
-        max_tile_cells as u64,
-        wgpu::BufferUsages::empty(),
-    );
-    let mut cache = BlockCache::new(plan.len(), options.cache_bytes);
-    let bind_group = |src: &GpuTileBlock, obs: &GpuTileBlock| {
-        DpBindings {
-            params: &params,
-            heights: &src.heights,
-            mip: &src.mip,
-            levels: &src.levels,
-            lights: &lights,
-            slots: &slots,
-            out: &cost,
-            extra: &[&obs.heights],
-        }
-        .bind_group(ctx, "penumbra dp tile bind group", &dp.tile_layout)
-    };
-    let passes = TilePasses {
-        ctx,
-        grid,
-        plan: &plan,
-        slots: &slots,
+    let tiling = (options.tile_cells, options.cache_bytes);
+    let mut run = TiledRun::new(ctx, grid, &[light], tiling, 4, "dp_tile_cost")?;
+    let cost = ctx.output_buffer("penumbra dp tile cost", run.max_tile_cells as u64 * 4);
+    let kernels = TileKernels {
+        layout: &dp.tile_layout,
         cost: &dp.tile_cost,
         finish: &dp.tile_fraction,
-        bind_group,
+        out: &cost,
+        extra: &[],
     };
     let mut map = vec![0.0_f32; grid.cells()];
-    for out in 0..plan.len() {
-        let o = plan.rect(out);
-        let sources = sources_for(grid, &plan, &bounds, out, light);
-        let own = cache.get(ctx, grid, &plan, out, &mut stats);
-        passes.run(&mut cache, &mut stats, out, &own, &sources, (0, 1));
-        let bytes = ctx.read_back(&cost, (o.cells() * 4) as u64, "a DP tile")?;
-        scatter_tile(&mut map, cols, o, &bytemuck::pod_collect_to_vec(&bytes));
+    for out in 0..run.plan.len() {
+        let sources = sources_for(grid, &run.plan, &run.bounds, out, light);
+        let own = run.own_block(out);
+        run.passes(&kernels, out, &own, &sources, (0, 1));
+        run.read_tile(&cost, out, &mut map, "a DP tile")?;
     }
-    scope.pop("running the tiled DP map")?;
+    let stats = run.finish("running the tiled DP map")?;
     Ok(TiledMap { values: map, stats })
 }
 
@@ -480,120 +509,46 @@ pub fn dp_sweep_tiled_gpu(
     lights: &[[f32; 4]],
     options: DpTileSweepOptions,
 ) -> Result<(Vec<DpCellStats>, TileRunStats), GpuError> {
-    let dp = ctx.pipelines::<super::dp::DpPipelines>()?;
-    if lights.is_empty() || !lights.len().is_multiple_of(2) || options.epochs_per_batch == 0 {
-        return Err(GpuError::InvalidInput {
-            kernel: "dp_tile_sweep_cost",
-            message: "the light table needs Sun and Earth discs for at least one epoch (and a \
-                      non-zero batch)"
-                .into(),
-        });
-    }
-    for &l in lights {
-        check_light(l, "dp_tile_sweep_cost")?;
-    }
-    let epochs = u32::try_from(lights.len() / 2).map_err(|_| GpuError::InvalidInput {
-        kernel: "dp_tile_sweep_cost",
-        message: format!("{} epochs exceed 2^32", lights.len() / 2),
-    })?;
-    let plan = tile_plan(grid, options.tile_cells, "dp_tile_sweep_cost")?;
-    DpTiling {
-        tile_cells: Some(options.tile_cells),
-    }
-    .resolve_sweep(ctx, grid)?;
-    let bounds = tile_bounds(grid, &plan);
-    let (_, max_tile_cells) = plan.max_block_and_tile_cells();
+    let dp = ctx.pipelines::<DpPipelines>()?;
+    let kernel = "dp_tile_sweep_cost";
+    let valid = options.epochs_per_batch > 0;
+    let epochs = check_sweep_table(lights, valid, "a non-zero batch", kernel)?;
+    let stats_bytes = size_of::<DpCellStats>() as u64;
+    let tiling = (options.tile_cells, options.cache_bytes);
+    let mut run = TiledRun::new(ctx, grid, lights, tiling, stats_bytes, kernel)?;
+    let tile_cells = run.max_tile_cells as u64;
     // The cost buffer (8 B per cell and epoch) must fit one binding too.
-    let limits = ctx.limits();
-    let max_binding = limits
-        .max_storage_buffer_binding_size
-        .min(limits.max_buffer_size);
     let batch = options
         .epochs_per_batch
-        .min((max_binding / (8 * max_tile_cells as u64)).max(1) as u32);
-    let stats_bytes = size_of::<DpCellStats>() as u64;
-    let cols = grid.cols as usize;
-    let mut run = TileRunStats {
-        output_tiles: plan.len(),
-        ..Default::default()
-    };
-    let scope = ErrorScope::push(&ctx.device);
-    let params = grid_params_buffer(ctx, "penumbra dp tile sweep grid params", grid);
-    let table = storage_init(
-        ctx,
-        "penumbra dp tile sweep lights",
-        bytemuck::cast_slice(lights),
-    );
-    let slots = slot_buffer(ctx, plan.len() as u32 + 1);
-    let cost = band_buffer(
-        ctx,
+        .min((ctx.max_storage_binding_bytes() / (8 * tile_cells)).max(1) as u32);
+    let cost = ctx.output_buffer(
         "penumbra dp tile sweep cost",
-        max_tile_cells as u64 * 2 * u64::from(batch),
-        wgpu::BufferUsages::empty(),
+        tile_cells * 2 * u64::from(batch) * 4,
     );
-    let tile_stats = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("penumbra dp tile sweep stats"),
-        size: max_tile_cells as u64 * stats_bytes,
-        usage: wgpu::BufferUsages::STORAGE
-            | wgpu::BufferUsages::COPY_SRC
-            | wgpu::BufferUsages::COPY_DST,
-        mapped_at_creation: false,
-    });
-    let mut cache = BlockCache::new(plan.len(), options.cache_bytes);
-    let bind_group = |src: &GpuTileBlock, obs: &GpuTileBlock| {
-        DpBindings {
-            params: &params,
-            heights: &src.heights,
-            mip: &src.mip,
-            levels: &src.levels,
-            lights: &table,
-            slots: &slots,
-            out: &cost,
-            extra: &[&obs.heights, &tile_stats],
-        }
-        .bind_group(
-            ctx,
-            "penumbra dp tile sweep bind group",
-            &dp.tile_sweep_layout,
-        )
-    };
-    let passes = TilePasses {
-        ctx,
-        grid,
-        plan: &plan,
-        slots: &slots,
+    let tile_stats = ctx.output_buffer("penumbra dp tile sweep stats", tile_cells * stats_bytes);
+    let kernels = TileKernels {
+        layout: &dp.tile_sweep_layout,
         cost: &dp.tile_sweep_cost,
         finish: &dp.tile_sweep_accumulate,
-        bind_group,
+        out: &cost,
+        extra: &[&tile_stats],
     };
     let mut all = vec![DpCellStats::default(); grid.cells()];
-    for out in 0..plan.len() {
-        let o = plan.rect(out);
-        let own = cache.get(ctx, grid, &plan, out, &mut run);
-        let mut clear = ctx
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("penumbra dp tile sweep clear"),
-            });
-        clear.clear_buffer(&tile_stats, 0, None);
-        ctx.queue.submit([clear.finish()]);
+    for out in 0..run.plan.len() {
+        let own = run.own_block(out);
+        ctx.clear("penumbra dp tile sweep clear", &tile_stats);
         let mut first = 0_u32;
         while first < epochs {
             let count = batch.min(epochs - first);
             let batch_lights = &lights[2 * first as usize..2 * (first + count) as usize];
-            let sources = sources_for_batch(grid, &plan, &bounds, out, batch_lights);
-            passes.run(&mut cache, &mut run, out, &own, &sources, (first, count));
+            let sources = sources_for_batch(grid, &run.plan, &run.bounds, out, batch_lights);
+            run.passes(&kernels, out, &own, &sources, (first, count));
             // The next batch rewrites the step slots: queue writes land before later submits
             // and after earlier ones, so no wait is needed.
             first += count;
         }
-        let bytes = ctx.read_back(
-            &tile_stats,
-            o.cells() as u64 * stats_bytes,
-            "DP tile statistics",
-        )?;
-        scatter_tile(&mut all, cols, o, &bytemuck::pod_collect_to_vec(&bytes));
+        run.read_tile(&tile_stats, out, &mut all, "DP tile statistics")?;
     }
-    scope.pop("running the tiled DP sweep")?;
-    Ok((all, run))
+    let stats = run.finish("running the tiled DP sweep")?;
+    Ok((all, stats))
 }

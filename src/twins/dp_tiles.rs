@@ -1,31 +1,29 @@
 //! 2-D tiling of the DP shadow maps for grids larger than one GPU storage binding or than GPU
-//! memory (issue 7 item 4; docs/gpu.md, "Large grids"): the tile plan, the per-tile bounds that
-//! decide which source tiles an output tile needs, and the CPU f32 twin of the tiled GPU
-//! evaluation (`shaders/dp_tile_cost.wgsl`, `shaders/dp_tile_fraction.wgsl`).
+//! memory (docs/gpu.md, "Large grids"): the tile plan, the per-tile bounds that decide which
+//! source tiles an output tile needs, and the f32 twins of the tiled kernels
+//! (`shaders/dp_tile_*.wgsl`, one function per entry point, over a [`TileSet`]).
 //!
 //! **Why it is exact.** The shadow cost of a cell is a minimum over the samples of its ray
-//! (papers 000/003 eq. 2, `J* = min Δh/t` at the lattice-line crossings). A minimum decomposes over
-//! any cover of the ray: `J* = min_S J*_S`, where `J*_S` only uses the samples inside source tile
-//! `S`. The tiles partition the dual cells (the squares between four cell centres), every crossing
-//! is the exit of some dual cell along the ray, and the walk computes positions, crossing
-//! distances and sample heights in global cell units ([`super::dp::dp_cost_in`]), so a
-//! sample has the same f32 value whichever tile evaluates it. Each tile's walk starts from the
-//! running minimum of the tiles already walked, which also prunes it (`min(best, cap)`); a tile
-//! whose highest texel cannot bring the cost below the disc's cap is skipped altogether. The
-//! result equals the untiled walk's wherever the untiled `J*` is below the cap (where it is not,
-//! the disc is entirely visible in both).
+//! (papers 000/003 eq. 2, `J* = min Δh/t` at the lattice-line crossings), so it decomposes over
+//! any cover of the ray: `J* = min_S J*_S`, `J*_S` using the samples inside source tile `S` only.
+//! The tiles partition the dual cells (the squares between four cell centres), every crossing is
+//! the exit of some dual cell, and the walk works in global cell units
+//! ([`super::dp::dp_cost_in`]), so a sample has the same f32 value in any tile. Each tile's walk
+//! starts from the running minimum of the tiles already walked, which also prunes it
+//! (`min(best, cap)`); a tile whose highest texel cannot bring the cost below the disc's cap is
+//! skipped. The result equals the untiled walk's wherever the untiled `J*` is below the cap
+//! (elsewhere the disc is entirely visible in both).
 //!
-//! **Layout.** Tile `(a, b)` with side `T` owns output cells `[aT, (a+1)T)` (the last tile row
-//! or column absorbs the remainder, so every tile has at least one dual cell) and the dual cells
-//! with the same indices (`[aT, rows − 1)` for the last); its heights block adds one row/column
-//! before and two after (clamped to the grid), which holds every height a sample inside the tile
-//! reads, including the neighbours that f32 rounding of a crossing's position can pick.
+//! **Layout.** Tile `(a, b)` of side `T` owns cells and dual cells `[aT, (a+1)T)` (the last
+//! tile row or column absorbs the remainder, so every tile has a dual cell); its heights block
+//! adds one row/column before and two after (clamped to the grid): every height a sample inside
+//! the tile reads, f32 rounding of its position included.
 
 use rayon::prelude::*;
 
 use super::dp::{
-    DpCellStats, DpMip, DpSource, dp_cap, dp_cost_in, dp_fraction_of_cost, dp_observer_at,
-    dp_sweep_accumulate,
+    DpCellStats, DpMip, DpObserver, DpSource, dp_cap, dp_cost_in, dp_fraction_of_cost,
+    dp_observer_at, dp_sweep_accumulate,
 };
 use super::march::MarchGrid;
 use super::{HOLE_TEST_M, NODATA_FRACTION};
@@ -479,46 +477,100 @@ pub fn sources_for(
     sources
 }
 
-/// Twin of the tiled GPU pass 1 over the whole grid: per cell (row-major) the shadow cost `J*`
-/// of the ray towards the centre of `light` as the min over its source tiles
-/// ([`sources_for`], walked in that order, each from the running min), `NaN` for holes. Tiles of
-/// side `tile_cells`; every block is built up front (fine for tests, not for big grids).
+/// Every tile of a plan with its block, built up front (fine for tests, not for big grids): what
+/// the twins of the tiled kernels read.
+#[derive(Debug)]
+pub struct TileSet {
+    /// The plan.
+    pub plan: TilePlan,
+    /// Per tile, the bounds that choose its source tiles.
+    pub bounds: Vec<TileBounds>,
+    /// Per tile, its heights block and mipmap.
+    pub blocks: Vec<TileBlock>,
+}
+
+impl TileSet {
+    /// Tiles of side `tile_cells` over `grid`, every block built (rayon over tiles).
+    pub fn build(grid: &MarchGrid, tile_cells: u32) -> Result<Self, TileError> {
+        let plan = TilePlan::new(grid.rows, grid.cols, tile_cells)?;
+        let bounds = tile_bounds(grid, &plan);
+        let blocks = (0..plan.len())
+            .into_par_iter()
+            .map(|t| TileBlock::build(grid, plan.rect(t)))
+            .collect();
+        Ok(TileSet {
+            plan,
+            bounds,
+            blocks,
+        })
+    }
+}
+
+/// Twin of `dp_tile_cell` in `shaders/shared/dp_tile.wgsl`: the output tile of cell (row, col)
+/// and the cell's observer, its height read from that tile's block; `None` for a hole.
+pub fn dp_tile_cell(
+    grid: &MarchGrid,
+    tiles: &TileSet,
+    row: u32,
+    col: u32,
+) -> Option<(usize, DpObserver)> {
+    let out = tiles.plan.tile_of(row, col);
+    let z_cell = tiles.blocks[out].cell_height_m(row, col);
+    if z_cell < HOLE_TEST_M {
+        return None;
+    }
+    Some((out, dp_observer_at(grid, row, col, z_cell)))
+}
+
+/// Twin of one cell of `shaders/dp_tile_cost.wgsl` over its dispatches: the shadow cost `J*` of
+/// the ray from `obs` towards the centre of `light` as the min over the source tiles `sources`,
+/// walked in that order, each from the running min.
+pub fn dp_tile_cost(
+    grid: &MarchGrid,
+    tiles: &TileSet,
+    sources: &[usize],
+    obs: &DpObserver,
+    light: [f32; 4],
+) -> f32 {
+    let cap = dp_cap(light);
+    let l = [light[0], light[1], light[2]];
+    sources.iter().fold(FAR_COST, |best, &s| {
+        dp_cost_in(grid, &tiles.blocks[s].source(), obs, l, cap, best)
+    })
+}
+
+/// Twin of one cell of `shaders/dp_tile_fraction.wgsl`: the visible fraction of the disc
+/// `light` from the cell's cost `j` (radius 0: 1 lit / 0 shadow), [`NODATA_FRACTION`] for a hole
+/// (`obs` = `None`).
+pub fn dp_tile_fraction(obs: Option<&DpObserver>, light: [f32; 4], j: f32) -> f32 {
+    match obs {
+        Some(obs) => dp_fraction_of_cost(obs, light, j),
+        None => NODATA_FRACTION,
+    }
+}
+
+/// The tiled GPU pass 1 over the whole grid ([`dp_tile_cost`] per cell over the source tiles of
+/// [`sources_for`]): per cell (row-major) the shadow cost towards the centre of `light`, `NaN`
+/// for holes. Tiles of side `tile_cells`.
 pub fn dp_costs_tiled(
     grid: &MarchGrid,
     tile_cells: u32,
     light: [f32; 4],
 ) -> Result<Vec<f32>, TileError> {
-    let plan = TilePlan::new(grid.rows, grid.cols, tile_cells)?;
-    let bounds = tile_bounds(grid, &plan);
-    let blocks: Vec<TileBlock> = (0..plan.len())
-        .into_par_iter()
-        .map(|t| TileBlock::build(grid, plan.rect(t)))
+    let tiles = TileSet::build(grid, tile_cells)?;
+    let sources: Vec<Vec<usize>> = (0..tiles.plan.len())
+        .map(|t| sources_for(grid, &tiles.plan, &tiles.bounds, t, light))
         .collect();
-    let sources: Vec<Vec<usize>> = (0..plan.len())
-        .map(|t| sources_for(grid, &plan, &bounds, t, light))
-        .collect();
-    let cap = dp_cap(light);
-    let l = [light[0], light[1], light[2]];
     let cols = grid.cols as usize;
     let mut costs = vec![f32::NAN; grid.cells()];
     costs
         .par_chunks_mut(cols)
         .enumerate()
         .for_each(|(row, line)| {
-            let row = row as u32;
             for (col, c) in line.iter_mut().enumerate() {
-                let col = col as u32;
-                let out = plan.tile_of(row, col);
-                let z_cell = blocks[out].cell_height_m(row, col);
-                if z_cell < HOLE_TEST_M {
-                    continue;
+                if let Some((out, obs)) = dp_tile_cell(grid, &tiles, row as u32, col as u32) {
+                    *c = dp_tile_cost(grid, &tiles, &sources[out], &obs, light);
                 }
-                let obs = dp_observer_at(grid, row, col, z_cell);
-                let mut best = FAR_COST;
-                for &s in &sources[out] {
-                    best = dp_cost_in(grid, &blocks[s].source(), &obs, l, cap, best);
-                }
-                *c = best;
             }
         });
     Ok(costs)
@@ -538,12 +590,9 @@ pub fn dp_visible_tiled(
         .par_iter()
         .enumerate()
         .map(|(k, &j)| {
-            if j.is_nan() {
-                return NODATA_FRACTION;
-            }
             let (row, col) = ((k / cols) as u32, (k % cols) as u32);
-            let obs = dp_observer_at(grid, row, col, grid.heights_m[k]);
-            dp_fraction_of_cost(&obs, light, j)
+            let obs = (!j.is_nan()).then(|| dp_observer_at(grid, row, col, grid.heights_m[k]));
+            dp_tile_fraction(obs.as_ref(), light, j)
         })
         .collect())
 }
@@ -574,6 +623,36 @@ pub fn sources_for_batch(
     union
 }
 
+/// Twin of one cell of `shaders/dp_tile_sweep_cost.wgsl` over its dispatches: the costs
+/// ([`dp_tile_cost`]) of every disc of `batch` (Sun at `2e`, Earth at `2e + 1`) over `sources`.
+pub fn dp_tile_sweep_cost(
+    grid: &MarchGrid,
+    tiles: &TileSet,
+    sources: &[usize],
+    obs: &DpObserver,
+    batch: &[[f32; 4]],
+) -> Vec<f32> {
+    batch
+        .iter()
+        .map(|&light| dp_tile_cost(grid, tiles, sources, obs, light))
+        .collect()
+}
+
+/// Twin of one cell of `shaders/dp_tile_sweep_accumulate.wgsl`: folds the epochs of `batch`
+/// (discs in pairs, Sun then Earth) into `stats` in time order, from their `costs`.
+pub fn dp_tile_sweep_accumulate(
+    obs: &DpObserver,
+    batch: &[[f32; 4]],
+    costs: &[f32],
+    stats: &mut DpCellStats,
+) {
+    for (pair, cost) in batch.chunks_exact(2).zip(costs.chunks_exact(2)) {
+        let fs = dp_fraction_of_cost(obs, pair[0], cost[0]);
+        let fe = dp_fraction_of_cost(obs, pair[1], cost[1]);
+        dp_sweep_accumulate(fs, fe, stats);
+    }
+}
+
 /// Twin of the tiled GPU soft sweep (`dp_tile_sweep_cost` over the source tiles of each batch of
 /// `epochs_per_batch` epochs, then `dp_tile_sweep_accumulate`): the [`DpCellStats`] of every
 /// cell (row-major) over the epochs of `lights` (Sun at `2e`, Earth at `2e + 1`), holes zero.
@@ -585,18 +664,13 @@ pub fn dp_sweep_tiled(
     lights: &[[f32; 4]],
     epochs_per_batch: usize,
 ) -> Result<Vec<DpCellStats>, TileError> {
-    let plan = TilePlan::new(grid.rows, grid.cols, tile_cells)?;
-    let bounds = tile_bounds(grid, &plan);
-    let blocks: Vec<TileBlock> = (0..plan.len())
-        .into_par_iter()
-        .map(|t| TileBlock::build(grid, plan.rect(t)))
-        .collect();
+    let tiles = TileSet::build(grid, tile_cells)?;
     let batch_lights = 2 * epochs_per_batch.max(1);
-    let sources: Vec<Vec<Vec<usize>>> = (0..plan.len())
+    let sources: Vec<Vec<Vec<usize>>> = (0..tiles.plan.len())
         .map(|t| {
             lights
                 .chunks(batch_lights)
-                .map(|batch| sources_for_batch(grid, &plan, &bounds, t, batch))
+                .map(|batch| sources_for_batch(grid, &tiles.plan, &tiles.bounds, t, batch))
                 .collect()
         })
         .collect();
@@ -606,31 +680,13 @@ pub fn dp_sweep_tiled(
         .par_chunks_mut(cols)
         .enumerate()
         .for_each(|(row, line)| {
-            let row = row as u32;
             for (col, st) in line.iter_mut().enumerate() {
-                let col = col as u32;
-                let out = plan.tile_of(row, col);
-                let z_cell = blocks[out].cell_height_m(row, col);
-                if z_cell < HOLE_TEST_M {
+                let Some((out, obs)) = dp_tile_cell(grid, &tiles, row as u32, col as u32) else {
                     continue;
-                }
-                let obs = dp_observer_at(grid, row, col, z_cell);
+                };
                 for (batch, batch_sources) in lights.chunks(batch_lights).zip(&sources[out]) {
-                    let costs: Vec<f32> = batch
-                        .iter()
-                        .map(|&light| {
-                            let l = [light[0], light[1], light[2]];
-                            let cap = dp_cap(light);
-                            batch_sources.iter().fold(FAR_COST, |best, &s| {
-                                dp_cost_in(grid, &blocks[s].source(), &obs, l, cap, best)
-                            })
-                        })
-                        .collect();
-                    for (pair, cost) in batch.chunks_exact(2).zip(costs.chunks_exact(2)) {
-                        let fs = dp_fraction_of_cost(&obs, pair[0], cost[0]);
-                        let fe = dp_fraction_of_cost(&obs, pair[1], cost[1]);
-                        dp_sweep_accumulate(fs, fe, st);
-                    }
+                    let costs = dp_tile_sweep_cost(grid, &tiles, batch_sources, &obs, batch);
+                    dp_tile_sweep_accumulate(&obs, batch, &costs, st);
                 }
             }
         });

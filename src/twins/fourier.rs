@@ -5,13 +5,13 @@
 //! coefficients of [`pack_coeffs`], and the conversion of the kernel's f32 output into a
 //! [`HorizonMap`] identical in layout to the CPU engine's ([`horizon_map_from_f32`]).
 //!
-//! As with [`super::march`], a GPU-vs-twin difference can only come from GPU rounding (atan,
+//! As with every twin, a GPU-vs-twin difference can only come from GPU rounding (atan,
 //! FMA contraction) or a bug; a twin-vs-engine difference comes from f32 against f64 (heights
 //! relative to the grid's `z_ref`, cell-unit positions, the azimuth directions rounded to f32).
 //!
 //! **Build** (one invocation per cell): for each azimuth `θ_n = 2πn/N` the horizontal ray is
 //! marched over every crossing with the lines joining cell centres (the DDA of
-//! [`super::march::march_hard`], the brute-force engine's surface), keeping the largest
+//! `shaders/shared/march.wgsl`, the brute-force engine's surface), keeping the largest
 //! `(z − z_obs) / t` from the bare sphere's horizon up ([`sphere_floor_tan`]), until the grid edge, the distance
 //! limit, or `(z_max − z_obs) / t ≤ best`; `α_n = atan(best)` is folded straight into the DFT sums
 //! `acc_k += α_n (cos kθ_n, −sin kθ_n)` with the twiddles read from the same `(sin, cos)` table at

@@ -291,7 +291,7 @@ pub fn to_horizon(setup: &SiteSetup, az_step_deg: f64, scan: &[[f32; 2]]) -> Hor
 
 /// The CPU twin over every (site, azimuth), rayon; the same output layout as the kernel
 /// (`site * n_az + az`).
-pub fn scan_twin(
+pub fn horizon_scan(
     terrain: &ScanTerrain,
     sites: &[SiteParams],
     azimuths: &[[f32; 2]],
@@ -317,7 +317,7 @@ pub fn horizons_twin(
         .map(|&(lat, lon)| site_setup(&engine, lat, lon, params.observer_height_m))
         .collect::<Result<Vec<_>, _>>()?;
     let recs: Vec<SiteParams> = setups.iter().map(|s| s.site).collect();
-    let out = scan_twin(&terrain, &recs, &azimuths);
+    let out = horizon_scan(&terrain, &recs, &azimuths);
     Ok(setups
         .iter()
         .zip(out.chunks(azimuths.len().max(1)))

@@ -11,29 +11,11 @@
 //! in its own slice of one storage buffer, as long as the line has samples, so it can never
 //! overflow.
 //!
-//! **Precision (f32).** Absolute radii have an f32 spacing of 0.125 m (0.015° at 240 m), so
-//! nothing here is an absolute radius:
-//! - the hull is kept in a line-local frame `x = r sin ψ`, `y = r cos ψ − R = h cos ψ − 2 R
-//!   sin²(ψ/2)` (the CPU's frame shifted by the constant `R`, so every orientation test is the
-//!   same; coordinates rounded from f64, spacing ≤ 0.03 m within ±500 km of the line's foot). It
-//!   only decides *which* sample is the tangent;
-//! - elevations are evaluated relative to the observer on the unrolled cone: with
-//!   `Δψ = ψ_p − ψ_o` (ψ stored as an f32 pair `hi + lo`, so that the difference of two nearby
-//!   arcs is exact), `x′ = r_p sin Δψ`, `y′ = (h_p − h_o − h_obs) − r_p (1 − cos Δψ)`, heights
-//!   differenced directly, sine and `1 − cos` as Taylor series (WGSL only promises 2⁻¹¹ absolute
-//!   error for its built-ins). The CPU sweep evaluates the same tangent vertex in exact 3-D; the
-//!   unrolled cone differs from it by at most ≈ 7e-5 rad (0.004°, the CPU's `NEAR_TIE_RAD`
-//!   comment), exactly 0 on lines through the pole;
-//! - the observer's own piece: the CPU reads the surface at `t_start = t(ψ_o ± θ_min)` and at
-//!   the midpoint in `t` between it and the first sample passed; here the same two points are
-//!   placed from the observer's pixel centre with `dt/dψ` at the observer (linear over at most
-//!   two pixels: ≤ 5 mm off on the map) and the midpoint is taken in `ψ` (the same point to
-//!   ≈ 1 mm).
-//!
 //! The kernel writes `(tan el, Δψ)` pairs ([`NO_SAMPLE`] where the look sees no terrain);
 //! [`to_band_values`] turns them into the CPU sweep's `(elevation °, distance m)`.
 //! [`sweep_batched`] drives a whole sweep through either the twin or the GPU runner
-//! (`crate::gpu::line_sweep`) and hands out bands as [`HorizonSweep::run`] does.
+//! (`crate::gpu::line_sweep`) and hands out bands as [`HorizonSweep::run`] does. The precision
+//! budget (f32) is on [`line_sweep`].
 
 use bytemuck::{Pod, Zeroable};
 use rayon::prelude::*;
@@ -50,7 +32,7 @@ pub const LOOK_FORWARD: u32 = 1;
 /// Bit of [`LineRecord::looks`]: the backward look is wanted.
 pub const LOOK_BACKWARD: u32 = 2;
 /// Most hull vertices the tangent climbs from the binary search's vertex (see
-/// [`line_sweep_twin`]). Keep in sync with the WGSL.
+/// [`line_sweep`]). Keep in sync with the WGSL.
 pub const CLIMB_STEPS: usize = 64;
 /// Samples of a line closer than this along it (map metres; the f32 spacing of the hull frame
 /// is ≤ 0.06 m) are packed as one
@@ -369,7 +351,26 @@ struct Vertex {
 
 /// The kernel twin: `out[2 · observer + look]` = `(tan el, Δψ rad)` for every line and wanted
 /// look of `batch` (look 0 forward, 1 backward; unwanted looks stay `[0, 0]`).
-pub fn line_sweep_twin(grid: &SweepGrid, batch: &LineBatch) -> Vec<[f32; 2]> {
+///
+/// **Precision (f32).** Absolute radii have an f32 spacing of 0.125 m (0.015° at 240 m), so
+/// nothing here is an absolute radius:
+/// - the hull is kept in a line-local frame `x = r sin ψ`, `y = r cos ψ − R = h cos ψ − 2 R
+///   sin²(ψ/2)` (the CPU's frame shifted by the constant `R`, so every orientation test is the
+///   same; coordinates rounded from f64, spacing ≤ 0.03 m within ±500 km of the line's foot). It
+///   only decides *which* sample is the tangent;
+/// - elevations are evaluated relative to the observer on the unrolled cone: with
+///   `Δψ = ψ_p − ψ_o` (ψ stored as an f32 pair `hi + lo`, so that the difference of two nearby
+///   arcs is exact), `x′ = r_p sin Δψ`, `y′ = (h_p − h_o − h_obs) − r_p (1 − cos Δψ)`, heights
+///   differenced directly, sine and `1 − cos` as Taylor series (WGSL only promises 2⁻¹¹ absolute
+///   error for its built-ins). The CPU sweep evaluates the same tangent vertex in exact 3-D; the
+///   unrolled cone differs from it by at most ≈ 7e-5 rad (0.004°, the CPU's `NEAR_TIE_RAD`
+///   comment), exactly 0 on lines through the pole;
+/// - the observer's own piece: the CPU reads the surface at `t_start = t(ψ_o ± θ_min)` and at
+///   the midpoint in `t` between it and the first sample passed; here the same two points are
+///   placed from the observer's pixel centre with `dt/dψ` at the observer (linear over at most
+///   two pixels: ≤ 5 mm off on the map) and the midpoint is taken in `ψ` (the same point to
+///   ≈ 1 mm).
+pub fn line_sweep(grid: &SweepGrid, batch: &LineBatch) -> Vec<[f32; 2]> {
     let params = LineSweepParams {
         n_lines: batch.lines.len() as u32,
         n_samples: batch.samples.len() as u32,
@@ -577,7 +578,7 @@ fn pack_chunk(
         })
 }
 
-/// The whole sweep with the looks run by `run_batch` (the twin [`line_sweep_twin`] or the GPU),
+/// The whole sweep with the looks run by `run_batch` (the twin [`line_sweep`] or the GPU),
 /// in batches of at most `max_samples` samples: bands handed to `sink` as
 /// [`HorizonSweep::run`] does (the same band order and layout).
 ///
@@ -681,7 +682,7 @@ pub fn sweep_batched<E>(
 /// Largest batch of [`sweep_twin`], samples (as lavapipe's, 128 MiB / 32 B).
 pub const TWIN_BATCH_SAMPLES: usize = 1 << 22;
 
-/// The whole sweep through the twin: [`sweep_batched`] with [`line_sweep_twin`] (the GPU
+/// The whole sweep through the twin: [`sweep_batched`] with [`line_sweep`] (the GPU
 /// kernel's arithmetic on the CPU; the parity oracle of the GPU runner).
 pub fn sweep_twin<E>(
     sweep: &HorizonSweep,
@@ -692,7 +693,7 @@ pub fn sweep_twin<E>(
     sweep_batched(
         sweep,
         TWIN_BATCH_SAMPLES,
-        |batch| Ok(line_sweep_twin(&grid, batch)),
+        |batch| Ok(line_sweep(&grid, batch)),
         sink,
         progress,
     )

@@ -1,23 +1,17 @@
-//! CPU twins of the GPU kernels in `shaders/`: same names, same inputs and outputs, written in f32
-//! to be compared line by line with the WGSL (vello `vello_shaders/src/cpu.rs` idea).
+//! The f32 grid every grid kernel reads ([`MarchGrid`]: heights relative to a local origin, as
+//! the GPU sees them), the light reduced to f32 ([`light_to_f32`]), the band of rows a dispatch
+//! covers ([`RowBand`]), and the twin of the 2-D DDA of `shaders/shared/march.wgsl` (`Dda`,
+//! used by the Fourier build).
 //!
-//! They are the parity oracle of the GPU backend (tests/it/gpu.rs) and the CPU fallback of the
-//! GPU sweep. They are *not* the f64 reference engines of this module's siblings: the twins
-//! reproduce the GPU's arithmetic (f32 heights relative to a local origin, f32 light vectors),
-//! so that a GPU-vs-twin difference can only come from the GPU (rounding, FMA contraction) or
-//! from a bug, never from a different algorithm.
-//!
-//! Ray model (shared by every kernel, see `shaders/shared/march.wgsl`): an observer stands
-//! `observer_height_m` above the cell centre along the radial direction; the ray towards the light
-//! is walked with a 2-D DDA over the lattice of cell centres and compared, at each lattice-line
-//! crossing, with the linear interpolation of the two lattice heights on that line (the bilinear
-//! surface restricted to the line). A ray that leaves the lattice is lit; holes are stored as
-//! [`HOLE_Z_M`], far below any ray, so rays pass over them.
+//! Ray model (`shaders/shared/march.wgsl`): an observer stands `observer_height_m` above the cell
+//! centre along the radial direction; the ray towards the light is walked with a 2-D DDA over the
+//! lattice of cell centres and compared, at each lattice-line crossing, with the linear
+//! interpolation of the two lattice heights on that line (the bilinear surface restricted to the
+//! line). Holes are stored as [`HOLE_Z_M`], far below any ray, so rays pass over them.
 
 use nalgebra::Vector3;
-use rayon::prelude::*;
 
-use super::{FAR_CELLS, HOLE_TEST_M, HOLE_Z_M, LIT, NODATA, NODATA_FRACTION, SHADOW};
+use super::{FAR_CELLS, HOLE_Z_M};
 use crate::MOON_RADIUS_M;
 use crate::terrain::HeightField;
 
@@ -51,8 +45,9 @@ pub enum MarchGridError {
     },
 }
 
-/// A height field prepared for the march kernels, exactly as the GPU sees it (the twin of the
-/// uniform `GridParams` plus the `heights` buffer of `shaders/shared/march.wgsl`).
+/// A height field prepared for the grid kernels, exactly as the GPU sees it (the twin of the
+/// uniform `GridParams` plus the `heights` buffer of `shaders/shared/march.wgsl` and `DpGridParams`
+/// of `shaders/shared/dp.wgsl`).
 #[derive(Debug, Clone)]
 pub struct MarchGrid {
     /// Number of rows.
@@ -160,34 +155,6 @@ pub fn light_to_f32(light_in_model: &Vector3<f64>) -> [f32; 4] {
     [l.x as f32, l.y as f32, l.z as f32, 0.0]
 }
 
-/// `n` directions spread uniformly over a disc of angular radius `radius_rad` around
-/// `centre_in_model` (Fibonacci/Vogel spiral: radius √((k + ½)/n), golden-angle steps), as f32
-/// `vec4`s for the soft kernel. Uniform disc: no limb darkening.
-pub fn sun_disc_directions(
-    centre_in_model: &Vector3<f64>,
-    radius_rad: f64,
-    n: usize,
-) -> Vec<[f32; 4]> {
-    let c = centre_in_model.normalize();
-    // Any vector not parallel to c gives the tangent basis (e1, e2).
-    let helper = if c.z.abs() < 0.9 {
-        Vector3::z()
-    } else {
-        Vector3::x()
-    };
-    let e1 = c.cross(&helper).normalize();
-    let e2 = c.cross(&e1);
-    let golden_angle_rad = std::f64::consts::PI * (3.0 - 5.0_f64.sqrt());
-    let tan_radius = radius_rad.tan();
-    (0..n)
-        .map(|k| {
-            let r = ((k as f64 + 0.5) / n as f64).sqrt() * tan_radius;
-            let (s, co) = (k as f64 * golden_angle_rad).sin_cos();
-            light_to_f32(&(c + r * (co * e1 + s * e2)))
-        })
-        .collect()
-}
-
 /// Twin of `DdaAxis` and `dda_axis` in `shaders/shared/march.wgsl`: one axis of the 2-D DDA,
 /// the next lattice line, the step to the line after it, and the ray parameter `t` (cells of
 /// horizontal travel) to reach it and between two lines.
@@ -292,49 +259,12 @@ impl Dda {
     }
 }
 
-/// Twin of `march_hard` in `shaders/shared/march.wgsl`: [`LIT`], [`SHADOW`] or [`NODATA`] for
-/// cell (row, col) and the light direction `light` (model space, unit).
-pub fn march_hard(grid: &MarchGrid, row: u32, col: u32, light: [f32; 3]) -> u32 {
-    let z_cell = grid.heights_m[(row * grid.cols + col) as usize];
-    if z_cell < HOLE_TEST_M {
-        return NODATA;
-    }
-    let x_m = grid.x0_m + col as f32 * grid.px_m;
-    let y_m = grid.y0_m - row as f32 * grid.px_m;
-    let up = normalize3([x_m, y_m, z_cell + grid.z_ref_plus_radius_m]);
-    let u0 = col as f32 + grid.observer_height_m * up[0] / grid.px_m;
-    let v0 = row as f32 - grid.observer_height_m * up[1] / grid.px_m;
-    let z0 = z_cell + grid.observer_height_m * up[2];
-    let horiz_len = (light[0] * light[0] + light[1] * light[1]).sqrt();
-    if horiz_len < MIN_HORIZ {
-        return if light[2] > 0.0 { LIT } else { SHADOW };
-    }
-    let du = light[0] / horiz_len;
-    let dv = -light[1] / horiz_len;
-    let rise_m_per_cell = light[2] / horiz_len * grid.px_m;
-    let mut dda = Dda::start(u0, v0, du, dv);
-    let max_steps = grid.rows as i32 + grid.cols as i32 + 4;
-    for _ in 0..max_steps {
-        let Some((t, z_surf)) = dda.next(grid, 0.0) else {
-            return LIT;
-        };
-        let z_ray = z0 + t * rise_m_per_cell;
-        if z_ray > grid.z_max_m && rise_m_per_cell >= 0.0 {
-            return LIT;
-        }
-        if z_surf > z_ray {
-            return SHADOW;
-        }
-    }
-    LIT
-}
-
 pub(crate) fn normalize3(v: [f32; 3]) -> [f32; 3] {
     let inv_len = 1.0 / (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
     [v[0] * inv_len, v[1] * inv_len, v[2] * inv_len]
 }
 
-/// Which rows a dispatch covers (the twin of `StepParams` in `shaders/shared/march.wgsl`).
+/// Which rows a dispatch covers (the band fields of `DpStep` in `shaders/shared/dp.wgsl`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct RowBand {
     /// First row of the band.
@@ -351,106 +281,4 @@ impl RowBand {
             rows: grid.rows,
         }
     }
-}
-
-/// Twin of `shaders/shadow_march.wgsl`: the hard-shadow band (row-major, band-relative) for
-/// `lights[light_index]`: [`LIT`], [`SHADOW`] or [`NODATA`] per cell. Rayon over rows.
-pub fn shadow_march(
-    grid: &MarchGrid,
-    lights: &[[f32; 4]],
-    light_index: u32,
-    band: RowBand,
-) -> Vec<u32> {
-    let l = lights[light_index as usize];
-    let light = [l[0], l[1], l[2]];
-    let cols = grid.cols as usize;
-    let mut out = vec![NODATA; band.rows as usize * cols];
-    out.par_chunks_mut(cols)
-        .enumerate()
-        .for_each(|(band_row, out_row)| {
-            for (col, o) in out_row.iter_mut().enumerate() {
-                *o = march_hard(grid, band.row0 + band_row as u32, col as u32, light);
-            }
-        });
-    out
-}
-
-/// Twin of `shaders/shadow_march_soft.wgsl`: per cell of the band, the fraction of the
-/// directions in `lights` that are lit, or [`NODATA_FRACTION`] for a hole. Rayon over rows.
-pub fn shadow_march_soft(grid: &MarchGrid, lights: &[[f32; 4]], band: RowBand) -> Vec<f32> {
-    let cols = grid.cols as usize;
-    let n = lights.len() as u32;
-    let mut out = vec![NODATA_FRACTION; band.rows as usize * cols];
-    out.par_chunks_mut(cols)
-        .enumerate()
-        .for_each(|(band_row, out_row)| {
-            let row = band.row0 + band_row as u32;
-            'cell: for (col, o) in out_row.iter_mut().enumerate() {
-                let mut lit = 0_u32;
-                for l in lights {
-                    let state = march_hard(grid, row, col as u32, [l[0], l[1], l[2]]);
-                    if state == NODATA {
-                        *o = NODATA_FRACTION;
-                        continue 'cell;
-                    }
-                    lit += state;
-                }
-                *o = lit as f32 / n as f32;
-            }
-        });
-    out
-}
-
-/// Running per-cell statistics of an epoch sweep (the twin of `CellStats` in
-/// `shaders/sweep_accumulate.wgsl`). Counts are in epochs.
-// Keep in sync with shaders/sweep_accumulate.wgsl.
-#[repr(C)]
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, bytemuck::Pod, bytemuck::Zeroable)]
-pub struct CellStats {
-    /// Number of epochs at which the cell was lit.
-    pub lit_epochs: u32,
-    /// Length of the dark run that is still going on at the last epoch folded in.
-    pub dark_run_epochs: u32,
-    /// Longest run of consecutive dark epochs.
-    pub longest_dark_run_epochs: u32,
-    /// 1 if the cell was lit at least once, else 0 (never lit = permanently shadowed).
-    pub ever_lit: u32,
-}
-const _: () = assert!(size_of::<CellStats>() == 16);
-
-/// Twin of `shaders/sweep_accumulate.wgsl` for one cell: folds one epoch's hard-shadow `state`
-/// into `stats` (holes leave it untouched).
-pub fn sweep_accumulate(state: u32, stats: &mut CellStats) {
-    if state == NODATA {
-        return;
-    }
-    if state == LIT {
-        stats.lit_epochs += 1;
-        stats.dark_run_epochs = 0;
-        stats.ever_lit = 1;
-    } else {
-        stats.dark_run_epochs += 1;
-        stats.longest_dark_run_epochs = stats.longest_dark_run_epochs.max(stats.dark_run_epochs);
-    }
-}
-
-/// CPU twin of the whole GPU epoch sweep: for every cell of `band`, march towards each light of
-/// `lights` in order (one per epoch) and fold the result with [`sweep_accumulate`]. Rayon over
-/// cells; the epoch loop is inner so each cell's runs are sequential in time.
-pub fn sweep_stats(grid: &MarchGrid, lights: &[[f32; 4]], band: RowBand) -> Vec<CellStats> {
-    let cols = grid.cols as usize;
-    let mut stats = vec![CellStats::default(); band.rows as usize * cols];
-    stats
-        .par_chunks_mut(cols)
-        .enumerate()
-        .for_each(|(band_row, stats_row)| {
-            let row = band.row0 + band_row as u32;
-            for (col, s) in stats_row.iter_mut().enumerate() {
-                for l in lights {
-                    let state = march_hard(grid, row, col as u32, [l[0], l[1], l[2]]);
-                    sweep_accumulate(state, s);
-                }
-            }
-        });
-    stats
 }

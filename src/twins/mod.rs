@@ -2,23 +2,22 @@
 //! one file per shader family, each function named as the WGSL entry point it mirrors, written
 //! in f32 to be compared line by line with the WGSL.
 //!
-//! They are the parity oracle of the GPU backend (tests/it/gpu*.rs) and the CPU fallback of the
-//! GPU sweep. They are *not* the f64 reference engines of [`crate::shadow`] and
-//! [`crate::horizon`]: the twins reproduce the GPU's arithmetic (f32 heights relative to a local
-//! origin, f32 light vectors), so that a GPU-vs-twin difference can only come from the GPU
-//! (rounding, FMA contraction) or from a bug, never from a different algorithm.
+//! They are the parity oracle of the GPU backend (tests/it/gpu*.rs), *not* the f64 reference
+//! engines of [`crate::shadow`] and [`crate::horizon`]: they reproduce the GPU's arithmetic (f32
+//! heights relative to a local origin, f32 light vectors), so that a GPU-vs-twin difference can
+//! only come from the GPU (rounding, FMA contraction) or from a bug. The sentinels the kernels
+//! share are defined here once. `render.wgsl` has no twin here: its CPU counterpart is the f64
+//! renderer ([`crate::render`]).
 //!
 //! | file | shaders |
 //! |---|---|
-//! | [`march`] | `shared/march.wgsl`, `shadow_march.wgsl`, `shadow_march_soft.wgsl`, `sweep_accumulate.wgsl` |
+//! | [`march`] | `shared/march.wgsl` (the grid and the DDA of `fourier_build.wgsl`) |
 //! | [`dp`] | `shared/dp.wgsl`, `dp_visible.wgsl`, `dp_sweep.wgsl`, `dp_sites.wgsl`, `dp_points.wgsl`, `dp_points_sweep.wgsl` |
-//! | [`dp_tiles`] | `dp_tile_cost.wgsl`, `dp_tile_fraction.wgsl`, `dp_tile_sweep_cost.wgsl`, `dp_tile_sweep_accumulate.wgsl` |
+//! | [`dp_tiles`] | `shared/dp_tile.wgsl`, `dp_tile_cost.wgsl`, `dp_tile_fraction.wgsl`, `dp_tile_sweep_cost.wgsl`, `dp_tile_sweep_accumulate.wgsl` |
 //! | [`fourier`] | `fourier_build.wgsl`, `fourier_eval.wgsl` |
 //! | [`horizon_scan`] | `horizon_scan.wgsl` |
 //! | [`horizon_stats`] | `horizon_stats.wgsl` |
 //! | [`line_sweep`] | `line_sweep.wgsl` |
-//!
-//! The sentinels the kernels share (hole markers, "lit"/"shadow" codes) are defined here once.
 
 pub mod dp;
 pub mod dp_tiles;
@@ -31,13 +30,7 @@ pub mod march;
 pub use dp::*;
 pub use march::*;
 
-/// Output of the hard-shadow kernels: the cell is lit.
-pub const LIT: u32 = 1;
-/// Output of the hard-shadow kernels: the cell is in shadow.
-pub const SHADOW: u32 = 0;
-/// Output of the hard-shadow kernels: the cell is a hole (no terrain).
-pub const NODATA: u32 = 255;
-/// Output of the soft-shadow kernel for a hole.
+/// Output of the visible-fraction kernels for a hole.
 pub const NODATA_FRACTION: f32 = -1.0;
 /// Height stored for a hole (NaN never goes to the GPU: WGSL has no NaN guarantees).
 pub const HOLE_Z_M: f32 = -1.0e30;

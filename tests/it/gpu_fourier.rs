@@ -3,7 +3,7 @@
 //! twin and the engine, band/chunk seams, and the CLI (`horizon-map build --backend`, `map
 //! --engine fourier --backend gpu`). GPU tests skip with a printed reason when no adapter exists
 //! (a failure with `PENUMBRA_REQUIRE_GPU=1`). naga validation of both shaders is part of
-//! `gpu::naga_validates_every_shader` (every `shaders/*.wgsl` with its `// requires:` lines).
+//! `gpu::naga_validates_every_shader` (every shader of `penumbra::gpu::shaders`).
 
 use crate::util::OutputWithin as _;
 use penumbra::shadow::fourier::{self, HorizonMap, HorizonMapMeta, HorizonMapParams};
@@ -222,9 +222,9 @@ fn to_mask(f: &[f32]) -> Vec<u8> {
 
 #[cfg(feature = "gpu")]
 mod on_gpu {
+    use penumbra::gpu::DEFAULT_BAND_BYTES;
     use penumbra::gpu::fourier::{
-        DEFAULT_BAND_BYTES, GpuBuildOptions, GpuHorizonMap, build_horizon_map_gpu,
-        build_horizon_map_gpu_with,
+        GpuBuildOptions, GpuHorizonMap, build_horizon_map_gpu, build_horizon_map_gpu_with,
     };
 
     use super::*;

@@ -52,7 +52,7 @@ const SYNTH_SITES: [(f64, f64); 4] = [(-90.0, 0.0), (-89.9, 45.0), (-89.8, 200.0
 /// The shader's structs have the sizes of their Rust mirrors (naga's layouter); never skipped.
 #[test]
 fn horizon_scan_struct_layout_matches_rust() {
-    let sizes = crate::util::wgsl_struct_sizes("horizon_scan.wgsl");
+    let sizes = crate::util::wgsl_struct_sizes(&penumbra::gpu::shaders::HORIZON_SCAN);
     let size = |name: &str| sizes[name];
     assert_eq!(size("ScanParams"), size_of::<ScanParams>());
     assert_eq!(size("Site"), size_of::<SiteParams>());
@@ -158,7 +158,7 @@ const REAL_SITES: [(f64, f64); 2] = [(-89.45, 222.7), (-89.68, 200.0)];
 #[cfg(feature = "gpu")]
 mod on_gpu {
     use penumbra::gpu::horizon::{GpuHorizonScan, horizons_gpu};
-    use penumbra::twins::horizon_scan::{ScanTerrain, azimuth_table, scan_twin, site_setup};
+    use penumbra::twins::horizon_scan::{ScanTerrain, azimuth_table, horizon_scan, site_setup};
 
     use super::*;
 
@@ -179,7 +179,7 @@ mod on_gpu {
         let az = azimuth_table(1.0).unwrap();
         let scan = GpuHorizonScan::new(ctx, &terrain).unwrap();
         let gpu = scan.scan(ctx, &sites, &az).unwrap();
-        let twin = scan_twin(&terrain, &sites, &az);
+        let twin = horizon_scan(&terrain, &sites, &az);
         assert_eq!(gpu.len(), twin.len());
         let max_deg = gpu
             .iter()

@@ -107,7 +107,7 @@ const TWO_LAYER_PARAMS: SweepParams = SweepParams {
 /// The shader's structs have the sizes of their Rust mirrors (naga's layouter); never skipped.
 #[test]
 fn line_sweep_struct_layout_matches_rust() {
-    let sizes = crate::util::wgsl_struct_sizes("line_sweep.wgsl");
+    let sizes = crate::util::wgsl_struct_sizes(&penumbra::gpu::shaders::LINE_SWEEP);
     let size = |name: &str| sizes[name];
     assert_eq!(size("Params"), size_of::<line_sweep::LineSweepParams>());
     assert_eq!(size("Line"), size_of::<line_sweep::LineRecord>());
@@ -187,7 +187,7 @@ fn twin_matches_the_cpu_sweep_and_the_exact_scan_on_a_two_layer_stack() {
 /// direction, and a failing device or sink ends the sweep with its error (no hang, no more bands).
 #[test]
 fn batched_sweep_is_independent_of_batch_size_and_stops_on_errors() {
-    use penumbra::twins::line_sweep::{SweepGrid, line_sweep_twin, sweep_batched};
+    use penumbra::twins::line_sweep::{SweepGrid, line_sweep, sweep_batched};
     let stack = two_layer_stack();
     let params = SweepParams {
         azimuths: 12,
@@ -203,7 +203,7 @@ fn batched_sweep_is_independent_of_batch_size_and_stops_on_errors() {
             20_000,
             |b| {
                 batches += 1;
-                Ok(line_sweep_twin(&grid, b))
+                Ok(line_sweep(&grid, b))
             },
             sink,
             |_| {},
@@ -227,7 +227,7 @@ fn batched_sweep_is_independent_of_batch_size_and_stops_on_errors() {
             if calls == 3 {
                 Err("device lost".to_string())
             } else {
-                Ok(line_sweep_twin(&grid, b))
+                Ok(line_sweep(&grid, b))
             }
         },
         |_| Ok(()),
@@ -244,7 +244,7 @@ fn batched_sweep_is_independent_of_batch_size_and_stops_on_errors() {
     let err = sweep_batched(
         &sweep,
         20_000,
-        |b| Ok(line_sweep_twin(&grid, b)),
+        |b| Ok(line_sweep(&grid, b)),
         |_| {
             sunk += 1;
             if sunk == 2 {
@@ -338,7 +338,7 @@ fn twin_matches_the_cpu_sweep_on_real_lola_grids() {
 #[cfg(feature = "gpu")]
 mod on_gpu {
     use penumbra::gpu::line_sweep::{GpuLineSweep, sweep_gpu};
-    use penumbra::twins::line_sweep::{LineBatch, SweepGrid, line_sweep_twin, to_band_values};
+    use penumbra::twins::line_sweep::{LineBatch, SweepGrid, line_sweep, to_band_values};
 
     use super::*;
     use crate::util::gpu;
@@ -365,7 +365,7 @@ mod on_gpu {
             }
         }
         let gpu_out = runner.run_batch(ctx, &batch).unwrap();
-        let twin_out = line_sweep_twin(&grid, &batch);
+        let twin_out = line_sweep(&grid, &batch);
         assert_eq!(gpu_out.len(), twin_out.len());
         let (mut same, mut max_deg, mut n) = (0, 0.0_f64, 0);
         for (g, t) in gpu_out.iter().zip(&twin_out) {

@@ -155,7 +155,7 @@ fn twin_kernel_matches_the_cpu_engine() {
 #[test]
 fn horizon_stats_struct_layout_matches_rust() {
     use penumbra::horizon::statistics::{KernelAcc, KernelCell, KernelEpoch};
-    let sizes = crate::util::wgsl_struct_sizes("horizon_stats.wgsl");
+    let sizes = crate::util::wgsl_struct_sizes(&penumbra::gpu::shaders::HORIZON_STATS);
     let params = size_of::<penumbra::twins::horizon_stats::HorizonStatsParams>();
     assert_eq!(sizes["Params"], params);
     assert_eq!(sizes["Cell"], size_of::<KernelCell>());

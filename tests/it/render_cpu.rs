@@ -208,14 +208,7 @@ fn hapke_roughness_is_continuous_at_zero() {
 fn wgsl_brdf_twin_validates() {
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/shaders/shared/brdf.wgsl");
     let src = std::fs::read_to_string(path).unwrap();
-    let module = naga::front::wgsl::parse_str(&src)
-        .unwrap_or_else(|e| panic!("brdf.wgsl: {}", e.emit_to_string(&src)));
-    naga::valid::Validator::new(
-        naga::valid::ValidationFlags::all(),
-        naga::valid::Capabilities::all(),
-    )
-    .validate(&module)
-    .unwrap_or_else(|e| panic!("brdf.wgsl: {}", e.emit_to_string(&src)));
+    let module = crate::util::naga_validate("brdf.wgsl", &src);
     let (_, f) = module
         .functions
         .iter()

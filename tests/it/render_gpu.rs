@@ -5,8 +5,6 @@
 //! GPU tests need an adapter (lavapipe: `WGPU_BACKEND=vulkan XDG_RUNTIME_DIR=/tmp`); without one
 //! they print the reason and pass, unless `PENUMBRA_REQUIRE_GPU=1`.
 
-use std::path::Path;
-
 use penumbra::render::cast::image_error;
 use penumbra::render::{Camera, Lights, Sample, Scene, TraceMethod};
 use penumbra::shadow::Engine;
@@ -94,23 +92,13 @@ fn mipmap_caster_matches_fine_uniform_stepping() {
     );
 }
 
-/// naga validates shaders/render.wgsl with shared/brdf.wgsl prepended, and brdf.wgsl has the
-/// shared signature `brdf_per_sr(model: u32, cos_i, cos_e, cos_g, albedo: f32) -> f32`.
+/// naga validates shaders/render.wgsl with shared/brdf.wgsl composed before it, and brdf.wgsl
+/// has the shared signature `brdf_per_sr(model: u32, cos_i, cos_e, cos_g, albedo: f32) -> f32`.
 #[test]
 fn naga_validates_render_shader_and_brdf_signature() {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("shaders");
-    let brdf = std::fs::read_to_string(dir.join("shared/brdf.wgsl")).unwrap();
-    let render = std::fs::read_to_string(dir.join("render.wgsl")).unwrap();
-    assert!(render.starts_with("// requires: shared/brdf.wgsl"));
-    let src = format!("{brdf}{render}");
-    let module = naga::front::wgsl::parse_str(&src)
-        .unwrap_or_else(|e| panic!("render.wgsl parse error:\n{}", e.emit_to_string(&src)));
-    naga::valid::Validator::new(
-        naga::valid::ValidationFlags::all(),
-        naga::valid::Capabilities::all(),
-    )
-    .validate(&module)
-    .unwrap_or_else(|e| panic!("render.wgsl validation error:\n{}", e.emit_to_string(&src)));
+    let render = penumbra::gpu::shaders::RENDER;
+    assert_eq!(render.parts, ["shared/brdf.wgsl"]);
+    let module = crate::util::naga_validate(render.name, render.source);
     let (_, f) = module
         .functions
         .iter()

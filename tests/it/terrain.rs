@@ -861,12 +861,7 @@ fn every_geotiff_output_is_a_cloud_optimized_geotiff_with_its_metadata() {
     ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let mut tifs = vec![dem.clone(), d.join("fraction.tif"), d.join("mask.tif")];
-    let mut stats: Vec<PathBuf> = std::fs::read_dir(&maps)
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .filter(|p| p.extension().is_some_and(|e| e == "tif"))
-        .collect();
-    stats.sort();
+    let stats = crate::util::files_with_extension(&maps, "tif");
     assert!(stats.len() >= 9, "{stats:?}");
     tifs.extend(stats);
     for tif in &tifs {

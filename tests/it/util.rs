@@ -267,25 +267,38 @@ pub fn sweep_lights(epochs: usize) -> Vec<[f32; 4]> {
         .collect()
 }
 
-/// The sizes naga's layouter gives the named structs of `shaders/<file>` (the shader parsed
-/// and validated first), for the tests that check a shader's structs against their Rust mirrors.
-pub fn wgsl_struct_sizes(file: &str) -> std::collections::HashMap<String, usize> {
-    let shaders = root().join("shaders");
-    let text = std::fs::read_to_string(shaders.join(file)).unwrap();
-    // The `// requires:` helpers first, as the Rust side prepends them.
-    let mut src: String = text
-        .lines()
-        .filter_map(|l| l.strip_prefix("// requires: "))
-        .map(|dep| std::fs::read_to_string(shaders.join(dep.trim())).unwrap())
+/// The files of `dir` whose extension is `ext`, sorted.
+pub fn files_with_extension(dir: &Path, ext: &str) -> Vec<PathBuf> {
+    let mut paths: Vec<PathBuf> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == ext))
         .collect();
-    src.push_str(&text);
-    let module = naga::front::wgsl::parse_str(&src).unwrap();
+    paths.sort();
+    paths
+}
+
+/// `src` (the WGSL of `name`) parsed and validated by naga with every validation flag and
+/// capability; a failure panics with naga's message and the span it points at.
+pub fn naga_validate(name: &str, src: &str) -> naga::Module {
+    let module = naga::front::wgsl::parse_str(src)
+        .unwrap_or_else(|e| panic!("{name}: WGSL parse error:\n{}", e.emit_to_string(src)));
     naga::valid::Validator::new(
         naga::valid::ValidationFlags::all(),
         naga::valid::Capabilities::all(),
     )
     .validate(&module)
-    .unwrap();
+    .unwrap_or_else(|e| panic!("{name}: naga validation error:\n{}", e.emit_to_string(src)));
+    module
+}
+
+/// The sizes naga's layouter gives the named structs of `shader` (composed as the pipelines
+/// see it, validated first), for the tests that check a shader's structs against their Rust
+/// mirrors.
+pub fn wgsl_struct_sizes(
+    shader: &penumbra::gpu::shaders::Shader,
+) -> std::collections::HashMap<String, usize> {
+    let module = naga_validate(shader.name, shader.source);
     let mut layouter = naga::proc::Layouter::default();
     layouter.update(module.to_ctx()).unwrap();
     module
