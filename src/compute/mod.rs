@@ -48,7 +48,7 @@ pub fn resolve(requested: Backend, on_gpu: OnGpu) -> anyhow::Result<ResolvedBack
             eprintln!("penumbra: note: {what} has no GPU kernel: it runs on the CPU");
             Ok(ResolvedBackend::Cpu)
         }
-        (Backend::Gpu | Backend::Auto, _) => crate::gpu::resolve_backend(requested)
+        (Backend::Gpu | Backend::Auto, _) => crate::gpu::backend::resolve_backend(requested)
             .with_context(|| format!("resolving --backend {}", requested.as_str())),
     }
 }

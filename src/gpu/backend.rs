@@ -1,4 +1,5 @@
-//! The `cpu|gpu|auto` backend choice and its resolution (vello `use_cpu`).
+//! The `cpu|gpu|auto` backend choice and its resolution (vello `use_cpu`), called only by
+//! `compute::resolve`.
 
 use super::{GpuContext, GpuError};
 
@@ -39,7 +40,7 @@ impl std::str::FromStr for Backend {
     }
 }
 
-/// The outcome of [`resolve_backend`].
+/// A [`Backend`] resolved (`compute::resolve`, the one place a backend is resolved).
 #[derive(Debug)]
 pub enum ResolvedBackend {
     /// Run on the CPU.

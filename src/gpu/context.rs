@@ -1,5 +1,5 @@
 //! The wgpu instance, adapter, device and queue, built once per process ([`GpuContext::new`],
-//! shared through [`crate::gpu::resolve_backend`]), and each kernel family's pipelines, built on
+//! shared by every stage that resolves to the GPU, `compute::resolve`), and each kernel family's pipelines, built on
 //! first use and reused for every later call and epoch (wgpu `repeated_compute`; rerun's
 //! `RenderContext::renderer::<R>()`), plus the adapter listing of `penumbra gpu-info`.
 //!

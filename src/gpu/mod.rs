@@ -3,7 +3,7 @@
 //!
 //! This is the only module that imports `wgpu`, and only behind the `gpu` cargo feature (on by
 //! default; `--no-default-features` builds a CPU-only binary). [`Backend`], [`GpuError`] and
-//! [`resolve_backend`] are always compiled so that the command line can offer
+//! the backend resolution ([`backend`]) are always compiled so that the command line can offer
 //! `--backend cpu|gpu|auto` in every build, and so is the shader table ([`shaders`]) so that
 //! every build validates the shaders.
 //!
@@ -31,11 +31,11 @@ macro_rules! single_kernel {
     };
 }
 
-mod backend;
+pub mod backend;
 mod error;
 pub mod shaders;
 
-pub use backend::{Backend, ResolvedBackend, resolve_backend};
+pub use backend::{Backend, ResolvedBackend};
 pub use error::GpuError;
 
 #[cfg(feature = "gpu")]
