@@ -8,7 +8,7 @@ use std::time::Duration;
 
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use penumbra::MOON_RADIUS_M;
-use penumbra::shadow::{SUN_ANGULAR_RADIUS_RAD, brute, dp, smap};
+use penumbra::shadow::{SUN_ANGULAR_RADIUS_RAD, brute, dp};
 use penumbra::terrain::HeightField;
 
 const GRID_240M: &str = concat!(
@@ -82,19 +82,35 @@ fn bench_maps(c: &mut Criterion) {
     for (name, hf) in &fields {
         g.throughput(Throughput::Elements((hf.rows * hf.cols) as u64));
         g.bench_function(BenchmarkId::new("hard_brute", name), |b| {
-            b.iter(|| brute::hard_mask(hf, 2.0, light).unwrap())
+            b.iter(|| {
+                penumbra::shadow::Engine::Brute
+                    .hard_mask(hf, 2.0, light)
+                    .unwrap()
+            })
         });
         g.bench_function(BenchmarkId::new("hard_smap", name), |b| {
-            b.iter(|| smap::hard_mask(hf, 2.0, light).unwrap())
+            b.iter(|| {
+                penumbra::shadow::Engine::Combined
+                    .hard_mask(hf, 2.0, light)
+                    .unwrap()
+            })
         });
         // A Sun below the model horizontal: the rays descend and now march until terrain or the
         // grid edge (no "sphere below" shortcut; issue 13).
         let below = light_az_el(37.0, -0.5);
         g.bench_function(BenchmarkId::new("hard_smap_below", name), |b| {
-            b.iter(|| smap::hard_mask(hf, 2.0, below).unwrap())
+            b.iter(|| {
+                penumbra::shadow::Engine::Combined
+                    .hard_mask(hf, 2.0, below)
+                    .unwrap()
+            })
         });
         g.bench_function(BenchmarkId::new("hard_brute_below", name), |b| {
-            b.iter(|| brute::hard_mask(hf, 2.0, below).unwrap())
+            b.iter(|| {
+                penumbra::shadow::Engine::Brute
+                    .hard_mask(hf, 2.0, below)
+                    .unwrap()
+            })
         });
         g.bench_function(BenchmarkId::new("soft_dp", name), |b| {
             b.iter(|| {
@@ -133,10 +149,18 @@ fn bench_sizes(c: &mut Criterion) {
         let hf = synthetic(n);
         g.throughput(Throughput::Elements((n * n) as u64));
         g.bench_function(BenchmarkId::new("sweep_hard_brute", n), |b| {
-            b.iter(|| brute::hard_mask(&hf, 2.0, light).unwrap())
+            b.iter(|| {
+                penumbra::shadow::Engine::Brute
+                    .hard_mask(&hf, 2.0, light)
+                    .unwrap()
+            })
         });
         g.bench_function(BenchmarkId::new("sweep_hard_smap", n), |b| {
-            b.iter(|| smap::hard_mask(&hf, 2.0, light).unwrap())
+            b.iter(|| {
+                penumbra::shadow::Engine::Combined
+                    .hard_mask(&hf, 2.0, light)
+                    .unwrap()
+            })
         });
         g.bench_function(BenchmarkId::new("sweep_soft_dp", n), |b| {
             b.iter(|| {

@@ -900,11 +900,11 @@ fn write_geotiff(
     let flat = array.call_method0("ravel")?;
     if kind == "u" {
         let v: Vec<u8> = flat.call_method1("astype", ("uint8",))?.extract()?;
-        py.allow_threads(|| penumbra::model::write_u8_on(dem, &path, &v, &info))
+        py.allow_threads(|| penumbra::model::write_on(dem, &path, &v, &info))
             .map_err(py_err)
     } else {
         let v: Vec<f32> = flat.call_method1("astype", ("float32",))?.extract()?;
-        py.allow_threads(|| penumbra::model::write_f32_on(dem, &path, &v, &info))
+        py.allow_threads(|| penumbra::model::write_on(dem, &path, &v, &info))
             .map_err(py_err)
     }
 }

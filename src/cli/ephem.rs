@@ -28,12 +28,9 @@ impl From<Format> for TableFormat {
 /// Arguments of `penumbra ephem`.
 #[derive(Debug, Clone, Args)]
 pub struct EphemArgs {
-    /// Site planetocentric latitude, degrees (-90..90).
-    #[arg(long, allow_hyphen_values = true)]
-    pub lat_deg: f64,
-    /// Site east longitude, degrees.
-    #[arg(long, allow_hyphen_values = true)]
-    pub lon_deg: f64,
+    /// Where: latitude and longitude.
+    #[command(flatten)]
+    pub at: super::LatLonArgs,
     /// Site height above the 1737.4 km reference sphere, metres (not above the ground: the
     /// ephemerides need no DEM; `--height-m` is an old alias).
     #[arg(
@@ -63,7 +60,7 @@ pub struct EphemArgs {
 /// Runs `penumbra ephem`.
 pub fn run(args: &EphemArgs) -> anyhow::Result<()> {
     let abcorr = super::abcorr(&args.abcorr)?;
-    let site = penumbra::ephem::Site::new(args.lat_deg, args.lon_deg, args.height_m)?;
+    let site = penumbra::ephem::Site::new(args.at.lat_deg, args.at.lon_deg, args.height_m)?;
     penumbra::products::ephem::run(&EphemRequest {
         site,
         epochs: args.epochs.required()?,

@@ -14,12 +14,9 @@ pub struct HorizonArgs {
     /// DEM GeoTIFF layer; repeat for several layers (the finest with data is used at each point).
     #[arg(long = "dem", value_name = "FILE", required = true)]
     pub dem: Vec<PathBuf>,
-    /// Site planetocentric latitude, degrees.
-    #[arg(long, allow_negative_numbers = true)]
-    pub lat_deg: f64,
-    /// Site east longitude, degrees.
-    #[arg(long, allow_negative_numbers = true)]
-    pub lon_deg: f64,
+    /// Where: latitude and longitude.
+    #[command(flatten)]
+    pub at: super::LatLonArgs,
     /// Observer height above the terrain surface (radial), metres (0 … 100000).
     #[arg(long, value_name = "M", default_value_t = penumbra::model::ObserverHeight::DEFAULT, allow_negative_numbers = true)]
     pub observer_height_m: penumbra::model::ObserverHeight,
@@ -72,8 +69,8 @@ impl From<HorizonMethodArg> for penumbra::horizon::HorizonMethod {
 pub fn run(args: &HorizonArgs) -> anyhow::Result<()> {
     penumbra::products::horizon::run(&HorizonRequest {
         dems: args.dem.clone(),
-        lat_deg: args.lat_deg,
-        lon_deg: args.lon_deg,
+        lat_deg: args.at.lat_deg,
+        lon_deg: args.at.lon_deg,
         params: HorizonParams {
             observer_height_m: args.observer_height_m.m(),
             az_step_deg: args.az_step_deg,

@@ -189,6 +189,18 @@ pub struct TerrainArgs {
     pub synthetic: bool,
 }
 
+/// A place on the Moon: planetocentric latitude and east longitude.
+#[derive(Debug, Clone, Copy, Args)]
+pub struct LatLonArgs {
+    /// Planetocentric latitude, degrees (-90 … 90): the site (for `render`, the site camera's,
+    /// or the point below the orbital camera).
+    #[arg(long, allow_hyphen_values = true)]
+    pub lat_deg: f64,
+    /// East longitude, degrees.
+    #[arg(long, allow_hyphen_values = true)]
+    pub lon_deg: f64,
+}
+
 /// An epoch or a range of epochs (UTC).
 #[derive(Debug, Clone, Args)]
 pub struct EpochArgs {

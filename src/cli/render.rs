@@ -36,12 +36,9 @@ pub struct RenderArgs {
     /// Camera kind: site (on the ground) or orbit (above the sphere, looking at a target).
     #[arg(long, value_enum, default_value_t = CameraArg::Site)]
     pub camera: CameraArg,
-    /// Camera latitude (planetocentric), degrees: the site, or the point below the orbital camera.
-    #[arg(long, allow_hyphen_values = true)]
-    pub lat_deg: f64,
-    /// Camera east longitude, degrees.
-    #[arg(long, allow_hyphen_values = true)]
-    pub lon_deg: f64,
+    /// Where: latitude and longitude.
+    #[command(flatten)]
+    pub at: super::LatLonArgs,
     /// Site camera: height above the ground (DEM), metres (as `--observer-height-m` of `horizon`
     /// and `map`; `--height-m` is an old alias).
     #[arg(
@@ -135,8 +132,8 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
             CameraArg::Site => CameraKind::Site,
             CameraArg::Orbit => CameraKind::Orbit,
         },
-        lat_deg: args.lat_deg,
-        lon_deg: args.lon_deg,
+        lat_deg: args.at.lat_deg,
+        lon_deg: args.at.lon_deg,
         height_m: args.height_m,
         look_az_deg: args.look_az_deg,
         look_el_deg: args.look_el_deg,

@@ -245,34 +245,10 @@ pub struct GpuPixelMaps {
 }
 
 impl GpuPixelMaps {
-    /// Uploads `grid` and the pixels' `observers`; `None` when the grid needs the 2-D tiled
-    /// kernels (the whole grid does not fit one storage binding, see
-    /// [`crate::gpu::tiles::DpTiling`]), which start their rays at the model cells.
-    pub fn new(
-        ctx: &crate::gpu::GpuContext,
-        grid: &MapGrid,
-        observers: &[Option<crate::shadow::Observer>],
-        observer_height_m: f64,
-        tiling: crate::gpu::tiles::DpTiling,
-    ) -> anyhow::Result<Option<Self>> {
-        use crate::twins::{DpMip, MarchGrid, pixel_point_records};
-        let march = MarchGrid::from_height_field(&grid.hf, observer_height_m)?;
-        if tiling.resolve(ctx, &march)?.is_some() {
-            return Ok(None);
-        }
-        let mip = DpMip::build(&march);
-        let on_gpu = crate::gpu::dp::GpuDpGrid::upload(ctx, &march, &mip)?;
-        let (pixel_of_point, points) = pixel_point_records(&march, observers);
-        Ok(Some(GpuPixelMaps {
-            grid: on_gpu,
-            points,
-            pixel_of_point,
-            pixels: observers.len(),
-        }))
-    }
-
-    /// [`GpuPixelMaps::new`] for a map whose rays start at `placement`: `(None, Cells)` when
-    /// asked for the cells, or, with one warning line, when the grid needs the 2-D tiles;
+    /// The DP kernels of a map whose rays start at `placement`, `grid` and the pixels'
+    /// `observers` uploaded: `(None, Cells)` when asked for the cells, or, with one warning line,
+    /// when the grid needs the 2-D tiled kernels (the whole grid does not fit one storage
+    /// binding, [`crate::gpu::tiles::DpTiling`]), which start their rays at the model cells;
     /// `(Some, Pixels)` otherwise. The second value is where the rays really start.
     pub fn for_placement(
         ctx: &crate::gpu::GpuContext,
@@ -282,20 +258,29 @@ impl GpuPixelMaps {
         tiling: crate::gpu::tiles::DpTiling,
         placement: ObserverPlacement,
     ) -> anyhow::Result<(Option<Self>, ObserverPlacement)> {
+        use crate::twins::{DpMip, MarchGrid, pixel_point_records};
         if placement == ObserverPlacement::Cells {
             return Ok((None, ObserverPlacement::Cells));
         }
-        match Self::new(ctx, grid, observers, observer_height_m, tiling)? {
-            Some(maps) => Ok((Some(maps), ObserverPlacement::Pixels)),
-            None => {
-                eprintln!(
-                    "penumbra: warning: the map grid needs the GPU's 2-D tiled kernels, which \
-                     start their rays at the model grid's cells (resampled onto the DEM grid); \
-                     --backend cpu starts them at the DEM pixels' own surface points"
-                );
-                Ok((None, ObserverPlacement::Cells))
-            }
+        let march = MarchGrid::from_height_field(&grid.hf, observer_height_m)?;
+        if tiling.resolve(ctx, &march)?.is_some() {
+            eprintln!(
+                "penumbra: warning: the map grid needs the GPU's 2-D tiled kernels, which \
+                 start their rays at the model grid's cells (resampled onto the DEM grid); \
+                 --backend cpu starts them at the DEM pixels' own surface points"
+            );
+            return Ok((None, ObserverPlacement::Cells));
         }
+        let mip = DpMip::build(&march);
+        let on_gpu = crate::gpu::dp::GpuDpGrid::upload(ctx, &march, &mip)?;
+        let (pixel_of_point, points) = pixel_point_records(&march, observers);
+        let maps = GpuPixelMaps {
+            grid: on_gpu,
+            points,
+            pixel_of_point,
+            pixels: observers.len(),
+        };
+        Ok((Some(maps), ObserverPlacement::Pixels))
     }
 
     /// Per DEM pixel, `per_point` scattered back (`nodata` where a pixel has no data).

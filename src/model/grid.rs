@@ -377,24 +377,15 @@ impl MapGrid {
             .collect()
     }
 
-    /// Writes an f32 raster on the output grid (NaN = nodata) with provenance metadata.
-    pub fn write_f32(
+    /// Writes a raster of f32 (NaN = nodata) or u8 (255 = nodata) on the output grid with
+    /// provenance metadata.
+    pub fn write<T: MapSample>(
         &self,
         path: &Path,
-        values: &[f32],
+        values: &[T],
         info: &RasterInfo<'_>,
     ) -> anyhow::Result<()> {
-        write_f32_on(&self.dem, path, values, info)
-    }
-
-    /// Writes a u8 raster on the output grid (255 = nodata) with provenance metadata.
-    pub fn write_u8(
-        &self,
-        path: &Path,
-        values: &[u8],
-        info: &RasterInfo<'_>,
-    ) -> anyhow::Result<()> {
-        write_u8_on(&self.dem, path, values, info)
+        write_on(&self.dem, path, values, info)
     }
 
     /// The azimuth and elevation (degrees) of a model-space light direction at the map centre.
@@ -427,42 +418,38 @@ impl<'a> RasterInfo<'a> {
     }
 }
 
-/// Writes an f32 raster on `dem`'s grid (NaN = nodata) with provenance metadata.
-pub fn write_f32_on(
+/// Writes a raster of f32 (NaN = nodata) or u8 (255 = nodata) on `dem`'s grid with provenance
+/// metadata.
+pub fn write_on<T: MapSample>(
     dem: &Dem,
     path: &Path,
-    values: &[f32],
+    values: &[T],
     info: &RasterInfo<'_>,
 ) -> anyhow::Result<()> {
-    crate::terrain::write_geotiff_f32(
+    crate::terrain::write_geotiff(
         path,
         &dem.grid,
         &dem.projection,
         values,
-        Some(f32::NAN),
+        Some(T::NODATA),
         &metadata(info),
         band(info),
     )
     .with_context(|| format!("writing {}", path.display()))
 }
 
-/// Writes a u8 raster on `dem`'s grid (255 = nodata) with provenance metadata.
-pub fn write_u8_on(
-    dem: &Dem,
-    path: &Path,
-    values: &[u8],
-    info: &RasterInfo<'_>,
-) -> anyhow::Result<()> {
-    crate::terrain::write_geotiff_u8(
-        path,
-        &dem.grid,
-        &dem.projection,
-        values,
-        Some(MASK_NODATA),
-        &metadata(info),
-        band(info),
-    )
-    .with_context(|| format!("writing {}", path.display()))
+/// The sample types of maps, with their nodata value.
+pub trait MapSample: crate::terrain::WriteSample {
+    /// The value of a pixel without data.
+    const NODATA: Self;
+}
+
+impl MapSample for f32 {
+    const NODATA: f32 = f32::NAN;
+}
+
+impl MapSample for u8 {
+    const NODATA: u8 = MASK_NODATA;
 }
 
 fn band<'a>(info: &RasterInfo<'a>) -> crate::terrain::BandInfo<'a> {

@@ -15,9 +15,7 @@ pub use engine::{
     HorizonExtras, MapEngine, MapEngineKind, ObserverPlacement, RangeStats, per_epoch_statistics,
 };
 pub(crate) use grid::BelowSphereTally;
-pub use grid::{
-    MAX_MODEL_CELLS, MapGrid, RasterInfo, VISIBLE_MIN_FRACTION, write_f32_on, write_u8_on,
-};
+pub use grid::{MAX_MODEL_CELLS, MapGrid, MapSample, RasterInfo, VISIBLE_MIN_FRACTION, write_on};
 pub use input::{
     EpochRange, Epochs, InputError, MAX_SITE_NAME_CHARS, ObserverHeight, Site, check_distinct_sites,
 };

@@ -2,7 +2,7 @@
 
 use std::path::Path;
 
-use super::{MapGrid, RangeStats, RasterInfo, write_f32_on, write_u8_on};
+use super::{MapGrid, RangeStats, RasterInfo, write_on};
 use crate::illum::plot::{MapLegend, MapPlace, write_map_preview};
 use crate::shadow::MASK_NODATA;
 use crate::terrain::Dem;
@@ -266,7 +266,7 @@ pub fn write_range(
             unit: geotiff_unit(r.name),
             items: items.clone(),
         };
-        write_f32_on(dem, &out_dir.join(&tif), &out, &info)?;
+        write_on(dem, &out_dir.join(&tif), &out, &info)?;
         let png = format!("{}.png", r.name);
         write_map_preview(
             &out_dir.join(&png),
@@ -283,7 +283,7 @@ pub fn write_range(
         )?;
         files.extend([tif, png]);
     }
-    write_u8_on(
+    write_on(
         dem,
         &out_dir.join("psr_mask.tif"),
         &psr_out,

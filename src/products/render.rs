@@ -309,7 +309,7 @@ fn place_camera(
     if !(fov_deg > 0.0 && fov_deg < 180.0) {
         anyhow::bail!("--fov-deg {fov_deg} must be in (0, 180)");
     }
-    Ok(match *pose {
+    let (camera, ref_lat_lon_deg, what) = match *pose {
         CameraPose::Site {
             lat_deg,
             lon_deg,
@@ -341,14 +341,11 @@ fn place_camera(
                 look_el_deg,
                 fov_deg,
             )?;
-            PlacedCamera {
-                camera,
-                ref_lat_lon_deg: (lat_deg, lon_deg),
-                what: format!(
-                    "site lat_deg={lat_deg} lon_deg={lon_deg} height_m={height_m} \
-                     look_az_deg={look_az_deg} look_el_deg={look_el_deg} fov_deg={fov_deg}"
-                ),
-            }
+            let what = format!(
+                "site lat_deg={lat_deg} lon_deg={lon_deg} height_m={height_m} \
+                 look_az_deg={look_az_deg} look_el_deg={look_el_deg} fov_deg={fov_deg}"
+            );
+            (camera, (lat_deg, lon_deg), what)
         }
         CameraPose::Orbit {
             lat_deg,
@@ -392,15 +389,17 @@ fn place_camera(
             let target = frame.model_from_lat_lon_height(tlat, tlon, target_ground_m);
             let north = model_from_enu_at(lat_deg, lon_deg) * nalgebra::Vector3::y();
             let camera = Camera::look_at(pos, target, north, fov_deg)?;
-            PlacedCamera {
-                camera,
-                ref_lat_lon_deg: (tlat, tlon),
-                what: format!(
-                    "orbit lat_deg={lat_deg} lon_deg={lon_deg} altitude_km={alt_km} \
-                     target_lat_deg={tlat} target_lon_deg={tlon} fov_deg={fov_deg}"
-                ),
-            }
+            let what = format!(
+                "orbit lat_deg={lat_deg} lon_deg={lon_deg} altitude_km={alt_km} \
+                 target_lat_deg={tlat} target_lon_deg={tlon} fov_deg={fov_deg}"
+            );
+            (camera, (tlat, tlon), what)
         }
+    };
+    Ok(PlacedCamera {
+        camera,
+        ref_lat_lon_deg,
+        what,
     })
 }
 

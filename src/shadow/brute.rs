@@ -24,7 +24,7 @@ use nalgebra::Vector3;
 
 use super::{
     LightDir, Observer, Observers, Result, ShadowError, check_observer_height, check_radius,
-    fraction_from_cost, hard_mask_by, map_cells, map_observers, max_height_m, unit_light,
+    fraction_from_cost, map_cells, map_observers, max_height_m, unit_light,
 };
 use crate::terrain::HeightField;
 
@@ -124,7 +124,7 @@ where
 /// Whether the ray from `obs` toward `dir` is blocked (see the module docs); crossings nearer
 /// than `min_s_cells` (horizontal, cells) are not sampled ([`super::Observers::Points`]).
 #[inline]
-fn ray_blocked(
+pub(crate) fn ray_blocked(
     hf: &HeightField,
     obs: &Observer,
     dir: &LightDir,
@@ -248,18 +248,6 @@ fn uniform_cost(
         }
         k += 1.0;
     }
-}
-
-/// Brute-force hard mask of the light's centre direction: `1` lit, `0` shadow, `255` nodata.
-pub fn hard_mask<'a>(
-    hf: &HeightField,
-    observers: impl Into<Observers<'a>>,
-    light_in_model: [f64; 3],
-) -> Result<Vec<u8>> {
-    hard_mask_by(hf, observers.into(), light_in_model, |dir, min_s_cells| {
-        let z_max = max_height_m(hf);
-        move |obs: &Observer| ray_blocked(hf, obs, &dir, z_max, min_s_cells)
-    })
 }
 
 /// `n` unit directions spread uniformly over the spherical cap of angular radius `radius_rad`

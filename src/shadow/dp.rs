@@ -52,7 +52,7 @@ use super::brute::{bilinear, line_height};
 use super::smap::{SMap, shadowed};
 use super::{
     LightDir, Observer, Observers, Result, ShadowError, check_radius, fraction_from_cost,
-    hard_mask_by, limb_direction, map_observers, max_height_m, unit_light,
+    limb_direction, map_observers, max_height_m, unit_light,
 };
 use crate::terrain::HeightField;
 
@@ -480,28 +480,6 @@ pub fn visible_fraction<'a>(
         let j = dp_cost_beyond(&scene, obs, &dir, cap, min_s);
         fraction_from_cost(j, &dir, angular_radius_rad) as f32
     }))
-}
-
-/// DP hard mask of the disc centre (`J* >= 0`: no terrain above the centre ray): `1` lit, `0`
-/// shadow, `255` nodata.
-pub fn hard_mask<'a>(
-    hf: &HeightField,
-    observers: impl Into<Observers<'a>>,
-    light_in_model: [f64; 3],
-) -> Result<Vec<u8>> {
-    hard_mask_by(hf, observers.into(), light_in_model, |dir, min_s_cells| {
-        let (mip, cfg) = (MaxMipmap::new(hf), DpConfig::default());
-        let z_max_m = max_height_m(hf);
-        move |obs: &Observer| {
-            let scene = DpScene {
-                hf,
-                mip: &mip,
-                z_max_m,
-                cfg: &cfg,
-            };
-            dp_cost_beyond(&scene, obs, &dir, 0.0, min_s_cells) < 0.0
-        }
-    })
 }
 
 /// Statistics of [`soft_combined`].

@@ -111,18 +111,38 @@ pub enum Engine {
 }
 
 impl Engine {
-    /// Hard lit/shadow mask of the light disc's centre: `1` lit, `0` shadow, `255` nodata.
+    /// Hard lit/shadow mask of the light disc's centre: `1` lit, `0` shadow, `255` nodata. Brute
+    /// force marches the centre ray; combined takes SMap's mask (paper 004); DP says lit when no
+    /// terrain lies above the centre ray (`J* >= 0`).
     pub fn hard_mask<'a>(
         self,
         hf: &HeightField,
         observers: impl Into<Observers<'a>>,
         light_in_model: [f64; 3],
     ) -> Result<Vec<u8>> {
-        let observers = observers.into();
+        let (observers, light) = (observers.into(), light_in_model);
         match self {
-            Engine::Brute => brute::hard_mask(hf, observers, light_in_model),
-            Engine::Combined => smap::hard_mask(hf, observers, light_in_model),
-            Engine::Dp => dp::hard_mask(hf, observers, light_in_model),
+            Engine::Brute => hard_mask_by(hf, observers, light, |dir, min_s_cells| {
+                let z_max_m = max_height_m(hf);
+                move |obs: &Observer| brute::ray_blocked(hf, obs, &dir, z_max_m, min_s_cells)
+            }),
+            Engine::Combined => hard_mask_by(hf, observers, light, |dir, _| {
+                let map = smap::SMap::build(hf, dir);
+                move |obs: &Observer| smap::shadowed(map.as_ref(), &dir, obs)
+            }),
+            Engine::Dp => hard_mask_by(hf, observers, light, |dir, min_s_cells| {
+                let (mip, cfg) = (dp::MaxMipmap::new(hf), dp::DpConfig::default());
+                let z_max_m = max_height_m(hf);
+                move |obs: &Observer| {
+                    let scene = dp::DpScene {
+                        hf,
+                        mip: &mip,
+                        z_max_m,
+                        cfg: &cfg,
+                    };
+                    dp::dp_cost_beyond(&scene, obs, &dir, 0.0, min_s_cells) < 0.0
+                }
+            }),
         }
     }
 

@@ -37,7 +37,7 @@
 
 use rayon::prelude::*;
 
-use super::{LightDir, Observer, Observers, Result, hard_mask_by, max_height_m};
+use super::{LightDir, Observer, max_height_m};
 use crate::terrain::HeightField;
 
 /// `NextV` value meaning "no Black line (yet / at all) toward the light".
@@ -367,18 +367,6 @@ pub(crate) fn shadowed(smap: Option<&SMap>, dir: &LightDir, obs: &Observer) -> b
         Some(s) => s.is_shadow(obs),
         None => dir.unit.z < 0.0,
     }
-}
-
-/// SMap hard mask of the light's centre direction: `1` lit, `0` shadow, `255` nodata.
-pub fn hard_mask<'a>(
-    hf: &HeightField,
-    observers: impl Into<Observers<'a>>,
-    light_in_model: [f64; 3],
-) -> Result<Vec<u8>> {
-    hard_mask_by(hf, observers.into(), light_in_model, |dir, _| {
-        let smap = SMap::build(hf, dir);
-        move |obs: &Observer| shadowed(smap.as_ref(), &dir, obs)
-    })
 }
 
 #[cfg(test)]

@@ -23,7 +23,7 @@
 //! `Vec<f32>`, so the peak is the DEM itself plus one chunk (see `docs/terrain.md` for the
 //! measured figure).
 //!
-//! **Writing** ([`write_geotiff_f32`], [`write_geotiff_u16`], [`write_geotiff_u8`],
+//! **Writing** ([`write_geotiff`] of f32, u16 or u8,
 //! [`write_dem`]): Cloud-Optimized GeoTIFFs (`cog.rs`: 256² tiles, Deflate with a predictor,
 //! overviews, IFDs before the data, GDAL's layout) with ModelPixelScale, ModelTiepoint, a
 //! user-defined GeoKeyDirectory (sphere `R`, polar stereographic or equirectangular), GDAL_NODATA
@@ -943,8 +943,7 @@ pub use cog::COG_TILE_PX;
 pub use gdal_metadata::gdal_metadata_xml_with_band;
 use gdal_metadata::*;
 pub use write::{
-    BandInfo, iau_2015_crs, orthographic_model_tags, write_dem, write_geotiff_f32,
-    write_geotiff_u8, write_geotiff_u16,
+    BandInfo, WriteSample, iau_2015_crs, orthographic_model_tags, write_dem, write_geotiff,
 };
 
 #[cfg(test)]

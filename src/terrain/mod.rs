@@ -22,8 +22,8 @@ use std::path::Path;
 
 pub use error::DemError;
 pub use geotiff::{
-    BandInfo, gdal_metadata_xml_with_band, orthographic_model_tags, read_geotiff, write_dem,
-    write_geotiff_f32, write_geotiff_u8, write_geotiff_u16,
+    BandInfo, WriteSample, gdal_metadata_xml_with_band, orthographic_model_tags, read_geotiff,
+    write_dem, write_geotiff,
 };
 pub use grid::{Dem, GridGeometry, Projection, TerrainStack};
 pub use heightfield::{CellWindow, HeightField};

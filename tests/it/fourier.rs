@@ -156,7 +156,9 @@ fn mask_disagreement(hf: &HeightField, map: &HorizonMap) -> Vec<(f64, f64, f64, 
     for el in [1.5, 5.0] {
         for az in [0.0, 37.0, 143.0, 301.0] {
             let l = light_az_el(az, el);
-            let reference = brute::hard_mask(hf, 2.0, l).unwrap();
+            let reference = penumbra::shadow::Engine::Brute
+                .hard_mask(hf, 2.0, l)
+                .unwrap();
             let mask = fourier::hard_mask(map, l).unwrap();
             let raw = reference.iter().zip(&mask).filter(|(a, b)| a != b).count() as f64 * 100.0
                 / reference.len() as f64;

@@ -69,7 +69,7 @@ fn dp_twin_mipmap_bounds_the_surface() {
 }
 
 /// Oracle: the f64 reference engines. The twin's visible fraction vs `dp::visible_fraction`
-/// (same cost model, f64, interval search) and its radius-0 mask vs `brute::hard_mask` (the
+/// (same cost model, f64, interval search) and its radius-0 mask vs `Engine::Brute.hard_mask` (the
 /// exhaustive march) on the 128² hills.
 #[test]
 fn dp_twin_matches_reference_engines() {
@@ -386,7 +386,7 @@ fn map_sweep_gpu_soft_matches_cpu_sweep() {
 }
 
 /// Next to large holes (a nodata margin, as at the edge of a resampled DEM) the twin's radius-0
-/// mask equals the brute-force reference (lattice-line crossings, `brute::hard_mask`), and so
+/// mask equals the brute-force reference (lattice-line crossings, `Engine::Brute.hard_mask`), and so
 /// does the CPU DP engine's, cell for cell.
 #[test]
 fn dp_twin_hard_matches_brute_next_to_holes() {

@@ -130,7 +130,7 @@ fn tiled_twin_equals_untiled_twin() {
 }
 
 /// The tiled twin against the f64 reference engines on the 256² hills, tiles of 50: its soft
-/// fraction vs `dp::visible_fraction` and its hard mask vs `brute::hard_mask`, with the bounds
+/// fraction vs `dp::visible_fraction` and its hard mask vs `Engine::Brute.hard_mask`, with the bounds
 /// of the untiled twin (tests/it/gpu_dp.rs, docs/VALIDATION.md).
 #[test]
 fn tiled_twin_matches_cpu_engines() {

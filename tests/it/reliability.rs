@@ -10,7 +10,7 @@ use crate::util::OutputWithin as _;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use penumbra::terrain::{GridGeometry, Projection, write_geotiff_f32};
+use penumbra::terrain::{GridGeometry, Projection, write_geotiff};
 
 use crate::util::{files_in, kernels_dir, penumbra, penumbra_ok};
 
@@ -41,7 +41,7 @@ fn bad_dems(dir: &Path) -> Vec<(PathBuf, &'static str)> {
     let mut out = Vec::new();
     let mut put = |name: &str, g: GridGeometry, p: Projection, z: Vec<f32>, needle| {
         let path = dir.join(name);
-        write_geotiff_f32(
+        write_geotiff(
             &path,
             &g,
             &p,
@@ -164,7 +164,7 @@ fn bad_dems(dir: &Path) -> Vec<(PathBuf, &'static str)> {
     out.push((empty, ""));
     // A valid file cut in half.
     let whole = dir.join("whole.tif");
-    write_geotiff_f32(
+    write_geotiff(
         &whole,
         &grid(64, 64, 100.0, 0.0),
         &polar,

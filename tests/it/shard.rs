@@ -112,7 +112,7 @@ fn holed_dem(dir: &Path) -> PathBuf {
             dem.heights_m[r * 120 + c] = f32::NAN;
         }
     }
-    penumbra::terrain::write_geotiff_f32(
+    penumbra::terrain::write_geotiff(
         &path,
         &dem.grid,
         &dem.projection,

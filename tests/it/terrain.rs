@@ -373,7 +373,7 @@ fn u8_u16_equirectangular_and_nodata_read_back_in_gdal() {
     };
     let p16 = dir.path().join("u16.tif");
     let v16: Vec<u16> = (0..35).map(|i| i * 1000 + 7).collect();
-    terrain::write_geotiff_u16(
+    terrain::write_geotiff(
         &p16,
         &grid,
         &eqc,
@@ -401,7 +401,7 @@ fn u8_u16_equirectangular_and_nodata_read_back_in_gdal() {
     assert_eq!(gdal_value(&p16, 3, 2), f64::from(v16[2 * 7 + 3]));
     let p8 = dir.path().join("u8.tif");
     let v8: Vec<u8> = (0..35).map(|i| i * 7).collect();
-    terrain::write_geotiff_u8(
+    terrain::write_geotiff(
         &p8,
         &grid,
         &Projection::LOLA_SOUTH_POLAR,
@@ -729,7 +729,7 @@ fn bad_inputs_fail_with_one_line_and_exit_code_2() {
         px_x_m: 1.0,
         px_y_m: 1.0,
     };
-    terrain::write_geotiff_f32(
+    terrain::write_geotiff(
         &holes,
         &grid,
         &Projection::LOLA_SOUTH_POLAR,

@@ -21,12 +21,7 @@ pub(super) fn one_light_job(
         Light::Epoch(e) => vec![e],
         _ => Vec::new(),
     };
-    let inputs = super::super::Inputs::load(
-        &req.terrain,
-        &req.kernels,
-        &epochs,
-        super::super::DemFiles::Skip,
-    )?;
+    let inputs = req.inputs(&epochs, super::super::DemFiles::Skip)?;
     let maps = crate::compute::one_light::one_light(
         &req.settings,
         &inputs.stack,
@@ -73,15 +68,14 @@ fn write(maps: &OneLightMaps, files: &OneLightFiles) -> anyhow::Result<()> {
         items: maps.metadata.clone(),
     };
     if let (Some(path), Some(f)) = (&files.fraction, &maps.sun_fraction) {
-        maps.grid
-            .write_f32(path, f, &info(SUN_FRACTION_DESCRIPTION))?;
+        maps.grid.write(path, f, &info(SUN_FRACTION_DESCRIPTION))?;
     }
     if let (Some(path), Some(m)) = (&files.mask, &maps.sun_mask) {
-        maps.grid.write_u8(path, m, &info(SUN_MASK_DESCRIPTION))?;
+        maps.grid.write(path, m, &info(SUN_MASK_DESCRIPTION))?;
     }
     if let (Some(path), Some(f)) = (&files.earth_fraction, &maps.earth_fraction) {
         maps.grid
-            .write_f32(path, f, &info(EARTH_FRACTION_DESCRIPTION))?;
+            .write(path, f, &info(EARTH_FRACTION_DESCRIPTION))?;
     }
     Ok(())
 }

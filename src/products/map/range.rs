@@ -20,12 +20,7 @@ pub(super) fn range_job(
     check_range(&req.settings, files)?;
     let keys = JobKeys::of(req)?;
     let epoch_list = epochs.epochs();
-    let inputs = super::super::Inputs::load(
-        &req.terrain,
-        &req.kernels,
-        &epoch_list,
-        super::super::DemFiles::Record,
-    )?;
+    let inputs = req.inputs(&epoch_list, super::super::DemFiles::Record)?;
     let kernels = inputs.kernels.as_ref().expect("a range has epochs");
     let mut prov = inputs.provenance.clone();
     prov.dem_files.extend(keys.horizons_file.clone());

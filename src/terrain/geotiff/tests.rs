@@ -64,7 +64,7 @@ fn u16_u8_and_equirectangular_round_trip() {
     };
     let p16 = dir.path().join("u16.tif");
     let v16: Vec<u16> = (0..24).map(|i| i * 2700).collect();
-    write_geotiff_u16(&p16, &g, &eqc, &v16, Some(0), &[], BandInfo::default()).unwrap();
+    write_geotiff(&p16, &g, &eqc, &v16, Some(0), &[], BandInfo::default()).unwrap();
     let d = read_geotiff(&p16).unwrap();
     assert_eq!(d.projection, eqc);
     assert_eq!(d.grid, g);
@@ -74,7 +74,7 @@ fn u16_u8_and_equirectangular_round_trip() {
     }
     let p8 = dir.path().join("u8.tif");
     let v8: Vec<u8> = (0..24).map(|i| i * 10).collect();
-    write_geotiff_u8(
+    write_geotiff(
         &p8,
         &g,
         &Projection::LOLA_SOUTH_POLAR,
@@ -291,7 +291,7 @@ fn cog_tiles_overviews_and_predictors_round_trip_exactly() {
     // u8 classes keep their values in the overviews (first valid pixel of each block).
     let classes: Vec<u8> = (0..530 * 600).map(|i| [0u8, 1, 255][i % 7 % 3]).collect();
     let p8 = dir.path().join("mask.tif");
-    write_geotiff_u8(
+    write_geotiff(
         &p8,
         &g,
         &Projection::LOLA_SOUTH_POLAR,

@@ -228,8 +228,12 @@ pub struct BandInfo<'a> {
     pub unit: &'a str,
 }
 
-/// Sample types penumbra writes.
-trait WriteSample: super::cog::CogSample + std::fmt::Display {
+/// Sample types penumbra writes (f32, u16, u8).
+#[allow(
+    private_bounds,
+    reason = "the COG encoder is private; the trait is only implemented here"
+)]
+pub trait WriteSample: super::cog::CogSample + std::fmt::Display {
     /// The GDAL_NODATA text of a nodata value.
     fn nodata_text(self) -> String {
         self.to_string()
@@ -247,8 +251,10 @@ impl WriteSample for f32 {
 impl WriteSample for u16 {}
 impl WriteSample for u8 {}
 
-/// Writes one band as a Cloud-Optimized GeoTIFF (see [`super::cog`]), atomically.
-fn write_geotiff<T: WriteSample>(
+/// Writes one band of f32, u16 or u8 as a Cloud-Optimized GeoTIFF (see [`super::cog`]),
+/// atomically. `nodata` is recorded in GDAL_NODATA (`NaN` allowed); `metadata` items go into
+/// GDAL_METADATA (e.g. `("penumbra_version", "0.1.0")`).
+pub fn write_geotiff<T: WriteSample>(
     path: &Path,
     grid: &GridGeometry,
     projection: &Projection,
@@ -309,50 +315,10 @@ fn write_geotiff<T: WriteSample>(
     })
 }
 
-/// Writes a float32 single-band GeoTIFF. `nodata` is recorded in GDAL_NODATA (`NaN` allowed);
-/// `metadata` items go into GDAL_METADATA (e.g. `("penumbra_version", "0.1.0")`).
-pub fn write_geotiff_f32(
-    path: &Path,
-    grid: &GridGeometry,
-    projection: &Projection,
-    values: &[f32],
-    nodata: Option<f32>,
-    metadata: &[(&str, &str)],
-    band: BandInfo<'_>,
-) -> Result<()> {
-    write_geotiff(path, grid, projection, values, nodata, metadata, band)
-}
-
-/// Writes a uint16 single-band GeoTIFF (see [`write_geotiff_f32`]).
-pub fn write_geotiff_u16(
-    path: &Path,
-    grid: &GridGeometry,
-    projection: &Projection,
-    values: &[u16],
-    nodata: Option<u16>,
-    metadata: &[(&str, &str)],
-    band: BandInfo<'_>,
-) -> Result<()> {
-    write_geotiff(path, grid, projection, values, nodata, metadata, band)
-}
-
-/// Writes a uint8 single-band GeoTIFF (see [`write_geotiff_f32`]).
-pub fn write_geotiff_u8(
-    path: &Path,
-    grid: &GridGeometry,
-    projection: &Projection,
-    values: &[u8],
-    nodata: Option<u8>,
-    metadata: &[(&str, &str)],
-    band: BandInfo<'_>,
-) -> Result<()> {
-    write_geotiff(path, grid, projection, values, nodata, metadata, band)
-}
-
 /// Writes a DEM as a float32 GeoTIFF; holes (`NaN`) are declared with `GDAL_NODATA = nan`.
 pub fn write_dem(path: &Path, dem: &Dem, metadata: &[(&str, &str)]) -> Result<()> {
     let nodata = dem.heights_m.iter().any(|h| h.is_nan()).then_some(f32::NAN);
-    write_geotiff_f32(
+    write_geotiff(
         path,
         &dem.grid,
         &dem.projection,
