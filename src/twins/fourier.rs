@@ -94,19 +94,11 @@ pub fn sphere_floor_tan(
 
 /// Twin of `horizon_tan` in `shaders/fourier_build.wgsl`: the largest `tan` of the terrain's
 /// elevation along the horizontal ray from `(u0, v0, z0)` in grid direction `(du, dv)`, at least
-/// `start_tan`.
-#[allow(
-    clippy::too_many_arguments,
-    reason = "line by line with the WGSL function of the same signature"
-)]
+/// `start_tan`, within `max_distance_cells` (the shader's `grid` and `fb` are its globals).
 pub fn horizon_tan(
-    grid: &MarchGrid,
-    max_distance_cells: f32,
-    u0: f32,
-    v0: f32,
-    z0: f32,
-    du: f32,
-    dv: f32,
+    (grid, max_distance_cells): (&MarchGrid, f32),
+    (u0, v0, z0): (f32, f32, f32),
+    (du, dv): (f32, f32),
     start_tan: f32,
 ) -> f32 {
     let mut best = start_tan;
@@ -161,13 +153,9 @@ pub fn fourier_build_cell(
         let n = fb.az0 + a;
         let sc = sincos[n as usize];
         let alpha = horizon_tan(
-            grid,
-            fb.max_distance_cells,
-            u0,
-            v0,
-            z0,
-            sc[0],
-            -sc[1],
+            (grid, fb.max_distance_cells),
+            (u0, v0, z0),
+            (sc[0], -sc[1]),
             sphere_floor_tan(grid, x_m, y_m, z0, up, sc),
         )
         .atan();
