@@ -103,12 +103,25 @@ impl MapSettings {
         &self,
         n_epochs: Option<usize>,
     ) -> anyhow::Result<(MapEngineKind, ResolvedBackend)> {
-        if let Some(engine) = self.engine {
-            let on_gpu = map_engine_on_gpu(engine, n_epochs.is_some());
-            return Ok((engine, resolve(self.backend, on_gpu)?));
-        }
-        let backend = resolve(self.backend, OnGpu::Preferred)?;
-        let engine = auto_engine(&backend, n_epochs, &self.horizons);
+        let on_gpu = match self.engine {
+            Some(engine) => map_engine_on_gpu(engine, n_epochs.is_some()),
+            None => OnGpu::Preferred,
+        };
+        let backend = resolve(self.backend, on_gpu)?;
+        let Some(engine) = self.engine else {
+            return Ok((self.auto_engine_noted(&backend, n_epochs), backend));
+        };
+        Ok((engine, backend))
+    }
+
+    /// The engine `--engine auto` runs for `n_epochs` epochs on `backend`, said on one line for
+    /// a range ([`auto_engine`]).
+    fn auto_engine_noted(
+        &self,
+        backend: &ResolvedBackend,
+        n_epochs: Option<usize>,
+    ) -> MapEngineKind {
+        let engine = auto_engine(backend, n_epochs, &self.horizons);
         if let Some(n) = n_epochs {
             crate::note!(
                 "penumbra: --engine auto: {} for {n} epochs",
@@ -121,7 +134,7 @@ impl MapSettings {
                 }
             );
         }
-        Ok((engine, backend))
+        engine
     }
 }
 

@@ -115,17 +115,6 @@ pub struct MapRequest {
     pub task: MapTask,
 }
 
-impl MapRequest {
-    /// The request's terrain and, for `epochs`, its kernels ([`super::Inputs::load`]).
-    fn inputs(
-        &self,
-        epochs: &[hifitime::Epoch],
-        dem_files: super::DemFiles,
-    ) -> anyhow::Result<super::Inputs> {
-        super::Inputs::load(&self.terrain, &self.kernels, epochs, dem_files)
-    }
-}
-
 /// Runs `penumbra map`.
 pub fn run(req: &MapRequest) -> anyhow::Result<()> {
     match &req.task {

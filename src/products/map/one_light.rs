@@ -8,6 +8,7 @@ use hifitime::Epoch;
 
 use super::{Light, MapRequest, MapSettings, OneLightFiles, OneLightMaps};
 use crate::model::MapEngineKind;
+use crate::products::{DemFiles, Inputs};
 
 /// The command line's one-light job: the checks, the inputs, the maps, the files.
 pub(super) fn one_light_job(
@@ -21,7 +22,8 @@ pub(super) fn one_light_job(
         Light::Epoch(e) => vec![e],
         _ => Vec::new(),
     };
-    let inputs = req.inputs(&epochs, super::super::DemFiles::Skip)?;
+    let (terrain, kernels) = (&req.terrain, &req.kernels);
+    let inputs = Inputs::load(terrain, kernels, &epochs, DemFiles::Skip)?;
     let maps = crate::compute::one_light::one_light(
         &req.settings,
         &inputs.stack,

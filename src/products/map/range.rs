@@ -8,7 +8,7 @@ use super::{MapEngineKind, MapRequest, MapSettings, MapTask, RangeFiles, shard, 
 use crate::compute::Backend;
 use crate::compute::range::{HorizonsFrom, RangeHooks, RangeInputs, RangeResult};
 use crate::model::EpochRange;
-use crate::products::{KernelSource, TerrainSource};
+use crate::products::{DemFiles, Inputs, KernelSource, TerrainSource};
 
 /// The command line's range job: inputs, statistics (or a shard's partial), files, `run.json`.
 pub(super) fn range_job(
@@ -20,7 +20,8 @@ pub(super) fn range_job(
     check_range(&req.settings, files)?;
     let keys = JobKeys::of(req)?;
     let epoch_list = epochs.epochs();
-    let inputs = req.inputs(&epoch_list, super::super::DemFiles::Record)?;
+    let (terrain, kernels) = (&req.terrain, &req.kernels);
+    let inputs = Inputs::load(terrain, kernels, &epoch_list, DemFiles::Record)?;
     let kernels = inputs.kernels.as_ref().expect("a range has epochs");
     let mut prov = inputs.provenance.clone();
     prov.dem_files.extend(keys.horizons_file.clone());
