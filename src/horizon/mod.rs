@@ -1,5 +1,5 @@
-//! Terrain horizons: the elevation of the terrain horizon as a function of azimuth for an observer
-//! standing on a [`TerrainStack`], computed in true 3-D geometry on the Moon's reference sphere.
+//! Terrain horizons: the elevation of the terrain horizon against azimuth for an observer
+//! standing on a [`TerrainStack`], in exact 3-D geometry on the Moon's reference sphere.
 //!
 //! ```text
 //!   observer O at r0 = R + h_ground + h_obs (radial)        terrain point T at R + h(theta)
@@ -8,33 +8,13 @@
 //!        | \________ theta = ground angle O-centre-T
 //! ```
 //!
-//! Everything along one azimuth lies in the plane spanned by the observer's radial unit vector
-//! `u0` and the initial direction `d = cos(az) north + sin(az) east`; a terrain point at ground
-//! angle `theta` is `(R + h) (cos(theta) u0 + sin(theta) d)`, so its elevation above the plane
-//! normal to `u0` at the observer is the `atan2` above, exactly, curvature included.
-//!
-//! Two methods (see `docs/horizon.md` for the measured accuracy and speed):
-//! - [`HorizonMethod::Exact`], the reference: every crossing of the path with the grid lines of
-//!   the bilinear surface (the lines through cell centres, plus the outer edge of each layer) on
-//!   the finest layer with data there, plus, inside every bilinear patch crossed, the patch
-//!   midpoint and the tangent point of the quadratic height profile (a straight line through a
-//!   bilinear patch sees a quadratic height), so the maximum over the bilinear surface is found.
-//! - [`HorizonMethod::Fast`]: the same scan, but a path segment is skipped when a conservative
-//!   upper bound of its elevation (from a per-layer block-maximum grid, a one-level max-mipmap)
-//!   cannot beat the current horizon by more than `fast_tolerance_deg`. The error against the
-//!   exact scan is therefore in `[-fast_tolerance_deg, 0]` by construction.
-//!
-//! **The observer's own cell.** Terrain closer than half a cell of the layer that carries the
-//! observer (`min_distance_m`, 120 m on a 240 m grid, 5 m on a 10 m grid) is ignored: it is
-//! interpolated from the same (at most four) cell centres as the ground the observer stands on,
-//! so it is the DEM's representation of that ground, not a resolved obstacle. Beyond it the
-//! surface counts in full, including a sloping surface under the observer seen further out.
-//!
-//! **No terrain.** When a direction has no terrain sample at all (the path leaves every layer
-//! before `min_distance_m`), the horizon is `-90°` and the distance `NaN`. Otherwise the horizon
-//! is the maximum elevation over all terrain samples, which may be negative (a flat sphere gives
-//! the dip of the geometric horizon or of the DEM edge, whichever is nearer): no terrain exists
-//! outside the layers.
+//! [`HorizonMethod::Exact`] samples every crossing of the path with the lines through cell
+//! centres and the tangent point of every bilinear patch crossed (the maximum over the bilinear
+//! surface); [`HorizonMethod::Fast`] skips what a block-maximum bound says cannot beat the
+//! current horizon by more than `fast_tolerance_deg`, so its error lies in
+//! `[-fast_tolerance_deg, 0]` by construction. Terrain nearer than `min_distance_m` (half a cell)
+//! is the observer's own ground and is ignored; a direction with no terrain has horizon `-90°`
+//! and distance `NaN`. Definitions, methods and measurements: `docs/horizon.md`.
 
 mod io;
 mod scan;

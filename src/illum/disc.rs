@@ -1,12 +1,9 @@
 //! Visible fraction of a disc (the Sun or the Earth) above a terrain horizon profile.
 //!
-//! The horizon is a profile of elevations (deg) at uniformly spaced azimuths starting at 0°
-//! (azimuth clockwise from north), linearly interpolated between samples and periodic in azimuth
-//! ([`HorizonProfile`]). The disc has its centre at (`az_deg`, `el_deg`) and an angular radius
-//! `radius_deg` ([`Disc`]).
-//!
-//! All methods work in the local tangent plane of the sky at the disc centre (small-angle
-//! approximation), with coordinates
+//! The horizon is a profile of elevations (deg) at uniformly spaced azimuths from 0° (clockwise
+//! from north), linear between samples and periodic ([`HorizonProfile`]); the disc has its
+//! centre at (`az_deg`, `el_deg`) and angular radius `radius_deg` ([`Disc`]). Every method works
+//! in the sky's tangent plane at the disc centre:
 //!
 //! ```text
 //!        y = el - el_c                 ^ y (deg)
@@ -16,32 +13,11 @@
 //!                                      +-----u-----+--> x (deg)
 //! ```
 //!
-//! * [`DiscMethod::Exact`] integrates the visible chord length over vertical strips of the disc,
-//!   `fraction = 1/(π r²) ∫_{-r}^{r} clamp(top(u) - max(g(u), bottom(u)), 0, 2 top(u)) du`.
-//!   Because the interpolated horizon is piecewise linear in `u`, the integral is split at the
-//!   horizon samples and at the points where a horizon segment crosses the disc's rim; within each
-//!   piece the integrand is `0`, `2 sqrt(r²-u²)` or `sqrt(r²-u²) - (a + b u)`, whose integrals
-//!   are closed forms. The result is exact for the interpolated horizon (rounding only, ~1e-15).
-//!   With limb darkening the strip integral over `y` is still closed form (see
-//!   [`LimbDarkening`]) and the integral over `u` uses 8-point Gauss–Legendre in
-//!   `θ = asin(u/r)` on each piece (measured error < 1e-12 against the closed form for a uniform
-//!   disc; with limb darkening, 8-point Gauss–Legendre per piece is within 1e-6 of 32 points).
-//! * [`DiscMethod::Segment`] is the circular-segment approximation of Fritsch et al. (paper 001,
-//!   Sect. 3, eqs. 6–7): the horizon is sampled at the disc's left and right edges
-//!   (`u = ∓r`), treated as the straight line through both samples, and the visible part is the
-//!   circular segment above that line.
-//! * [`DiscMethod::MiddleValue`] is Max's (1988) middle value (paper 001 eqs. 4–5): the horizon
-//!   at the centre azimuth as a horizontal line.
-//!
-//! Error of the tangent-plane approximation itself (the disc is really a spherical cap): measured
-//! against a brute-force quadrature over the true cap (test `tangent_plane_error_vs_sphere`),
-//! the fraction differs by < 2e-4 for the Sun (r = 0.27°) and < 1e-3 for r = 1° at elevations up
-//! to 10°. The leading neglected terms are the change of `cos el` across the disc (relative
-//! stretch `r tan(el)` in rad) and the convergence of the azimuth lines (`(r/cos el)² sin(2 el)/4`).
-//!
-//! The azimuth half-span of the disc is `r / cos(el_c)`, capped at 180° so that a disc near the
-//! zenith does not wrap around the profile more than once (the tangent plane is meaningless there
-//! anyway; at the lunar poles the Sun and the Earth stay within ~8° of the horizon).
+//! [`DiscMethod::Exact`] integrates `visible(u)` over `u` in closed form, piece by piece of the
+//! interpolated horizon (exact up to rounding; limb darkening by Gauss–Legendre per piece, see
+//! [`LimbDarkening`]); [`DiscMethod::Segment`] is the circular segment of paper 001 (eqs. 6–7),
+//! [`DiscMethod::MiddleValue`] Max's (1988) middle value. Derivations, the tangent plane's own
+//! error and the fast methods' measured errors: `docs/illum.md`, "Disc visibility".
 
 use std::sync::OnceLock;
 

@@ -1,16 +1,9 @@
 //! Surface photometry of the renderer: a Lambert BRDF and the Hapke (2012) bidirectional
-//! reflectance model with the lunar parameters of Sato et al. (2014).
+//! reflectance model with the lunar parameters of Sato et al. (2014, JGR Planets 119:1775).
 //!
-//! Convention: [`Brdf::per_sr`] returns the BRDF `f` in 1/sr such that the reflected radiance is
-//! `L = f(cos_i, cos_e, cos_g) * E_normal * cos_i`, with `E_normal` the irradiance on a surface
-//! normal to the incoming beam, `i` the incidence angle, `e` the emission angle (both from the
-//! local surface normal) and `g` the phase angle (between the directions to the light and to the
-//! viewer). Hapke's bidirectional reflectance `r` (radiance / `E_normal`, 1/sr) relates to it by
-//! `f = r / cos_i`; the radiance factor is `I/F = pi * r`.
-//!
-//! Model ("Hapke 2012" as used by Sato et al. 2014, JGR Planets 119:1775-1805, their eq. 1-12;
-//! Hapke, B. 2012, *Theory of Reflectance and Emittance Spectroscopy*, 2nd ed., eq. 12.55 with
-//! the roughness correction of ch. 12.4 = Hapke 1984, Icarus 59:41, eq. 46-51):
+//! [`Brdf::per_sr`] returns `f` in 1/sr with reflected radiance `L = f · E_normal · cos_i`
+//! (`i` incidence, `e` emission, `g` phase angle); Hapke's bidirectional reflectance is
+//! `r = f · cos_i` and the radiance factor `I/F = pi · r`. The model (Sato et al. eqs. 1–12):
 //!
 //! ```text
 //! r(i,e,g) = K w/(4 pi) mu0e/(mu0e + mue) [p(g) (1 + B_S0 B_S(g)) + M(mu0e, mue)]
@@ -22,16 +15,9 @@
 //! H(x)     ~ [1 - w x (r0 + (1 - 2 r0 x)/2 ln((1+x)/x))]^-1,  r0 = (1-sqrt(1-w))/(1+sqrt(1-w))
 //! ```
 //!
-//! (`H` is Hapke's 2002 approximation, Icarus 157:523 eq. 13, within 1 % of Chandrasekhar's
-//! H-function; the test `hapke_h_matches_chandrasekhar` measures it.) `S`, `mu0e`, `mue` are the
-//! macroscopic-roughness shadowing function and effective cosines with mean slope angle
-//! `theta_bar` (Hapke 1984 eq. 46-50; both `i <= e` and `i > e` branches), so that the model is
-//! reciprocal: `f(i, e) = f(e, i)`.
-//!
-//! Sato et al. fixed `K = 1` (porosity effect off), `B_C0 = 0` (CBOE folded into the SHOE terms)
-//! and `theta_bar = 23.657 deg` for the whole Moon, and mapped `w, b, c, B_S0, h_S` per 1 deg tile
-//! and per LROC WAC band; [`HapkeParams::MOON_643NM`] holds representative global values for the
-//! 643 nm band (see its doc for their provenance).
+//! `S`, `mu0e`, `mue`: the macroscopic roughness correction (Hapke 1984, both branches), so
+//! `f(i, e) = f(e, i)`. References, the `H` approximation and the parameters' provenance:
+//! `docs/render.md`, "Hapke BRDF", and [`HapkeParams::MOON_643NM`].
 
 use std::f64::consts::PI;
 

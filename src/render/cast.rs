@@ -1,36 +1,20 @@
-//! View-ray casting through the model-space height field: a hierarchical caster over the
-//! maximum mipmap of the height field (paper 000, "pure mipmap casting", after Tevs et al.'s
-//! maximum mipmaps) and the plain uniform-stepping caster it replaces, kept for comparison.
+//! View-ray casting through the model-space height field: the hierarchical caster of paper 000
+//! ("pure mipmap casting", after Tevs et al.'s maximum mipmaps) and the uniform-stepping caster,
+//! kept for comparison.
 //!
 //! Both work in grid units: `u` = fractional column, `v` = fractional row (cell centres at
-//! integers, `v` grows southwards), `z` in metres; the ray parameter `t` is metres along the unit
-//! model-space direction. The surface is the renderer's: the bilinear interpolant of the cell
-//! heights between cell centres, extended as a constant over the half-cell border outside the
-//! centre hull (as `render::bilinear` clamps), over `u in [-0.5, cols - 0.5]`,
-//! `v in [-0.5, rows - 0.5]`.
+//! integers, `v` grows southwards), `z` in metres, and `t` metres along the unit model-space
+//! direction. The surface is the renderer's: bilinear between cell centres, constant over the
+//! half-cell border (`u in [-0.5, cols - 0.5]`, `v in [-0.5, rows - 0.5]`, as `render::bilinear`
+//! clamps).
 //!
-//! **Max-mipmap caster** ([`TraceMethod::MaxMipmap`]). Level 0 of
-//! [`crate::shadow::dp::MaxMipmap`] holds, per dual cell `[j, j+1] x [i, i+1]` (one bilinear
-//! patch), the maximum of its four corner heights, which bounds the patch; level `m` texel `J`
-//! covers `u in [J 2^m, (J+1) 2^m)`. The border strips are texels `-1` and `cols - 1` of level 0,
-//! whose lookups clamp into the pyramid (their surface is the adjacent patch's edge, so the
-//! clamped texel still bounds it). Traversal (stackless): at the current `t`, take the texel of
-//! the current level under the ray and its exit `t_exit`; the ray is linear in `t`, so its lowest
-//! point on `[t, t_exit]` is at one end. If that is above the texel's maximum, jump to `t_exit`
-//! and go up one level; else go down one level; at level 0 intersect the ray with the patch
-//! exactly: `z_ray(t) - S(u(t), v(t))` is a quadratic in `t`; split `[t, t_exit]` at its vertex
-//! into monotone pieces and bisect the first piece that crosses zero ([`PATCH_BISECTIONS`]
-//! halvings: the hit is exact to `(t_exit - t) / 2^50`, far below f64 position noise). So the
-//! first hit on the bilinear surface is found exactly, never missed (up to a `1e-9`-cell nudge
-//! at texel boundaries). Patches with a hole corner (NaN) are skipped: rays pass through holes.
-//!
-//! **Uniform caster** ([`TraceMethod::Uniform`]): the first-cut renderer's method — steps of
-//! `step_cells` cells horizontally (horizontal speed taken >= 0.05 for near-vertical rays), the
-//! first above-to-below sample pair refined by [`UNIFORM_BISECTIONS`] bisections. It misses
-//! features thinner than a step (silhouettes, grazing ridges).
-//!
-//! [`image_error`] compares two rendered images (the speed-at-equal-error bench and the accuracy
-//! test use it).
+//! [`TraceMethod::MaxMipmap`] walks [`crate::shadow::dp::MaxMipmap`] without a stack (up a level
+//! past a texel the ray clears, down otherwise) and at level 0 solves the patch's quadratic in
+//! `t` ([`PATCH_BISECTIONS`] halvings of its first crossing piece): the first hit on the bilinear
+//! surface, never missed. [`TraceMethod::Uniform`] takes steps of `step_cells` cells and refines
+//! the first crossing by [`UNIFORM_BISECTIONS`]; it misses features thinner than a step.
+//! [`image_error`] compares two images. The traversal, its edge cases and the measured errors:
+//! `docs/render.md`, "Ray casting and the GPU path".
 
 use nalgebra::Vector3;
 

@@ -1,5 +1,5 @@
-//! A CPU reference renderer (issue 8, first cut): the terrain height field seen from a camera at
-//! one epoch, lit by the Sun and by earthshine, tone mapped to an 8-bit sRGB PNG.
+//! A CPU reference renderer: the terrain height field seen from a camera at one epoch, lit by
+//! the Sun and by earthshine, tone mapped to an 8-bit sRGB PNG.
 //!
 //! Everything happens in model space (see [`crate::terrain::HeightField`]): each pixel's view ray
 //! is cast through the height field's maximum mipmap to its exact first hit on the bilinear

@@ -1,9 +1,9 @@
-//! Camera paths (issue 8 item 1: "camera paths (e.g. a descent trajectory as keyframes)"): a
-//! list of keyframes, each an epoch and a camera pose, sampled into frames. Between two
-//! keyframes every pose parameter is interpolated linearly in time; the angles that wrap
-//! (look azimuth, longitudes) go the short way round, so a pose at 350 deg and one at 10 deg
-//! meet at 0 deg, not 180 deg. The frames are rendered by the same per-frame routine as
-//! `penumbra render`'s epoch ranges (see `app::render_frames`).
+//! Camera paths (e.g. a descent trajectory as keyframes): a list of keyframes, each an epoch
+//! and a camera pose, sampled into frames. Between two keyframes every pose parameter is
+//! interpolated linearly in time; the angles that wrap (look azimuth, longitudes) go the short
+//! way round, so a pose at 350 deg and one at 10 deg meet at 0 deg, not 180 deg. The frames are
+//! rendered by the same per-frame routine as `penumbra render`'s epoch ranges (see
+//! `products::render::render_frames`).
 
 use hifitime::{Duration, Epoch};
 

@@ -1,4 +1,4 @@
-//! Engine-vs-engine accuracy metrics (the accuracy harness of issue 6).
+//! Engine-vs-engine accuracy metrics (the harness behind `docs/shadow.md`, "Accuracy").
 //!
 //! * Hard masks: the share of compared cells whose lit/shadow value differs, **excluding cells
 //!   within one pixel of a shadow edge of the reference** (a cell is excluded when it or one of

@@ -1,24 +1,19 @@
 //! Brute-force shadow rays: the reference engine, and the uniform-stepping baseline.
 //!
-//! A ray starts at the observer and goes toward the light. In centre coordinates (integer
-//! `row`/`col` are cell centres) it is marched with a DDA that visits **every** crossing of the
-//! ray with the lines `col = k` and `row = k` joining cell centres, in order of distance. At a
-//! crossing of `col = k` at fractional row `r` the terrain is the linear interpolation between
-//! centres `(floor r, k)` and `(floor r + 1, k)` (likewise for row lines): this is the bilinear
-//! surface between cell centres, evaluated exactly where it is linear. A crossing with a hole
-//! among its two centres is no terrain. The ray is blocked where the surface is strictly above
-//! it; it is lit once it leaves the grid or rises above the highest cell of the grid (nothing can
-//! block it after that; this early exit is used by every engine alike).
+//! A ray from the observer toward the light is marched in centre coordinates (integer `row`/`col`
+//! are cell centres) by a DDA that visits **every** crossing with the lines `col = k` and
+//! `row = k`, in order of distance. At a crossing of `col = k` at fractional row `r` the terrain
+//! is the linear interpolation between centres `(floor r, k)` and `(floor r + 1, k)` (likewise for
+//! row lines): the bilinear surface between centres, exactly where it is linear. A crossing with a
+//! hole among its two centres is no terrain. The ray is blocked where the surface is strictly
+//! above it, and lit once it leaves the grid or rises above the grid's highest cell (an early
+//! exit every engine shares).
 //!
-//! Soft shadows: the disc is sampled with `n` directions spread uniformly over the spherical cap
-//! (Vogel/Fibonacci spiral, radius `sqrt((i + 1/2) / n)` of the cap area, golden-angle turns);
-//! the visible fraction is the fraction of unblocked sample rays (uniform disc, no limb
-//! darkening).
-//!
-//! The **minimum shadow cost** `J* = min Δh / t` over the centre ray (Δh the ray's height above
-//! the surface at horizontal distance `t`) is also computed here exactly over every crossing
-//! (`exact_cost`); the DP engine approximates it. The **uniform-stepping** baseline of paper
-//! 000/003 samples the ray at a constant step instead (`uniform_cost`).
+//! Soft shadows sample the disc with `n` directions spread uniformly over the spherical cap (a
+//! Vogel spiral: radius `sqrt((i + 1/2) / n)` of the cap area, golden-angle turns; uniform disc).
+//! `exact_cost` gives the minimum shadow cost `J* = min Δh / t` over every crossing of the
+//! centre ray (what the DP engine searches for); `uniform_cost` is the uniform-stepping baseline
+//! of papers 000/003, sampling at a constant step. Conventions: `docs/shadow.md`.
 
 use nalgebra::Vector3;
 

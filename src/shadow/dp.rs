@@ -1,52 +1,22 @@
 //! Soft shadows by dynamic programming over maximum mipmaps (papers 000/003, Jung et al.,
 //! "Optimally Fast Soft Shadows on Curved Terrain with Dynamic Programming and Maximum
-//! Mipmaps"), and the SMap + DP combination.
+//! Mipmaps"), and the SMap + DP combination [`soft_combined`].
 //!
-//! **Shadow cost.** One ray is traced toward the disc's centre. At horizontal distance `t` the
-//! ray is `Δh(t)` above the terrain; the shadow cost is `J* = min_t Δh/t` (paper eq. 2; eq. 3
-//! minimises `Δh` alone inside the search and divides by `t*` at the end, but with a correct lower
-//! bound the quotient can be minimised directly, which is what the brief and eq. 2 ask for).
-//! Since the ray height is `z0 + t·tan(e_c)`, `J* = tan(e_c) − tan(e_h)` with `e_h` the
-//! elevation of the terrain horizon along the centre azimuth (model-space elevations).
+//! **Shadow cost.** One ray toward the disc's centre, `Δh(t)` above the terrain at horizontal
+//! distance `t`: `J* = min_t Δh/t = tan(e_c) − tan(e_h)` (paper eq. 2), `e_h` the terrain horizon
+//! along the centre azimuth. **Disc occlusion** (the paper's prism assumption, §3.4): a
+//! horizontal edge `δ = e_c − e_h` below the centre, `d = δ / r_L` clamped to `[−1, 1]`,
+//! `visible = (π − acos d + d·sqrt(1 − d²)) / π` (eq. 7's circular segment), `d` from exact angles.
 //!
-//! **Disc occlusion** (paper §3.4, eq. 6–7). Under the paper's prism assumption (the occluder's
-//! edge is horizontal across the disc) the visible part of the disc is the part above a straight
-//! edge at angular distance `δ = e_c − e_h` below the centre: `d = δ / r_L` clamped to `[−1, 1]`
-//! and `visible = (π − acos d + d·sqrt(1 − d²)) / π` (eq. 7's circular segment). The
-//! extraction of eq. 6 reads `d = 2(J*(N·N_L) − r_L)/r_L`; that is the same quantity in the
-//! paper's small-angle, renderer-specific normalisation (J* scaled by the normal term). We
-//! derive `d` from exact angles instead, with `e_h` the terrain horizon only (no local-horizontal
-//! bound: the curvature is in the grid's `z`, see [`crate::shadow`]); the paper's extra
-//! `max(…, 1 − J*)` term is a rendering heuristic and is not used.
-//!
-//! **Maximum mipmap.** Level 0 has one texel per *dual cell* (the square between four cell
-//! centres, where the bilinear surface lives): its value is the largest of its four corners
-//! (holes ignored), so it bounds the surface inside. Level `m` takes the max of 2×2 texels of
-//! level `m − 1` and covers `2^m × 2^m` dual cells.
-//!
-//! **Algorithm 1** (coarse-to-fine search). The ray is cut into intervals of `T = 2^N'` cells
-//! (horizontal distance). In each interval the search starts at level `N' − 1`: the interval
-//! (length `2·2^(N'−1)`) is walked with a DDA that visits **every** texel under the ray's
-//! footprint (the paper's "3-texel DDA", up to three texels per half; the canonical DDA that
-//! misses corner texels makes streaks, paper Fig. 4–5). Each texel gets a lower bound of the cost
-//! over the part of the ray inside it, `tan(e_c) − (maxh − z0)/t` at the nearer (or farther,
-//! when `maxh < z0`) end; the search descends into the texel with the smallest bound and repeats
-//! one level finer on the ray's chord through it; at level 0 the exact cost is evaluated where the
-//! ray crosses the four centre lines bounding the dual cell, at the brute-force march's crossing
-//! distances and line heights (so a hole across the line cannot drop the sample).
-//!
-//! *Deviation (documented, measured in docs/shadow.md).* The paper keeps a single path (greedy).
-//! Near the observer `t → 0`, so on every slope that faces the light the nearest texel has the
-//! smallest bound and the greedy path dives into it, missing farther occluders in the interval.
-//! By default ([`DpConfig::greedy`] = false) the search also descends into the other texels whose
-//! bound is still below the best cost found so far (branch and bound, nearest-bound first): the
-//! greedy path is the first branch, and `J*` becomes exact. `greedy = true` runs the paper's
-//! single path.
-//!
-//! **Interval concatenation** (paper §3.3): the paper uses `N' = {5, 5, 5}`, i.e. 96 cells. Lunar
-//! polar shadows at 0.5° Sun run up to the whole grid (a 2 km peak shadows 230 km), so by default
-//! the list continues after `{5, 5, 5}` with `N' = 6, 7, …, 10, 10, …` until the ray leaves the
-//! grid or no sample further out can lower the cost (or change the visible fraction).
+//! **Maximum mipmap** ([`MaxMipmap`]): level 0 has one texel per dual cell (the square between
+//! four cell centres), the largest of its corners (holes ignored), so it bounds the bilinear
+//! surface; level `m` is the 2×2 maximum of level `m − 1`. **Search** (Algorithm 1): intervals of
+//! `2^N'` cells, each walked from level `N' − 1` by a DDA that visits every texel under the ray;
+//! each texel gets a lower bound of the cost, and the search descends by branch and bound
+//! ([`DpConfig::greedy`] = true is the paper's single path); at level 0 the exact cost is taken
+//! at the brute-force march's crossings. Intervals continue past the paper's `{5, 5, 5}` until the
+//! ray leaves the grid or nothing further out can lower the cost. Why each deviation, and what it
+//! measures: `docs/shadow.md`, "Deviations from the papers".
 
 use super::brute::{bilinear, line_height};
 use super::smap::{SMap, shadowed};

@@ -1,46 +1,21 @@
 //! Fourier-compressed horizon maps after paper 001 (Fritsch et al., "Fast Planetary Shadows
 //! using Fourier-Compressed Horizon Maps").
 //!
-//! For every cell of a model-space [`HeightField`] the horizon elevation `α_h(θ)` is sampled at
-//! `n_azimuths` azimuths `θ_n = 2πn/N` (from model north `+y`, clockwise toward east `+x`). Each
-//! sample is an **angle in radians above the model x/y plane** (the same elevation that a model
-//! space light direction has), the largest of
-//! the terrain: `atan(max (z_s − z_obs) / t_s)` over the crossings of the horizontal ray with
-//! the grid's centre lines (the surface convention of [`crate::shadow`], marched by
-//! [`crate::shadow::brute`]), up to `max_distance_cells` cells, and never below the **bare
-//! sphere's horizon** (the dip `sqrt(2h/R)` below the observer's local horizontal; on a peak the
-//! terrain horizon lies below the local horizontal, above the dip). The floor is this engine's one
-//! departure from "no terrain beyond the outermost layer" (docs/ARCHITECTURE.md): a profile needs
-//! a finite, smooth value where no terrain lies along a ray (a −90° step would ring through the
-//! 16 coefficients), and the two differ only on rays that meet the sphere beyond the grid, which
-//! the map products count and flag as the DEM being too small.
+//! For every cell of a model-space [`HeightField`] the horizon `α_h(θ)` is sampled at
+//! `n_azimuths` azimuths `θ_n = 2πn/N` (from model north `+y`, clockwise toward east `+x`): an
+//! angle in radians above the model x/y plane, the largest `atan((z_s − z_obs) / t_s)` over the
+//! crossings of the horizontal ray with the centre lines (the surface of [`crate::shadow`],
+//! marched by [`crate::shadow::brute`]), never below the bare sphere's dip. So
+//! `light elevation > α_h(light azimuth)` is brute force's "not blocked" test, up to ties.
 //!
-//! So `light elevation > α_h(light azimuth)` is exactly the brute-force engine's "ray not
-//! blocked" test, up to ties. Curvature is in the model-space `z`; the observer stands
-//! `observer_height_m` above the cell along [`HeightField::up_at`].
-//!
-//! **Compression** (paper §3.2): the real DFT of the `N` samples, truncated to `K` complex
-//! coefficients `X_0 … X_{K−1}` (default `K = 16`: the DC term and harmonics 1…15; `Im X_0 = 0`,
-//! so 31 useful real numbers), stored as `half::f16`. The weights are folded in
-//! (`X_0` = mean, `X_k = (2/N) Σ_n α_n e^{−ikθ_n}`), so the paper's eq. 3 holds verbatim:
-//! `α_h(θ) = Σ_k (Re X_k cos kθ − Im X_k sin kθ)`.
-//!
-//! **Mip levels** (paper §3.2 "selective downsampling"): [`HorizonMap::mipmapped`] keeps
-//! coefficients `4l … 4l+3` at `1/2^l` of the resolution (2^l × 2^l box average, nearest
-//! upsampling on evaluation), the paper's 4 levels × 4 coefficients.
-//!
-//! **Soft shadows**: the paper's circular-segment approximation (eqs. 6–7): the horizon is taken
-//! as the straight line through its values at the disc's left and right edge azimuths
-//! (`θ_s ± r / cos α_s`), and the visible fraction is the circular segment above it
-//! ([`crate::illum::disc::chord_visible_fraction`]).
-//!
-//! **Storage**: a multi-page TIFF, one page per real number (page `2k` = `Re X_k`, page `2k+1` =
-//! `Im X_k`; 16-bit unsigned samples holding the f16 bit patterns; `NaN` for holes), the
-//! geometry as JSON in the ImageDescription tag of page 0 ([`HorizonMap::write_tiff`],
-//! [`HorizonMap::read_tiff`]). Only the full-resolution coefficients are stored (not the mip
-//! pyramid; [`HorizonMap::mipmapped`] rebuilds it on load). Every page is georeferenced on the
-//! model grid (orthographic on the lunar sphere at the model centre, rotated by a
-//! ModelTransformation: [`crate::terrain::orthographic_model_tags`]) so that GIS tools place it.
+//! The real DFT is truncated to `K` complex coefficients (default 16, stored as `half::f16`)
+//! with the weights folded in, so paper eq. 3 holds verbatim:
+//! `α_h(θ) = Σ_k (Re X_k cos kθ − Im X_k sin kθ)`. [`HorizonMap::mipmapped`] keeps coefficients
+//! `4l … 4l+3` at `1/2^l` of the resolution (paper §3.2). Soft shadows use the circular segment
+//! through the horizon at the disc's edge azimuths
+//! ([`crate::illum::disc::chord_visible_fraction`]). Files: [`HorizonMap::write_tiff`],
+//! [`HorizonMap::read_tiff`]. Why the dip floor, the file layout and the accuracy:
+//! `docs/shadow.md`, "Fourier-compressed horizon maps".
 
 use std::io::{BufReader, Cursor};
 use std::path::Path;
@@ -63,7 +38,7 @@ use crate::terrain::HeightField;
 pub const DEFAULT_COEFFS: usize = 16;
 /// Coefficients per mip level (paper 001: four complex coefficients per RGBA32 texel).
 pub const COEFFS_PER_LEVEL: usize = 4;
-/// Default number of sampled azimuths (the GPU target of issue 6 uses 720).
+/// Default number of sampled azimuths (the GPU target in `docs/PERFORMANCE.md` uses 720).
 pub const DEFAULT_AZIMUTHS: usize = 64;
 /// Value of the `format` field of the TIFF metadata.
 const FORMAT_NAME: &str = "penumbra-fourier-horizon-map";

@@ -1,42 +1,22 @@
 //! Shadow engines on the model-space height field (CPU reference implementations).
 //!
-//! Every engine answers the same two questions for each cell of a
-//! [`crate::terrain::HeightField`], for an observer standing `observer_height_m`
-//! above the cell's surface point (along the exact radial direction
-//! [`HeightField::up_at`](crate::terrain::HeightField::up_at)) and a light at infinity given by
-//! one constant unit direction `light_in_model` (model space; `z > 0` is above the tangent plane
-//! at the model origin):
+//! Every engine answers two questions per cell of a [`crate::terrain::HeightField`], for an
+//! observer `observer_height_m` above the cell's surface point along
+//! [`HeightField::up_at`](crate::terrain::HeightField::up_at) and a light at infinity given by one
+//! unit direction `light_in_model`: [`Engine::hard_mask`] (is the disc's centre visible? `1` lit,
+//! `0` shadow, `255` nodata) and [`Engine::visible_fraction`] (which fraction of a uniform disc of
+//! radius `angular_radius_rad` is visible? `NaN` for nodata). Engines: [`brute`] (the reference
+//! ray march, and the uniform-stepping baseline), [`smap`] (hard shadows, paper 004), [`dp`]
+//! (soft shadows by the DP max-mipmap search of papers 000/003, and [`dp::soft_combined`]: SMap
+//! at the disc's two vertical limbs, DP only in the penumbra), [`fourier`] (Fourier-compressed
+//! horizon maps, paper 001); [`accuracy`] compares them.
 //!
-//! * [`Engine::hard_mask`]: is the centre of the light's disc visible? (`1` lit, `0` shadow,
-//!   `255` nodata);
-//! * [`Engine::visible_fraction`]: which fraction of a uniform disc of angular radius
-//!   `angular_radius_rad` (Sun ≈ 0.2666°, Earth ≈ 0.95°) is visible? (`NaN` for nodata).
-//!
-//! The engines:
-//! * [`brute`]: the reference. Marches every ray through every grid line it crosses; soft
-//!   fraction by sampling the disc with many directions. Also the uniform-stepping baseline.
-//! * [`smap`]: hard shadows by the SMap of paper 004 (silhouette colours + NextV pointers).
-//! * [`dp`]: soft shadows by the dynamic-programming maximum-mipmap search of papers 000/003, and
-//!   [`dp::soft_combined`], SMap at the two vertical limbs + DP only in the penumbra.
-//! * [`accuracy`]: engine-vs-engine metrics (mask disagreement away from edges, |Δ fraction|).
-//!
-//! Conventions shared by all engines (so that they are comparable pixel by pixel):
-//! * **Terrain surface.** Heights are given at cell centres. Along the straight lines that join
-//!   cell centres (`row = integer` or `col = integer` in centre coordinates) the surface is the
-//!   linear interpolation of the two neighbouring centres, which is the bilinear surface between
-//!   centres restricted to those lines. Rays are tested where they cross such lines. A sample
-//!   whose two centres are not both valid (`NaN` = hole) is no terrain: rays pass.
-//! * **Blocking.** A ray is blocked at a sample if the surface is strictly above the ray.
-//! * **Only terrain blocks.** A ray is blocked only by the terrain surface of the grid (which
-//!   holds every DEM layer, the finest with data at each point, and the sphere's curvature in
-//!   `z`). There is **no shortcut on the sign of the elevation**: a light below the observer's
-//!   local horizontal plane is lit when the terrain falls away faster than the ray (a peak or a
-//!   rim sees the Sun down to its horizon dip, ≈ 2.7° from 2 km above the sphere). This is the
-//!   rule of the per-site horizon engine ([`crate::horizon`]); `docs/ARCHITECTURE.md` states it
-//!   once for every engine.
-//! * **Grid edge.** A ray that leaves the grid is lit (no terrain beyond the outermost layer).
-//!   When it leaves below the reference sphere, or meets the sphere further on, the real Moon
-//!   would block it: the map products count such cells ([`lit_exits_below_sphere`]) and warn.
+//! Shared conventions, so that the engines agree pixel by pixel: the surface is bilinear between
+//! cell centres, sampled where a ray crosses the lines joining them (a hole is no terrain); a ray
+//! is blocked where the surface is strictly above it; only terrain blocks, whatever the sign of
+//! the light's elevation; a ray that leaves the grid is lit, and one that would meet the sphere
+//! beyond it is counted ([`lit_exits_below_sphere`]). Details: `docs/shadow.md`, "Model shared by
+//! all engines"; the rule for every engine: `docs/ARCHITECTURE.md`.
 
 pub mod accuracy;
 pub mod brute;

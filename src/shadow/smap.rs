@@ -1,39 +1,19 @@
 //! SMap hard shadows (paper 004, "Real-time terrain shadowing by directional light").
 //!
-//! **Model-space preprocessing per light direction.** The grid is first re-indexed into a
-//! *canonical* frame `(u, v)`: `v` runs along the grid axis closest to the light's azimuth (the
-//! "major" axis; one grid line per step) and **decreases toward the light**; `u` is the other
-//! axis, oriented so that one step toward the light moves `u` by `a = |minor/major| ∈ [0, 1]`.
-//! So every azimuth (not only grid-aligned ones) is handled by one of eight flips/transposes.
-//! One step toward the light covers `px·sqrt(1 + a²)` metres and the ray rises by
-//! `b = tan(el)·px·sqrt(1 + a²)` (the paper's `Lw`).
+//! Per light the grid is re-indexed into a canonical frame `(u, v)` (one of eight flips and
+//! transposes): `v` runs along the grid axis nearest the light's azimuth and decreases toward the
+//! light; one step toward it moves `u` by `a = |minor/major| ∈ [0, 1]` and raises the ray by
+//! `b = tan(el)·px·sqrt(1 + a²)` (the paper's `Lw`). As in the paper's `IsShadow`, terrain is
+//! sampled on the major-axis lines only, linear along `u` (the surface of [`super::brute`], which
+//! also samples the minor-axis lines).
 //!
-//! **Terrain model.** As in the paper's `IsShadow`, the terrain is sampled only on the major-axis
-//! lines `v = integer`, linearly interpolated along `u` between the two neighbouring cells (the
-//! bilinear surface between centres restricted to those lines: the same surface as
-//! [`super::brute`], which additionally samples the minor-axis lines).
-//!
-//! **Beams.** Beam `b` (an integer) covers, on line `v`, the unit cross-section
-//! `[s, s + 1]` with `s = b + a·(Nv − 1 − v)` (the paper's `GetA`/`GetU` with
-//! `Lu = a`): a ray stays in one beam for its whole length. Per beam and line, `Color` is Black
-//! when some point of the cross-section is a **silhouette point** (`IsSilhouette`,
-//! paper §3): `h1 > h0 + b` (the segment from the far neighbour `h0` on line `v + 1` rises
-//! faster than the ray) and `h1 > h2 − b` (the segment to the near neighbour `h2` on line
-//! `v − 1` does not). Missing neighbours (off the grid, holes) count as `−∞`.
-//!
-//! *Deviation from the paper (`HasSilhouette`):* the paper tests five `u` values of the
-//! cross-section (its ends, and the breakpoints of the three interpolated lines). Both
-//! conditions are linear in `u` between breakpoints, and their *intersection* can be non-empty
-//! strictly inside a piece without holding at any breakpoint, so the five-point test can miss a
-//! silhouette and let a shadowed ray through. Here each linear piece is solved exactly (the two
-//! half-lines where each condition holds are intersected), which makes the skip provably safe:
-//! the first blocked sample of a ray starts a run of blocked samples that ends at a silhouette
-//! point (induction on `h_{k+1} ≥ h_k + b`), which lies in the ray's beam and is therefore Black.
-//!
-//! **NextV** (paper §6): per beam, the nearest Black line toward the light, found with the
-//! log-step search using the **quad merge** (blocks of `4·DIST` merged per pass, `DIST ×= 4`).
-//! `IsShadow` then tests the first sample of the ray and jumps from Black line to Black line.
-//! Not implemented: the paper's "better NextV" pruning (§9) and the RGBA packing (GPU-only).
+//! Beam `n` covers `[s, s + 1]` on line `v`, `s = n + a·(Nv − 1 − v)`, so a ray stays in one
+//! beam. A beam's line is Black when its cross-section holds a silhouette point (`h1 > h0 + b`
+//! and `h1 > h2 − b`); NextV (paper §6, quad merge) points each beam to the nearest Black line
+//! toward the light, and `IsShadow` jumps from Black line to Black line. `HasSilhouette` solves
+//! each linear piece exactly where the paper tests five points (which can miss a silhouette), so
+//! the skip is provably safe. Proof and what is not implemented: `docs/shadow.md`, "Deviations
+//! from the papers".
 
 use rayon::prelude::*;
 

@@ -1,35 +1,19 @@
 //! GeoTIFF input and output for single-band DEMs and maps, with the pure-Rust `tiff` crate.
 //!
-//! **Reading** ([`read_geotiff`]): float64, float32, int32, int16, uint16 and uint8 samples,
-//! strips or tiles, uncompressed, LZW or Deflate, with or without a predictor (decoded by
-//! `tiff`); heights are kept as float32 (float64 DEMs lose nothing at a centimetre). Integer samples are scaled with the
-//! `SCALE`/`OFFSET` items of the GDAL_METADATA tag (42112) when present; the GDAL_NODATA tag
-//! (42113) marks holes, which become `NaN`. Georeferencing comes from the GeoTIFF 1.0 tags
-//! ModelPixelScale (33550) + ModelTiepoint (33922), or ModelTransformation (34264, no rotation),
-//! and the GeoKeyDirectory (34735) with its double (34736) and ASCII (34737) parameters. Two
-//! CRSs are recognised, both on a sphere of lunar radius (LOLA's conventions):
-//! - polar stereographic: `ProjCoordTransGeoKey = CT_PolarStereographic (15)` with latitude of
-//!   origin ±90°, central meridian from `ProjStraightVertPoleLong` (or `ProjNatOriginLong`),
-//!   scale factor `ProjScaleAtNatOrigin` (or a standard parallel, GDAL "variant B");
-//! - equirectangular: `CT_Equirectangular (17)`, central meridian `ProjCenterLong`, latitude of
-//!   true scale `ProjStdParallel1`;
-//! - as a fallback, a PROJ string (`+proj=stere`/`+proj=eqc ...`) in a citation key.
+//! [`read_geotiff`] reads one band of float or integer samples (strips or tiles, uncompressed,
+//! LZW, Deflate or ZSTD, with or without a predictor), scales integers by the `SCALE`/`OFFSET`
+//! items of GDAL_METADATA, turns GDAL_NODATA into `NaN`, and takes the grid from ModelPixelScale +
+//! ModelTiepoint or ModelTransformation and the GeoKeyDirectory: polar stereographic or
+//! equirectangular on a lunar sphere, or a PROJ string in a citation key. A pixel-is-point raster
+//! is shifted by half a pixel into the pixel-is-area convention of [`GridGeometry`], as GDAL
+//! does; false easting/northing are folded into the grid origin, so the [`Projection`] never
+//! carries them. The image is decoded chunk by chunk into the output `Vec<f32>` (peak: the DEM
+//! plus one chunk).
 //!
-//! A pixel-is-point raster (`GTRasterTypeGeoKey = 2`) is shifted by half a pixel into the
-//! pixel-is-area convention of [`GridGeometry`], exactly as GDAL does. False easting/northing
-//! are folded into the grid origin, so the [`Projection`] never carries them.
-//!
-//! Memory: the image is decoded chunk by chunk (strip or tile) straight into the output
-//! `Vec<f32>`, so the peak is the DEM itself plus one chunk (see `docs/terrain.md` for the
-//! measured figure).
-//!
-//! **Writing** ([`write_geotiff`] of f32, u16 or u8,
-//! [`write_dem`]): Cloud-Optimized GeoTIFFs (`cog.rs`: 256² tiles, Deflate with a predictor,
-//! overviews, IFDs before the data, GDAL's layout) with ModelPixelScale, ModelTiepoint, a
-//! user-defined GeoKeyDirectory (sphere `R`, polar stereographic or equirectangular), GDAL_NODATA
-//! and a GDAL_METADATA block (provenance items, the band's description and unit, [`BandInfo`]).
-//! Files are encoded in memory and written with [`crate::output::write_atomic`] (temp file +
-//! rename).
+//! [`write_geotiff`] (f32, u16 or u8) and [`write_dem`] write Cloud-Optimized GeoTIFFs in GDAL's
+//! layout (`cog.rs`) with a user-defined GeoKeyDirectory, GDAL_NODATA and a GDAL_METADATA block
+//! ([`BandInfo`]), atomically ([`crate::output::write_atomic`]). Sample types, GeoKeys, tags and
+//! measured sizes: `docs/terrain.md`, "Reading" and "Writing".
 
 use std::collections::BTreeMap;
 use std::io::{Read, Seek};

@@ -1,27 +1,22 @@
 //! The model-space height field that every shadow engine works on.
 //!
-//! **Model space** is a local Cartesian frame tangent to the reference sphere at a centre point
-//! `C` (planetocentric `centre_lat_deg`, `centre_lon_deg`, on the 1737.4 km sphere):
+//! **Model space** is the local Cartesian frame tangent to the 1737.4 km sphere at a centre point
+//! `C` (planetocentric `centre_lat_deg`, `centre_lon_deg`), origin on the sphere at `C`:
 //!
 //! ```text
 //!   z (up = radial direction at C)
 //!   ^     y (north at C)
-//!   |    /
-//!   |   /        terrain point P: body-fixed p = (R + h) * u(lat, lon)
-//!   |  /         model coordinates m = enu_from_moon_me(C) * (p - R * u(C))
-//!   | /
+//!   |    /         terrain point P: body-fixed p = (R + h) * u(lat, lon)
+//!   |   /          model coordinates m = enu_from_moon_me(C) * (p - R * u(C))
 //!   C--------> x (east at C)
 //! ```
 //!
-//! Because `m` is an exact rigid transform of body-fixed positions, the Moon's curvature is part
-//! of the height field (`z` falls off as about `-(x² + y²) / 2R` for a flat sphere), and a light
-//! source at infinity (the Sun) is one constant direction vector over the whole grid. This is what
-//! makes height-field shadow algorithms exact on a curved Moon.
-//!
-//! The grid is regular in model `x`/`y` with the same pixel-is-area convention as
-//! [`crate::terrain::GridGeometry`]: the centre of cell (row, col) is at
-//! `x_m = x_left_m + (col + 0.5) * px_m`, `y_m = y_top_m - (row + 0.5) * px_m`; row 0 is the top
-//! (largest `y`, i.e. north of `C`).
+//! `m` is a rigid transform of body-fixed positions, so the curvature is in `z` (about
+//! `-(x² + y²) / 2R` on a bare sphere) and a light at infinity is one direction over the whole
+//! grid: height-field shadow algorithms are exact on a curved Moon. The grid follows the
+//! pixel-is-area convention of [`crate::terrain::GridGeometry`] in model `x`/`y`: the centre of
+//! cell (row, col) is `x_m = x_left_m + (col + 0.5) * px_m`, `y_m = y_top_m - (row + 0.5) * px_m`,
+//! row 0 the top (north of `C`). More: `docs/terrain.md`, "Model space".
 
 use nalgebra::{Matrix3, Vector3};
 

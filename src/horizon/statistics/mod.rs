@@ -15,35 +15,9 @@
 //!  mean irradiance (horizontal, tracking), PSR, rays the Moon beyond the DEM would block
 //! ```
 //!
-//! **Each pixel's own directions.** The bodies' positions (relative to the Moon's centre in
-//! `MOON_ME`, apparent as seen from the map centre: light time and aberration differ across a
-//! 400 km map by < 1 m of the Earth's position) are placed relative to each pixel's observer, so
-//! the Earth's parallax across the map (0.027° over ±184 km) and the tilt of the local vertical
-//! (up to ±6° of elevation across the 240 m LOLA crop) are exact, not binned.
-//!
-//! **The horizon at the body's azimuth.** Bands are at non-uniform *grid* azimuths (from map +y,
-//! clockwise; [`crate::horizon::sweep`]); the body's grid azimuth is measured directly against the
-//! pixel's map axes on the sphere (the map is conformal), and the horizon is interpolated linearly
-//! between the two neighbouring bands, as the per-site series interpolate theirs.
-//!
-//! **The visible fraction** is the circular segment under the straight line through the horizon
-//! at the disc's two azimuth edges (paper 001 eqs. 6–7, the series' `segment` method),
-//! flux-weighted with the Sun's limb-darkening law (a table of the chord fraction, error < 1e-5);
-//! the Earth's disc is uniform. A disc entirely above the pixel's highest horizon or below its
-//! lowest needs no azimuth.
-//!
-//! **Rays the Moon beyond the DEM would block**: a lit epoch whose Sun centre is below the local
-//! horizontal and whose ray, from where it leaves the outermost layer (along the straight map
-//! line of its grid azimuth), meets the reference sphere, as the per-epoch maps count them.
-//! Only rays below a per-cell cut need the test: a ray leaving the layers at least `p` away
-//! (at the Moon's centre) has risen above the sphere there unless its elevation is below
-//! `atan((R cos p − r0) / (R sin p))` (`BeyondDem`; tested against the exact exit test).
-//!
-//! **Where the time goes** (a year hourly, 256² of the LOLA grid round the pole): the shared
-//! classification decides most of a cell's blocks of 32 epochs whole for both bodies (≈ 87 % of
-//! the blocks of 16 epochs it used before)
-//! (`sectors.rs`); the rest is the exact per-epoch path for discs on the horizon and the
-//! per-cell tables' build.
+//! Each pixel's own directions (parallax and the tilt of its vertical exact), the horizon linear
+//! between bands, the fraction as the circular segment of paper 001 (eqs. 6–7); shortcuts in
+//! `sectors.rs`. Details and measurements: `docs/horizon.md`, "Statistics from horizons".
 
 mod blocks;
 mod kernel;

@@ -1,41 +1,22 @@
 //! Classification of epochs shared by every cell: most epochs need no per-cell geometry.
 //!
-//! Each body's direction `d` (unit, from the Moon's centre, `MOON_ME`) is written once per
-//! epoch in the frame of the grid centre: the azimuth `ψ` (from the centre's map +y, clockwise)
-//! picks one of [`SECTORS`] sectors, and `cos e`, `sin e` (`e` its elevation at the centre) are
-//! kept. At a cell of radial `u`, with `a = u·E₀`, `b = u·N₀`, `c = u·U₀` (the centre's map
-//! east, north and up):
+//! Each body's direction `d` (unit, from the Moon's centre, `MOON_ME`) is written once per epoch
+//! in the frame of the grid centre: its azimuth `ψ` (from the centre's map +y, clockwise) picks
+//! one of [`SECTORS`] sectors, and `cos e`, `sin e` of its elevation `e` there are kept. At a
+//! cell of radial `u`, with `a = u·E₀`, `b = u·N₀`, `c = u·U₀` (the centre's map east, north, up):
 //!
 //! ```text
 //! sin el_geo = d·u = cos e (a sin ψ + b cos ψ) + c sin e          (exact)
 //! el_geo − el_topo = asin(ρ cos el_topo),  ρ = r_obs / |body|       (exact: the parallax)
 //! ```
 //!
-//! and the body's grid azimuth at the cell is that of `d` (the parallax moves a body along the
-//! cell's vertical only). So, per cell and sector, from the azimuths the disc can cover (the
-//! sector's corners over the body's range of `e`, plus the disc's half-span) and the horizon
-//! polyline over them, two thresholds on the linear form `cos e · A + c sin e` tell, with two
-//! multiply-adds per epoch:
-//! - **full** (the Sun) or **visible** (the Earth, whose statistics need only "any part
-//!   visible": a horizon below the chord 0.9 radii above the disc's centre, over that chord's
-//!   width, leaves the cap above it, 1.87 % of the disc, visible) at every `ψ` of the sector, or
-//! - **dark**: the disc entirely below the horizon.
-//!
-//! Every other epoch (a disc on the horizon) takes the exact per-cell path. The thresholds are
-//! conservative (the parallax at its largest or smallest, 1e-4° of margin for f32), so the
-//! fast path never decides an epoch the exact path would decide otherwise
-//! (`tests::sector_tables_change_nothing`).
-//!
-//! **Whole blocks.** Most of the time a body stays well clear of a cell's horizon for hours, so
-//! the same thresholds decide blocks of [`BLOCK`] consecutive epochs at once: over a block the
-//! body covers a few sectors ([`BlockSpan`]: the Sun ≈ 17 in 32 h at the poles, the Earth 1 to 3)
-//! and a narrow range of `sin e`; per cell and sector, `F = min(cos e · a_lo) − s_hi` and
-//! `D = s_lo − max(cos e · a_hi)` over the path's range of `cos e` ([`append_block_bounds`]);
-//! the block is full when `min F + min(c sin e) ≥ 0`, dark when `min D − max(c sin e) ≥ 0`
-//! ([`block_decision`]), which implies the per-epoch inequality at each of its epochs
-//! (`tests::block_decisions_agree_with_every_epoch`). A block decided for both bodies skips the
-//! per-epoch classification and the time-order loop (its counts, runs and sums at once,
-//! `statistics::tests::block_decisions_change_nothing`: bit for bit).
+//! So per cell and sector two conservative thresholds on `cos e · A + c sin e` decide, with two
+//! multiply-adds per epoch, "full" (the Sun) or "visible" (the Earth) or "dark"; a disc on the
+//! horizon takes the exact per-cell path. The same bounds over [`BLOCK`] consecutive epochs
+//! ([`BlockSpan`], [`append_block_bounds`], [`block_decision`]) decide whole blocks. Neither
+//! changes a result (`statistics::tests::sector_tables_change_nothing`,
+//! `tests::block_decisions_agree_with_every_epoch`). Thresholds, margins and the block bounds:
+//! `docs/horizon.md`, "Shared epoch classification".
 
 use nalgebra::Vector3;
 

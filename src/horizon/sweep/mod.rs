@@ -1,68 +1,21 @@
 //! Whole-grid horizons by the line sweep (Timonen & Westerholm 2010; Barrett 2011), exact on the
 //! DEM's own polar stereographic grid with every layer.
 //!
-//! **Lines through every pixel centre.** For a look direction given as an integer step
-//! `(dcol, dnorth)` (coprime, `max(|dcol|, |dnorth|) <=` [`SweepParams::max_step`]), the straight
-//! map lines of that direction through all pixel centres of the finest layer are swept once each.
-//! A line meets a pixel centre every `(dcol, −dnorth)` cells, so *every observer stands on its
-//! line* (no lateral interpolation between lines, which measured p99 ≈ 8° near rims), and the
-//! samples are the line's crossings with the lines through cell centres: linear interpolation
-//! between two cell centres, the bilinear surface exactly, as in the per-site scan of
-//! [`super::HorizonEngine`]. Beyond the finest layer the line continues through every coarser
-//! layer (its own crossings, at its own pixel size) to the edge of the coarsest. The requested
-//! azimuths (default 720, uniform in grid azimuth) are each served by the nearest such direction;
-//! [`HorizonSweep::directions`] lists them with their exact grid azimuths (the largest miss from a
-//! requested azimuth is in [`SweepDirection::target_error_deg`]).
+//! A look direction is a coprime integer step `(dcol, dnorth)` (at most [`SweepParams::max_step`]);
+//! the straight map lines of that direction through all pixel centres of the finest layer are
+//! swept once each, so every observer stands on its line. Samples are the line's crossings with
+//! the lines through cell centres (the bilinear surface exactly), then every coarser layer, plus
+//! refinement samples where a piece rises above its chord (`samples.rs`); samples no hull can
+//! hold are dropped first (`prune.rs`). Requested azimuths are served by the nearest direction
+//! ([`HorizonSweep::directions`], [`SweepDirection::target_error_deg`]).
 //!
-//! **Exact geometry, 2-D hull.** A straight line of a polar stereographic map is the image of a
-//! circle on the sphere through the projection's far pole (radius `ρc = 2 R k0 / L`, with
-//! `L = hypot(2 R k0, d)` and `d` the line's distance from the pole in the map); by the inscribed
-//! angle theorem the point at map distance `t` from the foot of the line sits at circle angle
-//! `α = 2 atan(t / L)`. Terrain points on the line lie on the cone from the Moon's centre over
-//! that circle; unrolled, a point at radius `r = R + h` and arc `ψ = ρc α` has plane coordinates
-//! `(r sin ψ, r cos ψ)`, where distances and the observers' radial "up" are kept (for a line
-//! through the pole `ρc = 1` and the cone is the great-circle plane). In that plane the sweep
-//! keeps the convex hull of the samples passed (Graham's scan about the Moon's centre, pure
-//! orientation tests, O(1) amortised per sample) and finds each observer's horizon as the hull's
-//! tangent (binary search). The elevation reported is then evaluated **in exact 3-D** for the
-//! tangent vertex and its two hull neighbours (`asin((P − O)·up / |P − O|)`), so the value is
-//! always the elevation of a real terrain sample, negative ones included.
-//!
-//! **What differs from the per-site scan**, by construction: the sweep follows the straight map
-//! line, the per-site scan the great circle of the same initial azimuth; the two part sideways by
-//! `≈ s² ρ / (4 R²)` at distance `s`, `ρ` the map distance from the pole (40 m at 50 km, 150 m at
-//! 100 km on the 240 m LOLA crop's edge). Samples closer than half a pixel of the finest layer are
-//! skipped, as there; the finest layer's half-pixel border beyond its outermost cell centres is
-//! left to the coarser layer. The observer's own piece (from half a pixel out to the first
-//! shared sample) reads the stack, not only the finest layer: at the grid's edge it reaches past
-//! it, and a coarser layer rising there is the horizon (15–38° within 120 m at edge pixels of the
-//! LOLA crop, once missed). The measured differences are in `docs/VALIDATION.md`.
-//!
-//! **Samples inside a piece.** Between two crossings the bilinear surface along the line is a
-//! quadratic; a piece gets interior samples only where it rises above the 3-D chord between its
-//! ends (its own curvature plus the sphere's bulge `Δ²/8R`) by more than a tolerance, and then as
-//! many equal steps as bring each sub-piece under it (`samples::refine_piece`): 2 cm on the
-//! finest layer between the observers, and on the far side of every observer
-//! `max(2 cm, 1e-5 rad × distance to the nearest observer on the line)` (the coarser layers and
-//! the finest layer's border; a piece within a pixel of an observer keeps its midpoint, as one of
-//! its ends may lie in the half pixel the observer skips). A left-out sample lowers no horizon by
-//! more than its rise over its distance (the elevation along a straight chord peaks at an end):
-//! 1e-5 rad = 5.7e-4° beyond the finest layer. This cuts the samples by 40 % against every
-//! midpoint kept (55.9 → 33.5 per pixel and look on the 240 m LOLA grid + far field, counted
-//! before the midpoints near observers were kept; docs/PERFORMANCE.md).
-//!
-//! **Samples no look can use.** Before its looks walk it, a line drops the samples that lie
-//! below the chord of their neighbours (`prune.rs`: one stack pass, the nearest sample of every
-//! observer's look set protected): none of them can be a vertex of any look's hull, so every
-//! horizon stays bit-identical while the looks walk about a third of the samples (35 % on the
-//! 240 m LOLA grid + far field with the GPU's protections, fewer for the CPU's own looks, which
-//! decide the boundaries in f64 as the pass does; [`HorizonSweep::keeping_hidden_samples`]
-//! keeps them all).
-//!
-//! **Azimuths.** Bands are in *grid azimuth*: degrees from map +y (grid north), clockwise. The
-//! local azimuth (from true north, clockwise) of a band at a pixel is the grid azimuth plus
-//! [`grid_convergence_deg`] there (the map is conformal, so the rotation is the same for every
-//! direction).
+//! A straight line of the polar stereographic map is the image of a circle through the far pole;
+//! unrolling the cone from the Moon's centre over that circle keeps distances and every
+//! observer's radial, so the sweep keeps a 2-D convex hull (Graham's scan about the Moon's
+//! centre) and reads each horizon as the hull's tangent, then re-evaluates the tangent vertex in
+//! exact 3-D. Bands are in *grid azimuth* (from map +y, clockwise); add
+//! [`grid_convergence_deg`] for the local azimuth. Geometry, tolerances, and how the sweep
+//! differs from the per-site scan: `docs/horizon.md`, "Whole-grid horizons: the line sweep".
 
 use rayon::prelude::*;
 

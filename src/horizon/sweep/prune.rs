@@ -1,25 +1,17 @@
 //! Dropping the samples of a line that no look can have on its hull, once per line before the
-//! looks (both of them) walk it.
+//! looks (both senses) walk it.
 //!
-//! A look of observer `o` builds the upper convex hull (about the Moon's centre, in the unrolled
-//! plane) of the set `P(o)` of samples at least half a pixel beyond it, and reads its horizon from
-//! that hull alone. `P(o)` is a run of consecutive samples ending at the line's far end. Remove
-//! one at a time, from the current sequence, a sample `b` that lies strictly below the chord of
-//! its current neighbours `a` (nearer to `o`) and `c`, and is not *protected*: the nearest
-//! sample of some `P(o)` (either look sense), and, for looks that decide that boundary in f32
-//! (the GPU kernel), the samples on either side of it; the observers' own samples stay too (a look
-//! starts from them). Whenever `P(o)` holds `b` it holds `c` (farther), and `a` as well: its
-//! nearest sample is protected, hence still in the sequence and not `b`, so it is `a` or nearer.
-//! A point below the chord of two others of a set is no vertex of the set's hull, so every
-//! `P(o)` keeps its hull, by induction over the removals: the looks see the same hulls, hence the
-//! same horizons (the 3-D refinement reads hull vertices only), from fewer samples. On the 240 m
-//! LOLA grid + far field about two thirds of the samples go (docs/PERFORMANCE.md).
-//!
-//! The CPU looks decide their boundaries in f64 exactly as this pass does and get the boundary
-//! samples alone protected ([`Boundary::F64`]); the lines handed to the GPU keep the neighbours
-//! of each boundary as well ([`Boundary::F32`]). Measured, 12 azimuths: the synthetic two-layer
-//! stack keeps 25.3 % of its samples for the CPU against 28.5 % for the GPU, rows 700–707 of the
-//! LOLA grid + far field 44.4 % against 50.5 %.
+//! A look of observer `o` reads its horizon from the upper convex hull (about the Moon's centre,
+//! in the unrolled plane) of `P(o)`, the run of samples from half a pixel beyond `o` to the line's
+//! far end. Remove, one at a time from the current sequence, a sample `b` strictly below the
+//! chord of its current neighbours `a` (nearer to `o`) and `c`, unless it is *protected*: the
+//! nearest sample of some `P(o)`, the observers' own samples, and for looks that decide that
+//! boundary in f32 (the GPU kernel, [`Boundary::F32`]) the samples on either side of it. Whenever
+//! `P(o)` holds `b` it holds `c` (farther) and `a` (its nearest sample is protected, so it is `a`
+//! or nearer); a point below the chord of two others of a set is no vertex of the set's hull, so
+//! by induction every `P(o)` keeps its hull and every horizon stays bit-identical. The CPU looks
+//! decide their boundaries in f64 exactly as this pass does ([`Boundary::F64`]). Measured
+//! fractions kept: `docs/horizon.md`, "Whole-grid horizons: the line sweep".
 
 use super::{LineObserver, LineSample};
 

@@ -251,7 +251,7 @@ impl WriteSample for f32 {
 impl WriteSample for u16 {}
 impl WriteSample for u8 {}
 
-/// Writes one band of f32, u16 or u8 as a Cloud-Optimized GeoTIFF (see [`super::cog`]),
+/// Writes one band of f32, u16 or u8 as a Cloud-Optimized GeoTIFF (the layout of `cog.rs`),
 /// atomically. `nodata` is recorded in GDAL_NODATA (`NaN` allowed); `metadata` items go into
 /// GDAL_METADATA (e.g. `("penumbra_version", "0.1.0")`).
 pub fn write_geotiff<T: WriteSample>(
