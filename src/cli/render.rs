@@ -44,10 +44,11 @@ pub struct RenderArgs {
     #[arg(
         long = "observer-height-m",
         alias = "height-m",
-        default_value_t = penumbra::DEFAULT_OBSERVER_HEIGHT_M,
+        value_name = "M",
+        default_value_t = penumbra::model::ObserverHeight::DEFAULT,
         allow_hyphen_values = true
     )]
-    pub height_m: f64,
+    pub height_m: penumbra::model::ObserverHeight,
     /// Site camera: view azimuth, degrees from north clockwise (local frame of the site).
     #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
     pub look_az_deg: f64,
@@ -134,7 +135,7 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
         },
         lat_deg: args.at.lat_deg,
         lon_deg: args.at.lon_deg,
-        height_m: args.height_m,
+        height_m: args.height_m.m(),
         look_az_deg: args.look_az_deg,
         look_el_deg: args.look_el_deg,
         altitude_km: args.altitude_km,

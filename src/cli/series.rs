@@ -73,8 +73,8 @@ pub struct SeriesArgs {
     #[arg(long, value_enum, default_value_t = BackendArg::Auto)]
     pub backend: BackendArg,
     /// Engine of the visible fractions: horizon (per-site horizons from every DEM layer) or
-    /// smap-dp (the map pipeline's model grid + DP search at each site; finest layer only;
-    /// CPU or GPU, `--backend`).
+    /// smap-dp (the map pipeline's model grid of every layer + DP search at each site; CPU or
+    /// GPU, `--backend`).
     #[arg(long, value_enum, default_value_t = SeriesEngineArg::Horizon)]
     pub engine: SeriesEngineArg,
     /// Kernels.

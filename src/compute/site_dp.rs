@@ -60,7 +60,7 @@ pub enum SeriesDpError {
     },
     /// The site lies outside the model grid of the map pipeline (or on a hole of it).
     #[error(
-        "site '{site}' lies outside the map grid of the finest DEM layer (the smap-dp engine sees only that layer's extent; use --engine horizon)"
+        "site '{site}' lies outside the map grid of the DEM layers (or on a hole of it): the smap-dp engine needs the model grid under the site; use --engine horizon"
     )]
     OffGrid {
         /// Site name.

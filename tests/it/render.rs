@@ -226,7 +226,7 @@ fn cli_bad_inputs_exit_2_without_file() {
         ("--fov-deg", "180", "fov"),
         ("--width", "0", "image size"),
         ("--height", "0", "image size"),
-        ("--height-m", "-5", "below the terrain"),
+        ("--height-m", "-5", "observer height -5 m must be"),
     ];
     for (flag, value, needle) in cases {
         let mut args = render_args("bad.png", &ks);

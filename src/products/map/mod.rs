@@ -1,5 +1,5 @@
 //! `penumbra map`, a scenario's `[map]` and the Python module's maps: illumination maps on the DEM's
-//! own grid, for one light ([`one_light`]) or as statistics over an epoch range ([`statistics`]),
+//! own grid, for one light ([`one_light()`]) or as statistics over an epoch range ([`statistics`]),
 //! computed through [`crate::compute`] and written by [`write_range`] (and [`shard`] for one
 //! block of rows of a job split across machines).
 //!

@@ -1,5 +1,5 @@
 //! One light's maps: the Sun's visible fraction and the hard mask of its centre, and the Earth's
-//! visible fraction at an epoch, per DEM pixel ([`one_light`]; the command line's `--utc` /
+//! visible fraction at an epoch, per DEM pixel ([`crate::compute::one_light::one_light()`]; the command line's `--utc` /
 //! `--sun-*` maps, Python's `map_light`).
 
 use std::path::Path;
