@@ -1,31 +1,31 @@
-//! penumbra's integration tests: one binary, one module per area (anise/ripgrep layout).
+//! penumbra's integration tests: one binary whose modules mirror `src/` (anise/ripgrep layout),
+//! so the tests of `src/<floor>/<file>.rs` are in `tests/it/<floor>/<file>.rs`:
+//!
+//! - `gpu/`: one file per kernel of `src/gpu/` (the f32 twin against the f64 engines, the GPU
+//!   against the twin, the `--backend gpu` CLI); `gpu/mod.rs` validates every shader with naga.
+//! - `horizon/` (scan; `sweep`, `statistics`), `shadow/` (engines; `fourier`), `render/`
+//!   (renderer and `penumbra render`; `brdf`, `path`), `ephem`, `terrain`, `illum`: the CPU
+//!   engines, and the commands that are thin shells over them.
+//! - `products/`: `map/` (with `shard`) and `series/` (with `engines`), products without a
+//!   lower floor of their own.
+//! - `cli`, `blocking`, `reliability`, `fuzz`, `resume`: cross-cutting suites at the top; they
+//!   test one rule over every engine, command or reader (clap habits, the blocking rule, bad
+//!   input and signals, mutated files, kill and resume), so no single floor owns them.
+//!
+//! Every run of the binary, fixture and shared data path goes through `util` (ripgrep
+//! `tests/util.rs`). Run a floor by its path: `cargo test --release --test it gpu::dp`.
 
 mod blocking;
 mod cli;
 mod ephem;
-mod fourier;
 mod fuzz;
 mod gpu;
-mod gpu_dp;
-mod gpu_fourier;
-mod gpu_horizon;
-mod gpu_line_sweep;
-mod gpu_tiles;
 mod horizon;
-mod horizon_stats;
-mod horizon_sweep;
 mod illum;
-mod map;
-mod map_horizons;
+mod products;
 mod reliability;
 mod render;
-mod render_cpu;
-mod render_gpu;
-mod render_path;
 mod resume;
-mod series;
-mod series_engines;
 mod shadow;
-mod shard;
 mod terrain;
 mod util;

@@ -143,7 +143,7 @@ pub fn files_in(dir: &Path) -> Vec<String> {
 
 /// `n`² cells of 20 m: five Gaussian hills (60..400 m, σ 150..600 m), the Moon's curvature drop
 /// z -= (x² + y²) / 2R, and a 3 × 3 hole near the centre: the GPU parity fixture of
-/// `gpu.rs` and `gpu_dp.rs`.
+/// `gpu/mod.rs` and `gpu/dp.rs`.
 pub fn hills(n: usize) -> penumbra::terrain::HeightField {
     let mut hf = penumbra::terrain::HeightField::flat(n, n, 20.0);
     let half_m = n as f64 * 10.0;

@@ -15,7 +15,7 @@ use penumbra::twins::fourier::{self as fourier_twin, FourierEvalParams};
 use crate::util::hills;
 
 const OBSERVER_M: f64 = 2.0;
-/// Grazing, low and moderate Suns, azimuths off the grid axes (as `gpu.rs`).
+/// Grazing, low and moderate Suns, azimuths off the grid axes (as `gpu/mod.rs`).
 const SUNS_DEG: [(f64, f64); 3] = [(0.5, 37.0), (1.5, 151.0), (5.0, 262.0)];
 
 fn light(az_deg: f64, el_deg: f64) -> [f64; 3] {

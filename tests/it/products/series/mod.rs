@@ -1,5 +1,7 @@
-//! Per-site series (issue 5): the whole pipeline against analytic answers, and the `series` and
-//! `run` commands through the binary.
+//! Per-site series: the whole pipeline against analytic answers, and the `series` and `run`
+//! commands through the binary. The two series engines side by side are in `engines`.
+
+mod engines;
 
 use penumbra::ephem::{self, AbCorr, Kernels};
 use penumbra::illum::DiscMethod;

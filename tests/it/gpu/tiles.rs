@@ -131,7 +131,7 @@ fn tiled_twin_equals_untiled_twin() {
 
 /// The tiled twin against the f64 reference engines on the 256² hills, tiles of 50: its soft
 /// fraction vs `dp::visible_fraction` and its hard mask vs `Engine::Brute.hard_mask`, with the bounds
-/// of the untiled twin (tests/it/gpu_dp.rs, docs/VALIDATION.md).
+/// of the untiled twin (tests/it/gpu/dp.rs, docs/VALIDATION.md).
 #[test]
 fn tiled_twin_matches_cpu_engines() {
     let n = 256;
@@ -280,7 +280,7 @@ mod on_gpu {
     }
 
     /// Bounds measured on lavapipe (docs/VALIDATION.md): the tiled and untiled GPU maps are the
-    /// same; GPU-vs-twin as for the untiled kernel (tests/it/gpu_dp.rs).
+    /// same; GPU-vs-twin as for the untiled kernel (tests/it/gpu/dp.rs).
     const TILED_VS_UNTILED_GPU_MAX: f64 = 0.0;
     const GPU_VS_TWIN_MAX: f64 = 2e-4;
 
@@ -372,7 +372,7 @@ mod on_gpu {
     /// mipmap > 128 MiB): the untiled upload is refused with a clear error, the automatic choice
     /// picks tiles of 2048, and the tiled map agrees with the untiled twin on every 97th cell
     /// within the GPU-vs-twin bound. About 40 s on the 2-core VM, hence ignored; run with
-    /// `cargo test --test it gpu_tiles -- --ignored --nocapture`.
+    /// `cargo test --test it gpu::tiles -- --ignored --nocapture`.
     #[test]
     #[ignore = "slow on lavapipe (≈ 40 s, 0.8 GB of host memory): a 5,400² grid"]
     fn tiled_map_beyond_one_binding() {

@@ -1,4 +1,7 @@
 //! `penumbra map` through the binary: georeferencing read back by GDAL, analytic lights, bad input.
+//! Sharded maps are in `shard`.
+
+mod shard;
 
 use crate::util::OutputWithin as _;
 use crate::util::{assert_clean_error, files_in, kernels_dir, penumbra, penumbra_ok, read_tif};

@@ -74,7 +74,7 @@ fn dem(name: &str, n: usize, px_m: f64, c: (f64, f64), f: impl Fn(f64, f64) -> f
     penumbra::terrain::synth::square_dem_at(n, px_m, c, name, f)
 }
 
-/// Craters, ridges and cell-scale roughness (as tests/it/horizon_sweep.rs), with a hole.
+/// Craters, ridges and cell-scale roughness (as tests/it/horizon/sweep.rs), with a hole.
 fn terrain(x: f64, y: f64) -> f64 {
     let hash = ((x * 12.9898 + y * 78.233).sin() * 43758.5453).fract();
     let r = ((x - 61_000.0).powi(2) + (y + 38_000.0).powi(2)).sqrt();

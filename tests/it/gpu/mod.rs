@@ -2,7 +2,15 @@
 //! `--backend` switch without an adapter, and `map --backend gpu` against `--backend cpu`. The
 //! GPU test skips with a printed reason when no adapter exists; `PENUMBRA_REQUIRE_GPU=1` turns
 //! the skip into a failure. In CI it runs on lavapipe (`WGPU_BACKEND=vulkan`). The kernels'
-//! GPU-vs-twin parity tests are in the `gpu_*` modules.
+//! GPU-vs-twin parity tests are in the submodules, one per kernel as in `src/gpu/`.
+
+mod dp;
+mod fourier;
+mod horizon;
+mod horizon_stats;
+mod line_sweep;
+mod render;
+mod tiles;
 
 use crate::util::OutputWithin as _;
 use std::path::Path;

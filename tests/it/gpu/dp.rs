@@ -13,7 +13,7 @@ use penumbra::twins::{self, DpMip, MarchGrid, RowBand};
 use crate::util::sweep_lights;
 use crate::util::{hills, sun_dir};
 
-/// Grazing, low and moderate Suns, azimuths off the grid axes (as `gpu.rs`).
+/// Grazing, low and moderate Suns, azimuths off the grid axes (as `gpu/mod.rs`).
 const SUNS_DEG: [(f64, f64); 3] = [(0.5, 37.0), (1.5, 151.0), (5.0, 262.0)];
 const OBSERVER_M: f64 = 2.0;
 
@@ -651,8 +651,8 @@ fn dp_points_twin_matches_the_cpu_dp_engine_from_the_pixels() {
 
 #[cfg(feature = "gpu")]
 mod points_on_gpu {
+    use super::on_gpu::stats_agreement;
     use super::*;
-    use crate::gpu_dp::on_gpu::stats_agreement;
     use crate::util::gpu;
     use penumbra::gpu::dp::{DpSweepOptions, GpuDpGrid, dp_points_gpu, dp_points_sweep_gpu};
 

@@ -1,7 +1,7 @@
-//! The two engines of `penumbra series` (issue 7 item 3): `horizon` (per-site horizons, strip
-//! integral) and `smap-dp` (the map pipeline's model grid, DP search at each site's point) on the
-//! same sites and epochs. The smap-dp engine is also checked alone against the closed form on a
-//! flat DEM. Bounds are the measured differences with a margin (docs/VALIDATION.md).
+//! The two engines of `penumbra series`: `horizon` (per-site horizons, strip integral) and
+//! `smap-dp` (the map pipeline's model grid, DP search at each site's point) on the same sites
+//! and epochs. The smap-dp engine is also checked alone against the closed form on a flat DEM.
+//! Bounds are the measured differences with a margin (docs/VALIDATION.md).
 
 use penumbra::compute::site_dp::{SmapDpSites, fraction_from_horizon_tan};
 use penumbra::ephem::{self, AbCorr, Kernels};
@@ -164,7 +164,8 @@ fn check(label: &str, sites: &[SeriesSite], pairs: &[Pair], b: &Bounds) {
 }
 
 /// On a flat DEM the horizon is the geometric dip in every direction; the smap-dp engine must
-/// reproduce the closed-form circular segment (as the horizon engine does in tests/it/series.rs).
+/// reproduce the closed-form circular segment (as the horizon engine does in
+/// tests/it/products/series/mod.rs).
 #[test]
 fn smap_dp_on_flat_terrain_matches_the_closed_form_segment() {
     let kernels = Kernels::load(&kernels_dir()).unwrap();

@@ -96,7 +96,7 @@ fn twin_flat_sphere_gives_the_geometric_dip() {
 
 /// A flat finest layer inside a coarser 100 m plateau: the horizon is the plateau's edge just
 /// past the finest layer (see `coarser_layer_is_seen_from_the_finer_layers_edge` in
-/// tests/it/horizon.rs, where the f64 exact scan meets the closed form to 4e-9 deg). The twin
+/// tests/it/horizon/mod.rs, where the f64 exact scan meets the closed form to 4e-9 deg). The twin
 /// samples the coarser layer at the finer layer's edge as the exact scan does.
 #[test]
 fn twin_sees_the_coarser_layer_from_the_finer_layers_edge() {
@@ -152,7 +152,7 @@ const FAR: &str = "ldem75s_far_1787m_pm457km_feathered.tif";
 #[cfg(feature = "gpu")]
 const SITE01: &str = "site01_connecting_ridge_10m.tif";
 #[cfg(feature = "gpu")]
-/// Connecting Ridge (as tests/it/horizon.rs) and a point on the Shackleton rim side.
+/// Connecting Ridge (as tests/it/horizon/mod.rs) and a point on the Shackleton rim side.
 const REAL_SITES: [(f64, f64); 2] = [(-89.45, 222.7), (-89.68, 200.0)];
 
 #[cfg(feature = "gpu")]

@@ -1,5 +1,8 @@
 //! Shadow engines against analytic shadows and against the brute-force reference, on synthetic
-//! height fields and on a crop of the real 240 m LOLA south-pole grid.
+//! height fields and on a crop of the real 240 m LOLA south-pole grid. Fourier horizon maps are
+//! in `fourier`.
+
+mod fourier;
 
 use penumbra::MOON_RADIUS_M;
 use penumbra::shadow::accuracy::{compare_fractions, compare_masks};

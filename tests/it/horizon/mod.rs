@@ -1,5 +1,9 @@
 //! Horizon tests: analytic cases (flat sphere, ring wall), the exact scan against a brute-force
-//! fine ray march, fast vs exact on the real LOLA grids, bad input, and the CLI.
+//! fine ray march, fast vs exact on the real LOLA grids, bad input, and the CLI. The whole-grid
+//! line sweep is in `sweep`, the statistics over an epoch range in `statistics`.
+
+mod statistics;
+mod sweep;
 
 use crate::util::OutputWithin as _;
 use std::path::PathBuf;
@@ -136,7 +140,7 @@ fn flat_dem_edge_nearer_than_geometric_horizon() {
 /// the highest seen: the horizon is the elevation of the point where the great circle leaves
 /// the finest layer (bisection as above), at radius R + H. (The scan once sampled the coarser
 /// layer only at its own grid lines, 1 km apart, and missed the edge: the twin without the edge
-/// samples is 0.23 deg low here, see tests/it/gpu_horizon.rs.)
+/// samples is 0.23 deg low here, see tests/it/gpu/horizon.rs.)
 #[test]
 fn coarser_layer_is_seen_from_the_finer_layers_edge() {
     let fine = square_dem(201, 50.0, 0.0, 0.0, |_, _| 0.0);
