@@ -573,13 +573,12 @@ fn kernels_come_from_the_flag_the_environment_or_the_built_in_set() {
     std::fs::create_dir(d.join("kernels")).unwrap();
     std::fs::write(d.join("kernels/bad.bsp"), "not a kernel").unwrap();
     let bin = d.join("penumbra-copy");
-    std::fs::copy(env!("CARGO_BIN_EXE_penumbra"), &bin).unwrap();
+    std::fs::copy(crate::util::penumbra_exe(), &bin).unwrap();
     let run = |args: &[&str], env: Option<&str>| {
-        let mut cmd = std::process::Command::new(&bin);
+        let mut cmd = crate::util::command_of(&bin);
         cmd.args(args)
             .current_dir(d)
-            .env("XDG_CACHE_HOME", d.join("cache"))
-            .env_remove("PENUMBRA_KERNELS");
+            .env("XDG_CACHE_HOME", d.join("cache"));
         if let Some(e) = env {
             cmd.env("PENUMBRA_KERNELS", e);
         }

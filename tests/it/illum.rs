@@ -258,12 +258,9 @@ fn plots_render_readable_pngs() {
 /// 1440 azimuths, samples every 120 m out to 180 km in the polar stereographic plane (scale
 /// error < 0.1% there), the Moon's curvature as a drop of d²/(2R).
 fn crude_lola_horizon() -> Option<Vec<f64>> {
-    let path = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../shared/data/lola-south-pole-moondao/ldem75s_crop_240m_pm184km.tif"
-    );
-    let Ok(file) = std::fs::File::open(path) else {
-        println!("skipping: {path} not found");
+    let path = crate::util::shared_lola("ldem75s_crop_240m_pm184km.tif")?;
+    let Ok(file) = std::fs::File::open(&path) else {
+        println!("skipping: {} cannot be opened", path.display());
         return None;
     };
     let mut dec = tiff::decoder::Decoder::new(std::io::BufReader::new(file)).unwrap();

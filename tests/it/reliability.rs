@@ -1105,7 +1105,7 @@ fn a_run_folder_has_one_writer() {
 fn sigterm_leaves_no_temporary_file() {
     let dir = tempfile::tempdir().unwrap();
     let k = kernels_dir();
-    let child = Command::new(env!("CARGO_BIN_EXE_penumbra"))
+    let child = crate::util::penumbra_command()
         .current_dir(dir.path())
         .args([
             "map",
@@ -1153,7 +1153,7 @@ fn sigterm_leaves_no_temporary_file() {
 #[test]
 fn no_xdg_runtime_dir_noise_without_a_session() {
     let dir = tempfile::tempdir().unwrap();
-    let out = Command::new(env!("CARGO_BIN_EXE_penumbra"))
+    let out = crate::util::penumbra_command()
         .current_dir(dir.path())
         .env_remove("XDG_RUNTIME_DIR")
         .args(["gpu-info", "--backend", "auto"])
@@ -1359,7 +1359,7 @@ fn a_closed_pipe_is_not_an_error_and_dash_is_stdout() {
     use std::io::{BufRead as _, BufReader};
     let dir = tempfile::tempdir().unwrap();
     let k = kernels_dir();
-    let mut child = Command::new(env!("CARGO_BIN_EXE_penumbra"))
+    let mut child = crate::util::penumbra_command()
         .current_dir(dir.path())
         .args([
             "ephem",

@@ -10,7 +10,7 @@
 use crate::util::OutputWithin as _;
 use std::collections::BTreeMap;
 use std::path::Path;
-use std::process::{Command, Output};
+use std::process::Output;
 
 use crate::util::{assert_clean_error, kernels_dir, penumbra_ok};
 
@@ -60,10 +60,9 @@ height = 40
 }
 
 fn run(dir: &Path, out: &str, resume: bool, exit_after: Option<u32>) -> Output {
-    let mut cmd = Command::new(env!("CARGO_BIN_EXE_penumbra"));
+    let mut cmd = crate::util::penumbra_command();
     cmd.current_dir(dir)
-        .args(["run", "s.toml", "--out-dir", out])
-        .env_remove("PENUMBRA_KERNELS");
+        .args(["run", "s.toml", "--out-dir", out]);
     if resume {
         cmd.arg("--resume");
     }
@@ -183,10 +182,9 @@ fn sigkill_at_moments_through_the_run_then_resume() {
     let full = contents(&dir.path().join("full"));
     for (i, fraction) in [0.15, 0.35, 0.55, 0.75, 0.9].into_iter().enumerate() {
         let out = format!("s{i}");
-        let mut child = Command::new(env!("CARGO_BIN_EXE_penumbra"))
+        let mut child = crate::util::penumbra_command()
             .current_dir(dir.path())
             .args(["run", "s.toml", "--out-dir", &out])
-            .env_remove("PENUMBRA_KERNELS")
             .stderr(std::process::Stdio::null())
             .spawn()
             .unwrap();
@@ -265,7 +263,7 @@ fn a_killed_map_range_resumes_to_the_same_bytes() {
         ]
     };
     let go = |out: &'static str, extra: &[&str], exit_after: Option<u32>| {
-        let mut cmd = Command::new(env!("CARGO_BIN_EXE_penumbra"));
+        let mut cmd = crate::util::penumbra_command();
         cmd.current_dir(dir.path()).args(args(out)).args(extra);
         if let Some(n) = exit_after {
             cmd.env("PENUMBRA_TEST_EXIT_AFTER_CHECKPOINTS", n.to_string());

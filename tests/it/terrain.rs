@@ -2,6 +2,7 @@
 //! GDAL, the real LOLA grids of `../shared/data/lola-south-pole-moondao/`, and bad inputs.
 
 use crate::util::OutputWithin as _;
+use crate::util::{penumbra_command, penumbra_exe, shared_lola};
 use std::io::Cursor;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -11,27 +12,12 @@ use penumbra::terrain::{
     synth,
 };
 
-const BIN: &str = env!("CARGO_BIN_EXE_penumbra");
-const LOLA_DIR: &str = concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/../shared/data/lola-south-pole-moondao"
-);
 const INNER: &str = "ldem75s_crop_240m_pm184km.tif";
 const FAR: &str = "ldem75s_far_1787m_pm457km_feathered.tif";
 const SITE01: &str = "site01_connecting_ridge_10m.tif";
 
-fn lola(file: &str) -> Option<PathBuf> {
-    let p = Path::new(LOLA_DIR).join(file);
-    if p.exists() {
-        Some(p)
-    } else {
-        println!("skipped: {} is absent", p.display());
-        None
-    }
-}
-
 fn run(args: &[&str]) -> Output {
-    Command::new(BIN).args(args).output_within().unwrap()
+    penumbra_command().args(args).output_within().unwrap()
 }
 
 fn has_tool(tool: &str) -> bool {
@@ -79,7 +65,7 @@ fn info_json(path: &Path, at: &[(f64, f64)]) -> serde_json::Value {
         args.push("--at".into());
         args.push(format!("{lat},{lon}"));
     }
-    let out = Command::new(BIN).args(&args).output_within().unwrap();
+    let out = penumbra_command().args(&args).output_within().unwrap();
     assert!(
         out.status.success(),
         "{}",
@@ -90,7 +76,9 @@ fn info_json(path: &Path, at: &[(f64, f64)]) -> serde_json::Value {
 
 #[test]
 fn dem_info_reports_the_lola_crop_and_provenance_heights() {
-    let Some(inner) = lola(INNER) else { return };
+    let Some(inner) = shared_lola(INNER) else {
+        return;
+    };
     let mut at: Vec<(f64, f64)> = CROSS_CHECKS.iter().map(|c| (c.0, c.1)).collect();
     at.push((-85.99, 2.93)); // Malapert: inner 5121
     at.push((-89.67, 129.8)); // Shackleton floor: ~ -2783
@@ -144,7 +132,7 @@ fn dem_info_reports_the_lola_crop_and_provenance_heights() {
 
 #[test]
 fn provenance_heights_match_in_the_far_field_and_site01_grids() {
-    let (Some(far), Some(site)) = (lola(FAR), lola(SITE01)) else {
+    let (Some(far), Some(site)) = (shared_lola(FAR), shared_lola(SITE01)) else {
         return;
     };
     let at: Vec<(f64, f64)> = CROSS_CHECKS.iter().map(|c| (c.0, c.1)).collect();
@@ -170,7 +158,9 @@ fn provenance_heights_match_in_the_far_field_and_site01_grids() {
 
 #[test]
 fn lat_lon_to_xy_round_trip_is_below_a_millimetre_on_the_lola_projection() {
-    let Some(inner) = lola(INNER) else { return };
+    let Some(inner) = shared_lola(INNER) else {
+        return;
+    };
     let dem = terrain::load_dem(&inner).unwrap();
     let p = dem.projection;
     let mut worst_m: f64 = 0.0;
@@ -191,7 +181,9 @@ fn lat_lon_to_xy_round_trip_is_below_a_millimetre_on_the_lola_projection() {
 
 #[test]
 fn reading_the_1536_dem_peaks_below_one_and_a_half_times_its_size() {
-    let Some(inner) = lola(INNER) else { return };
+    let Some(inner) = shared_lola(INNER) else {
+        return;
+    };
     let time = Path::new("/usr/bin/time");
     if !time.exists() {
         println!("skipped: /usr/bin/time is absent");
@@ -213,7 +205,9 @@ fn reading_the_1536_dem_peaks_below_one_and_a_half_times_its_size() {
     );
     let peak_kib = |file: &Path| -> f64 {
         let out = Command::new(time)
-            .args(["-f", "%M", BIN, "dem", "info"])
+            .args(["-f", "%M"])
+            .arg(penumbra_exe())
+            .args(["dem", "info"])
             .arg(file)
             .output_within()
             .unwrap();
@@ -232,7 +226,9 @@ fn reading_the_1536_dem_peaks_below_one_and_a_half_times_its_size() {
 
 #[test]
 fn resampling_the_lola_stack_into_model_space_lands_on_the_surface() {
-    let (Some(inner), Some(far), Some(site)) = (lola(INNER), lola(FAR), lola(SITE01)) else {
+    let (Some(inner), Some(far), Some(site)) =
+        (shared_lola(INNER), shared_lola(FAR), shared_lola(SITE01))
+    else {
         return;
     };
     let stack = TerrainStack::load(&[far, inner, site]).unwrap();

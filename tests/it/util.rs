@@ -1,9 +1,11 @@
-//! Test helpers: paths to fixtures and shared data, running the binary.
+//! Test helpers: paths to fixtures and shared data, running the binary. Every test runs penumbra
+//! through [`penumbra_command`] (or [`penumbra`], [`penumbra_ok`], [`penumbra_wgpu`] over it) and
+//! finds files through [`root`], [`fixture`], [`kernels_dir`] and [`shared_lola`].
 
 #![allow(dead_code, reason = "not every test module uses every helper")]
 
 use std::path::{Path, PathBuf};
-use std::process::Output;
+use std::process::{Command, Output};
 
 /// The crate root.
 pub fn root() -> PathBuf {
@@ -33,17 +35,49 @@ pub fn shared_lola(name: &str) -> Option<PathBuf> {
     }
 }
 
+/// The penumbra binary cargo built for these tests.
+pub fn penumbra_exe() -> &'static Path {
+    Path::new(env!("CARGO_BIN_EXE_penumbra"))
+}
+
+/// A command that runs `exe` (the penumbra binary or a copy of it) without `$PENUMBRA_KERNELS`, so
+/// that the environment of whoever runs the tests picks no kernels; the caller adds the
+/// arguments, the folder, the environment and how to wait for it.
+pub fn command_of(exe: &Path) -> Command {
+    let mut cmd = Command::new(exe);
+    cmd.env_remove("PENUMBRA_KERNELS");
+    cmd
+}
+
+/// [`command_of`] the built penumbra binary: the one way the tests start it.
+pub fn penumbra_command() -> Command {
+    command_of(penumbra_exe())
+}
+
 /// Runs the penumbra binary with `args` in `cwd`.
 ///
 /// A run that outlives [`RUN_LIMIT_S`] is killed and the test fails naming its arguments: a hang
 /// (a FIFO read, a loop) fails one test instead of stalling the whole suite until CI's limit.
 pub fn penumbra(cwd: &Path, args: &[&str]) -> Output {
-    std::process::Command::new(env!("CARGO_BIN_EXE_penumbra"))
+    penumbra_command()
         .args(args)
         .current_dir(cwd)
-        .env_remove("PENUMBRA_KERNELS")
         .output_within()
         .expect("the penumbra binary runs")
+}
+
+/// Runs penumbra with `args` in `cwd` as the GPU tests do: `XDG_RUNTIME_DIR=/tmp` (lavapipe without
+/// a session) and `WGPU_BACKEND` set to `wgpu_backend`, inherited when `None` (`metal` on Linux
+/// enables no usable backend: the no-adapter paths).
+pub fn penumbra_wgpu(cwd: &Path, wgpu_backend: Option<&str>, args: &[&str]) -> Output {
+    let mut cmd = penumbra_command();
+    cmd.args(args)
+        .current_dir(cwd)
+        .env("XDG_RUNTIME_DIR", "/tmp");
+    if let Some(b) = wgpu_backend {
+        cmd.env("WGPU_BACKEND", b);
+    }
+    cmd.output_within().expect("the penumbra binary runs")
 }
 
 /// The longest one penumbra command in a test may run, seconds (the slowest takes ≈ 3 min on CI).

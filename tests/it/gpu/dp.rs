@@ -266,7 +266,7 @@ pub(crate) mod on_gpu {
 fn map_range_dp(cwd: &std::path::Path, backend: &str, observers: &str) -> std::process::Output {
     let k = crate::util::kernels_dir();
     let out_dir = format!("{backend}-{observers}");
-    std::process::Command::new(env!("CARGO_BIN_EXE_penumbra"))
+    crate::util::penumbra_command()
         .args([
             "map",
             "--synthetic",
@@ -509,7 +509,7 @@ fn map_one_light_gpu_matches_cpu() {
     let dir = tempfile::tempdir().unwrap();
     for observers in ["cells", "pixels"] {
         for backend in ["cpu", "gpu"] {
-            let out = std::process::Command::new(env!("CARGO_BIN_EXE_penumbra"))
+            let out = crate::util::penumbra_command()
                 .args([
                     "map",
                     "--synthetic",

@@ -5,7 +5,6 @@
 //! (a failure with `PENUMBRA_REQUIRE_GPU=1`). naga validation of both shaders is part of
 //! `gpu::naga_validates_every_shader` (every shader of `penumbra::gpu::shaders`).
 
-use crate::util::OutputWithin as _;
 use penumbra::shadow::fourier::{self, HorizonMap, HorizonMapMeta, HorizonMapParams};
 use penumbra::shadow::{MASK_NODATA, SUN_ANGULAR_RADIUS_RAD};
 use penumbra::terrain::HeightField;
@@ -336,17 +335,6 @@ mod on_gpu {
     }
 }
 
-/// Runs `penumbra` in `cwd` with lavapipe-friendly environment.
-#[cfg(feature = "gpu")]
-fn penumbra_gpu_env(cwd: &std::path::Path, args: &[&str]) -> std::process::Output {
-    std::process::Command::new(env!("CARGO_BIN_EXE_penumbra"))
-        .args(args)
-        .current_dir(cwd)
-        .env("XDG_RUNTIME_DIR", "/tmp")
-        .output_within()
-        .unwrap()
-}
-
 /// `horizon-map build --backend gpu` writes the same map as `--backend cpu` (synthetic DEM,
 /// 404² model grid, 32 azimuths, whole-grid rays), within the bounds of the library test. (A
 /// short integer `--max-distance-cells` is avoided on purpose: at the axis-aligned azimuths the
@@ -360,8 +348,9 @@ fn cli_horizon_map_build_gpu_matches_cpu() {
     }
     let dir = tempfile::tempdir().unwrap();
     for backend in ["cpu", "gpu"] {
-        let out = penumbra_gpu_env(
+        let out = crate::util::penumbra_wgpu(
             dir.path(),
+            None,
             &[
                 "horizon-map",
                 "build",
@@ -396,8 +385,9 @@ fn cli_map_fourier_gpu_matches_cpu() {
     }
     let dir = tempfile::tempdir().unwrap();
     for backend in ["cpu", "gpu"] {
-        let out = penumbra_gpu_env(
+        let out = crate::util::penumbra_wgpu(
             dir.path(),
+            None,
             &[
                 "map",
                 "--synthetic",
@@ -447,21 +437,6 @@ fn cli_map_fourier_gpu_matches_cpu() {
     );
 }
 
-/// Runs `penumbra` in `cwd` with `WGPU_BACKEND` set to `wgpu_backend`.
-fn penumbra_with_wgpu(
-    cwd: &std::path::Path,
-    wgpu_backend: &str,
-    args: &[&str],
-) -> std::process::Output {
-    std::process::Command::new(env!("CARGO_BIN_EXE_penumbra"))
-        .args(args)
-        .current_dir(cwd)
-        .env("XDG_RUNTIME_DIR", "/tmp")
-        .env("WGPU_BACKEND", wgpu_backend)
-        .output_within()
-        .unwrap()
-}
-
 /// `horizon-map build --backend gpu` without any adapter (WGPU_BACKEND=metal on Linux) is one
 /// clean error line, exit 2, no file; `--backend auto` falls back to the CPU with exactly one
 /// warning line and writes the map.
@@ -483,7 +458,7 @@ fn cli_horizon_map_build_backend_without_adapter() {
             out,
         ]
     };
-    let gpu = penumbra_with_wgpu(dir.path(), "metal", &args("gpu", "g.tif"));
+    let gpu = crate::util::penumbra_wgpu(dir.path(), Some("metal"), &args("gpu", "g.tif"));
     let needle = if cfg!(feature = "gpu") {
         "no GPU adapter found"
     } else {
@@ -491,7 +466,7 @@ fn cli_horizon_map_build_backend_without_adapter() {
     };
     crate::util::assert_clean_error(&gpu, needle);
     assert!(!dir.path().join("g.tif").exists(), "nothing written");
-    let auto = penumbra_with_wgpu(dir.path(), "metal", &args("auto", "a.tif"));
+    let auto = crate::util::penumbra_wgpu(dir.path(), Some("metal"), &args("auto", "a.tif"));
     let stderr = String::from_utf8_lossy(&auto.stderr);
     assert!(auto.status.success(), "{stderr}");
     let warnings: Vec<&str> = stderr.lines().filter(|l| l.contains("warning")).collect();

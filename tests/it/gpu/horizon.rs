@@ -5,7 +5,6 @@
 //! exact scan on the synthetic DEM and on the real LOLA grids (skipped with a reason when absent).
 //! No adapter: skipped with a printed reason, unless `PENUMBRA_REQUIRE_GPU=1`.
 
-use crate::util::OutputWithin as _;
 use std::path::Path;
 
 use penumbra::MOON_RADIUS_M;
@@ -249,21 +248,9 @@ mod on_gpu {
 
 // ---- The command line: `--backend` on `horizon` and `series`. ----
 
-/// Runs `penumbra` in `dir` with `WGPU_BACKEND` set to `wgpu_backend` (inherited when `None`).
-fn penumbra_in(dir: &Path, wgpu_backend: Option<&str>, args: &[&str]) -> std::process::Output {
-    let mut cmd = std::process::Command::new(env!("CARGO_BIN_EXE_penumbra"));
-    cmd.args(args)
-        .current_dir(dir)
-        .env("XDG_RUNTIME_DIR", "/tmp");
-    if let Some(b) = wgpu_backend {
-        cmd.env("WGPU_BACKEND", b);
-    }
-    cmd.output_within().unwrap()
-}
-
 /// A 100 x 100 synthetic DEM (100 m) written by `penumbra dem synth` into `dir/dem.tif`.
 fn synth_dem(dir: &Path) {
-    let o = penumbra_in(
+    let o = crate::util::penumbra_wgpu(
         dir,
         None,
         &["dem", "synth", "--size", "100", "--out", "dem.tif"],
@@ -293,7 +280,7 @@ fn horizon_backend_without_adapter() {
     let run = |backend: &str, out: &str| {
         let mut args = HORIZON_ARGS.to_vec();
         args.extend(["--backend", backend, "--out", out]);
-        penumbra_in(dir.path(), Some("metal"), &args)
+        crate::util::penumbra_wgpu(dir.path(), Some("metal"), &args)
     };
     let cpu = run("cpu", "cpu.csv");
     assert!(
@@ -345,7 +332,7 @@ fn horizon_and_series_backend_gpu_match_cpu() {
         let mut args = HORIZON_ARGS.to_vec();
         args.extend(extra);
         args.extend(["--out", out]);
-        let o = penumbra_in(dir.path(), None, &args);
+        let o = crate::util::penumbra_wgpu(dir.path(), None, &args);
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     };
     run(&["--method", "exact"], "cpu.csv");
@@ -361,9 +348,9 @@ fn horizon_and_series_backend_gpu_match_cpu() {
     println!("penumbra horizon --backend gpu vs cpu exact: max |Δ| {max:.2e} deg");
     assert!(max < 2e-3, "{max}");
 
-    let k = Path::new(env!("CARGO_MANIFEST_DIR")).join("kernels");
+    let k = crate::util::kernels_dir();
     let series = |backend: &str, out: &str| {
-        let o = penumbra_in(
+        let o = crate::util::penumbra_wgpu(
             dir.path(),
             None,
             &[

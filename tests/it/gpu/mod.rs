@@ -12,14 +12,11 @@ mod line_sweep;
 mod render;
 mod tiles;
 
-use crate::util::OutputWithin as _;
 use std::path::Path;
 
 /// The `.wgsl` files of `shaders/<sub>`, sorted.
 fn wgsl_files(sub: &str) -> Vec<std::path::PathBuf> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("shaders")
-        .join(sub);
+    let dir = crate::util::root().join("shaders").join(sub);
     crate::util::files_with_extension(&dir, "wgsl")
 }
 
@@ -67,17 +64,11 @@ fn naga_validates_every_shader() {
     }
 }
 
-/// Runs `penumbra` with `WGPU_BACKEND` set to `wgpu_backend` (or inherited when `None`).
+/// Runs `penumbra` in a fresh folder with `WGPU_BACKEND` set to `wgpu_backend` (or inherited when
+/// `None`).
 fn penumbra_with_backend(wgpu_backend: Option<&str>, args: &[&str]) -> std::process::Output {
     let dir = tempfile::tempdir().unwrap();
-    let mut cmd = std::process::Command::new(env!("CARGO_BIN_EXE_penumbra"));
-    cmd.args(args)
-        .current_dir(dir.path())
-        .env("XDG_RUNTIME_DIR", "/tmp");
-    if let Some(b) = wgpu_backend {
-        cmd.env("WGPU_BACKEND", b);
-    }
-    cmd.output_within().unwrap()
+    crate::util::penumbra_wgpu(dir.path(), wgpu_backend, args)
 }
 
 /// `gpu-info` lists the adapters (or says there is none) and exits 0.
@@ -132,8 +123,7 @@ fn backend_auto_without_adapter_warns_once_and_uses_cpu() {
 /// `penumbra map` over a short epoch range on the synthetic DEM with `--backend B`, run in `cwd`.
 fn map_range(cwd: &Path, wgpu_backend: Option<&str>, backend: &str) -> std::process::Output {
     let k = crate::util::kernels_dir();
-    let mut cmd = std::process::Command::new(env!("CARGO_BIN_EXE_penumbra"));
-    cmd.args([
+    let args = [
         "map",
         "--synthetic",
         "--start",
@@ -151,14 +141,8 @@ fn map_range(cwd: &Path, wgpu_backend: Option<&str>, backend: &str) -> std::proc
         // The GPU's method on both backends (the CPU default starts at the DEM's own pixels).
         "--observers",
         "cells",
-    ])
-    .current_dir(cwd)
-    .env("XDG_RUNTIME_DIR", "/tmp")
-    .env_remove("PENUMBRA_KERNELS");
-    if let Some(b) = wgpu_backend {
-        cmd.env("WGPU_BACKEND", b);
-    }
-    cmd.output_within().unwrap()
+    ];
+    crate::util::penumbra_wgpu(cwd, wgpu_backend, &args)
 }
 
 /// Minimum agreement of the PSR masks of `map --backend gpu` (soft GPU sweep: DP max-mipmap visible

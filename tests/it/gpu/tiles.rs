@@ -433,7 +433,7 @@ mod on_gpu {
             ("whole", &[][..]),
             ("tiled", &["--gpu-tile-cells", "64"][..]),
         ] {
-            let out = std::process::Command::new(env!("CARGO_BIN_EXE_penumbra"))
+            let out = crate::util::penumbra_command()
                 .args([
                     "map",
                     "--synthetic",
@@ -505,7 +505,7 @@ mod on_gpu {
         }
         let dir = tempfile::tempdir().unwrap();
         let run = |name: &str, extra: &[&str]| {
-            let out = std::process::Command::new(env!("CARGO_BIN_EXE_penumbra"))
+            let out = crate::util::penumbra_command()
                 .args([
                     "map",
                     "--synthetic",

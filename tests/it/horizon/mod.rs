@@ -357,15 +357,11 @@ fn bad_input_gives_clear_errors() {
     assert!(matches!(e, HorizonError::NoLayers), "{e}");
 }
 
-fn penumbra() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_penumbra"))
-}
-
 #[test]
 fn cli_missing_dem_is_a_one_line_error() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("h.csv");
-    let o = penumbra()
+    let o = crate::util::penumbra_command()
         .args([
             "horizon",
             "--dem",
@@ -403,7 +399,7 @@ fn cli_writes_csv_and_json_and_rejects_bad_height() {
             "1",
         ]);
     };
-    let mut cmd = penumbra();
+    let mut cmd = crate::util::penumbra_command();
     base(&mut cmd);
     let o = cmd
         .args(["--observer-height-m", "-1"])
@@ -415,7 +411,7 @@ fn cli_writes_csv_and_json_and_rejects_bad_height() {
     assert!(String::from_utf8_lossy(&o.stderr).contains("observer height -1 m"));
     assert!(!csv.exists(), "no output file on error");
 
-    let mut cmd = penumbra();
+    let mut cmd = crate::util::penumbra_command();
     base(&mut cmd);
     let o = cmd.arg("--out").arg(&csv).output_within().unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
@@ -424,7 +420,7 @@ fn cli_writes_csv_and_json_and_rejects_bad_height() {
     assert_eq!(lines.next(), Some("az_deg,horizon_el_deg,distance_m"));
     assert_eq!(lines.count(), 360);
 
-    let mut cmd = penumbra();
+    let mut cmd = crate::util::penumbra_command();
     base(&mut cmd);
     let o = cmd
         .args(["--format", "json", "--method", "exact"])

@@ -203,7 +203,7 @@ fn hapke_roughness_is_continuous_at_zero() {
 /// Hapke constants equal `HapkeParams::MOON_643NM`.
 #[test]
 fn wgsl_brdf_twin_validates() {
-    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/shaders/shared/brdf.wgsl");
+    let path = crate::util::root().join("shaders/shared/brdf.wgsl");
     let src = std::fs::read_to_string(path).unwrap();
     let module = crate::util::naga_validate("brdf.wgsl", &src);
     let (_, f) = module

@@ -13,10 +13,7 @@ use penumbra::shadow::{
 use penumbra::terrain::HeightField;
 
 /// The shared 240 m grid (1536², float32 strip GeoTIFF, pole at the centre).
-const GRID_240M: &str = concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/../shared/data/lola-south-pole-moondao/ldem75s_crop_240m_pm184km.tif"
-);
+const GRID_240M: &str = "ldem75s_crop_240m_pm184km.tif";
 
 /// Light direction in model space (ENU at the model origin) from azimuth (from north,
 /// clockwise) and elevation.
@@ -27,11 +24,11 @@ fn light_az_el(az_deg: f64, el_deg: f64) -> [f64; 3] {
 
 /// Reads a float32 GeoTIFF with the `tiff` crate (test helper; the terrain module's reader will
 /// replace it). Returns (cols, rows, heights).
-fn read_f32_tiff(path: &str) -> Option<(usize, usize, Vec<f32>)> {
+fn read_f32_tiff(path: &std::path::Path) -> Option<(usize, usize, Vec<f32>)> {
     let file = match std::fs::File::open(path) {
         Ok(f) => f,
         Err(e) => {
-            eprintln!("skipping: cannot open {path}: {e}");
+            eprintln!("skipping: cannot open {}: {e}", path.display());
             return None;
         }
     };
@@ -40,7 +37,7 @@ fn read_f32_tiff(path: &str) -> Option<(usize, usize, Vec<f32>)> {
     match dec.read_image().ok()? {
         tiff::decoder::DecodingResult::F32(v) => Some((w as usize, h as usize, v)),
         _ => {
-            eprintln!("skipping: {path} is not float32");
+            eprintln!("skipping: {} is not float32", path.display());
             None
         }
     }
@@ -50,7 +47,7 @@ fn read_f32_tiff(path: &str) -> Option<(usize, usize, Vec<f32>)> {
 /// (`d_row`, `d_col`) cells, as a model-space height field centred on the crop with the
 /// curvature drop `z = h − (x² + y²) / 2R`. `None` (with a printed reason) if the file is absent.
 fn real_crop(size: usize, d_row: i64, d_col: i64) -> Option<HeightField> {
-    let (w, h, z) = read_f32_tiff(GRID_240M)?;
+    let (w, h, z) = read_f32_tiff(&crate::util::shared_lola(GRID_240M)?)?;
     let px = 240.0;
     let r0 = (h as i64 / 2 - size as i64 / 2 + d_row) as usize;
     let c0 = (w as i64 / 2 - size as i64 / 2 + d_col) as usize;

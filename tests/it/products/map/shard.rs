@@ -305,7 +305,7 @@ fn a_killed_shard_rerun_alone_gives_the_same_merged_maps() {
     let mut args = synthetic_args("2025-01-05", k.to_str().unwrap());
     let out = p("a1");
     args.extend(["--shard", "1/3", "--out-dir", out.to_str().unwrap()]);
-    let killed = std::process::Command::new(env!("CARGO_BIN_EXE_penumbra"))
+    let killed = crate::util::penumbra_command()
         .args(&args)
         .env("PENUMBRA_TEST_EXIT_AFTER_CHECKPOINTS", "2")
         .output_within()
@@ -330,7 +330,7 @@ fn a_map_too_big_for_memory_is_refused_and_fits_in_shards() {
     let d = tmp.path();
     let k = kernels_dir();
     let budget = |args: &[&str]| {
-        std::process::Command::new(env!("CARGO_BIN_EXE_penumbra"))
+        crate::util::penumbra_command()
             .args(args)
             .current_dir(d)
             .env("PENUMBRA_MEMORY_BUDGET_GB", "0.01")
