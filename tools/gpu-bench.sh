@@ -198,7 +198,7 @@ if want series; then
     fi
 fi
 if want render; then
-    PENUMBRA_REQUIRE_GPU=1 "$dir/it-tests" render_gpu:: --nocapture --test-threads=1 2>&1 |
+    PENUMBRA_REQUIRE_GPU=1 "$dir/it-tests" gpu::render:: --nocapture --test-threads=1 2>&1 |
         grep -E "adapter|silhouette|flat plane|Sun disc|test result|FAILED|panicked" || true
     echo "== criterion: render_1080p (GPU frame time, target < 10 ms on an H100; CPU mipmap and uniform)"
     if [[ -f "$dir/ldem75s_crop_240m_pm184km.tif" ]]; then

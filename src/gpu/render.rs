@@ -3,7 +3,7 @@
 //! `brdf_per_sr`, sky discs), radiance read back as f32 and tone mapped on the CPU with
 //! [`crate::render::tone_map`]. The CPU counterpart is [`crate::render::Scene::render`] with
 //! [`crate::render::TraceMethod::MaxMipmap`] (the same algorithm in f64); parity is measured in
-//! tests/it/render_gpu.rs.
+//! tests/it/gpu/render.rs.
 //!
 //! Per scene ([`GpuRenderScene::upload`], once): heights and the flattened maximum mipmap
 //! (f32, metres relative to the mid height; holes -1e30), the level table, and the per-cell Sun

@@ -1,7 +1,7 @@
 //! The shader table: for every kernel in `shaders/`, the `shaders/shared/*.wgsl` parts it is
 //! composed of (in order, the kernel file last) and the composed WGSL, embedded at compile time so
 //! that the binary is self-contained. The pipelines are built from it and the naga test
-//! (tests/it/gpu.rs) validates every entry, so what runs is what is validated (vello's shader
+//! (tests/it/gpu/mod.rs) validates every entry, so what runs is what is validated (vello's shader
 //! table). Always compiled: the CPU-only build still validates the shaders.
 
 /// One compute shader of `shaders/`.

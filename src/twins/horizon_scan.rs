@@ -14,7 +14,7 @@
 //! surface rounds halves up, and a fractional index within 1e-3 cell outside an outer edge is
 //! snapped onto it (1e-9 in f64). Measured differences: `docs/gpu.md`.
 //!
-//! The twin is the parity oracle of the GPU kernel (`tests/it/gpu_horizon.rs`); the f64
+//! The twin is the parity oracle of the GPU kernel (`tests/it/gpu/horizon.rs`); the f64
 //! [`HorizonEngine`] exact scan is the accuracy oracle of both.
 
 use bytemuck::{Pod, Zeroable};

@@ -2,7 +2,7 @@
 //! one file per shader family, each function named as the WGSL entry point it mirrors, written
 //! in f32 to be compared line by line with the WGSL.
 //!
-//! They are the parity oracle of the GPU backend (tests/it/gpu*.rs), *not* the f64 reference
+//! They are the parity oracle of the GPU backend (tests/it/gpu/), *not* the f64 reference
 //! engines of [`crate::shadow`] and [`crate::horizon`]: they reproduce the GPU's arithmetic (f32
 //! heights relative to a local origin, f32 light vectors), so that a GPU-vs-twin difference can
 //! only come from the GPU (rounding, FMA contraction) or from a bug. The sentinels the kernels
