@@ -2,10 +2,10 @@
 //! grid, on the resolved backend.
 //!
 //! Both backends start the rays at each DEM pixel's own surface point by default (or at the
-//! model cells, resampled): the CPU runs the chosen engine, the GPU its DP max-mipmap kernel for
-//! every engine but Fourier, whose horizon map is built and evaluated by the Fourier kernels
-//! (docs/gpu.md), always at the model cells. A grid that needs the GPU's 2-D tiles is mapped
-//! from its model cells on the GPU (with a warning).
+//! model cells, resampled). The CPU runs any engine; the GPU runs the two with a GPU kernel
+//! ([`super::map_engine_on_gpu`]): DP max-mipmap, and Fourier, whose horizon map is built and
+//! evaluated by the Fourier kernels (docs/gpu.md), always at the model cells. A grid that needs
+//! the GPU's 2-D tiles is mapped from its model cells on the GPU (with a warning).
 
 use hifitime::Epoch;
 
@@ -15,12 +15,6 @@ use crate::shadow::Observer;
 use crate::terrain::TerrainStack;
 
 use super::{MapSettings, ResolvedBackend};
-
-/// Where the rays of a map start when `requested` (`None`: the DEM pixels' own surface points,
-/// on either backend).
-pub fn placement(requested: Option<ObserverPlacement>) -> ObserverPlacement {
-    requested.unwrap_or(ObserverPlacement::Pixels)
-}
 
 /// A map grid ready for one-light maps on a backend (engine built, a GPU horizon map uploaded).
 pub struct Prepared<'a> {
@@ -41,7 +35,8 @@ pub struct Prepared<'a> {
 
 impl<'a> Prepared<'a> {
     /// Builds `engine` for `grid` on `backend` (the Fourier horizon map on the GPU there), with
-    /// rays from `placement` (see [`placement`]) and GPU tiles of `gpu_tile_cells` when given.
+    /// rays from `placement` and GPU tiles of `gpu_tile_cells` when given. On the GPU the engine
+    /// is DP or Fourier (the others have no GPU kernel: [`super::map_engine_on_gpu`]).
     pub fn new(
         backend: &'a ResolvedBackend,
         grid: &'a MapGrid,
@@ -53,6 +48,12 @@ impl<'a> Prepared<'a> {
         let h_m = observer_height_m;
         #[cfg(not(feature = "gpu"))]
         let _ = gpu_tile_cells;
+        anyhow::ensure!(
+            matches!(backend, ResolvedBackend::Cpu)
+                || super::map_engine_on_gpu(engine, false) == super::OnGpu::Preferred,
+            "internal: the {} engine has no GPU kernel",
+            engine.name()
+        );
         let engine = match backend {
             #[cfg(feature = "gpu")]
             ResolvedBackend::Gpu(ctx) if engine == MapEngineKind::Fourier => {

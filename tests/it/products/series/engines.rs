@@ -9,7 +9,7 @@ use penumbra::illum::DiscMethod;
 use penumbra::illum::LimbDarkening;
 use penumbra::illum::LimbLaw;
 use penumbra::illum::stats::{SUN_FULL_MIN_FRACTION, VISIBLE_MIN_FRACTION};
-use penumbra::model::{ObserverHeight, Site as SeriesSite};
+use penumbra::model::{ObserverHeight, Site};
 use penumbra::products::series::{self, SeriesConfig, SeriesEngine};
 use penumbra::terrain::{TerrainStack, synth};
 use penumbra::twins::{self, DpMip, MarchGrid};
@@ -24,7 +24,7 @@ fn month_hourly() -> Vec<hifitime::Epoch> {
 
 /// The four sites of the LOLA 240 m crop tests: Shackleton, the connecting ridge, de Gerlache
 /// and Malapert.
-fn lola_crop_sites() -> [SeriesSite; 4] {
+fn lola_crop_sites() -> [Site; 4] {
     [
         site("shackleton_rim", -89.9, 200.0),
         site("connecting_ridge", -89.45, 222.7),
@@ -42,14 +42,14 @@ fn quiet() -> SeriesConfig {
     }
 }
 
-fn site(name: &str, lat_deg: f64, lon_deg: f64) -> SeriesSite {
-    SeriesSite::new(name, lat_deg, lon_deg, ObserverHeight::DEFAULT).unwrap()
+fn site(name: &str, lat_deg: f64, lon_deg: f64) -> Site {
+    Site::new(name, lat_deg, lon_deg, ObserverHeight::DEFAULT).unwrap()
 }
 
 /// Both engines' fractions per site: `(sun_h, earth_h, sun_d, earth_d)`.
 type Pair = (Vec<f64>, Vec<f64>, Vec<f64>, Vec<f64>);
 
-fn both_engines(stack: &TerrainStack, sites: &[SeriesSite], config: SeriesConfig) -> Vec<Pair> {
+fn both_engines(stack: &TerrainStack, sites: &[Site], config: SeriesConfig) -> Vec<Pair> {
     let kernels = Kernels::load(&kernels_dir()).unwrap();
     let epochs = month_hourly();
     let run = |engine| {
@@ -110,7 +110,7 @@ struct Bounds {
     big_epochs_pct: f64,
 }
 
-fn check(label: &str, sites: &[SeriesSite], pairs: &[Pair], b: &Bounds) {
+fn check(label: &str, sites: &[Site], pairs: &[Pair], b: &Bounds) {
     let mut partial_sites = 0;
     let mut failures = Vec::new();
     for (s, p) in sites.iter().zip(pairs) {
@@ -439,7 +439,7 @@ fn scenario_series_table_takes_an_engine_key() {
 }
 
 /// The five sites of [`engines_agree_on_the_synthetic_dem`].
-fn synthetic_sites() -> [SeriesSite; 5] {
+fn synthetic_sites() -> [Site; 5] {
     [
         site("ridge", -89.6, 0.0),
         site("plateau", -89.5, 45.0),
@@ -655,7 +655,7 @@ mod gpu {
     /// One month hourly of `sites` with `engine` on `backend`.
     fn run_with(
         stack: &TerrainStack,
-        sites: &[SeriesSite],
+        sites: &[Site],
         config: SeriesConfig,
         engine: SeriesEngine,
         backend: penumbra::gpu::Backend,
