@@ -766,7 +766,7 @@ fn map_statistics<'py>(
 /// `transform`, `crs_wkt`, `descriptions`. Give `utc`, or `sun_az_deg` and `sun_el_deg` (at the
 /// map centre) with `sun_radius_deg`.
 #[pyfunction]
-#[pyo3(signature = (terrain, utc = None, sun_az_deg = None, sun_el_deg = None, sun_radius_deg = 0.2666, engine = "combined", observer_height_m = 2.0, kernels = None, abcorr = "lt+s"))]
+#[pyo3(signature = (terrain, utc = None, sun_az_deg = None, sun_el_deg = None, sun_radius_deg = 0.2666, engine = "auto", observer_height_m = 2.0, kernels = None, abcorr = "lt+s"))]
 fn map_light<'py>(
     py: Python<'py>,
     terrain: &Terrain,

@@ -94,8 +94,9 @@ pub struct MapSpec {
     /// Observer height above the ground, metres (default 2).
     #[serde(default = "default_height_above_ground_m")]
     pub observer_height_m: f64,
-    /// Engine: `combined` (default), `dp`, `fourier`, `horizons` (whole-grid horizons once,
-    /// then every epoch per pixel: docs/horizon.md) or `auto`, as `penumbra map --engine`.
+    /// Engine, as `penumbra map --engine` (the same names and default): `auto` (default),
+    /// `combined`, `dp`, `fourier` or `horizons` (whole-grid horizons once, then every epoch per
+    /// pixel: docs/horizon.md).
     #[serde(default = "default_engine")]
     pub engine: String,
     /// `engine = "horizons"`: requested azimuths of the line sweep (default 720).
@@ -128,7 +129,7 @@ fn parse_map_backend(name: &str) -> Option<crate::gpu::Backend> {
 }
 
 fn default_engine() -> String {
-    "combined".into()
+    "auto".into()
 }
 
 fn default_sweep_azimuths() -> usize {

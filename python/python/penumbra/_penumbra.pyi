@@ -81,7 +81,7 @@ def map_light(
     sun_az_deg: Optional[float] = None,
     sun_el_deg: Optional[float] = None,
     sun_radius_deg: float = 0.2666,
-    engine: str = "combined",
+    engine: str = "auto",
     observer_height_m: float = 2.0,
     kernels: Optional[Path] = None,
     abcorr: str = "lt+s",
