@@ -1,12 +1,13 @@
-//! The GPU side of maps, sweeps and frames: the DP and Fourier kernels run over a model grid and
-//! their outputs turned into the CPU engines' conventions (`NaN` for holes, fractions in [0, 1]).
-//! Only compiled with the `gpu` feature; [`crate::compute`]'s switches call it.
+//! The GPU side shared by range maps, one-light maps and frames: the DP sweeps over an epoch
+//! range, the DEM pixels' own observers on the GPU ([`GpuPixelMaps`]) and the renderer's
+//! fractions, their outputs turned into the CPU engines' conventions (`NaN` for holes, fractions
+//! in [0, 1]). Only compiled with the `gpu` feature; [`crate::compute`]'s switches call it. The
+//! one-light helpers of the model-cell kernels live in [`super::one_light`].
 
-use anyhow::Context as _;
 use nalgebra::Vector3;
 
 use crate::model::{EpochLights, MapGrid};
-use crate::model::{MapEngine, ObserverPlacement, RangeStats};
+use crate::model::{ObserverPlacement, RangeStats};
 use crate::terrain::HeightField;
 
 /// The soft GPU twin of [`crate::model::per_epoch_statistics`]: one GPU-resident sweep
@@ -81,61 +82,6 @@ fn sweep_stats(
     }
 }
 
-/// A hard-mask fraction (1 / 0, `NaN` nodata) as a mask byte.
-fn mask_of_fraction(f: f32) -> u8 {
-    if f.is_nan() {
-        crate::shadow::MASK_NODATA
-    } else if f > 0.5 {
-        crate::shadow::MASK_LIT
-    } else {
-        crate::shadow::MASK_SHADOW
-    }
-}
-
-/// A soft-shadow kernel output as a fraction: `NaN` for a hole
-/// ([`crate::twins::NODATA_FRACTION`], -1), else clamped to [0, 1] (f32 rounding
-/// leaves a few lit-edge cells at -1e-7, which a `< 0` hole test would turn into holes).
-fn fraction_from_gpu(f: f32) -> f32 {
-    if f < crate::twins::NODATA_FRACTION + 0.5 {
-        f32::NAN
-    } else {
-        f.clamp(0.0, 1.0)
-    }
-}
-
-/// One-light maps on the GPU: the DP visible fraction of a disc of angular
-/// radius `angular_radius_rad` per model cell (`NaN` for holes), or with `angular_radius_rad` =
-/// 0 the hard mask of the disc centre. Every `--engine` except `fourier` maps to this kernel on
-/// the GPU (see docs/gpu.md). `tiling` chooses between the whole-grid kernel and 2-D tiles
-/// (automatically: tiles when the grid or its mipmap exceed one storage binding; docs/gpu.md,
-/// "Large grids").
-pub fn visible_fraction_gpu(
-    ctx: &crate::gpu::GpuContext,
-    hf: &HeightField,
-    observer_height_m: f64,
-    light_in_model: [f64; 3],
-    angular_radius_rad: f64,
-    tiling: crate::gpu::tiles::DpTiling,
-) -> anyhow::Result<Vec<f32>> {
-    use crate::gpu::DEFAULT_BAND_BYTES;
-    use crate::gpu::dp::{GpuDpGrid, dp_visible_gpu};
-    use crate::gpu::tiles::{DpTileOptions, dp_visible_tiled_gpu};
-    use crate::twins::{DpMip, MarchGrid, disc_light_to_f32};
-    let march = MarchGrid::from_height_field(hf, observer_height_m)?;
-    let light = disc_light_to_f32(&Vector3::from(light_in_model), angular_radius_rad);
-    let out = match tiling.resolve(ctx, &march)? {
-        Some(tile_cells) => {
-            dp_visible_tiled_gpu(ctx, &march, light, DpTileOptions::new(tile_cells))?.values
-        }
-        None => {
-            let mip = DpMip::build(&march);
-            let on_gpu = GpuDpGrid::upload(ctx, &march, &mip)?;
-            dp_visible_gpu(ctx, &on_gpu, light, DEFAULT_BAND_BYTES)?
-        }
-    };
-    Ok(out.into_iter().map(fraction_from_gpu).collect())
-}
-
 /// The renderer's per-cell Sun and Earth visible fractions on the GPU DP kernel (the GPU twin
 /// of what [`crate::render::Scene::new`] computes with the CPU engine, observer on the ground):
 /// the height field and its DP mip are uploaded once, then each frame costs two kernel runs.
@@ -168,7 +114,7 @@ impl GpuSceneFractions {
             let light = disc_light_to_f32(&Vector3::from(dir), radius_rad);
             Ok(dp_visible_gpu(ctx, &self.grid, light, DEFAULT_BAND_BYTES)?
                 .into_iter()
-                .map(fraction_from_gpu)
+                .map(crate::twins::fraction_from_gpu)
                 .collect())
         };
         Ok((
@@ -176,59 +122,6 @@ impl GpuSceneFractions {
             one(lights.earth, lights.earth_radius_rad)?,
         ))
     }
-}
-
-/// The Fourier engine with its horizon map built on the GPU
-/// ([`crate::gpu::fourier::build_horizon_map_gpu`]) with the parameters of
-/// [`MapEngine::new`] (64 azimuths, 16 coefficients, rays of `max(rows, cols)` cells).
-pub fn fourier_engine_gpu(
-    ctx: &crate::gpu::GpuContext,
-    grid: &MapGrid,
-    observer_height_m: f64,
-) -> anyhow::Result<MapEngine> {
-    let params = crate::shadow::fourier::HorizonMapParams {
-        observer_height_m,
-        n_azimuths: crate::shadow::fourier::DEFAULT_AZIMUTHS,
-        max_distance_cells: grid.hf.rows.max(grid.hf.cols),
-        n_coeffs: crate::shadow::fourier::DEFAULT_COEFFS,
-    };
-    Ok(MapEngine::Fourier(Box::new(
-        crate::gpu::fourier::build_horizon_map_gpu(ctx, &grid.hf, &params)
-            .context("building the horizon map on the GPU")?,
-    )))
-}
-
-/// One-light Fourier maps on the GPU: the visible fraction of a disc (radius 0: the hard test
-/// as 1 / 0) per model cell from a horizon map resident on the GPU, `NaN` for holes (the GPU
-/// twin of [`crate::shadow::fourier::visible_fraction`]).
-pub fn fourier_fraction_gpu(
-    ctx: &crate::gpu::GpuContext,
-    on_gpu: &crate::gpu::fourier::GpuHorizonMap,
-    light_in_model: [f64; 3],
-    angular_radius_rad: f64,
-) -> anyhow::Result<Vec<f32>> {
-    Ok(on_gpu
-        .visible_fraction(ctx, light_in_model, angular_radius_rad)
-        .context("evaluating the horizon map on the GPU")?
-        .into_iter()
-        .map(fraction_from_gpu)
-        .collect())
-}
-
-/// [`visible_fraction_gpu`] at radius 0 as a mask: 1 lit, 0 shadow, 255 nodata.
-pub fn hard_mask_gpu(
-    ctx: &crate::gpu::GpuContext,
-    hf: &HeightField,
-    observer_height_m: f64,
-    light_in_model: [f64; 3],
-    tiling: crate::gpu::tiles::DpTiling,
-) -> anyhow::Result<Vec<u8>> {
-    Ok(
-        visible_fraction_gpu(ctx, hf, observer_height_m, light_in_model, 0.0, tiling)?
-            .into_iter()
-            .map(mask_of_fraction)
-            .collect(),
-    )
 }
 
 /// A map grid on the GPU with its DEM pixels' own observers ([`MapGrid::pixel_observers`]):
@@ -323,7 +216,7 @@ impl GpuPixelMaps {
         Ok(self
             .fraction(ctx, light_in_model, 0.0)?
             .into_iter()
-            .map(mask_of_fraction)
+            .map(crate::twins::mask_of_fraction)
             .collect())
     }
 

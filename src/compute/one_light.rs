@@ -5,8 +5,12 @@
 //! model cells, resampled). The CPU runs any engine; the GPU runs the two with a GPU kernel
 //! ([`super::map_engine_on_gpu`]): DP max-mipmap, and Fourier, whose horizon map is built and
 //! evaluated by the Fourier kernels (docs/gpu.md), always at the model cells. A grid that needs
-//! the GPU's 2-D tiles is mapped from its model cells on the GPU (with a warning).
+//! the GPU's 2-D tiles is mapped from its model cells on the GPU (with a warning). The GPU
+//! helpers of the model-cell kernels live here; the DEM pixels' DP kernels are
+//! [`super::gpu_maps::GpuPixelMaps`], shared with the range maps.
 
+#[cfg(feature = "gpu")]
+use anyhow::Context as _;
 use hifitime::Epoch;
 
 use crate::ephem::{AbCorr, Kernels};
@@ -57,14 +61,13 @@ impl<'a> Prepared<'a> {
         let engine = match backend {
             #[cfg(feature = "gpu")]
             ResolvedBackend::Gpu(ctx) if engine == MapEngineKind::Fourier => {
-                super::gpu_maps::fourier_engine_gpu(ctx, grid, h_m)?
+                fourier_engine_gpu(ctx, grid, h_m)?
             }
             _ => MapEngine::new(engine, grid, h_m)?,
         };
         #[cfg(feature = "gpu")]
         let gpu_fourier = match (backend, &engine) {
             (ResolvedBackend::Gpu(ctx), MapEngine::Fourier(map)) => Some({
-                use anyhow::Context as _;
                 crate::gpu::fourier::GpuHorizonMap::upload(ctx, map, crate::gpu::DEFAULT_BAND_BYTES)
                     .context("uploading the horizon map")?
             }),
@@ -143,10 +146,8 @@ impl<'a> Prepared<'a> {
             // The GPU kernels per model cell: resampled onto the DEM grid.
             #[cfg(feature = "gpu")]
             ResolvedBackend::Gpu(ctx) => Ok(grid.to_output_f32(&match &self.gpu_fourier {
-                Some(on_gpu) => {
-                    super::gpu_maps::fourier_fraction_gpu(ctx, on_gpu, light_in_model, radius_rad)?
-                }
-                None => super::gpu_maps::visible_fraction_gpu(
+                Some(on_gpu) => fourier_fraction_gpu(ctx, on_gpu, light_in_model, radius_rad)?,
+                None => visible_fraction_gpu(
                     ctx,
                     &grid.hf,
                     h_m,
@@ -175,20 +176,108 @@ impl<'a> Prepared<'a> {
             }
             #[cfg(feature = "gpu")]
             ResolvedBackend::Gpu(ctx) => Ok(grid.to_output_u8(&match &self.gpu_fourier {
-                Some(on_gpu) => {
-                    use anyhow::Context as _;
-                    on_gpu
-                        .hard_mask(ctx, light_in_model)
-                        .context("evaluating the horizon map on the GPU")?
-                }
-                None => {
-                    super::gpu_maps::hard_mask_gpu(ctx, &grid.hf, h_m, light_in_model, self.tiling)?
-                }
+                Some(on_gpu) => on_gpu
+                    .hard_mask(ctx, light_in_model)
+                    .context("evaluating the horizon map on the GPU")?,
+                None => hard_mask_gpu(ctx, &grid.hf, h_m, light_in_model, self.tiling)?,
             })),
             #[cfg(not(feature = "gpu"))]
             ResolvedBackend::Gpu(ctx) => match **ctx {},
         }
     }
+}
+
+/// One-light maps on the GPU: the DP visible fraction of a disc of angular
+/// radius `angular_radius_rad` per model cell (`NaN` for holes), or with `angular_radius_rad` =
+/// 0 the hard mask of the disc centre. Every `--engine` except `fourier` maps to this kernel on
+/// the GPU (see docs/gpu.md). `tiling` chooses between the whole-grid kernel and 2-D tiles
+/// (automatically: tiles when the grid or its mipmap exceed one storage binding; docs/gpu.md,
+/// "Large grids").
+#[cfg(feature = "gpu")]
+fn visible_fraction_gpu(
+    ctx: &crate::gpu::GpuContext,
+    hf: &crate::terrain::HeightField,
+    observer_height_m: f64,
+    light_in_model: [f64; 3],
+    angular_radius_rad: f64,
+    tiling: crate::gpu::tiles::DpTiling,
+) -> anyhow::Result<Vec<f32>> {
+    use crate::gpu::DEFAULT_BAND_BYTES;
+    use crate::gpu::dp::{GpuDpGrid, dp_visible_gpu};
+    use crate::gpu::tiles::{DpTileOptions, dp_visible_tiled_gpu};
+    use crate::twins::{DpMip, MarchGrid, disc_light_to_f32};
+    let march = MarchGrid::from_height_field(hf, observer_height_m)?;
+    let light = disc_light_to_f32(&nalgebra::Vector3::from(light_in_model), angular_radius_rad);
+    let out = match tiling.resolve(ctx, &march)? {
+        Some(tile_cells) => {
+            dp_visible_tiled_gpu(ctx, &march, light, DpTileOptions::new(tile_cells))?.values
+        }
+        None => {
+            let mip = DpMip::build(&march);
+            let on_gpu = GpuDpGrid::upload(ctx, &march, &mip)?;
+            dp_visible_gpu(ctx, &on_gpu, light, DEFAULT_BAND_BYTES)?
+        }
+    };
+    Ok(out
+        .into_iter()
+        .map(crate::twins::fraction_from_gpu)
+        .collect())
+}
+
+/// The Fourier engine with its horizon map built on the GPU
+/// ([`crate::gpu::fourier::build_horizon_map_gpu`]) with the parameters of
+/// [`MapEngine::new`] (64 azimuths, 16 coefficients, rays of `max(rows, cols)` cells).
+#[cfg(feature = "gpu")]
+fn fourier_engine_gpu(
+    ctx: &crate::gpu::GpuContext,
+    grid: &MapGrid,
+    observer_height_m: f64,
+) -> anyhow::Result<MapEngine> {
+    let params = crate::shadow::fourier::HorizonMapParams {
+        observer_height_m,
+        n_azimuths: crate::shadow::fourier::DEFAULT_AZIMUTHS,
+        max_distance_cells: grid.hf.rows.max(grid.hf.cols),
+        n_coeffs: crate::shadow::fourier::DEFAULT_COEFFS,
+    };
+    Ok(MapEngine::Fourier(Box::new(
+        crate::gpu::fourier::build_horizon_map_gpu(ctx, &grid.hf, &params)
+            .context("building the horizon map on the GPU")?,
+    )))
+}
+
+/// One-light Fourier maps on the GPU: the visible fraction of a disc (radius 0: the hard test
+/// as 1 / 0) per model cell from a horizon map resident on the GPU, `NaN` for holes (the GPU
+/// twin of [`crate::shadow::fourier::visible_fraction`]).
+#[cfg(feature = "gpu")]
+fn fourier_fraction_gpu(
+    ctx: &crate::gpu::GpuContext,
+    on_gpu: &crate::gpu::fourier::GpuHorizonMap,
+    light_in_model: [f64; 3],
+    angular_radius_rad: f64,
+) -> anyhow::Result<Vec<f32>> {
+    Ok(on_gpu
+        .visible_fraction(ctx, light_in_model, angular_radius_rad)
+        .context("evaluating the horizon map on the GPU")?
+        .into_iter()
+        .map(crate::twins::fraction_from_gpu)
+        .collect())
+}
+
+/// [`visible_fraction_gpu`] at radius 0 as a mask: 1 lit, 0 shadow, 255 nodata.
+#[cfg(feature = "gpu")]
+fn hard_mask_gpu(
+    ctx: &crate::gpu::GpuContext,
+    hf: &crate::terrain::HeightField,
+    observer_height_m: f64,
+    light_in_model: [f64; 3],
+    tiling: crate::gpu::tiles::DpTiling,
+) -> anyhow::Result<Vec<u8>> {
+    Ok(
+        visible_fraction_gpu(ctx, hf, observer_height_m, light_in_model, 0.0, tiling)?
+            .into_iter()
+            .map(crate::twins::mask_of_fraction)
+            .collect(),
+    )
 }
 
 /// The light of a one-light map.

@@ -32,6 +32,28 @@ pub use march::*;
 
 /// Output of the visible-fraction kernels for a hole.
 pub const NODATA_FRACTION: f32 = -1.0;
+/// A hard-mask fraction (1 / 0, `NaN` nodata) as a mask byte.
+pub fn mask_of_fraction(f: f32) -> u8 {
+    if f.is_nan() {
+        crate::shadow::MASK_NODATA
+    } else if f > 0.5 {
+        crate::shadow::MASK_LIT
+    } else {
+        crate::shadow::MASK_SHADOW
+    }
+}
+
+/// A soft-shadow kernel output as a fraction: `NaN` for a hole
+/// ([`NODATA_FRACTION`], -1), else clamped to [0, 1] (f32 rounding
+/// leaves a few lit-edge cells at -1e-7, which a `< 0` hole test would turn into holes).
+pub fn fraction_from_gpu(f: f32) -> f32 {
+    if f < NODATA_FRACTION + 0.5 {
+        f32::NAN
+    } else {
+        f.clamp(0.0, 1.0)
+    }
+}
+
 /// Height stored for a hole (NaN never goes to the GPU: WGSL has no NaN guarantees).
 pub const HOLE_Z_M: f32 = -1.0e30;
 /// Heights below this are holes.
