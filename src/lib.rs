@@ -17,6 +17,7 @@
 //!    clap. Conventions (azimuth from north clockwise, heights above the 1737.4 km sphere,
 //!    planetocentric latitude, east longitude) are stated once in `docs/ARCHITECTURE.md`.
 
+pub mod comms;
 pub mod compute;
 pub mod ephem;
 pub mod frames;

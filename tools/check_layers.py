@@ -29,7 +29,7 @@ LAYERS = [
     ["render"],
     ["model"],
     ["shadow", "horizon"],
-    ["terrain", "illum"],
+    ["terrain", "illum", "comms"],
     ["output"],
     ["ephem"],
     ["frames"],

@@ -405,6 +405,64 @@ fn ephem<'py>(
     Ok(out)
 }
 
+/// `station_elevations(site, times, stations="dsn", station_mask_deg=10.0, kernels=None)`: the
+/// elevation (deg) of a lunar site (`(lat_deg, lon_deg, height_m)`, planetocentric, height above
+/// the 1737.4 km sphere) seen from each ground station at each epoch, light-time corrected: a
+/// dict with `station` (names), `lat_deg`, `lon_deg`, `height_m`, `mask_deg` (geodetic, WGS84),
+/// `el_deg` (stations × epochs) and `utc`. The numbers behind `series`' `station_el_deg`.
+#[pyfunction]
+#[pyo3(signature = (site, times, stations = "dsn", station_mask_deg = 10.0, kernels = None))]
+fn station_elevations<'py>(
+    py: Python<'py>,
+    site: (f64, f64, f64),
+    times: &Bound<'py, PyAny>,
+    stations: &str,
+    station_mask_deg: f64,
+    kernels: Option<PathBuf>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let epochs = epochs_from(times)?;
+    let list = penumbra::comms::Stations::parse(stations)
+        .resolve(station_mask_deg)
+        .map_err(|e| bad(e.to_string()))?
+        .ok_or_else(|| bad("station_elevations: stations='none' gives no stations"))?;
+    let site = eph::Site::new(site.0, site.1, site.2).map_err(|e| bad(e.to_string()))?;
+    let kernels = load_kernels(kernels)?;
+    let el = py
+        .allow_threads(|| -> anyhow::Result<Vec<f64>> {
+            let table = eph::moon_geometry_table(&kernels, &epochs)?;
+            let at = penumbra::comms::stations_table(&list, &table);
+            let (n, m) = (list.len(), table.len());
+            let mut out = vec![0.0; n * m];
+            let mut one = vec![0.0; n];
+            for (k, (geo, a)) in table.iter().zip(&at).enumerate() {
+                penumbra::comms::site_elevations_deg(geo, a, &site.pos_in_moon_me_km, &mut one);
+                for (i, v) in one.iter().enumerate() {
+                    out[i * m + k] = *v;
+                }
+            }
+            Ok(out)
+        })
+        .map_err(py_err)?;
+    let out = PyDict::new(py);
+    let np = py.import("numpy")?;
+    let names: Vec<&str> = list.iter().map(|s| s.name()).collect();
+    out.set_item(
+        "station",
+        np.call_method1("array", (PyList::new(py, names)?,))?,
+    )?;
+    let col =
+        |f: &dyn Fn(&penumbra::comms::Station) -> f64| -> Vec<f64> { list.iter().map(f).collect() };
+    out.set_item("lat_deg", col(&|s| s.lat_deg()).into_pyarray(py))?;
+    out.set_item("lon_deg", col(&|s| s.lon_deg()).into_pyarray(py))?;
+    out.set_item("height_m", col(&|s| s.height_m()).into_pyarray(py))?;
+    out.set_item("mask_deg", col(&|s| s.mask_deg()).into_pyarray(py))?;
+    let a =
+        Array2::from_shape_vec((list.len(), epochs.len()), el).map_err(|e| bad(e.to_string()))?;
+    out.set_item("el_deg", a.into_pyarray(py))?;
+    out.set_item("utc", datetime64(py, &epochs)?)?;
+    Ok(out)
+}
+
 // --- horizon ----------------------------------------------------------------------------------------
 
 /// `horizon(terrain, lat_deg, lon_deg, observer_height_m=2.0, az_step_deg=0.25, method="fast")`:
@@ -470,6 +528,7 @@ struct SiteColumns {
     columns: Vec<Vec<f64>>,
     sun: Vec<f64>,
     earth: Vec<f64>,
+    links: Vec<penumbra::comms::LinkSample>,
 }
 
 /// `series(terrain, sites, times, …)`: hourly (or any) Sun and Earth visibility of named sites
@@ -478,7 +537,7 @@ struct SiteColumns {
 /// datetime64[ns], then the float64 columns of `series.csv`), one row per site and epoch;
 /// `stats` the dict of the CLI's `stats.json` (needs evenly spaced times).
 #[pyfunction]
-#[pyo3(signature = (terrain, sites, times, kernels = None, abcorr = "lt+s", limb_darkening = "eddington", disc_method = "exact", az_step_deg = 0.25, horizon_method = "fast", progress = None))]
+#[pyo3(signature = (terrain, sites, times, kernels = None, abcorr = "lt+s", limb_darkening = "eddington", disc_method = "exact", az_step_deg = 0.25, horizon_method = "fast", stations = "dsn", station_mask_deg = 10.0, relays = Vec::new(), relay_spks = Vec::new(), relay_max_range_km = None, progress = None))]
 fn series<'py>(
     py: Python<'py>,
     terrain: &Terrain,
@@ -490,9 +549,18 @@ fn series<'py>(
     disc_method: &str,
     az_step_deg: f64,
     horizon_method: &str,
+    stations: &str,
+    station_mask_deg: f64,
+    relays: Vec<String>,
+    relay_spks: Vec<PathBuf>,
+    relay_max_range_km: Option<f64>,
     progress: Option<Bound<'py, PyAny>>,
 ) -> PyResult<(Bound<'py, PyDict>, Bound<'py, PyAny>)> {
     use penumbra::products::series::{self as ser, SeriesConfig};
+    let relays = relays
+        .iter()
+        .map(|r| penumbra::comms::Relay::parse(r).map_err(|e| bad(e.to_string())))
+        .collect::<PyResult<Vec<_>>>()?;
     let epochs = epochs_from(times)?;
     let step_s = match epochs.len() {
         1 => 3600.0,
@@ -503,8 +571,18 @@ fn series<'py>(
         az_step_deg,
         write_csv: true,
         plots: false,
+        stations: penumbra::comms::Stations::parse(stations),
+        station_mask_deg,
+        relays,
+        relay_spks,
+        relay_max_range_km,
         ..SeriesConfig::default()
     };
+    // A bad station list fails before any work, with the command line's message.
+    config
+        .stations
+        .resolve(config.station_mask_deg)
+        .map_err(|e| bad(e.to_string()))?;
     config.limb_darkening = limb_law(limb_darkening)?;
     config.disc_method = match disc_method {
         "exact" => penumbra::illum::DiscMethod::Exact,
@@ -538,7 +616,7 @@ fn series<'py>(
     let stack = Arc::clone(&terrain.stack);
 
     // Horizons and the shared ephemeris, then the sites in chunks (progress, Ctrl-C between).
-    let (horizons, table) = py
+    let (horizons, table, link) = py
         .allow_threads(|| -> anyhow::Result<_> {
             let (horizons, _) = penumbra::compute::horizons::site_horizons(
                 penumbra::compute::Backend::Cpu,
@@ -548,7 +626,8 @@ fn series<'py>(
                 config.horizon_method,
             )?;
             let table = eph::moon_geometry_table(&kernels, &epochs)?;
-            Ok((horizons, table))
+            let link = ser::LinkContext::new(&kernels, &config, &table)?;
+            Ok((horizons, table, link))
         })
         .map_err(py_err)?;
     let chunk = rayon::current_num_threads().max(1) * 2;
@@ -561,7 +640,9 @@ fn series<'py>(
                 specs_chunk
                     .par_iter()
                     .zip(horizons_chunk)
-                    .map(|(spec, horizon)| site_columns(&table, spec, horizon, &config))
+                    .map(|(spec, horizon)| {
+                        site_columns(&table, spec, horizon, &config, link.as_ref())
+                    })
                     .collect::<anyhow::Result<Vec<_>>>()
             })
             .map_err(py_err)?;
@@ -597,6 +678,35 @@ fn series<'py>(
         }
         out.set_item(*name, col.into_pyarray(py))?;
     }
+    let samples = || results.iter().flat_map(|r| r.links.iter());
+    if let Some(l) = link.as_ref().filter(|l| l.has_stations()) {
+        // The columns series.csv gains with stations: dte (0/1), station_el_deg, station.
+        let dte: Vec<u8> = samples().map(|s| u8::from(s.dte())).collect();
+        let el: Vec<f64> = samples().map(|s| s.station_el_deg).collect();
+        let names: Vec<&str> = samples()
+            .map(|s| s.station.map_or("", |i| l.stations()[i].name()))
+            .collect();
+        out.set_item("dte", dte.into_pyarray(py))?;
+        out.set_item("station_el_deg", el.into_pyarray(py))?;
+        out.set_item(
+            "station",
+            np.call_method1("array", (PyList::new(py, names)?,))?,
+        )?;
+    }
+    if let Some(l) = link.as_ref().filter(|l| !l.relays().is_empty()) {
+        // The columns series.csv gains with relays: relay_visible (0/1), relay_el_deg, relay.
+        let visible: Vec<u8> = samples().map(|s| u8::from(s.relay_visible)).collect();
+        let el: Vec<f64> = samples().map(|s| s.relay_el_deg).collect();
+        let names: Vec<&str> = samples()
+            .map(|s| s.relay.map_or("", |i| l.relays()[i].name.as_str()))
+            .collect();
+        out.set_item("relay_visible", visible.into_pyarray(py))?;
+        out.set_item("relay_el_deg", el.into_pyarray(py))?;
+        out.set_item(
+            "relay",
+            np.call_method1("array", (PyList::new(py, names)?,))?,
+        )?;
+    }
 
     // Statistics, as stats.json.
     let series_list: Vec<penumbra::illum::stats::SiteSeries<'_>> = specs
@@ -612,8 +722,20 @@ fn series<'py>(
         .collect();
     let mut stats = penumbra::illum::stats::StatsFile::from_series(&series_list)
         .map_err(|e| py_err(e.into()))?;
-    for ((s, spec), horizon) in stats.sites.iter_mut().zip(&specs).zip(&horizons) {
+    for (((s, spec), horizon), (series, r)) in stats
+        .sites
+        .iter_mut()
+        .zip(&specs)
+        .zip(&horizons)
+        .zip(series_list.iter().zip(&results))
+    {
         s.location = Some(ser::site_location(spec, horizon));
+        if let Some(l) = &link {
+            if l.has_stations() {
+                s.link = Some(l.summary(series, &r.links).map_err(py_err)?.0);
+            }
+            s.relay = l.relay_summary(series, &r.links).map_err(py_err)?;
+        }
     }
     let json = serde_json::to_string(&stats).map_err(|e| bad(e.to_string()))?;
     let stats = py.import("json")?.call_method1("loads", (json,))?;
@@ -626,6 +748,7 @@ fn site_columns(
     spec: &Site,
     horizon: &penumbra::horizon::Horizon,
     config: &penumbra::products::series::SeriesConfig,
+    link: Option<&penumbra::products::series::LinkContext>,
 ) -> anyhow::Result<SiteColumns> {
     use penumbra::products::series as ser;
     let site = eph::Site::new(
@@ -634,6 +757,9 @@ fn site_columns(
         horizon.ground_height_m + spec.height_above_ground_m(),
     )?;
     let mut columns = vec![Vec::with_capacity(table.len()); SERIES_COLUMNS.len()];
+    let profile = penumbra::illum::HorizonProfile::new(&horizon.elevation_deg)?;
+    let mut links = Vec::new();
+    let mut scratch = ser::LinkScratch::default();
     let (sun, earth) = ser::site_fractions(
         table,
         &site,
@@ -641,9 +767,12 @@ fn site_columns(
         ser::SiteFractions::FromHorizon,
         config,
         |_| true,
-        |_, r| {
+        |k, r| {
             for (c, v) in columns.iter_mut().zip(ser::row_values(r)) {
                 c.push(v);
+            }
+            if let Some(l) = link {
+                links.push(l.sample(table, k, &site, &r.earth, &profile, &mut scratch));
             }
             Ok(())
         },
@@ -652,6 +781,7 @@ fn site_columns(
         columns,
         sun,
         earth,
+        links,
     })
 }
 
@@ -667,7 +797,7 @@ fn site_columns(
 /// total)` hears the sweep's directions, then the statistics' rows, and Ctrl-C stops the run
 /// between them.
 #[pyfunction]
-#[pyo3(signature = (terrain, times, engine = "auto", observer_height_m = 2.0, kernels = None, abcorr = "lt+s", horizons = None, azimuths = 720, max_step = 16, limb_darkening = "eddington", progress = None))]
+#[pyo3(signature = (terrain, times, engine = "auto", observer_height_m = 2.0, kernels = None, abcorr = "lt+s", horizons = None, azimuths = 720, max_step = 16, limb_darkening = "eddington", stations = "none", station_mask_deg = 10.0, progress = None))]
 fn map_statistics<'py>(
     py: Python<'py>,
     terrain: &Terrain,
@@ -680,6 +810,8 @@ fn map_statistics<'py>(
     azimuths: usize,
     max_step: u32,
     limb_darkening: &str,
+    stations: &str,
+    station_mask_deg: f64,
     progress: Option<Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     use penumbra::compute::range::{HorizonsFrom, RangeHooks, RangeInputs};
@@ -694,6 +826,8 @@ fn map_statistics<'py>(
             None => HorizonsFrom::Sweep { azimuths, max_step },
         },
         limb: limb_law(limb_darkening)?,
+        stations: penumbra::comms::Stations::parse(stations),
+        station_mask_deg,
         ..pm::MapSettings::default()
     };
     let ab = self::abcorr(abcorr)?;
@@ -1046,7 +1180,7 @@ fn engine_choice(name: &str) -> PyResult<Option<penumbra::model::MapEngineKind>>
 /// partial (`shard.json`, `shard.pnbstat`) into `out_dir`. Returns the manifest as a dict.
 /// Shards made here and by the CLI with the same parameters and inputs merge together.
 #[pyfunction]
-#[pyo3(signature = (terrain, start, stop, step, out_dir, shard, shards, observer_height_m = 2.0, kernels = None, abcorr = "lt+s", horizons = None, azimuths = 720, max_step = 16, limb_darkening = "eddington", resume = false))]
+#[pyo3(signature = (terrain, start, stop, step, out_dir, shard, shards, observer_height_m = 2.0, kernels = None, abcorr = "lt+s", horizons = None, azimuths = 720, max_step = 16, limb_darkening = "eddington", stations = "none", station_mask_deg = 10.0, resume = false))]
 fn map_shard<'py>(
     py: Python<'py>,
     terrain: &Terrain,
@@ -1063,6 +1197,8 @@ fn map_shard<'py>(
     azimuths: usize,
     max_step: u32,
     limb_darkening: &str,
+    stations: &str,
+    station_mask_deg: f64,
     resume: bool,
 ) -> PyResult<Bound<'py, PyAny>> {
     use penumbra::compute::range::HorizonsFrom;
@@ -1086,6 +1222,8 @@ fn map_shard<'py>(
                 None => HorizonsFrom::Sweep { azimuths, max_step },
             },
             limb: limb_law(limb_darkening)?,
+            stations: penumbra::comms::Stations::parse(stations),
+            station_mask_deg,
             ..pm::MapSettings::default()
         },
         task: pm::MapTask::Range {
@@ -1144,6 +1282,7 @@ fn _penumbra(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<Terrain>()?;
     m.add_function(wrap_pyfunction!(time_range, m)?)?;
     m.add_function(wrap_pyfunction!(ephem, m)?)?;
+    m.add_function(wrap_pyfunction!(station_elevations, m)?)?;
     m.add_function(wrap_pyfunction!(horizon, m)?)?;
     m.add_function(wrap_pyfunction!(series, m)?)?;
     m.add_function(wrap_pyfunction!(map_statistics, m)?)?;

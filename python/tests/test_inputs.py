@@ -187,3 +187,43 @@ def test_an_epoch_range_is_refused_alike_everywhere(cli: Path, tmp_path: Path, t
     }
     for where, msg in messages.items():
         assert STOP_BEFORE_START in msg, f"{where}: {msg}"
+
+
+MASK_NEG = "elevation mask -5 deg is outside [0, 90)"
+STATION_LAT_95 = "station 'x': latitude 95 deg is outside [-90, 90]"
+
+
+def test_stations_are_refused_alike_everywhere(cli: Path, tmp_path: Path, terrain) -> None:
+    stations = tmp_path / "stations.csv"
+    stations.write_text("name,lat_deg,lon_deg,height_m,mask_deg\nx,95,0,0,10\n")
+    series_args = ["series", "--synthetic", "--site", "a,-89.6,0", "--utc", "2027-01-01",
+                   "--out-dir", str(tmp_path / "s")]
+    series_table = """
+[terrain]
+synthetic = {{ size_px = 64, px_m = 100.0, seed = 1 }}
+[series]
+{line}
+"""
+    for expected, flag, value, line, kwargs in [
+        (MASK_NEG, "--station-mask-deg", "-5", "station_mask_deg = -5.0",
+         {"station_mask_deg": -5.0}),
+        (STATION_LAT_95, "--stations", str(stations), f'stations = "{stations}"',
+         {"stations": str(stations)}),
+    ]:
+        messages = {
+            "series": cli_error(cli, tmp_path, *series_args, flag, value),
+            "scenario [series]": scenario_error(
+                cli, tmp_path,
+                SCENARIO_HEAD.format(start="2027-01-01", stop="2027-01-02")
+                + SITE.format(name="a", lat=-89.6, height=2.0)
+                + series_table.format(line=line),
+            ),
+            "python series": python_error(
+                lambda: penumbra.series(terrain, [("a", -89.6, 0.0, 2.0)], "2027-01-01", **kwargs)
+            ),
+            "python station_elevations": python_error(
+                lambda: penumbra.station_elevations((-89.6, 0.0, 0.0), "2027-01-01", **kwargs)
+            ),
+        }
+        for where, msg in messages.items():
+            assert expected in msg, f"{where}: {msg}"

@@ -143,6 +143,15 @@ pub struct MapArgs {
     /// the irradiance (the per-epoch engines use a uniform disc).
     #[arg(long, value_enum, default_value_t = super::series::LimbLawArg::Eddington)]
     pub limb_darkening: super::series::LimbLawArg,
+    /// Ground stations of the direct-to-Earth maps (dte_pct, longest_dte_blackout_h; epoch
+    /// ranges, the horizons engine): none (default), dsn (DSS-14, DSS-43, DSS-63) or a CSV file
+    /// with a header naming name, lat_deg, lon_deg, height_m (geodetic, WGS84) and optionally
+    /// mask_deg.
+    #[arg(long, value_name = "none|dsn|FILE", default_value = "none")]
+    pub stations: String,
+    /// Elevation mask of the DSN stations and of file rows without their own, degrees (0 … <90).
+    #[arg(long, value_name = "DEG", default_value_t = penumbra::comms::DEFAULT_MASK_DEG, allow_hyphen_values = true)]
+    pub station_mask_deg: f64,
     /// Aberration correction: lt+s or none.
     #[arg(long, default_value = "lt+s")]
     pub abcorr: String,
@@ -232,6 +241,8 @@ impl MapArgs {
                 },
             },
             limb: self.limb_darkening.into(),
+            stations: penumbra::comms::Stations::parse(&self.stations),
+            station_mask_deg: self.station_mask_deg,
         }
     }
 }

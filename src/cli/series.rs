@@ -77,12 +77,36 @@ pub struct SeriesArgs {
     /// GPU, `--backend`).
     #[arg(long, value_enum, default_value_t = SeriesEngineArg::Horizon)]
     pub engine: SeriesEngineArg,
+    /// Ground stations of the link to Earth: dsn (DSS-14, DSS-43, DSS-63), none, or a CSV file
+    /// with a header naming name, lat_deg, lon_deg, height_m (geodetic, WGS84) and optionally
+    /// mask_deg. Adds the dte, station_el_deg and station columns to series.csv, DTE statistics
+    /// to stats.json and dte_windows.csv / dte_windows.ics per site.
+    #[arg(long, value_name = "dsn|none|FILE", default_value = "dsn")]
+    pub stations: String,
+    /// Elevation mask of the DSN stations and of file rows without their own, degrees (0 … <90).
+    #[arg(long, value_name = "DEG", default_value_t = penumbra::comms::DEFAULT_MASK_DEG, allow_hyphen_values = true)]
+    pub station_mask_deg: f64,
+    /// A relay orbiter as a link target: NAME=NAIF_ID of a body in a --relay-spk file
+    /// (repeatable). Adds relay_visible, relay_el_deg and relay to series.csv and relay
+    /// statistics to stats.json; a relay is visible above the site's terrain horizon.
+    #[arg(long = "relay", value_name = "NAME=NAIF_ID", value_parser = parse_relay, allow_hyphen_values = true)]
+    pub relays: Vec<penumbra::comms::Relay>,
+    /// An SPK file holding the relays (repeatable).
+    #[arg(long = "relay-spk", value_name = "FILE")]
+    pub relay_spks: Vec<PathBuf>,
+    /// Slant-range limit of a relay link, km (none by default).
+    #[arg(long, value_name = "KM", allow_hyphen_values = true)]
+    pub relay_max_range_km: Option<f64>,
     /// Kernels.
     #[command(flatten)]
     pub kernels: KernelArgs,
     /// Output folder (created if needed): one sub-folder per site, plus stats.json and run.json.
     #[arg(long, value_name = "DIR")]
     pub out_dir: PathBuf,
+}
+
+fn parse_relay(text: &str) -> Result<penumbra::comms::Relay, String> {
+    penumbra::comms::Relay::parse(text).map_err(|e| e.to_string())
 }
 
 /// Disc integration method on the command line.
@@ -174,6 +198,11 @@ pub fn run(args: &SeriesArgs) -> anyhow::Result<()> {
         write_csv: !args.no_csv,
         backend: args.backend.into(),
         engine: args.engine.into(),
+        stations: penumbra::comms::Stations::parse(&args.stations),
+        station_mask_deg: args.station_mask_deg,
+        relays: args.relays.clone(),
+        relay_spks: args.relay_spks.clone(),
+        relay_max_range_km: args.relay_max_range_km,
     };
     penumbra::products::series::run(&SeriesRequest {
         terrain: args.terrain.source(),

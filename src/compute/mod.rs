@@ -72,6 +72,11 @@ pub struct MapSettings {
     /// The horizons engine: the Sun's limb darkening in its mean fraction (the per-epoch engines
     /// use a uniform disc).
     pub limb: crate::illum::LimbLaw,
+    /// Ground stations of the direct-to-Earth maps (`none` by default: they come from the
+    /// horizons engine over an epoch range).
+    pub stations: crate::comms::Stations,
+    /// Elevation mask of the DSN stations and of file rows without their own, degrees.
+    pub station_mask_deg: f64,
 }
 
 impl Default for MapSettings {
@@ -84,6 +89,8 @@ impl Default for MapSettings {
             observers: None,
             horizons: range::HorizonsFrom::default(),
             limb: crate::illum::LimbLaw::default(),
+            stations: crate::comms::Stations::None,
+            station_mask_deg: crate::comms::DEFAULT_MASK_DEG,
         }
     }
 }
@@ -103,6 +110,26 @@ impl MapSettings {
         &self,
         n_epochs: Option<usize>,
     ) -> anyhow::Result<(MapEngineKind, ResolvedBackend)> {
+        if self.stations != crate::comms::Stations::None {
+            // A bad station list fails first, with its own message.
+            self.stations.resolve(self.station_mask_deg)?;
+            if n_epochs.is_none() {
+                anyhow::bail!(
+                    "--stations: direct-to-Earth maps need an epoch range (--start, --stop, --step)"
+                );
+            }
+            match self.engine {
+                None | Some(MapEngineKind::Horizons) => {
+                    let backend = resolve(self.backend, OnGpu::WhenAsked)?;
+                    return Ok((MapEngineKind::Horizons, backend));
+                }
+                Some(other) => anyhow::bail!(
+                    "--stations: direct-to-Earth maps come from the horizons engine, not {} \
+                     (use --engine horizons or auto)",
+                    other.name()
+                ),
+            }
+        }
         let on_gpu = match self.engine {
             Some(engine) => map_engine_on_gpu(engine, n_epochs.is_some()),
             None => OnGpu::Preferred,

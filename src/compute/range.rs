@@ -240,6 +240,11 @@ pub fn horizon_statistics_rows(
         );
     }
     let bodies = EpochBodies::over_dem(fine, kernels, &epochs, abcorr)?;
+    let link = station_flags(map, fine, kernels, &epochs)?;
+    let engine = match link {
+        Some((flags, stations)) => engine.with_link(flags, stations),
+        None => engine,
+    };
     let t1 = std::time::Instant::now();
     let progress = crate::output::progress_bar(
         rows.len(),
@@ -249,6 +254,13 @@ pub fn horizon_statistics_rows(
     // The epoch loop on the GPU (`shaders/horizon_stats.wgsl`) with the GPU backend.
     #[cfg(feature = "gpu")]
     let mut gpu_kernel = match backend {
+        ResolvedBackend::Gpu(_) if map.stations != crate::comms::Stations::None => {
+            crate::note!(
+                "penumbra: note: the direct-to-Earth statistics have no GPU kernel: the \
+                 statistics' epoch loop runs on the CPU"
+            );
+            None
+        }
         ResolvedBackend::Gpu(ctx) => Some(crate::gpu::horizon_stats::GpuHorizonStats::new(ctx)?),
         ResolvedBackend::Cpu => None,
     };
@@ -286,7 +298,12 @@ pub fn horizon_statistics_rows(
             format!("line sweep in memory ({azimuths} azimuths requested, max step {max_step})")
         }
     };
+    let link_on_cpu = map.stations != crate::comms::Stations::None;
     let ran = match (backend, &map.horizons) {
+        (ResolvedBackend::Gpu(_), HorizonsFrom::Sweep { .. }) if link_on_cpu => {
+            "gpu (the line sweep's hulls and tangents; the statistics' epoch loop on the cpu)"
+        }
+        (ResolvedBackend::Gpu(_), HorizonsFrom::File(_)) if link_on_cpu => "cpu",
         (ResolvedBackend::Gpu(_), HorizonsFrom::Sweep { .. }) => {
             "gpu (the line sweep's hulls and tangents, and the statistics' epoch loop)"
         }
@@ -369,4 +386,41 @@ fn per_epoch(
         #[cfg(not(feature = "gpu"))]
         ResolvedBackend::Gpu(ctx) => match **ctx {},
     }
+}
+
+/// Per epoch, whether one of the settings' ground stations sees the centre of `fine` (on the
+/// sphere) above its mask, and the stations described; `None` without stations. One flag serves
+/// the whole grid: across a polar DEM (≤ 500 km) the parallax moves a station's elevation of the
+/// site by < 0.05°.
+fn station_flags(
+    map: &MapSettings,
+    fine: &crate::terrain::Dem,
+    kernels: &Kernels,
+    epochs: &[hifitime::Epoch],
+) -> anyhow::Result<Option<(Vec<bool>, String)>> {
+    let Some(stations) = map.stations.resolve(map.station_mask_deg)? else {
+        return Ok(None);
+    };
+    let g = fine.grid;
+    let (cx, cy) = g.xy_from_row_col((g.rows as f64 - 1.0) / 2.0, (g.cols as f64 - 1.0) / 2.0);
+    let (lat, lon) = fine.projection.lat_lon_from_xy(cx, cy);
+    let site = crate::ephem::Site::new(lat, lon, 0.0)?;
+    let table = crate::ephem::moon_geometry_table(kernels, epochs)?;
+    let at = crate::comms::stations_table(&stations, &table);
+    let mut el = vec![0.0; stations.len()];
+    let flags = table
+        .iter()
+        .zip(&at)
+        .map(|(geo, a)| {
+            crate::comms::site_elevations_deg(geo, a, &site.pos_in_moon_me_km, &mut el);
+            crate::comms::best_station(&stations, &el)
+                .is_some_and(|(i, e)| e >= stations[i].mask_deg())
+        })
+        .collect();
+    let described = stations
+        .iter()
+        .map(|s| format!("{} ({:.0} deg mask)", s.name(), s.mask_deg()))
+        .collect::<Vec<_>>()
+        .join(", ");
+    Ok(Some((flags, described)))
 }

@@ -5,6 +5,7 @@
 //! - [`time`]: UTC parsing, steps and epoch ranges.
 //! - [`topo`]: the SPICE-exact topocentric computation (light time + stellar aberration).
 
+pub mod earth;
 pub mod embedded;
 pub mod kernels;
 pub mod metakernel;

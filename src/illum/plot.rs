@@ -268,6 +268,87 @@ fn render_fraction_plot_png(
     })
 }
 
+/// One row of a [`write_windows_plot`]: a label, a flag per sample and a colour (RGB).
+#[derive(Debug, Clone, Copy)]
+pub struct WindowRow<'a> {
+    /// The row's label, e.g. `"DTE"`.
+    pub label: &'a str,
+    /// The condition per sample (same time grid as the plot's).
+    pub on: &'a [bool],
+    /// Bar colour, RGB.
+    pub rgb: (u8, u8, u8),
+}
+
+/// A timeline of windows: each row's runs of `true` samples as bars (a sample covers one step
+/// from its epoch), rows top to bottom in the order given. Used for the link to Earth beside
+/// sunlight (`dte_windows.png`).
+pub fn write_windows_plot(
+    path: &Path,
+    title: &str,
+    start_utc: Epoch,
+    step_s: f64,
+    rows: &[WindowRow<'_>],
+    size_px: (u32, u32),
+) -> Result<(), IllumError> {
+    const WHAT: &str = "windows plot";
+    let n = rows.first().map_or(0, |r| r.on.len());
+    if n == 0 || rows.iter().any(|r| r.on.len() != n) {
+        return Err(IllumError::EmptySeries {
+            site: title.to_string(),
+        });
+    }
+    let span_s = n as f64 * step_s;
+    let (unit_s, _) = time_unit(span_s);
+    let x_of = |k: usize| k as f64 * step_s / unit_s;
+    let m = rows.len() as f64;
+    let png = render_png(WHAT, size_px, |root| {
+        let mut chart = rect_chart(root, title, 0.0..span_s / unit_s, 0.0..m, WHAT)?;
+        chart
+            .configure_mesh()
+            .x_desc("date (UTC)")
+            .x_label_formatter(&|x| date_label(start_utc, *x, unit_s))
+            .x_labels(8)
+            .y_labels(2 * rows.len() + 1)
+            .y_label_formatter(&|y| {
+                // Ticks every half row: a row's label at its middle (rows from the top).
+                let i = (m - y - 0.5).round();
+                if ((m - y - 0.5) - i).abs() < 1e-6 && i >= 0.0 {
+                    rows.get(i as usize)
+                        .map_or(String::new(), |r| r.label.to_string())
+                } else {
+                    String::new()
+                }
+            })
+            .disable_y_mesh()
+            .label_style(("sans-serif", 15))
+            .axis_desc_style(("sans-serif", 17))
+            .draw()
+            .map_err(plot_err(WHAT))?;
+        for (i, row) in rows.iter().enumerate() {
+            let y0 = m - i as f64 - 0.85;
+            let y1 = m - i as f64 - 0.15;
+            let color = RGBColor(row.rgb.0, row.rgb.1, row.rgb.2).filled();
+            let mut bars = Vec::new();
+            let mut k = 0;
+            while k < n {
+                if row.on[k] {
+                    let a = k;
+                    while k < n && row.on[k] {
+                        k += 1;
+                    }
+                    bars.push(Rectangle::new([(x_of(a), y0), (x_of(k), y1)], color));
+                } else {
+                    k += 1;
+                }
+            }
+            chart.draw_series(bars).map_err(plot_err(WHAT))?;
+        }
+        Ok(())
+    })?;
+    crate::output::write_bytes_atomic(path, &png)?;
+    Ok(())
+}
+
 /// Monthly bars: mean visible % of the Sun and the Earth (top), longest darkness (bottom).
 fn render_monthly_png(
     title: &str,

@@ -205,6 +205,136 @@ pub struct SiteStats {
     pub longest_earth_hidden_end_utc: Option<String>,
     /// % of time both the Sun and the Earth are (at least partly) visible.
     pub sun_and_earth_pct: f64,
+    /// The link to Earth through ground stations (absent when the run has no stations).
+    #[serde(default, flatten, skip_serializing_if = "Option::is_none")]
+    pub link: Option<LinkStats>,
+    /// The relays (absent when the run has none).
+    #[serde(default, flatten, skip_serializing_if = "Option::is_none")]
+    pub relay: Option<RelayStats>,
+}
+
+/// Statistics of a site's relays: a relay visible (above the terrain horizon, within range),
+/// and any link (DTE or a relay).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RelayStats {
+    /// % of time a relay is visible.
+    pub relay_pct: f64,
+    /// Longest time without a visible relay, hours.
+    pub longest_relay_blackout_h: f64,
+    /// Number of relay windows.
+    pub relay_windows: usize,
+    /// % of time with a link: DTE or a relay (the relays alone without stations).
+    pub link_pct: f64,
+    /// Longest time without any link, hours.
+    pub longest_link_blackout_h: f64,
+}
+
+/// Relay statistics of `series` (its time grid): `relay[k]` a relay visible, `dte[k]` DTE (if the
+/// run has stations).
+pub fn relay_stats(
+    series: &SiteSeries<'_>,
+    relay: &[bool],
+    dte: Option<&[bool]>,
+) -> Result<RelayStats, IllumError> {
+    series.validate()?;
+    let n = series.sun_fraction.len();
+    if relay.len() != n || dte.is_some_and(|d| d.len() != n) {
+        return Err(IllumError::LengthMismatch {
+            site: series.site.to_string(),
+            what: "relay",
+            got: relay.len(),
+            expected: n,
+        });
+    }
+    let link = |k: usize| relay[k] || dte.is_some_and(|d| d[k]);
+    Ok(RelayStats {
+        relay_pct: pct(n, |k| relay[k]),
+        longest_relay_blackout_h: window(series, longest_run(n, |k| !relay[k])).0,
+        relay_windows: (0..n)
+            .filter(|&k| relay[k] && (k == 0 || !relay[k - 1]))
+            .count(),
+        link_pct: pct(n, link),
+        longest_link_blackout_h: window(series, longest_run(n, |k| !link(k))).0,
+    })
+}
+
+/// A site's link to Earth per sample (`crate::comms`): DTE, a station sees the site, the Earth's
+/// centre is above the terrain horizon.
+#[derive(Debug, Clone, Copy)]
+pub struct LinkSeries<'a> {
+    /// Direct-to-Earth: the Earth's centre above the terrain horizon and a station above its mask.
+    pub dte: &'a [bool],
+    /// A station sees the site above its mask.
+    pub station: &'a [bool],
+    /// The Earth's centre is above the terrain horizon.
+    pub earth_centre: &'a [bool],
+}
+
+/// Statistics of a site's link to Earth (see [`LinkSeries`]); weighting as for the rest.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct LinkStats {
+    /// % of time with DTE.
+    pub dte_pct: f64,
+    /// Longest time without DTE, hours.
+    pub longest_dte_blackout_h: f64,
+    /// Start of the longest blackout (UTC).
+    pub longest_dte_blackout_start_utc: Option<String>,
+    /// End of the longest blackout (UTC).
+    pub longest_dte_blackout_end_utc: Option<String>,
+    /// Number of DTE windows (runs of consecutive samples with DTE).
+    pub dte_windows: usize,
+    /// Mean length of a DTE window, hours (0 without windows).
+    pub mean_dte_window_h: f64,
+    /// % of time a station sees the site above its mask (the terrain ignored).
+    pub station_pct: f64,
+    /// % of time the Earth's centre is above the terrain horizon (stations ignored).
+    pub earth_centre_visible_pct: f64,
+    /// % of time with DTE while (part of) the Sun is visible.
+    pub sun_and_dte_pct: f64,
+}
+
+/// Link statistics of `series` (its Sun fractions and time grid) with `link`.
+pub fn link_stats(series: &SiteSeries<'_>, link: &LinkSeries<'_>) -> Result<LinkStats, IllumError> {
+    series.validate()?;
+    let n = series.sun_fraction.len();
+    for (what, v) in [
+        ("dte", link.dte),
+        ("station", link.station),
+        ("earth_centre", link.earth_centre),
+    ] {
+        if v.len() != n {
+            return Err(IllumError::LengthMismatch {
+                site: series.site.to_string(),
+                what,
+                got: v.len(),
+                expected: n,
+            });
+        }
+    }
+    let dte = link.dte;
+    let (longest_dte_blackout_h, longest_dte_blackout_start_utc, longest_dte_blackout_end_utc) =
+        window(series, longest_run(n, |k| !dte[k]));
+    let windows = (0..n)
+        .filter(|&k| dte[k] && (k == 0 || !dte[k - 1]))
+        .count();
+    let dte_samples = dte.iter().filter(|&&d| d).count();
+    Ok(LinkStats {
+        dte_pct: pct(n, |k| dte[k]),
+        longest_dte_blackout_h,
+        longest_dte_blackout_start_utc,
+        longest_dte_blackout_end_utc,
+        dte_windows: windows,
+        mean_dte_window_h: if windows == 0 {
+            0.0
+        } else {
+            dte_samples as f64 * series.step_s / 3600.0 / windows as f64
+        },
+        station_pct: pct(n, |k| link.station[k]),
+        earth_centre_visible_pct: pct(n, |k| link.earth_centre[k]),
+        sun_and_dte_pct: pct(n, |k| {
+            dte[k] && series.sun_fraction[k] > VISIBLE_MIN_FRACTION
+        }),
+    })
 }
 
 /// Statistics of one site's series.
@@ -256,6 +386,8 @@ fn site_stats(series: &SiteSeries<'_>) -> Result<SiteStats, IllumError> {
         longest_earth_hidden_start_utc,
         longest_earth_hidden_end_utc,
         sun_and_earth_pct: pct(n, |k| sun_vis(k) && earth_vis(k)),
+        link: None,
+        relay: None,
     })
 }
 

@@ -56,6 +56,20 @@ pub struct HorizonExtras {
     pub irradiance_tracking_mean_w_m2: Vec<f32>,
     /// Limb-darkening law of the Sun's mean fraction, for the file descriptions.
     pub limb_law: String,
+    /// Direct-to-Earth statistics, with ground stations.
+    pub dte: Option<DteCounts>,
+}
+
+/// Direct-to-Earth per pixel: any part of the Earth above the terrain horizon while a ground
+/// station sees the DEM above its mask.
+#[derive(Debug, Clone)]
+pub struct DteCounts {
+    /// Epochs with direct-to-Earth.
+    pub dte_count: Vec<u32>,
+    /// Longest run of consecutive epochs without.
+    pub longest_dte_blackout_epochs: Vec<u32>,
+    /// The stations, described.
+    pub stations: String,
 }
 
 impl RangeStats {
@@ -76,6 +90,11 @@ impl RangeStats {
                 irradiance_horizontal_mean_w_m2: mean(&h.irradiance_horizontal_sum_w_m2),
                 irradiance_tracking_mean_w_m2: mean(&h.irradiance_tracking_sum_w_m2),
                 limb_law: limb_law.to_string(),
+                dte: h.link.map(|stations| DteCounts {
+                    dte_count: h.dte_count,
+                    longest_dte_blackout_epochs: h.longest_dte_blackout_epochs,
+                    stations,
+                }),
             }),
             sun_fraction_sum: h.sun_fraction_sum,
             sun_visible_count: h.sun_visible_count,

@@ -206,6 +206,31 @@ pub fn range_rasters(
                 "W/m²".into(),
             ),
         ]);
+        if let Some(d) = &e.dte {
+            outputs.extend([
+                (
+                    "dte_pct",
+                    format!(
+                        "direct-to-Earth (any part of the Earth above the terrain horizon and a \
+                         station above its mask; {}), % of time",
+                        d.stations
+                    ),
+                    pct(&d.dte_count),
+                    100.0,
+                    "% of time".into(),
+                ),
+                (
+                    "longest_dte_blackout_h",
+                    format!(
+                        "longest continuous run without direct-to-Earth ({}), hours",
+                        d.stations
+                    ),
+                    hours(&d.longest_dte_blackout_epochs),
+                    span_h,
+                    "hours".into(),
+                ),
+            ]);
+        }
     }
 
     let rasters: Vec<RangeRaster> = outputs

@@ -203,6 +203,10 @@ pub struct Provenance {
     /// a series ran.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub series_backend: Option<String>,
+    /// The ground stations of the link to Earth (name, geodetic position, mask, source), when
+    /// the run has any.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ground_stations: Option<serde_json::Value>,
     /// Files written, relative to the output folder.
     pub outputs: Vec<String>,
     /// Map products: lit cells (or cell-epochs of a sweep) whose ray toward the Sun leaves the
@@ -285,6 +289,7 @@ impl Provenance {
             backend: "cpu".into(),
             series_engine: None,
             series_backend: None,
+            ground_stations: None,
             outputs: Vec::new(),
             map_rays_blocked_beyond_dem: None,
             wall_time_s: 0.0,

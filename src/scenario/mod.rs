@@ -117,6 +117,22 @@ pub struct MapSpec {
     /// engine without a GPU kernel runs on the CPU.
     #[serde(default = "default_map_backend")]
     pub backend: String,
+    /// Ground stations of the direct-to-Earth maps (`dte_pct`, `longest_dte_blackout_h`):
+    /// `none` (default), `dsn` or a CSV file relative to this file, as `penumbra map --stations`
+    /// (the horizons engine).
+    #[serde(default = "default_map_stations")]
+    pub stations: crate::comms::Stations,
+    /// Elevation mask of the DSN stations and of file rows without their own, degrees (10).
+    #[serde(default = "default_station_mask_deg")]
+    pub station_mask_deg: f64,
+}
+
+fn default_map_stations() -> crate::comms::Stations {
+    crate::comms::Stations::None
+}
+
+fn default_station_mask_deg() -> f64 {
+    crate::comms::DEFAULT_MASK_DEG
 }
 
 fn default_map_backend() -> String {
@@ -264,6 +280,20 @@ impl Scenario {
                 ground_height_m: None,
             }));
         }
+        let base = path.parent().unwrap_or(Path::new("."));
+        if let Some(series) = &mut scenario.series {
+            if let crate::comms::Stations::File(f) = &series.stations {
+                series.stations = crate::comms::Stations::File(base.join(f));
+            }
+            for p in &mut series.relay_spks {
+                *p = base.join(&*p);
+            }
+        }
+        if let Some(map) = &mut scenario.map
+            && let crate::comms::Stations::File(f) = &map.stations
+        {
+            map.stations = crate::comms::Stations::File(base.join(f));
+        }
         scenario.validate(path)?;
         Ok(scenario)
     }
@@ -275,6 +305,16 @@ impl Scenario {
         };
         if self.sites.is_empty() {
             return Err(invalid("no [[sites]] and no sites_file given".into()));
+        }
+        if let Some(s) = &self.series {
+            s.stations
+                .resolve(s.station_mask_deg)
+                .map_err(|e| invalid(format!("[series] stations: {e}")))?;
+        }
+        if let Some(m) = &self.map {
+            m.stations
+                .resolve(m.station_mask_deg)
+                .map_err(|e| invalid(format!("[map] stations: {e}")))?;
         }
         self.sites()
             .map_err(|e| invalid(crate::products::one_line(&e)))?;

@@ -77,6 +77,7 @@ pub fn run_file(args: &RunRequest) -> anyhow::Result<()> {
             prov.series_engine = Some(config.engine.name().into());
             backends.push(format!("series: {note}"));
             prov.series_backend = Some(note.to_string());
+            prov.ground_stations = crate::products::series::link_record(config)?;
         }
         (None, _) | (_, None) if cp.is_done("ephem") => {
             prov.outputs.extend(cp.part("ephem").expect("done").0);
@@ -90,7 +91,7 @@ pub fn run_file(args: &RunRequest) -> anyhow::Result<()> {
                 range.step_s(),
                 &crate::products::series::SeriesConfig {
                     abcorr: scenario.abcorr,
-                    ..*config
+                    ..config.clone()
                 },
                 &out_dir,
             )?;
@@ -100,6 +101,7 @@ pub fn run_file(args: &RunRequest) -> anyhow::Result<()> {
             prov.series_engine = Some(config.engine.name().into());
             backends.push(format!("series: {}", run.backend));
             prov.series_backend = Some(run.backend);
+            prov.ground_stations = run.stations;
         }
         _ => {
             let sites: Vec<Site> = scenario
@@ -381,6 +383,8 @@ fn run_map_spec(
             },
         },
         limb: spec.limb_darkening,
+        stations: spec.stations.clone(),
+        station_mask_deg: spec.station_mask_deg,
     };
     let hooks = RangeHooks {
         report: &mut |_, _| true,

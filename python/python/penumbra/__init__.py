@@ -35,6 +35,7 @@ from ._penumbra import (
     render,
     run_scenario,
     series,
+    station_elevations,
     time_range,
     write_geotiff,
 )
@@ -52,6 +53,7 @@ __all__ = [
     "render",
     "run_scenario",
     "series",
+    "station_elevations",
     "time_range",
     "to_pandas",
     "write_geotiff",

@@ -43,6 +43,13 @@ def ephem(
     kernels: Optional[Path] = None,
     abcorr: str = "lt+s",
 ) -> Dict[str, npt.NDArray[Any]]: ...
+def station_elevations(
+    site: Tuple[float, float, float],
+    times: Times,
+    stations: str = "dsn",
+    station_mask_deg: float = 10.0,
+    kernels: Optional[Path] = None,
+) -> Dict[str, npt.NDArray[Any]]: ...
 def horizon(
     terrain: Terrain,
     lat_deg: float,
@@ -61,6 +68,11 @@ def series(
     disc_method: str = "exact",
     az_step_deg: float = 0.25,
     horizon_method: str = "fast",
+    stations: str = "dsn",
+    station_mask_deg: float = 10.0,
+    relays: Sequence[str] = (),
+    relay_spks: Sequence[Path] = (),
+    relay_max_range_km: Optional[float] = None,
     progress: Optional[Progress] = None,
 ) -> Tuple[Dict[str, npt.NDArray[Any]], Dict[str, Any]]: ...
 def map_statistics(
@@ -74,6 +86,9 @@ def map_statistics(
     azimuths: int = 720,
     max_step: int = 16,
     limb_darkening: str = "eddington",
+    stations: str = "none",
+    station_mask_deg: float = 10.0,
+    progress: Optional[Progress] = None,
 ) -> Dict[str, Any]: ...
 def map_light(
     terrain: Terrain,
@@ -101,6 +116,8 @@ def map_shard(
     azimuths: int = 720,
     max_step: int = 16,
     limb_darkening: str = "eddington",
+    stations: str = "none",
+    station_mask_deg: float = 10.0,
     resume: bool = False,
 ) -> Dict[str, Any]: ...
 def merge_shards(out_dir: Path, shard_dirs: Sequence[Path]) -> None: ...

@@ -37,7 +37,7 @@ impl BlockStore for crate::output::checkpoint::Checkpoint {
     }
 }
 
-const MAGIC: &[u8; 8] = b"PNBSTAT1";
+const MAGIC: &[u8; 8] = b"PNBSTAT2";
 
 impl HorizonStatistics {
     /// Statistics of `n_px` pixels, all nodata, over `epochs` epochs.
@@ -52,6 +52,9 @@ impl HorizonStatistics {
             earth_visible_count: vec![0; n_px],
             longest_earth_hidden_epochs: vec![0; n_px],
             sun_and_earth_count: vec![0; n_px],
+            dte_count: vec![0; n_px],
+            longest_dte_blackout_epochs: vec![0; n_px],
+            link: None,
             irradiance_horizontal_sum_w_m2: vec![0.0; n_px],
             irradiance_tracking_sum_w_m2: vec![0.0; n_px],
             below_sphere: BelowSphereExits::default(),
@@ -88,6 +91,8 @@ impl HorizonStatistics {
             &self.earth_visible_count,
             &self.longest_earth_hidden_epochs,
             &self.sun_and_earth_count,
+            &self.dte_count,
+            &self.longest_dte_blackout_epochs,
         ] {
             a[r.clone()].iter().for_each(|v| b.extend(v.to_le_bytes()));
         }
@@ -110,7 +115,7 @@ impl HorizonStatistics {
         bytes: &[u8],
     ) -> bool {
         let header = 8 + 5 * 8;
-        if bytes.len() != header + n_px * (1 + 3 * 8 + 6 * 4) || &bytes[..8] != MAGIC {
+        if bytes.len() != header + n_px * (1 + 3 * 8 + 8 * 4) || &bytes[..8] != MAGIC {
             return false;
         }
         let word = |i: usize| {
@@ -144,6 +149,8 @@ impl HorizonStatistics {
             &mut self.earth_visible_count,
             &mut self.longest_earth_hidden_epochs,
             &mut self.sun_and_earth_count,
+            &mut self.dte_count,
+            &mut self.longest_dte_blackout_epochs,
         ] {
             read_le(bytes, &mut at, &mut a[px.clone()], u32::from_le_bytes);
         }

@@ -53,6 +53,9 @@ pub(super) struct Epochs {
     /// The bodies in the grid centre's frame, for the shared sector classification.
     pub sun_sectors: BodySectors,
     pub earth_sectors: BodySectors,
+    /// Per block of [`BLOCK`] epochs from the first, bit `j`: a station sees the DEM at epoch
+    /// `j` of the block (direct-to-Earth statistics); empty without a link.
+    pub link_bits: Vec<u32>,
 }
 
 impl Epochs {
@@ -111,6 +114,9 @@ pub(super) struct CellAcc {
     pub dark_max: u32,
     pub earth_hidden_run: u32,
     pub earth_hidden_max: u32,
+    pub dte: u32,
+    pub dte_off_run: u32,
+    pub dte_off_max: u32,
     pub below_sphere: u32,
 }
 
@@ -568,6 +574,8 @@ fn run_cells(task: RunCells<'_>) {
         block_range(&epochs.sun_sectors, range.start / BLOCK, n_blocks),
         block_range(&epochs.earth_sectors, range.start / BLOCK, n_blocks),
     ];
+    let link = (!epochs.link_bits.is_empty())
+        .then(|| &epochs.link_bits[range.start / BLOCK..range.start / BLOCK + n_blocks]);
     // Per body and block: decided whole (full or visible: true; dark: false), or epoch by epoch.
     let mut decided = [[None::<bool>; CHUNK / BLOCK]; 2];
     for (i, ((cell, h), a)) in cells
@@ -722,6 +730,10 @@ fn run_cells(task: RunCells<'_>) {
                     &mut s.earth_hidden_max,
                 );
                 s.sun_and_earth += len * u32::from(sun_up && earth_up);
+                if let Some(l) = link {
+                    let up = if earth_up { l[k] } else { 0 };
+                    count_mask(up, len, &mut s.dte, &mut s.dte_off_run, &mut s.dte_off_max);
+                }
                 continue;
             }
             // Epoch by epoch: the sums in time order, the rest as bit masks of the block's
@@ -756,6 +768,15 @@ fn run_cells(task: RunCells<'_>) {
                 &mut s.earth_hidden_max,
             );
             s.sun_and_earth += (sun_up & earth_up).count_ones();
+            if let Some(l) = link {
+                count_mask(
+                    earth_up & l[k],
+                    len,
+                    &mut s.dte,
+                    &mut s.dte_off_run,
+                    &mut s.dte_off_max,
+                );
+            }
             // Lit from below the local horizontal, and below the observer's geometric horizon
             // on the sphere (its sine, with room for f32): the ray may meet the sphere.
             let mut maybe_below = sun_up & low;

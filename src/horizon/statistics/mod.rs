@@ -125,6 +125,13 @@ pub struct HorizonStatistics {
     pub longest_earth_hidden_epochs: Vec<u32>,
     /// Epochs with both (partly) visible.
     pub sun_and_earth_count: Vec<u32>,
+    /// Epochs with direct-to-Earth: any part of the Earth visible while a station sees the DEM
+    /// ([`StatisticsEngine::with_link`]; all 0 without).
+    pub dte_count: Vec<u32>,
+    /// Longest run of consecutive epochs without direct-to-Earth (all 0 without a link).
+    pub longest_dte_blackout_epochs: Vec<u32>,
+    /// The stations of the direct-to-Earth statistics, described (`None` without a link).
+    pub link: Option<String>,
     /// Sum over the epochs of the irradiance on a level surface, W/m².
     pub irradiance_horizontal_sum_w_m2: Vec<f64>,
     /// Sum over the epochs of the irradiance on a vertical panel facing the Sun's azimuth, W/m².
@@ -375,6 +382,9 @@ pub struct StatisticsEngine<'a> {
     /// The farthest corner of any layer from the map origin, map metres (for
     /// [`Self::min_exit_angle_rad`]).
     layers_reach_m: f64,
+    /// Per epoch: a ground station sees the DEM, and the stations described
+    /// ([`Self::with_link`]).
+    link: Option<(Vec<bool>, String)>,
 }
 
 impl<'a> StatisticsEngine<'a> {
@@ -397,7 +407,17 @@ impl<'a> StatisticsEngine<'a> {
             sector_tables: true,
             block_decisions: true,
             layers_reach_m,
+            link: None,
         })
+    }
+
+    /// Adds the direct-to-Earth statistics: `station_sees_dem[k]` tells whether a ground station
+    /// sees the DEM above its mask at epoch `k` (one flag per epoch for the whole grid, from the
+    /// grid centre: the parallax across a polar DEM moves a station's elevation by < 0.03°).
+    /// DTE at a pixel and epoch: any part of the Earth visible and the flag. The CPU only.
+    pub fn with_link(mut self, station_sees_dem: Vec<bool>, stations: String) -> Self {
+        self.link = Some((station_sees_dem, stations));
+        self
     }
 
     fn fine(&self) -> &'a Dem {
@@ -518,6 +538,26 @@ impl<'a> StatisticsEngine<'a> {
                 .push((SOLAR_CONSTANT_W_M2 * scale * scale) as f32);
             soa.earth_radius_deg.push(e.earth_radius_deg as f32);
         }
+        if let Some((link, _)) = &self.link {
+            if link.len() != epochs.len() {
+                return Err(HorizonError::SweepUnsupported {
+                    reason: format!("{} station flags for {} epochs", link.len(), epochs.len()),
+                });
+            }
+            if kernel.is_some() {
+                return Err(HorizonError::SweepUnsupported {
+                    reason: "direct-to-Earth statistics on the GPU kernel".into(),
+                });
+            }
+            soa.link_bits = link
+                .chunks(sectors::BLOCK)
+                .map(|c| {
+                    c.iter()
+                        .enumerate()
+                        .fold(0u32, |m, (j, &f)| m | (u32::from(f) << j))
+                })
+                .collect();
+        }
         // The bodies' paths over every epoch, from the grid centre.
         let (reference, reach_m) = {
             let projector = UnitProjector::new(&fine.projection);
@@ -600,6 +640,7 @@ impl<'a> StatisticsEngine<'a> {
         }
 
         let mut out = HorizonStatistics::empty(n_px, epochs.len());
+        out.link = self.link.as_ref().map(|l| l.1.clone());
         let arch = pulp::Arch::new();
         // At least MIN_BLOCKS blocks: the units a killed run keeps.
         let rows_per_block = (BLOCK_BYTES / (2 * n * g.cols).max(1))
@@ -731,6 +772,8 @@ impl<'a> StatisticsEngine<'a> {
                 out.earth_visible_count[px] = a.earth_visible;
                 out.longest_earth_hidden_epochs[px] = a.earth_hidden_max;
                 out.sun_and_earth_count[px] = a.sun_and_earth;
+                out.dte_count[px] = a.dte;
+                out.longest_dte_blackout_epochs[px] = a.dte_off_max;
                 out.irradiance_horizontal_sum_w_m2[px] = a.irradiance_horizontal_sum;
                 out.irradiance_tracking_sum_w_m2[px] = a.irradiance_tracking_sum;
                 if a.below_sphere > 0 {
@@ -844,6 +887,10 @@ impl<'a> StatisticsEngine<'a> {
                     dark_max: a.dark_max,
                     earth_hidden_run: a.earth_hidden_run,
                     earth_hidden_max: a.earth_hidden_max,
+                    // The GPU kernel has no link (`run_rows_on` refuses the pair).
+                    dte: 0,
+                    dte_off_run: 0,
+                    dte_off_max: 0,
                     below_sphere,
                 };
                 (px, acc)

@@ -73,6 +73,16 @@ pub(super) fn range_job(
                 &span_text(&epoch_list),
             )?;
             prov.backend = result.note;
+            if let Some(stations) = req
+                .settings
+                .stations
+                .resolve(req.settings.station_mask_deg)?
+            {
+                prov.ground_stations = Some(crate::comms::stations_record(
+                    &req.settings.stations,
+                    &stations,
+                ));
+            }
             prov.map_rays_blocked_beyond_dem = result.stats.below_sphere;
             if let Some(b) = result.stats.below_sphere {
                 b.warn();

@@ -116,6 +116,9 @@ pub struct ShardManifest {
     pub span: String,
     /// The Sun's limb darkening law.
     pub limb_law: String,
+    /// The ground stations of the direct-to-Earth maps, described (absent without).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub link: Option<String>,
     /// What ran (the run.json `backend`).
     pub backend: String,
     /// The kernel files with sizes and sha256 (as in run.json).
@@ -276,6 +279,7 @@ pub fn write_partial(
         step_h: run.step_h,
         span: run.span.clone(),
         limb_law: run.limb_law.clone(),
+        link: stats.link.clone(),
         backend: p.backend.clone(),
         kernels: serde_json::to_value(&p.kernels)?,
         dem_layers: p.dem_layers.clone(),
@@ -508,6 +512,7 @@ pub fn merge(out_dir: &Path, dirs: &[PathBuf]) -> anyhow::Result<()> {
         }
     }
     stats.below_sphere.cells_total = stats.nodata.iter().filter(|&&nd| !nd).count() as u64;
+    stats.link = first.link.clone();
     let below = stats.below_sphere;
     // The finest layer as the writers see it: its grid, projection and nodata.
     let dem = Dem {

@@ -31,7 +31,7 @@ impl SeriesEngine {
 }
 
 /// Settings of a series run.
-#[derive(Debug, Clone, Copy, Serialize, Deserialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct SeriesConfig {
     /// Aberration correction of the ephemeris.
@@ -56,6 +56,17 @@ pub struct SeriesConfig {
     /// scan, sampled like the exact method; `horizon_method` is then ignored). See docs/gpu.md.
     #[serde(with = "backend_serde")]
     pub backend: crate::gpu::Backend,
+    /// Ground stations of the link to Earth: `dsn` (default), `none` or a CSV file
+    /// ([`crate::comms::Stations`]).
+    pub stations: crate::comms::Stations,
+    /// Elevation mask of the DSN stations and of file rows without their own, degrees.
+    pub station_mask_deg: f64,
+    /// Relays (`NAME=NAIF_ID`) as link targets, from `relay_spks` ([`crate::comms::Relay`]).
+    pub relays: Vec<crate::comms::Relay>,
+    /// The SPK files that hold the relays.
+    pub relay_spks: Vec<std::path::PathBuf>,
+    /// Slant-range limit of a relay link, km (none by default).
+    pub relay_max_range_km: Option<f64>,
 }
 
 mod backend_serde {
@@ -112,6 +123,11 @@ impl Default for SeriesConfig {
             write_csv: true,
             engine: SeriesEngine::Horizon,
             backend: crate::gpu::Backend::Auto,
+            stations: crate::comms::Stations::Dsn,
+            station_mask_deg: crate::comms::DEFAULT_MASK_DEG,
+            relays: Vec::new(),
+            relay_spks: Vec::new(),
+            relay_max_range_km: None,
         }
     }
 }

@@ -13,8 +13,9 @@ use crate::model::{Epochs, Site};
 
 pub use config::{SeriesConfig, SeriesEngine};
 pub use pipeline::{
-    LONG_TABLE, LONG_TABLE_SITE_COLUMNS, SERIES_CSV_HEADER, SeriesRow, SeriesRun, SiteFractions,
-    SiteOutcome, row_values, run_series, site_fractions, site_location,
+    LINK_CSV_COLUMNS, LONG_TABLE, LONG_TABLE_SITE_COLUMNS, LinkContext, LinkScratch,
+    RELAY_CSV_COLUMNS, SERIES_CSV_HEADER, SeriesRow, SeriesRun, SiteFractions, SiteOutcome,
+    link_record, row_values, run_series, site_fractions, site_location,
 };
 
 /// What `penumbra series` computes.
@@ -62,6 +63,7 @@ pub fn run(req: &SeriesRequest) -> anyhow::Result<()> {
     prov.outputs = run.files;
     prov.series_engine = Some(req.config.engine.name().into());
     prov.series_backend = Some(run.backend);
+    prov.ground_stations = run.stations;
     prov.wall_time_s = t0.elapsed().as_secs_f64();
     prov.write(&req.out_dir.join("run.json"))?;
     crate::note!(

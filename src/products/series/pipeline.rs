@@ -25,6 +25,7 @@ use anyhow::Context as _;
 use hifitime::Epoch;
 use rayon::prelude::*;
 
+use crate::comms::{self, LinkSample, Station};
 use crate::ephem::{self, Kernels, MoonGeometry, time::format_iso};
 use crate::horizon::Horizon;
 use crate::illum::stats::{SiteSeries, StatsFile};
@@ -37,6 +38,16 @@ use super::{SeriesConfig, SeriesEngine};
 /// The CSV header of a site's `series.csv`.
 pub const SERIES_CSV_HEADER: &str = "utc,sun_az_deg,sun_el_deg,sun_horizon_el_deg,sun_visible_fraction,sun_irradiance_normal_w_m2,sun_irradiance_horizontal_w_m2,sun_irradiance_vertical_tracking_w_m2,earth_az_deg,earth_el_deg,earth_horizon_el_deg,earth_visible_fraction";
 
+/// The columns a run with ground stations adds to `series.csv` ([`crate::comms`]): `dte` (1 when
+/// the Earth's centre is above the terrain horizon and a station sees the site above its mask),
+/// the best station's elevation of the site and its name.
+pub const LINK_CSV_COLUMNS: &str = "dte,station_el_deg,station";
+
+/// The columns a run with relays adds to `series.csv` ([`crate::comms::RelayTable`]):
+/// `relay_visible` (1 when a relay is above the terrain horizon and within the range limit), the
+/// best relay's elevation above the local horizontal and its name.
+pub const RELAY_CSV_COLUMNS: &str = "relay_visible,relay_el_deg,relay";
+
 /// One site's results kept after its files are written.
 #[derive(Debug, Clone)]
 pub struct SiteOutcome {
@@ -48,6 +59,10 @@ pub struct SiteOutcome {
     pub sun_fraction: Vec<f64>,
     /// Visible fraction of the Earth per epoch.
     pub earth_fraction: Vec<f64>,
+    /// Statistics of the link to Earth (`None` without stations).
+    pub link: Option<illum::stats::LinkStats>,
+    /// Statistics of the relays (`None` without).
+    pub relay: Option<illum::stats::RelayStats>,
     /// Files written, relative to the output folder.
     pub files: Vec<String>,
 }
@@ -233,9 +248,14 @@ pub fn row_values(r: &SeriesRow) -> [f64; 11] {
     ]
 }
 
-fn write_row(w: &mut dyn Write, epoch: Epoch, r: &SeriesRow) -> std::io::Result<()> {
+fn write_row(
+    w: &mut dyn Write,
+    epoch: Epoch,
+    r: &SeriesRow,
+    link: Option<(&LinkSample, &LinkContext)>,
+) -> std::io::Result<()> {
     let v = row_values(r);
-    writeln!(
+    write!(
         w,
         "{},{:.6},{:.6},{:.6},{:.6},{:.3},{:.3},{:.3},{:.6},{:.6},{:.6},{:.6}",
         format_iso(epoch),
@@ -250,7 +270,209 @@ fn write_row(w: &mut dyn Write, epoch: Epoch, r: &SeriesRow) -> std::io::Result<
         v[8],
         v[9],
         v[10]
-    )
+    )?;
+    if let Some((l, ctx)) = link {
+        write!(w, "{}", ctx.csv_fields(l))?;
+    }
+    writeln!(w)
+}
+
+/// What every site's link shares: the ground stations and their positions at every epoch of a
+/// run's ephemeris table, and the relays' tracks. The command line, scenarios and Python use it
+/// alike.
+pub struct LinkContext {
+    stations: Vec<Station>,
+    at: Vec<comms::StationsAt>,
+    relays: Option<comms::RelayTable>,
+}
+
+impl LinkContext {
+    /// The link context of `config`'s stations and relays over `table`'s epochs; `None` with
+    /// neither.
+    pub fn new(
+        kernels: &Kernels,
+        config: &SeriesConfig,
+        table: &[MoonGeometry],
+    ) -> anyhow::Result<Option<Self>> {
+        let stations = config.stations.resolve(config.station_mask_deg)?;
+        let relays = if config.relays.is_empty() {
+            if !config.relay_spks.is_empty() {
+                anyhow::bail!(
+                    "relay SPK given without a relay: name the body with --relay NAME=NAIF_ID"
+                );
+            }
+            None
+        } else {
+            Some(comms::RelayTable::new(
+                kernels,
+                &config.relay_spks,
+                &config.relays,
+                config.relay_max_range_km,
+                table,
+            )?)
+        };
+        if stations.is_none() && relays.is_none() {
+            return Ok(None);
+        }
+        let stations = stations.unwrap_or_default();
+        Ok(Some(LinkContext {
+            at: if stations.is_empty() {
+                Vec::new()
+            } else {
+                comms::stations_table(&stations, table)
+            },
+            stations,
+            relays,
+        }))
+    }
+
+    /// The stations (empty when only relays were asked for).
+    pub fn stations(&self) -> &[Station] {
+        &self.stations
+    }
+
+    /// Whether the run has ground stations (DTE columns and statistics).
+    pub fn has_stations(&self) -> bool {
+        !self.stations.is_empty()
+    }
+
+    /// The relays (empty without).
+    pub fn relays(&self) -> &[comms::Relay] {
+        self.relays.as_ref().map_or(&[], |r| r.relays())
+    }
+
+    /// The columns this link adds to `series.csv`: [`LINK_CSV_COLUMNS`] with stations,
+    /// [`RELAY_CSV_COLUMNS`] with relays.
+    pub fn csv_columns(&self) -> String {
+        let mut cols = Vec::new();
+        if self.has_stations() {
+            cols.push(LINK_CSV_COLUMNS);
+        }
+        if self.relays.is_some() {
+            cols.push(RELAY_CSV_COLUMNS);
+        }
+        cols.join(",")
+    }
+
+    /// The link of `site` at epoch `k` of the table, the Earth seen as `earth` (its azimuth
+    /// filled in here when missing) against the site's horizon `profile`. `scratch` is reused.
+    pub fn sample(
+        &self,
+        table: &[MoonGeometry],
+        k: usize,
+        site: &ephem::Site,
+        earth: &ephem::Apparent,
+        profile: &HorizonProfile<'_>,
+        scratch: &mut LinkScratch,
+    ) -> LinkSample {
+        let mut earth = *earth;
+        if earth.az_deg.is_nan() {
+            earth.fill_azimuth(site);
+        }
+        let best = if self.has_stations() {
+            scratch.station_el.resize(self.stations.len(), 0.0);
+            comms::site_elevations_deg(
+                &table[k],
+                &self.at[k],
+                &site.pos_in_moon_me_km,
+                &mut scratch.station_el,
+            );
+            comms::best_station(&self.stations, &scratch.station_el)
+        } else {
+            None
+        };
+        let relay = self.relays.as_ref().and_then(|r| {
+            r.best(
+                &table[k],
+                k,
+                site,
+                |az| profile.el_at_az_deg(az),
+                &mut scratch.relay,
+            )
+        });
+        LinkSample {
+            station: best.map(|b| b.0),
+            station_el_deg: best.map_or(f64::NAN, |b| b.1),
+            station_sees_site: best.is_some_and(|(i, e)| e >= self.stations[i].mask_deg()),
+            earth_centre_visible: earth.el_deg > profile.el_at_az_deg(earth.az_deg),
+            relay: relay.map(|r| r.0),
+            relay_el_deg: relay.map_or(f64::NAN, |r| r.1),
+            relay_visible: relay.is_some_and(|r| r.2),
+        }
+    }
+
+    /// The relay statistics of one site's link samples; `None` without relays.
+    pub fn relay_summary(
+        &self,
+        series: &SiteSeries<'_>,
+        links: &[LinkSample],
+    ) -> anyhow::Result<Option<illum::stats::RelayStats>> {
+        if self.relays.is_none() {
+            return Ok(None);
+        }
+        let relay: Vec<bool> = links.iter().map(|s| s.relay_visible).collect();
+        let dte: Vec<bool> = links.iter().map(LinkSample::dte).collect();
+        Ok(Some(illum::stats::relay_stats(
+            series,
+            &relay,
+            self.has_stations().then_some(dte.as_slice()),
+        )?))
+    }
+
+    /// The CSV fields of one sample ([`Self::csv_columns`]), each after a comma.
+    pub fn csv_fields(&self, l: &LinkSample) -> String {
+        let mut out = String::new();
+        if self.has_stations() {
+            let name = l.station.map_or("", |i| self.stations[i].name());
+            out += &format!(
+                ",{},{:.4},{}",
+                u8::from(l.dte()),
+                l.station_el_deg,
+                csv_field(name)
+            );
+        }
+        if self.relays.is_some() {
+            let name = l.relay.map_or("", |i| self.relays()[i].name.as_str());
+            out += &format!(
+                ",{},{:.4},{}",
+                u8::from(l.relay_visible),
+                l.relay_el_deg,
+                csv_field(name)
+            );
+        }
+        out
+    }
+
+    /// The statistics and windows of one site's link samples (`series`: its Sun fractions and
+    /// time grid).
+    pub fn summary(
+        &self,
+        series: &SiteSeries<'_>,
+        links: &[LinkSample],
+    ) -> anyhow::Result<(illum::stats::LinkStats, Vec<comms::LinkWindow>)> {
+        let dte: Vec<bool> = links.iter().map(LinkSample::dte).collect();
+        let station: Vec<bool> = links.iter().map(|s| s.station_sees_site).collect();
+        let earth_centre: Vec<bool> = links.iter().map(|s| s.earth_centre_visible).collect();
+        let idx: Vec<Option<usize>> = links.iter().map(|s| s.station).collect();
+        let windows =
+            comms::link_windows(&dte, &idx, &self.stations, series.start_utc, series.step_s);
+        let stats = illum::stats::link_stats(
+            series,
+            &illum::stats::LinkSeries {
+                dte: &dte,
+                station: &station,
+                earth_centre: &earth_centre,
+            },
+        )?;
+        Ok((stats, windows))
+    }
+}
+
+/// Scratch space of [`LinkContext::sample`], one per thread.
+#[derive(Debug, Default)]
+pub struct LinkScratch {
+    station_el: Vec<f64>,
+    relay: Vec<(f64, f64, f64)>,
 }
 
 /// What [`run_series`] did: every site's outcome, the files written (relative to `out_dir`,
@@ -263,6 +485,8 @@ pub struct SeriesRun {
     pub files: Vec<String>,
     /// The backend that ran the terrain part (`cpu: …` or `gpu: … on <adapter>`), for `run.json`.
     pub backend: String,
+    /// The ground stations, as `run.json` records them (`None` without).
+    pub stations: Option<serde_json::Value>,
 }
 
 /// Runs a whole series: horizons, ephemeris, fractions, files (see [`SeriesRun`]).
@@ -278,7 +502,10 @@ pub fn run_series(
     if sites.is_empty() {
         anyhow::bail!("no sites given");
     }
+    // Stations first: a bad station list fails before any work.
+    config.stations.resolve(config.station_mask_deg)?;
     let table = ephem::moon_geometry_table(kernels, epochs)?;
+    let link = LinkContext::new(kernels, config, &table)?;
     let (horizons, fractions, backend_note) = match config.engine {
         SeriesEngine::Horizon => {
             let (horizons, note) = crate::compute::horizons::site_horizons(
@@ -322,6 +549,7 @@ pub fn run_series(
         config,
         out_dir,
         progress: &progress,
+        link: link.as_ref(),
     };
     let outcomes: Vec<SiteOutcome> = sites
         .par_iter()
@@ -354,18 +582,55 @@ pub fn run_series(
     let mut stats = StatsFile::from_series(&all)?;
     for (s, o) in stats.sites.iter_mut().zip(&outcomes) {
         s.location = Some(site_location(&o.site, &o.horizon));
+        s.link = o.link.clone();
+        s.relay = o.relay.clone();
     }
     stats.write_json(&out_dir.join("stats.json"))?;
     files.push("stats.json".into());
     if config.write_csv {
-        write_long_table(&outcomes, out_dir)?;
+        write_long_table(&outcomes, out_dir, link.as_ref())?;
         files.push(LONG_TABLE.into());
     }
     Ok(SeriesRun {
         outcomes,
         files,
         backend: backend_note,
+        stations: link_record(config)?,
     })
+}
+
+/// The link of a run as `run.json` records it (`ground_stations`): the stations and their
+/// source, and the relays with their SPKs (path and sha256); `None` with neither.
+pub fn link_record(config: &SeriesConfig) -> anyhow::Result<Option<serde_json::Value>> {
+    let stations = config.stations.resolve(config.station_mask_deg)?;
+    if stations.is_none() && config.relays.is_empty() {
+        return Ok(None);
+    }
+    let mut record = match &stations {
+        Some(s) => comms::stations_record(&config.stations, s),
+        None => serde_json::json!({}),
+    };
+    if !config.relays.is_empty() {
+        record["relays"] = serde_json::json!(
+            config
+                .relays
+                .iter()
+                .map(|r| String::from(r.clone()))
+                .collect::<Vec<_>>()
+        );
+        record["relay_spks"] = serde_json::json!(
+            config
+                .relay_spks
+                .iter()
+                .map(|p| match crate::output::InputFile::of(p) {
+                    Ok(f) => serde_json::json!(f),
+                    Err(_) => serde_json::json!(p.display().to_string()),
+                })
+                .collect::<Vec<_>>()
+        );
+        record["relay_max_range_km"] = serde_json::json!(config.relay_max_range_km);
+    }
+    Ok(Some(record))
 }
 
 /// Where a site stands, for `stats.json`: its coordinates, its height above the ground and the
@@ -388,10 +653,22 @@ pub const LONG_TABLE_SITE_COLUMNS: &str =
 
 /// Writes [`LONG_TABLE`]: the rows of each site's `series.csv` (read back, so that the values are
 /// the same text) after the site's name, latitude, longitude and heights, sites in input order.
-fn write_long_table(outcomes: &[SiteOutcome], out_dir: &Path) -> anyhow::Result<()> {
+fn write_long_table(
+    outcomes: &[SiteOutcome],
+    out_dir: &Path,
+    link: Option<&LinkContext>,
+) -> anyhow::Result<()> {
     use std::io::BufRead as _;
     crate::output::write_atomic(&out_dir.join(LONG_TABLE), |w| -> anyhow::Result<()> {
-        writeln!(w, "{LONG_TABLE_SITE_COLUMNS},{SERIES_CSV_HEADER}")?;
+        if let Some(l) = link {
+            writeln!(
+                w,
+                "{LONG_TABLE_SITE_COLUMNS},{SERIES_CSV_HEADER},{}",
+                l.csv_columns()
+            )?;
+        } else {
+            writeln!(w, "{LONG_TABLE_SITE_COLUMNS},{SERIES_CSV_HEADER}")?;
+        }
         for o in outcomes {
             let path = out_dir.join(o.site.name()).join("series.csv");
             let file = std::fs::File::open(&path)
@@ -429,6 +706,7 @@ struct Shared<'a> {
     config: &'a SeriesConfig,
     out_dir: &'a Path,
     progress: &'a indicatif::ProgressBar,
+    link: Option<&'a LinkContext>,
 }
 
 /// One site's slice of [`run_series`]: its fractions, files and outcome.
@@ -445,6 +723,7 @@ fn run_one_site(
         config,
         out_dir,
         progress,
+        link,
     } = *shared;
     let site_dir = out_dir.join(spec.name());
     std::fs::create_dir_all(&site_dir)
@@ -470,12 +749,22 @@ fn run_one_site(
     let mut sun_track = Vec::new();
     let mut earth_track = Vec::new();
     let mut fractions = (Vec::new(), Vec::new());
+    let link_profile = HorizonProfile::new(&horizon.elevation_deg)?;
+    let mut links: Vec<LinkSample> =
+        Vec::with_capacity(if link.is_some() { epochs.len() } else { 0 });
+    let mut scratch = LinkScratch::default();
     let mut compute = |w: Option<&mut dyn Write>| -> anyhow::Result<()> {
         let mut w = w;
         let need_azimuths = |k: usize| config.write_csv || k.is_multiple_of(track_stride);
         let on_row = |k: usize, r: &SeriesRow| -> anyhow::Result<()> {
+            let sample =
+                link.map(|l| l.sample(table, k, &site, &r.earth, &link_profile, &mut scratch));
             if let Some(w) = w.as_deref_mut() {
-                write_row(w, epochs[k], r)?;
+                let with = sample.as_ref().zip(link);
+                write_row(w, epochs[k], r, with)?;
+            }
+            if let Some(s) = sample {
+                links.push(s);
             }
             if k.is_multiple_of(track_stride) {
                 sun_track.push((r.sun.az_deg, r.sun.el_deg));
@@ -500,7 +789,11 @@ fn run_one_site(
     };
     if config.write_csv {
         crate::output::write_atomic(&site_dir.join("series.csv"), |w| -> anyhow::Result<()> {
-            writeln!(w, "{SERIES_CSV_HEADER}")?;
+            if let Some(l) = link {
+                writeln!(w, "{SERIES_CSV_HEADER},{}", l.csv_columns())?;
+            } else {
+                writeln!(w, "{SERIES_CSV_HEADER}")?;
+            }
             compute(Some(w))
         })?;
         files.push(rel("series.csv"));
@@ -516,7 +809,24 @@ fn run_one_site(
         sun_fraction: &sun_fraction,
         earth_fraction: &earth_fraction,
     };
-    StatsFile::from_series(&[series])?.write_json(&site_dir.join("stats.json"))?;
+    let relay_stats = match link {
+        Some(l) => l.relay_summary(&series, &links)?,
+        None => None,
+    };
+    let link_stats = match link {
+        Some(l) if l.has_stations() => {
+            let (stats, windows) = l.summary(&series, &links)?;
+            comms::write_windows_csv(&site_dir.join("dte_windows.csv"), &windows)?;
+            comms::write_windows_ics(&site_dir.join("dte_windows.ics"), spec.name(), &windows)?;
+            files.extend([rel("dte_windows.csv"), rel("dte_windows.ics")]);
+            Some(stats)
+        }
+        _ => None,
+    };
+    let mut site_stats = StatsFile::from_series(&[series])?;
+    site_stats.sites[0].link = link_stats.clone();
+    site_stats.sites[0].relay = relay_stats.clone();
+    site_stats.write_json(&site_dir.join("stats.json"))?;
     files.push(rel("stats.json"));
 
     if config.plots {
@@ -562,12 +872,54 @@ fn run_one_site(
             rel("horizon_polar.png"),
             rel("visibility.png"),
         ]);
+        if let Some(l) = link {
+            // The link's windows as bars beside sunlight.
+            let lit: Vec<bool> = sun_fraction.iter().map(|&f| f > 0.0).collect();
+            let dte: Vec<bool> = links.iter().map(LinkSample::dte).collect();
+            let relay: Vec<bool> = links.iter().map(|s| s.relay_visible).collect();
+            let both: Vec<bool> = lit.iter().zip(&dte).map(|(a, b)| *a && *b).collect();
+            let mut rows = vec![illum::plot::WindowRow {
+                label: "Sun",
+                on: &lit,
+                rgb: (230, 130, 0),
+            }];
+            if l.has_stations() {
+                rows.push(illum::plot::WindowRow {
+                    label: "DTE",
+                    on: &dte,
+                    rgb: (30, 90, 200),
+                });
+                rows.push(illum::plot::WindowRow {
+                    label: "Sun+DTE",
+                    on: &both,
+                    rgb: (40, 150, 60),
+                });
+            }
+            if !l.relays().is_empty() {
+                rows.push(illum::plot::WindowRow {
+                    label: "relay",
+                    on: &relay,
+                    rgb: (140, 60, 160),
+                });
+            }
+            illum::plot::write_windows_plot(
+                &site_dir.join("dte_windows.png"),
+                &format!("Sunlight and links: {title}"),
+                epochs[0],
+                step_s,
+                &rows,
+                (1400, 120 + 70 * rows.len() as u32),
+            )?;
+            files.push(rel("dte_windows.png"));
+        }
     }
     Ok(SiteOutcome {
         site: spec.clone(),
         horizon,
         sun_fraction,
         earth_fraction,
+        link: link_stats,
+        relay: relay_stats,
         files,
     })
 }

@@ -12,20 +12,25 @@ use penumbra::terrain::TerrainStack;
 
 use crate::util::{assert_clean_error, files_in, kernels_dir, penumbra, penumbra_ok, read_tif};
 
-/// Sun and Earth visible fractions of one site's `series.csv`.
-fn series_fractions(path: &Path) -> (Vec<f64>, Vec<f64>) {
+/// Sun and Earth visible fractions and the best station's elevation of the site (deg) of one
+/// site's `series.csv`.
+fn series_fractions(path: &Path) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
     let mut rd = csv::Reader::from_path(path).unwrap();
     let h = rd.headers().unwrap().clone();
     let col = |name: &str| h.iter().position(|c| c == name).unwrap();
-    let (s, e) = (col("sun_visible_fraction"), col("earth_visible_fraction"));
-    let mut sun = Vec::new();
-    let mut earth = Vec::new();
+    let (s, e, st) = (
+        col("sun_visible_fraction"),
+        col("earth_visible_fraction"),
+        col("station_el_deg"),
+    );
+    let (mut sun, mut earth, mut station) = (Vec::new(), Vec::new(), Vec::new());
     for r in rd.records() {
         let r = r.unwrap();
         sun.push(r[s].parse().unwrap());
         earth.push(r[e].parse().unwrap());
+        station.push(r[st].parse().unwrap());
     }
-    (sun, earth)
+    (sun, earth, station)
 }
 
 fn longest_run(hidden: impl Iterator<Item = bool>) -> usize {
@@ -39,7 +44,9 @@ fn longest_run(hidden: impl Iterator<Item = bool>) -> usize {
 
 /// A map cell and a series site at that pixel's centre tell the same story: every statistic of
 /// the horizons engine against the per-site series (another horizon algorithm, 1440 azimuths,
-/// the exact strip integral) on a synthetic DEM, one year every 6 h.
+/// the exact strip integral) on a synthetic DEM, one year every 6 h; with the DSN, the map's
+/// direct-to-Earth (any part of the Earth visible, one station flag per epoch from the grid
+/// centre) against the series' own per-site stations and fractions.
 #[test]
 fn horizons_engine_agrees_with_series_at_pixel_centres() {
     let dir = tempfile::tempdir().unwrap();
@@ -70,6 +77,8 @@ fn horizons_engine_agrees_with_series_at_pixel_centres() {
                 "horizons",
                 "--backend",
                 "cpu",
+                "--stations",
+                "dsn",
             ][..],
             &epochs,
             &["--out-dir", "maps", "--kernels", k],
@@ -128,10 +137,11 @@ fn horizons_engine_agrees_with_series_at_pixel_centres() {
         band("sun_full_pct.tif"),
         band("longest_earth_hidden_h.tif"),
     );
-    let mut worst = [0.0_f64; 6];
+    let (m_dte, m_blackout) = (band("dte_pct.tif"), band("longest_dte_blackout_h.tif"));
+    let mut worst = [0.0_f64; 8];
     println!("pixel       h_m   sun% map/series   mean map/series   earth% map/series   dark h");
     for (i, &(r, c)) in pixels.iter().enumerate() {
-        let (fs, fe) = series_fractions(&dir.path().join(format!("series/p{i}/series.csv")));
+        let (fs, fe, st) = series_fractions(&dir.path().join(format!("series/p{i}/series.csv")));
         let n = fs.len() as f64;
         let pct = |v: &[f64], t: f64| 100.0 * v.iter().filter(|&&f| f > t).count() as f64 / n;
         let s_vis = pct(&fs, 1e-6);
@@ -140,6 +150,13 @@ fn horizons_engine_agrees_with_series_at_pixel_centres() {
         let s_full = 100.0 * fs.iter().filter(|&&f| f >= 0.999).count() as f64 / n;
         let s_dark = 6.0 * longest_run(fs.iter().map(|&f| f <= 1e-6)) as f64;
         let s_ehid = 6.0 * longest_run(fe.iter().map(|&f| f <= 1e-6)) as f64;
+        let dte: Vec<bool> = fe
+            .iter()
+            .zip(&st)
+            .map(|(&f, &e)| f > 1e-6 && e >= 10.0)
+            .collect();
+        let s_dte = 100.0 * dte.iter().filter(|&&d| d).count() as f64 / n;
+        let s_blackout = 6.0 * longest_run(dte.iter().map(|&d| !d)) as f64;
         let px = r * cols + c;
         let m = |v: &[f32]| f64::from(v[px]);
         println!(
@@ -161,6 +178,8 @@ fn horizons_engine_agrees_with_series_at_pixel_centres() {
             (m(&m_full) - s_full).abs(),
             (m(&m_dark) - s_dark).abs() / s_dark.max(150.0),
             (m(&m_ehid) - s_ehid).abs() / s_ehid.max(150.0),
+            (m(&m_dte) - s_dte).abs(),
+            (m(&m_blackout) - s_blackout).abs() / s_blackout.max(150.0),
         ];
         for (w, d) in worst.iter_mut().zip(d) {
             *w = w.max(d);
@@ -168,8 +187,9 @@ fn horizons_engine_agrees_with_series_at_pixel_centres() {
     }
     println!(
         "worst: sun% {:.3} pp, mean {:.4}, earth% {:.3} pp, full% {:.3} pp, longest dark {:.3} \
-         (relative, 3 h floor), longest Earth-hidden {:.3}",
-        worst[0], worst[1], worst[2], worst[3], worst[4], worst[5]
+         (relative, 3 h floor), longest Earth-hidden {:.3}, DTE% {:.3} pp, longest DTE \
+         blackout {:.3}",
+        worst[0], worst[1], worst[2], worst[3], worst[4], worst[5], worst[6], worst[7]
     );
     // The issue's tolerances: % lit within 0.5 pp, mean fraction within 0.005, longest night
     // within max(3 h, 2 %) (here: 6 h steps, so within one step on runs up to 300 h, 2 % beyond).
@@ -179,6 +199,13 @@ fn horizons_engine_agrees_with_series_at_pixel_centres() {
     assert!(worst[3] <= 0.5, "sun fully visible %: {}", worst[3]);
     assert!(worst[4] <= 0.04, "longest dark: {}", worst[4]);
     assert!(worst[5] <= 0.04, "longest Earth-hidden: {}", worst[5]);
+    // Direct-to-Earth: the Earth's bound (the station flag adds < 1 epoch in 1,460 here).
+    assert!(worst[6] <= 1.0, "DTE %: {}", worst[6]);
+    assert!(worst[7] <= 0.04, "longest DTE blackout: {}", worst[7]);
+    assert!(
+        m_dte.iter().any(|&v| v > 0.0) && m_dte.iter().any(|&v| v.is_finite() && v < 100.0),
+        "the DTE map says something"
+    );
 }
 
 /// The engine over a flat sphere, where every interior pixel's horizon is the dip

@@ -54,7 +54,10 @@ fn both_engines(stack: &TerrainStack, sites: &[Site], config: SeriesConfig) -> V
     let epochs = month_hourly();
     let run = |engine| {
         let dir = tempfile::tempdir().unwrap();
-        let cfg = SeriesConfig { engine, ..config };
+        let cfg = SeriesConfig {
+            engine,
+            ..config.clone()
+        };
         series::run_series(&kernels, stack, sites, &epochs, 3600.0, &cfg, dir.path())
             .unwrap()
             .outcomes
@@ -316,7 +319,10 @@ fn series_cli_smap_dp_writes_the_same_files_and_records_the_engine() {
         files_in(&dir.path().join("d/ridge"))
     );
     let csv = std::fs::read_to_string(dir.path().join("d/ridge/series.csv")).unwrap();
-    assert_eq!(csv.lines().next().unwrap(), series::SERIES_CSV_HEADER);
+    assert_eq!(
+        csv.lines().next().unwrap(),
+        format!("{},{}", series::SERIES_CSV_HEADER, series::LINK_CSV_COLUMNS)
+    );
     assert_eq!(csv.lines().count(), 1 + 9);
     // A site off the finest layer is one clear error line.
     let mut bad = args("smap-dp", "x");
@@ -696,7 +702,7 @@ mod gpu {
         let cpu = run_with(
             &stack,
             &sites,
-            config,
+            config.clone(),
             SeriesEngine::SmapDp,
             penumbra::gpu::Backend::Cpu,
         );
@@ -751,7 +757,7 @@ mod gpu {
             engine: SeriesEngine::SmapDp,
             ..quiet()
         };
-        let run = |engine, backend| run_with(&stack, &sites, config, engine, backend);
+        let run = |engine, backend| run_with(&stack, &sites, config.clone(), engine, backend);
         let cpu = run(SeriesEngine::SmapDp, penumbra::gpu::Backend::Cpu);
         let gpu = run(SeriesEngine::SmapDp, penumbra::gpu::Backend::Gpu);
         let horizon = run(SeriesEngine::Horizon, penumbra::gpu::Backend::Cpu);

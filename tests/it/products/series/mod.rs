@@ -119,6 +119,9 @@ fn series_cli_writes_every_file_and_the_combined_statistics() {
     assert_eq!(
         files_in(&res.join("ridge")),
         vec![
+            "dte_windows.csv",
+            "dte_windows.ics",
+            "dte_windows.png",
             "horizon.csv",
             "horizon.png",
             "horizon_polar.png",
@@ -127,8 +130,12 @@ fn series_cli_writes_every_file_and_the_combined_statistics() {
             "visibility.png"
         ]
     );
+    // The DSN by default: the link columns after the series' own.
     let csv = std::fs::read_to_string(res.join("ridge/series.csv")).unwrap();
-    assert_eq!(csv.lines().next().unwrap(), series::SERIES_CSV_HEADER);
+    assert_eq!(
+        csv.lines().next().unwrap(),
+        format!("{},{}", series::SERIES_CSV_HEADER, series::LINK_CSV_COLUMNS)
+    );
     assert_eq!(csv.lines().count(), 1 + 14 * 12 + 1);
     let stats: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(res.join("stats.json")).unwrap()).unwrap();
