@@ -529,6 +529,8 @@ struct SiteColumns {
     sun: Vec<f64>,
     earth: Vec<f64>,
     links: Vec<penumbra::comms::LinkSample>,
+    power: Vec<(f64, Option<f64>)>,
+    power_stats: Option<penumbra::illum::power::PowerStats>,
 }
 
 /// `series(terrain, sites, times, …)`: hourly (or any) Sun and Earth visibility of named sites
@@ -537,7 +539,7 @@ struct SiteColumns {
 /// datetime64[ns], then the float64 columns of `series.csv`), one row per site and epoch;
 /// `stats` the dict of the CLI's `stats.json` (needs evenly spaced times).
 #[pyfunction]
-#[pyo3(signature = (terrain, sites, times, kernels = None, abcorr = "lt+s", limb_darkening = "eddington", disc_method = "exact", az_step_deg = 0.25, horizon_method = "fast", stations = "dsn", station_mask_deg = 10.0, relays = Vec::new(), relay_spks = Vec::new(), relay_max_range_km = None, progress = None))]
+#[pyo3(signature = (terrain, sites, times, kernels = None, abcorr = "lt+s", limb_darkening = "eddington", disc_method = "exact", az_step_deg = 0.25, horizon_method = "fast", stations = "dsn", station_mask_deg = 10.0, relays = Vec::new(), relay_spks = Vec::new(), relay_max_range_km = None, panel = None, panel_area_m2 = None, panel_efficiency = None, panel_degradation_pct_per_year = None, load_w = None, night_load_w = None, battery_wh = None, battery_start_pct = None, progress = None))]
 fn series<'py>(
     py: Python<'py>,
     terrain: &Terrain,
@@ -554,9 +556,50 @@ fn series<'py>(
     relays: Vec<String>,
     relay_spks: Vec<PathBuf>,
     relay_max_range_km: Option<f64>,
+    panel: Option<&str>,
+    panel_area_m2: Option<f64>,
+    panel_efficiency: Option<f64>,
+    panel_degradation_pct_per_year: Option<f64>,
+    load_w: Option<f64>,
+    night_load_w: Option<f64>,
+    battery_wh: Option<f64>,
+    battery_start_pct: Option<f64>,
     progress: Option<Bound<'py, PyAny>>,
 ) -> PyResult<(Bound<'py, PyDict>, Bound<'py, PyAny>)> {
     use penumbra::products::series::{self as ser, SeriesConfig};
+    // The power options as the command line reads them: any one turns the panel on.
+    let power = {
+        use penumbra::illum::power::{Panel, PowerConfig};
+        let any = panel.is_some()
+            || panel_area_m2.is_some()
+            || panel_efficiency.is_some()
+            || panel_degradation_pct_per_year.is_some()
+            || load_w.is_some()
+            || night_load_w.is_some()
+            || battery_wh.is_some()
+            || battery_start_pct.is_some();
+        if any {
+            let d = PowerConfig::default();
+            let config = PowerConfig {
+                panel: match panel {
+                    Some(p) => Panel::parse(p).map_err(|e| bad(e.to_string()))?,
+                    None => d.panel,
+                },
+                area_m2: panel_area_m2.unwrap_or(d.area_m2),
+                efficiency: panel_efficiency.unwrap_or(d.efficiency),
+                degradation_pct_per_year: panel_degradation_pct_per_year
+                    .unwrap_or(d.degradation_pct_per_year),
+                load_w: load_w.unwrap_or(d.load_w),
+                night_load_w,
+                battery_wh,
+                battery_start_pct: battery_start_pct.unwrap_or(d.battery_start_pct),
+            };
+            config.validate().map_err(|e| bad(e.to_string()))?;
+            Some(config)
+        } else {
+            None
+        }
+    };
     let relays = relays
         .iter()
         .map(|r| penumbra::comms::Relay::parse(r).map_err(|e| bad(e.to_string())))
@@ -576,6 +619,7 @@ fn series<'py>(
         relays,
         relay_spks,
         relay_max_range_km,
+        power,
         ..SeriesConfig::default()
     };
     // A bad station list fails before any work, with the command line's message.
@@ -641,7 +685,7 @@ fn series<'py>(
                     .par_iter()
                     .zip(horizons_chunk)
                     .map(|(spec, horizon)| {
-                        site_columns(&table, spec, horizon, &config, link.as_ref())
+                        site_columns(&table, spec, horizon, &config, link.as_ref(), step_s)
                     })
                     .collect::<anyhow::Result<Vec<_>>>()
             })
@@ -693,6 +737,21 @@ fn series<'py>(
             np.call_method1("array", (PyList::new(py, names)?,))?,
         )?;
     }
+    if let Some(p) = &config.power {
+        // The columns series.csv gains with a panel: power_w, and battery_wh with a capacity.
+        let power: Vec<f64> = results
+            .iter()
+            .flat_map(|r| r.power.iter().map(|x| x.0))
+            .collect();
+        out.set_item("power_w", power.into_pyarray(py))?;
+        if p.battery_wh.is_some() {
+            let b: Vec<f64> = results
+                .iter()
+                .flat_map(|r| r.power.iter().map(|x| x.1.unwrap_or(f64::NAN)))
+                .collect();
+            out.set_item("battery_wh", b.into_pyarray(py))?;
+        }
+    }
     if let Some(l) = link.as_ref().filter(|l| !l.relays().is_empty()) {
         // The columns series.csv gains with relays: relay_visible (0/1), relay_el_deg, relay.
         let visible: Vec<u8> = samples().map(|s| u8::from(s.relay_visible)).collect();
@@ -736,6 +795,7 @@ fn series<'py>(
             }
             s.relay = l.relay_summary(series, &r.links).map_err(py_err)?;
         }
+        s.power = r.power_stats.clone();
     }
     let json = serde_json::to_string(&stats).map_err(|e| bad(e.to_string()))?;
     let stats = py.import("json")?.call_method1("loads", (json,))?;
@@ -749,6 +809,7 @@ fn site_columns(
     horizon: &penumbra::horizon::Horizon,
     config: &penumbra::products::series::SeriesConfig,
     link: Option<&penumbra::products::series::LinkContext>,
+    step_s: f64,
 ) -> anyhow::Result<SiteColumns> {
     use penumbra::products::series as ser;
     let site = eph::Site::new(
@@ -760,6 +821,11 @@ fn site_columns(
     let profile = penumbra::illum::HorizonProfile::new(&horizon.elevation_deg)?;
     let mut links = Vec::new();
     let mut scratch = ser::LinkScratch::default();
+    let mut track = config
+        .power
+        .as_ref()
+        .map(|p| ser::PowerTrack::new(p, table[0].epoch, step_s));
+    let mut power = Vec::new();
     let (sun, earth) = ser::site_fractions(
         table,
         &site,
@@ -774,6 +840,9 @@ fn site_columns(
             if let Some(l) = link {
                 links.push(l.sample(table, k, &site, &r.earth, &profile, &mut scratch));
             }
+            if let Some(t) = track.as_mut() {
+                power.push(t.sample(table[k].epoch, r));
+            }
             Ok(())
         },
     )?;
@@ -782,6 +851,8 @@ fn site_columns(
         sun,
         earth,
         links,
+        power,
+        power_stats: track.as_ref().map(ser::PowerTrack::stats),
     })
 }
 

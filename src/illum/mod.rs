@@ -12,6 +12,7 @@
 pub mod disc;
 pub mod irradiance;
 pub mod plot;
+pub mod power;
 pub mod stats;
 
 pub use disc::{

@@ -328,20 +328,116 @@ pub fn write_windows_plot(
             let y0 = m - i as f64 - 0.85;
             let y1 = m - i as f64 - 0.15;
             let color = RGBColor(row.rgb.0, row.rgb.1, row.rgb.2).filled();
-            let mut bars = Vec::new();
-            let mut k = 0;
-            while k < n {
-                if row.on[k] {
-                    let a = k;
-                    while k < n && row.on[k] {
-                        k += 1;
-                    }
-                    bars.push(Rectangle::new([(x_of(a), y0), (x_of(k), y1)], color));
-                } else {
-                    k += 1;
-                }
-            }
+            let bars = runs(row.on)
+                .into_iter()
+                .map(|(a, b)| Rectangle::new([(x_of(a), y0), (x_of(b), y1)], color));
             chart.draw_series(bars).map_err(plot_err(WHAT))?;
+        }
+        Ok(())
+    })?;
+    crate::output::write_bytes_atomic(path, &png)?;
+    Ok(())
+}
+
+/// Runs of `true` in `on` as half-open sample ranges.
+fn runs(on: &[bool]) -> Vec<(usize, usize)> {
+    let mut out = Vec::new();
+    let mut k = 0;
+    while k < on.len() {
+        if on[k] {
+            let a = k;
+            while k < on.len() && on[k] {
+                k += 1;
+            }
+            out.push((a, k));
+        } else {
+            k += 1;
+        }
+    }
+    out
+}
+
+/// A panel's power (top) and, with a battery, its charge (bottom) over time, the nights (the Sun
+/// entirely hidden) shaded: `power.png`.
+#[allow(
+    clippy::too_many_arguments,
+    reason = "a plot of one series and its shading, all plain values"
+)]
+pub fn write_power_plot(
+    path: &Path,
+    title: &str,
+    start_utc: Epoch,
+    step_s: f64,
+    power_w: &[f64],
+    battery_wh: Option<&[f64]>,
+    night: &[bool],
+    size_px: (u32, u32),
+) -> Result<(), IllumError> {
+    const WHAT: &str = "power plot";
+    let n = power_w.len();
+    if n == 0 || night.len() != n || battery_wh.is_some_and(|b| b.len() != n) {
+        return Err(IllumError::EmptySeries {
+            site: title.to_string(),
+        });
+    }
+    let span_s = n as f64 * step_s;
+    let (unit_s, _) = time_unit(span_s);
+    let x_of = |k: usize| k as f64 * step_s / unit_s;
+    let x_max = span_s / unit_s;
+    let nights = runs(night);
+    let shade = BLACK.mix(0.12).filled();
+    let max_of = |v: &[f64]| {
+        v.iter()
+            .copied()
+            .filter(|x| x.is_finite())
+            .fold(0.0_f64, f64::max)
+    };
+    let png = render_png(WHAT, size_px, |root| {
+        let root = root
+            .titled(title, ("sans-serif", 24))
+            .map_err(plot_err(WHAT))?;
+        let areas: Vec<_> = match battery_wh {
+            Some(_) => {
+                let (a, b) = root.split_vertically(root.dim_in_pixel().1 / 2);
+                vec![a, b]
+            }
+            None => vec![root],
+        };
+        let series: Vec<(&[f64], &str, RGBColor)> =
+            std::iter::once((power_w, "power, W", SUN_COLOR))
+                .chain(battery_wh.map(|b| (b, "battery charge, Wh", EARTH_COLOR)))
+                .collect();
+        for (area, (values, label, color)) in areas.iter().zip(series) {
+            let y_max = (max_of(values) * 1.05).max(1.0);
+            let mut chart = ChartBuilder::on(area)
+                .margin(12)
+                .x_label_area_size(40)
+                .y_label_area_size(70)
+                .build_cartesian_2d(0.0..x_max, 0.0..y_max)
+                .map_err(plot_err(WHAT))?;
+            chart
+                .configure_mesh()
+                .x_label_formatter(&|x| date_label(start_utc, *x, unit_s))
+                .x_labels(8)
+                .y_desc(label)
+                .light_line_style(BLACK.mix(0.04))
+                .label_style(("sans-serif", 14))
+                .axis_desc_style(("sans-serif", 16))
+                .draw()
+                .map_err(plot_err(WHAT))?;
+            chart
+                .draw_series(
+                    nights
+                        .iter()
+                        .map(|&(a, b)| Rectangle::new([(x_of(a), 0.0), (x_of(b), y_max)], shade)),
+                )
+                .map_err(plot_err(WHAT))?;
+            chart
+                .draw_series(LineSeries::new(
+                    values.iter().enumerate().map(|(k, &v)| (x_of(k), v)),
+                    color.stroke_width(1),
+                ))
+                .map_err(plot_err(WHAT))?;
         }
         Ok(())
     })?;

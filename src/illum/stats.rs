@@ -211,6 +211,9 @@ pub struct SiteStats {
     /// The relays (absent when the run has none).
     #[serde(default, flatten, skip_serializing_if = "Option::is_none")]
     pub relay: Option<RelayStats>,
+    /// Solar power and battery (absent when the run has no panel).
+    #[serde(default, flatten, skip_serializing_if = "Option::is_none")]
+    pub power: Option<super::power::PowerStats>,
 }
 
 /// Statistics of a site's relays: a relay visible (above the terrain horizon, within range),
@@ -388,6 +391,7 @@ fn site_stats(series: &SiteSeries<'_>) -> Result<SiteStats, IllumError> {
         sun_and_earth_pct: pct(n, |k| sun_vis(k) && earth_vis(k)),
         link: None,
         relay: None,
+        power: None,
     })
 }
 

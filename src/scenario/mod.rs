@@ -310,6 +310,10 @@ impl Scenario {
             s.stations
                 .resolve(s.station_mask_deg)
                 .map_err(|e| invalid(format!("[series] stations: {e}")))?;
+            if let Some(p) = &s.power {
+                p.validate()
+                    .map_err(|e| invalid(format!("[series.power] {e}")))?;
+            }
         }
         if let Some(m) = &self.map {
             m.stations

@@ -73,6 +73,14 @@ def series(
     relays: Sequence[str] = (),
     relay_spks: Sequence[Path] = (),
     relay_max_range_km: Optional[float] = None,
+    panel: Optional[str] = None,
+    panel_area_m2: Optional[float] = None,
+    panel_efficiency: Optional[float] = None,
+    panel_degradation_pct_per_year: Optional[float] = None,
+    load_w: Optional[float] = None,
+    night_load_w: Optional[float] = None,
+    battery_wh: Optional[float] = None,
+    battery_start_pct: Optional[float] = None,
     progress: Optional[Progress] = None,
 ) -> Tuple[Dict[str, npt.NDArray[Any]], Dict[str, Any]]: ...
 def map_statistics(

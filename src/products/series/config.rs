@@ -67,6 +67,9 @@ pub struct SeriesConfig {
     pub relay_spks: Vec<std::path::PathBuf>,
     /// Slant-range limit of a relay link, km (none by default).
     pub relay_max_range_km: Option<f64>,
+    /// A solar panel, load and battery: adds `power_w` (and `battery_wh`) to `series.csv` and
+    /// the power statistics to `stats.json` ([`crate::illum::power`]); none by default.
+    pub power: Option<crate::illum::power::PowerConfig>,
 }
 
 mod backend_serde {
@@ -128,6 +131,7 @@ impl Default for SeriesConfig {
             relays: Vec::new(),
             relay_spks: Vec::new(),
             relay_max_range_km: None,
+            power: None,
         }
     }
 }

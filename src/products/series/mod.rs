@@ -13,9 +13,10 @@ use crate::model::{Epochs, Site};
 
 pub use config::{SeriesConfig, SeriesEngine};
 pub use pipeline::{
-    LINK_CSV_COLUMNS, LONG_TABLE, LONG_TABLE_SITE_COLUMNS, LinkContext, LinkScratch,
-    RELAY_CSV_COLUMNS, SERIES_CSV_HEADER, SeriesRow, SeriesRun, SiteFractions, SiteOutcome,
-    link_record, row_values, run_series, site_fractions, site_location,
+    BATTERY_CSV_COLUMN, LINK_CSV_COLUMNS, LONG_TABLE, LONG_TABLE_SITE_COLUMNS, LinkContext,
+    LinkScratch, POWER_CSV_COLUMNS, PowerTrack, RELAY_CSV_COLUMNS, SERIES_CSV_HEADER, SeriesRow,
+    SeriesRun, SiteFractions, SiteOutcome, extra_csv_columns, link_record, row_values, run_series,
+    site_fractions, site_location,
 };
 
 /// What `penumbra series` computes.

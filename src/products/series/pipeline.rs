@@ -63,6 +63,8 @@ pub struct SiteOutcome {
     pub link: Option<illum::stats::LinkStats>,
     /// Statistics of the relays (`None` without).
     pub relay: Option<illum::stats::RelayStats>,
+    /// Statistics of the panel and battery (`None` without a panel).
+    pub power: Option<illum::power::PowerStats>,
     /// Files written, relative to the output folder.
     pub files: Vec<String>,
 }
@@ -253,6 +255,7 @@ fn write_row(
     epoch: Epoch,
     r: &SeriesRow,
     link: Option<(&LinkSample, &LinkContext)>,
+    power: Option<(f64, Option<f64>)>,
 ) -> std::io::Result<()> {
     let v = row_values(r);
     write!(
@@ -273,6 +276,12 @@ fn write_row(
     )?;
     if let Some((l, ctx)) = link {
         write!(w, "{}", ctx.csv_fields(l))?;
+    }
+    if let Some((p, battery)) = power {
+        write!(w, ",{p:.3}")?;
+        if let Some(b) = battery {
+            write!(w, ",{b:.3}")?;
+        }
     }
     writeln!(w)
 }
@@ -468,6 +477,71 @@ impl LinkContext {
     }
 }
 
+/// The columns a run with a panel adds to `series.csv` ([`crate::illum::power`]): the panel's
+/// power, and the battery's charge at the epoch when a capacity is given.
+pub const POWER_CSV_COLUMNS: &str = "power_w";
+/// The column a battery capacity adds after [`POWER_CSV_COLUMNS`].
+pub const BATTERY_CSV_COLUMN: &str = "battery_wh";
+
+/// A site's panel and battery stepped through its epochs in order (the CSV rows, Python's
+/// columns): the power of each sample and the battery's charge at its epoch.
+#[derive(Debug, Clone)]
+pub struct PowerTrack {
+    config: illum::power::PowerConfig,
+    battery: illum::power::Battery,
+    start: Epoch,
+    step_h: f64,
+}
+
+impl PowerTrack {
+    /// The track of `config`'s panel from `start`, samples `step_s` apart.
+    pub fn new(config: &illum::power::PowerConfig, start: Epoch, step_s: f64) -> Self {
+        PowerTrack {
+            battery: illum::power::Battery::new(config),
+            config: config.clone(),
+            start,
+            step_h: step_s / 3600.0,
+        }
+    }
+
+    /// One sample (in time order): `(power_w, battery_wh at the epoch)`.
+    pub fn sample(&mut self, epoch: Epoch, r: &SeriesRow) -> (f64, Option<f64>) {
+        let years = (epoch - self.start).to_seconds() / (365.25 * 86_400.0);
+        let power_w = self.config.power_w(
+            r.sun.range_km,
+            r.sun.el_deg,
+            r.sun.az_deg,
+            r.sun_fraction,
+            years,
+        );
+        let load_w = self.config.load_at(r.sun_fraction);
+        (power_w, self.battery.step(power_w, load_w, self.step_h))
+    }
+
+    /// The statistics of the samples so far.
+    pub fn stats(&self) -> illum::power::PowerStats {
+        self.battery.stats()
+    }
+}
+
+/// The columns after [`SERIES_CSV_HEADER`] of a run: the link's, then the panel's.
+pub fn extra_csv_columns(link: Option<&LinkContext>, config: &SeriesConfig) -> String {
+    let mut cols = String::new();
+    if let Some(l) = link {
+        cols += ",";
+        cols += &l.csv_columns();
+    }
+    if let Some(p) = &config.power {
+        cols += ",";
+        cols += POWER_CSV_COLUMNS;
+        if p.battery_wh.is_some() {
+            cols += ",";
+            cols += BATTERY_CSV_COLUMN;
+        }
+    }
+    cols
+}
+
 /// Scratch space of [`LinkContext::sample`], one per thread.
 #[derive(Debug, Default)]
 pub struct LinkScratch {
@@ -502,8 +576,11 @@ pub fn run_series(
     if sites.is_empty() {
         anyhow::bail!("no sites given");
     }
-    // Stations first: a bad station list fails before any work.
+    // Stations and power first: bad settings fail before any work.
     config.stations.resolve(config.station_mask_deg)?;
+    if let Some(p) = &config.power {
+        p.validate()?;
+    }
     let table = ephem::moon_geometry_table(kernels, epochs)?;
     let link = LinkContext::new(kernels, config, &table)?;
     let (horizons, fractions, backend_note) = match config.engine {
@@ -584,11 +661,12 @@ pub fn run_series(
         s.location = Some(site_location(&o.site, &o.horizon));
         s.link = o.link.clone();
         s.relay = o.relay.clone();
+        s.power = o.power.clone();
     }
     stats.write_json(&out_dir.join("stats.json"))?;
     files.push("stats.json".into());
     if config.write_csv {
-        write_long_table(&outcomes, out_dir, link.as_ref())?;
+        write_long_table(&outcomes, out_dir, link.as_ref(), config)?;
         files.push(LONG_TABLE.into());
     }
     Ok(SeriesRun {
@@ -657,18 +735,15 @@ fn write_long_table(
     outcomes: &[SiteOutcome],
     out_dir: &Path,
     link: Option<&LinkContext>,
+    config: &SeriesConfig,
 ) -> anyhow::Result<()> {
     use std::io::BufRead as _;
     crate::output::write_atomic(&out_dir.join(LONG_TABLE), |w| -> anyhow::Result<()> {
-        if let Some(l) = link {
-            writeln!(
-                w,
-                "{LONG_TABLE_SITE_COLUMNS},{SERIES_CSV_HEADER},{}",
-                l.csv_columns()
-            )?;
-        } else {
-            writeln!(w, "{LONG_TABLE_SITE_COLUMNS},{SERIES_CSV_HEADER}")?;
-        }
+        writeln!(
+            w,
+            "{LONG_TABLE_SITE_COLUMNS},{SERIES_CSV_HEADER}{}",
+            extra_csv_columns(link, config)
+        )?;
         for o in outcomes {
             let path = out_dir.join(o.site.name()).join("series.csv");
             let file = std::fs::File::open(&path)
@@ -753,15 +828,33 @@ fn run_one_site(
     let mut links: Vec<LinkSample> =
         Vec::with_capacity(if link.is_some() { epochs.len() } else { 0 });
     let mut scratch = LinkScratch::default();
+    let mut power = config
+        .power
+        .as_ref()
+        .map(|p| PowerTrack::new(p, epochs[0], step_s));
+    let mut power_w: Vec<f64> = Vec::new();
+    let mut battery_wh: Vec<f64> = Vec::new();
+    let power_needs_az = config
+        .power
+        .as_ref()
+        .is_some_and(|p| p.panel.needs_azimuth());
     let mut compute = |w: Option<&mut dyn Write>| -> anyhow::Result<()> {
         let mut w = w;
-        let need_azimuths = |k: usize| config.write_csv || k.is_multiple_of(track_stride);
+        let need_azimuths =
+            |k: usize| config.write_csv || power_needs_az || k.is_multiple_of(track_stride);
         let on_row = |k: usize, r: &SeriesRow| -> anyhow::Result<()> {
             let sample =
                 link.map(|l| l.sample(table, k, &site, &r.earth, &link_profile, &mut scratch));
+            let p = power.as_mut().map(|t| t.sample(epochs[k], r));
+            if let Some((pw, b)) = p
+                && config.plots
+            {
+                power_w.push(pw);
+                battery_wh.push(b.unwrap_or(f64::NAN));
+            }
             if let Some(w) = w.as_deref_mut() {
                 let with = sample.as_ref().zip(link);
-                write_row(w, epochs[k], r, with)?;
+                write_row(w, epochs[k], r, with, p)?;
             }
             if let Some(s) = sample {
                 links.push(s);
@@ -789,11 +882,7 @@ fn run_one_site(
     };
     if config.write_csv {
         crate::output::write_atomic(&site_dir.join("series.csv"), |w| -> anyhow::Result<()> {
-            if let Some(l) = link {
-                writeln!(w, "{SERIES_CSV_HEADER},{}", l.csv_columns())?;
-            } else {
-                writeln!(w, "{SERIES_CSV_HEADER}")?;
-            }
+            writeln!(w, "{SERIES_CSV_HEADER}{}", extra_csv_columns(link, config))?;
             compute(Some(w))
         })?;
         files.push(rel("series.csv"));
@@ -823,9 +912,11 @@ fn run_one_site(
         }
         _ => None,
     };
+    let power_stats = power.as_ref().map(PowerTrack::stats);
     let mut site_stats = StatsFile::from_series(&[series])?;
     site_stats.sites[0].link = link_stats.clone();
     site_stats.sites[0].relay = relay_stats.clone();
+    site_stats.sites[0].power = power_stats.clone();
     site_stats.write_json(&site_dir.join("stats.json"))?;
     files.push(rel("stats.json"));
 
@@ -872,6 +963,20 @@ fn run_one_site(
             rel("horizon_polar.png"),
             rel("visibility.png"),
         ]);
+        if let Some(p) = &config.power {
+            let night: Vec<bool> = sun_fraction.iter().map(|&f| f <= 0.0).collect();
+            illum::plot::write_power_plot(
+                &site_dir.join("power.png"),
+                &format!("Panel power ({}) and battery: {title}", p.panel.name()),
+                epochs[0],
+                step_s,
+                &power_w,
+                p.battery_wh.is_some().then_some(battery_wh.as_slice()),
+                &night,
+                (1400, if p.battery_wh.is_some() { 800 } else { 450 }),
+            )?;
+            files.push(rel("power.png"));
+        }
         if let Some(l) = link {
             // The link's windows as bars beside sunlight.
             let lit: Vec<bool> = sun_fraction.iter().map(|&f| f > 0.0).collect();
@@ -920,6 +1025,7 @@ fn run_one_site(
         earth_fraction,
         link: link_stats,
         relay: relay_stats,
+        power: power_stats,
         files,
     })
 }

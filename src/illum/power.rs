@@ -1,0 +1,438 @@
+//! Solar power of a panel and the state of charge of a battery behind it.
+//!
+//! ```text
+//! P = A · η · (1 − d · t_years) · S0 · (1 au / r)² · f · cos(incidence)
+//! ```
+//!
+//! `A` the panel area, `η` its efficiency, `d` an optional linear degradation per year from the
+//! first epoch, `S0 (1 au / r)² f` the normal irradiance of [`super::irradiance`] (the Sun's range
+//! `r`, its visible flux fraction `f` with the run's limb darkening), and the incidence factor of
+//! the panel's orientation against the Sun's centre (elevation above the local horizontal `el`,
+//! azimuth `az`):
+//!
+//! | panel | `cos(incidence)` |
+//! |---|---|
+//! | `vertical-tracking` (the polar default: a vertical panel turned to the Sun's azimuth) | `cos el` |
+//! | `horizontal` | `max(sin el, 0)` |
+//! | `vertical-fixed:AZ` (facing azimuth `AZ`) | `max(cos el · cos(az − AZ), 0)` |
+//! | `two-axis` (facing the Sun) | 1 |
+//!
+//! The mast height is the observer height of the panel's centre (the site's height above
+//! ground). **Time weighting**: each sample's power and load hold for `[t, t + step)`, as the
+//! series' statistics weight time. The battery starts full (or at a given charge), is clipped at
+//! its capacity and at empty; the **required capacity** is the smallest battery that, starting
+//! full, never runs empty: the largest drawdown of the cumulative net energy (`max_k D_k`,
+//! `D_{k+1} = max(0, D_k − (P_k − L_k) · step)`), which needs no capacity to be given.
+
+use serde::{Deserialize, Serialize};
+
+use crate::{AU_KM, SOLAR_CONSTANT_W_M2};
+
+/// Hours in a mean synodic month (a lunar day–night cycle), for the energy per lunar day.
+pub const LUNAR_DAY_H: f64 = 29.530_589 * 24.0;
+
+/// A panel's or a battery's settings are wrong.
+#[derive(Debug, thiserror::Error)]
+pub enum PowerError {
+    /// An unknown or malformed panel orientation.
+    #[error(
+        "panel '{0}': use vertical-tracking, horizontal, vertical-fixed:AZ_DEG (0 … 360) or two-axis"
+    )]
+    Panel(String),
+    /// A number out of its range.
+    #[error("{what} {value} is outside {range}")]
+    Range {
+        /// Which setting.
+        what: &'static str,
+        /// Its value.
+        value: f64,
+        /// The allowed range, in words.
+        range: &'static str,
+    },
+}
+
+/// The orientation of a panel.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Panel {
+    /// Vertical, turned to the Sun's azimuth.
+    VerticalTracking,
+    /// Level.
+    Horizontal,
+    /// Vertical, facing a fixed azimuth (degrees clockwise from north).
+    VerticalFixed {
+        /// The azimuth the panel faces, degrees.
+        az_deg: f64,
+    },
+    /// Facing the Sun.
+    TwoAxis,
+}
+
+impl Panel {
+    /// `vertical-tracking`, `horizontal`, `vertical-fixed:AZ_DEG` or `two-axis`.
+    pub fn parse(text: &str) -> Result<Self, PowerError> {
+        let bad = || PowerError::Panel(text.to_string());
+        match text.trim() {
+            "vertical-tracking" => Ok(Panel::VerticalTracking),
+            "horizontal" => Ok(Panel::Horizontal),
+            "two-axis" => Ok(Panel::TwoAxis),
+            t => {
+                let az = t.strip_prefix("vertical-fixed:").ok_or_else(bad)?;
+                let az_deg: f64 = az.trim().parse().map_err(|_| bad())?;
+                if !(0.0..=360.0).contains(&az_deg) {
+                    return Err(bad());
+                }
+                Ok(Panel::VerticalFixed { az_deg })
+            }
+        }
+    }
+
+    /// The name [`Panel::parse`] reads.
+    pub fn name(&self) -> String {
+        match self {
+            Panel::VerticalTracking => "vertical-tracking".into(),
+            Panel::Horizontal => "horizontal".into(),
+            Panel::VerticalFixed { az_deg } => format!("vertical-fixed:{az_deg}"),
+            Panel::TwoAxis => "two-axis".into(),
+        }
+    }
+
+    /// Whether the incidence needs the Sun's azimuth.
+    pub fn needs_azimuth(&self) -> bool {
+        matches!(self, Panel::VerticalFixed { .. })
+    }
+
+    /// `cos(incidence)` of the Sun's centre at `sun_el_deg`, `sun_az_deg` (clipped at 0).
+    pub fn incidence_factor(&self, sun_el_deg: f64, sun_az_deg: f64) -> f64 {
+        let el = sun_el_deg.to_radians();
+        match self {
+            Panel::VerticalTracking => el.cos(),
+            Panel::Horizontal => el.sin().max(0.0),
+            Panel::VerticalFixed { az_deg } => {
+                (el.cos() * (sun_az_deg - az_deg).to_radians().cos()).max(0.0)
+            }
+            Panel::TwoAxis => 1.0,
+        }
+    }
+}
+
+impl TryFrom<String> for Panel {
+    type Error = String;
+    fn try_from(s: String) -> Result<Self, String> {
+        Panel::parse(&s).map_err(|e| e.to_string())
+    }
+}
+
+impl From<Panel> for String {
+    fn from(p: Panel) -> String {
+        p.name()
+    }
+}
+
+impl Serialize for Panel {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(&self.name())
+    }
+}
+
+impl<'de> Deserialize<'de> for Panel {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        let s = String::deserialize(d)?;
+        Panel::parse(&s).map_err(serde::de::Error::custom)
+    }
+}
+
+/// A panel, a load and a battery (`series --panel …`, a scenario's `[series.power]`, Python's
+/// `series(panel=…)`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct PowerConfig {
+    /// The panel's orientation.
+    pub panel: Panel,
+    /// Panel area, m² (> 0).
+    pub area_m2: f64,
+    /// Efficiency, 0 < η ≤ 1.
+    pub efficiency: f64,
+    /// Linear loss of efficiency per year from the first epoch, % (0 … 100).
+    pub degradation_pct_per_year: f64,
+    /// Load while any part of the Sun is visible, W (≥ 0).
+    pub load_w: f64,
+    /// Load while the Sun is entirely hidden, W (≥ 0; the day load when absent).
+    pub night_load_w: Option<f64>,
+    /// Battery capacity, Wh (> 0): adds the state of charge; absent, only the required capacity.
+    pub battery_wh: Option<f64>,
+    /// Charge at the first epoch, % of the capacity (default 100).
+    pub battery_start_pct: f64,
+}
+
+impl Default for PowerConfig {
+    fn default() -> Self {
+        PowerConfig {
+            panel: Panel::VerticalTracking,
+            area_m2: 1.0,
+            efficiency: 0.30,
+            degradation_pct_per_year: 0.0,
+            load_w: 100.0,
+            night_load_w: None,
+            battery_wh: None,
+            battery_start_pct: 100.0,
+        }
+    }
+}
+
+impl PowerConfig {
+    /// Checks every number; the first wrong one is the error.
+    pub fn validate(&self) -> Result<(), PowerError> {
+        let check = |what, value: f64, ok: bool, range| {
+            if ok && value.is_finite() {
+                Ok(())
+            } else {
+                Err(PowerError::Range { what, value, range })
+            }
+        };
+        check(
+            "panel area",
+            self.area_m2,
+            self.area_m2 > 0.0 && self.area_m2 <= 1e6,
+            "(0, 1e6] m²",
+        )?;
+        check(
+            "panel efficiency",
+            self.efficiency,
+            self.efficiency > 0.0 && self.efficiency <= 1.0,
+            "(0, 1]",
+        )?;
+        check(
+            "panel degradation",
+            self.degradation_pct_per_year,
+            (0.0..=100.0).contains(&self.degradation_pct_per_year),
+            "[0, 100] %/year",
+        )?;
+        check(
+            "load",
+            self.load_w,
+            (0.0..=1e9).contains(&self.load_w),
+            "[0, 1e9] W",
+        )?;
+        if let Some(n) = self.night_load_w {
+            check("night load", n, (0.0..=1e9).contains(&n), "[0, 1e9] W")?;
+        }
+        if let Some(c) = self.battery_wh {
+            check("battery capacity", c, c > 0.0 && c <= 1e12, "(0, 1e12] Wh")?;
+        }
+        check(
+            "battery start charge",
+            self.battery_start_pct,
+            (0.0..=100.0).contains(&self.battery_start_pct),
+            "[0, 100] %",
+        )?;
+        Ok(())
+    }
+
+    /// Power of the panel, W: the Sun at `sun_range_km`, `sun_el_deg`, `sun_az_deg` with visible
+    /// fraction `fraction`, `years` after the first epoch.
+    pub fn power_w(
+        &self,
+        sun_range_km: f64,
+        sun_el_deg: f64,
+        sun_az_deg: f64,
+        fraction: f64,
+        years: f64,
+    ) -> f64 {
+        if fraction <= 0.0 {
+            return 0.0;
+        }
+        let scale = AU_KM / sun_range_km;
+        let eff = self.efficiency * (1.0 - self.degradation_pct_per_year / 100.0 * years).max(0.0);
+        self.area_m2
+            * eff
+            * SOLAR_CONSTANT_W_M2
+            * scale
+            * scale
+            * fraction
+            * self.panel.incidence_factor(sun_el_deg, sun_az_deg)
+    }
+
+    /// The load, W, with the Sun's visible fraction `fraction` (night: the Sun entirely hidden).
+    pub fn load_at(&self, fraction: f64) -> f64 {
+        match self.night_load_w {
+            Some(n) if fraction <= 0.0 => n,
+            _ => self.load_w,
+        }
+    }
+}
+
+/// A battery stepped through a series in time order (streams with the CSV rows).
+#[derive(Debug, Clone)]
+pub struct Battery {
+    capacity_wh: Option<f64>,
+    charge_wh: f64,
+    deficit_wh: f64,
+    max_deficit_wh: f64,
+    min_charge_wh: f64,
+    empty_h: f64,
+    energy_wh: f64,
+    load_energy_wh: f64,
+    hours: f64,
+}
+
+impl Battery {
+    /// A battery of `config`'s capacity at its start charge.
+    pub fn new(config: &PowerConfig) -> Self {
+        let start = config
+            .battery_wh
+            .map_or(0.0, |c| c * config.battery_start_pct / 100.0);
+        Battery {
+            capacity_wh: config.battery_wh,
+            charge_wh: start,
+            deficit_wh: 0.0,
+            max_deficit_wh: 0.0,
+            min_charge_wh: start,
+            empty_h: 0.0,
+            energy_wh: 0.0,
+            load_energy_wh: 0.0,
+            hours: 0.0,
+        }
+    }
+
+    /// One sample: `power_w` and `load_w` held for `step_h` hours. Returns the charge at the
+    /// sample's epoch (before its interval), `None` without a capacity.
+    pub fn step(&mut self, power_w: f64, load_w: f64, step_h: f64) -> Option<f64> {
+        let net_w = power_w - load_w;
+        self.energy_wh += power_w * step_h;
+        self.load_energy_wh += load_w * step_h;
+        self.hours += step_h;
+        self.deficit_wh = (self.deficit_wh - net_w * step_h).max(0.0);
+        self.max_deficit_wh = self.max_deficit_wh.max(self.deficit_wh);
+        let cap = self.capacity_wh?;
+        let at_epoch = self.charge_wh;
+        if net_w < 0.0 {
+            let to_empty_h = self.charge_wh / -net_w;
+            if to_empty_h < step_h {
+                self.empty_h += step_h - to_empty_h;
+            }
+        }
+        self.charge_wh = (self.charge_wh + net_w * step_h).clamp(0.0, cap);
+        self.min_charge_wh = self.min_charge_wh.min(self.charge_wh);
+        Some(at_epoch)
+    }
+
+    /// The statistics of the samples stepped so far.
+    pub fn stats(&self) -> PowerStats {
+        let mean_power_w = if self.hours > 0.0 {
+            self.energy_wh / self.hours
+        } else {
+            0.0
+        };
+        PowerStats {
+            mean_power_w,
+            energy_wh: self.energy_wh,
+            load_energy_wh: self.load_energy_wh,
+            energy_per_lunar_day_wh: mean_power_w * LUNAR_DAY_H,
+            required_battery_wh: self.max_deficit_wh,
+            min_battery_wh: self.capacity_wh.map(|_| self.min_charge_wh),
+            hours_below_empty_h: self.capacity_wh.map(|_| self.empty_h),
+        }
+    }
+}
+
+/// A site's power statistics (`stats.json`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PowerStats {
+    /// Mean power of the panel over the period, W.
+    pub mean_power_w: f64,
+    /// Energy collected over the period, Wh.
+    pub energy_wh: f64,
+    /// Energy drawn by the load over the period, Wh.
+    pub load_energy_wh: f64,
+    /// Mean energy per lunar day (29.53 d), Wh.
+    pub energy_per_lunar_day_wh: f64,
+    /// The smallest battery that, starting full, never runs empty over the period, Wh.
+    pub required_battery_wh: f64,
+    /// Lowest charge of the given battery, Wh (absent without a capacity).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub min_battery_wh: Option<f64>,
+    /// Hours the given battery was empty with the load unmet (absent without a capacity).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub hours_below_empty_h: Option<f64>,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn panels_parse_and_name_round_trip() {
+        for t in [
+            "vertical-tracking",
+            "horizontal",
+            "two-axis",
+            "vertical-fixed:90",
+        ] {
+            assert_eq!(Panel::parse(t).unwrap().name(), t);
+        }
+        for t in ["", "vertical", "vertical-fixed:", "vertical-fixed:400", "x"] {
+            assert!(Panel::parse(t).is_err(), "{t}");
+        }
+    }
+
+    #[test]
+    fn incidence_factors_are_the_cosines() {
+        let c = |p: Panel, el: f64, az: f64| p.incidence_factor(el, az);
+        assert!((c(Panel::VerticalTracking, 60.0, 0.0) - 0.5).abs() < 1e-15);
+        assert!((c(Panel::Horizontal, 30.0, 0.0) - 0.5).abs() < 1e-15);
+        assert_eq!(c(Panel::Horizontal, -1.0, 0.0), 0.0);
+        let east = Panel::VerticalFixed { az_deg: 90.0 };
+        assert!((c(east, 0.0, 150.0) - 0.5).abs() < 1e-15);
+        assert_eq!(c(east, 0.0, 270.0), 0.0);
+        assert_eq!(c(Panel::TwoAxis, 1.0, 0.0), 1.0);
+    }
+
+    #[test]
+    fn required_capacity_is_the_largest_drawdown() {
+        // Net +10, −30, +5, −20, +100 W for 1 h each: the cumulative energy 10, −20, −15, −35,
+        // 65 falls at most 45 Wh below its running maximum (10 → −35).
+        let config = PowerConfig {
+            load_w: 0.0,
+            battery_wh: Some(45.0),
+            ..PowerConfig::default()
+        };
+        let mut b = Battery::new(&config);
+        for net in [10.0_f64, -30.0, 5.0, -20.0, 100.0] {
+            b.step(net.max(0.0), (-net).max(0.0), 1.0);
+        }
+        let s = b.stats();
+        assert!((s.required_battery_wh - 45.0).abs() < 1e-12);
+        // 45 Wh, starting full: the +10 is lost to the full battery, so the low is 0, never below.
+        assert!(s.min_battery_wh.unwrap().abs() < 1e-12);
+        assert_eq!(s.hours_below_empty_h, Some(0.0));
+        // One Wh less runs empty for 1/20 h in the −20 W hour.
+        let mut small = Battery::new(&PowerConfig {
+            battery_wh: Some(44.0),
+            ..config
+        });
+        for net in [10.0_f64, -30.0, 5.0, -20.0, 100.0] {
+            small.step(net.max(0.0), (-net).max(0.0), 1.0);
+        }
+        assert!((small.stats().hours_below_empty_h.unwrap() - 0.05).abs() < 1e-12);
+    }
+
+    #[test]
+    fn bad_numbers_are_refused() {
+        let bad = |c: PowerConfig| c.validate().unwrap_err().to_string();
+        assert!(
+            bad(PowerConfig {
+                area_m2: -1.0,
+                ..Default::default()
+            })
+            .contains("panel area -1")
+        );
+        assert!(
+            bad(PowerConfig {
+                efficiency: 1.5,
+                ..Default::default()
+            })
+            .contains("panel efficiency 1.5")
+        );
+        assert!(PowerConfig::default().validate().is_ok());
+    }
+}
