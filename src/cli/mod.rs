@@ -19,6 +19,7 @@ mod map;
 mod render;
 mod run;
 mod series;
+mod windows;
 
 /// Arguments of `penumbra merge`.
 #[derive(Debug, Clone, Args)]
@@ -67,6 +68,10 @@ pub enum Command {
     /// Per-site illumination time series: Sun and Earth visible fractions, irradiance,
     /// statistics and plots.
     Series(series::SeriesArgs),
+    /// Landing windows: every start epoch whose stay satisfies a mission profile (lit %, longest
+    /// dark, DTE %, longest blackout) at each site, merged and ranked (windows.csv, .json, .ics),
+    /// beside the series' own files.
+    Windows(windows::WindowsArgs),
     /// Inspect or generate DEMs (GeoTIFF).
     Dem {
         /// The DEM action.
@@ -119,6 +124,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Run(args) => run::run(&args),
         Command::Dem { command } => dem::run(command),
         Command::Series(args) => series::run(&args),
+        Command::Windows(args) => windows::run(&args),
         Command::Map(args) => map::run(&args),
         Command::Merge(args) => penumbra::products::map::shard::merge(&args.out_dir, &args.shards),
         Command::Horizon(args) => horizon::run(&args),

@@ -237,6 +237,11 @@ impl From<SeriesEngineArg> for SeriesEngine {
 
 /// Runs `penumbra series`.
 pub fn run(args: &SeriesArgs) -> anyhow::Result<()> {
+    penumbra::products::series::run(&request(args)?)
+}
+
+/// The series request of `args` (shared with `penumbra windows`).
+pub fn request(args: &SeriesArgs) -> anyhow::Result<SeriesRequest> {
     let mut sites: Vec<Site> = args
         .site
         .iter()
@@ -268,7 +273,7 @@ pub fn run(args: &SeriesArgs) -> anyhow::Result<()> {
         relay_max_range_km: args.relay_max_range_km,
         power: power_config(args)?,
     };
-    penumbra::products::series::run(&SeriesRequest {
+    Ok(SeriesRequest {
         terrain: args.terrain.source(),
         sites,
         epochs: args.epochs.required()?,

@@ -22,7 +22,9 @@ pub use relays::{Relay, RelayError, RelayTable};
 pub use stations::{
     DSN_SOURCE, Station, StationError, Stations, dsn, read_stations_file, stations_record,
 };
-pub use windows::{LinkWindow, link_windows, write_windows_csv, write_windows_ics};
+pub use windows::{
+    IcsEvent, LinkWindow, link_windows, write_ics, write_windows_csv, write_windows_ics,
+};
 
 /// The default elevation mask of a station, degrees (the DSN's usual 10°).
 pub const DEFAULT_MASK_DEG: f64 = 10.0;

@@ -109,14 +109,22 @@ fn ics_text(s: &str) -> String {
         .replace('\n', "\\n")
 }
 
-/// Writes the windows as an iCalendar file (RFC 5545) a planner's calendar imports: one event per
-/// window, named after the site and its stations. Deterministic (the stamp is the window's start),
-/// so a rerun writes the same bytes.
-pub fn write_windows_ics(
-    path: &Path,
-    site: &str,
-    windows: &[LinkWindow],
-) -> Result<(), OutputError> {
+/// One event of an iCalendar file ([`write_ics`]).
+#[derive(Debug, Clone)]
+pub struct IcsEvent {
+    /// Start (UTC).
+    pub start: Epoch,
+    /// End (UTC).
+    pub end: Epoch,
+    /// A name unique within the file (made into the UID with the start).
+    pub id: String,
+    /// The event's title.
+    pub summary: String,
+}
+
+/// Writes `events` as an iCalendar file (RFC 5545) a planner's calendar imports. Deterministic
+/// (each stamp is its event's start), so a rerun writes the same bytes.
+pub fn write_ics(path: &Path, product: &str, events: &[IcsEvent]) -> Result<(), OutputError> {
     crate::output::write_atomic(path, |w: &mut dyn Write| {
         let e = io_err(path);
         let mut line = |s: &str| -> std::io::Result<()> {
@@ -137,24 +145,40 @@ pub fn write_windows_ics(
         };
         line("BEGIN:VCALENDAR").map_err(&e)?;
         line("VERSION:2.0").map_err(&e)?;
-        line("PRODID:-//penumbra//direct-to-Earth windows//EN").map_err(&e)?;
+        line(&format!("PRODID:-//penumbra//{product}//EN")).map_err(&e)?;
         line("CALSCALE:GREGORIAN").map_err(&e)?;
-        for (i, win) in windows.iter().enumerate() {
-            let start = ics_time(win.start);
+        for ev in events {
+            let start = ics_time(ev.start);
             line("BEGIN:VEVENT").map_err(&e)?;
-            line(&format!("UID:penumbra-dte-{}-{i}-{start}", ics_text(site))).map_err(&e)?;
+            line(&format!("UID:penumbra-{}-{start}", ics_text(&ev.id))).map_err(&e)?;
             line(&format!("DTSTAMP:{start}")).map_err(&e)?;
             line(&format!("DTSTART:{start}")).map_err(&e)?;
-            line(&format!("DTEND:{}", ics_time(win.end))).map_err(&e)?;
-            line(&format!(
-                "SUMMARY:{}",
-                ics_text(&format!("DTE {site} via {}", win.stations.join("+")))
-            ))
-            .map_err(&e)?;
+            line(&format!("DTEND:{}", ics_time(ev.end))).map_err(&e)?;
+            line(&format!("SUMMARY:{}", ics_text(&ev.summary))).map_err(&e)?;
             line("END:VEVENT").map_err(&e)?;
         }
         line("END:VCALENDAR").map_err(&e)
     })
+}
+
+/// Writes the DTE windows of `site` as an iCalendar file: one event per window, named after the
+/// site and its stations.
+pub fn write_windows_ics(
+    path: &Path,
+    site: &str,
+    windows: &[LinkWindow],
+) -> Result<(), OutputError> {
+    let events: Vec<IcsEvent> = windows
+        .iter()
+        .enumerate()
+        .map(|(i, win)| IcsEvent {
+            start: win.start,
+            end: win.end,
+            id: format!("dte-{site}-{i}"),
+            summary: format!("DTE {site} via {}", win.stations.join("+")),
+        })
+        .collect();
+    write_ics(path, "direct-to-Earth windows", &events)
 }
 
 #[cfg(test)]

@@ -23,6 +23,7 @@ pub mod kernels;
 pub mod map;
 pub mod render;
 pub mod series;
+pub mod windows;
 
 /// Where the terrain comes from: DEM files (finest first) or the built-in synthetic DEM.
 #[derive(Debug, Clone, PartialEq)]

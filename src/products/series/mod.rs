@@ -39,6 +39,20 @@ pub struct SeriesRequest {
 /// Runs `penumbra series` and writes its `run.json`.
 pub fn run(req: &SeriesRequest) -> anyhow::Result<()> {
     let t0 = std::time::Instant::now();
+    let (_, prov, _lock) = execute(req)?;
+    finish(req, prov, t0)
+}
+
+/// The series of `req` (files and all) and its provenance, without `run.json` (for products
+/// built on a series, e.g. `penumbra windows`, which add their files first), and the output
+/// folder's lock, to hold until `run.json` is written.
+pub fn execute(
+    req: &SeriesRequest,
+) -> anyhow::Result<(
+    SeriesRun,
+    crate::output::Provenance,
+    crate::output::cleanup::RunLock,
+)> {
     if req.sites.is_empty() {
         anyhow::bail!(
             "no site given (use --site NAME,LAT,LON, --sites FILE or --lat-deg/--lon-deg)"
@@ -49,7 +63,7 @@ pub fn run(req: &SeriesRequest) -> anyhow::Result<()> {
     let step_s = req.epochs.step_s();
     let inputs = super::Inputs::load(&req.terrain, &req.kernels, &epochs, super::DemFiles::Record)?;
     let kernels = inputs.kernels.as_ref().expect("a series has epochs");
-    let _lock = crate::output::cleanup::RunLock::begin(&req.out_dir, "run.json")
+    let lock = crate::output::cleanup::RunLock::begin(&req.out_dir, "run.json")
         .map_err(anyhow::Error::msg)?;
     let run = run_series(
         kernels,
@@ -61,10 +75,20 @@ pub fn run(req: &SeriesRequest) -> anyhow::Result<()> {
         &req.out_dir,
     )?;
     let mut prov = inputs.provenance;
-    prov.outputs = run.files;
+    prov.outputs = run.files.clone();
     prov.series_engine = Some(req.config.engine.name().into());
-    prov.series_backend = Some(run.backend);
-    prov.ground_stations = run.stations;
+    prov.series_backend = Some(run.backend.clone());
+    prov.ground_stations = run.stations.clone();
+    Ok((run, prov, lock))
+}
+
+/// Writes `run.json` of a series-based run and says what was done.
+pub fn finish(
+    req: &SeriesRequest,
+    mut prov: crate::output::Provenance,
+    t0: std::time::Instant,
+) -> anyhow::Result<()> {
+    let epochs = req.epochs.epochs();
     prov.wall_time_s = t0.elapsed().as_secs_f64();
     prov.write(&req.out_dir.join("run.json"))?;
     crate::note!(

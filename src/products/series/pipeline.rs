@@ -65,6 +65,8 @@ pub struct SiteOutcome {
     pub relay: Option<illum::stats::RelayStats>,
     /// Statistics of the panel and battery (`None` without a panel).
     pub power: Option<illum::power::PowerStats>,
+    /// Direct-to-Earth per epoch (empty without stations).
+    pub dte: Vec<bool>,
     /// Files written, relative to the output folder.
     pub files: Vec<String>,
 }
@@ -1026,6 +1028,10 @@ fn run_one_site(
         link: link_stats,
         relay: relay_stats,
         power: power_stats,
+        dte: match link {
+            Some(l) if l.has_stations() => links.iter().map(LinkSample::dte).collect(),
+            _ => Vec::new(),
+        },
         files,
     })
 }

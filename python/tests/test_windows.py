@@ -1,0 +1,102 @@
+"""Landing windows (penumbra windows, docs/power.md "Landing windows") against a brute-force
+scan of every start epoch in numpy, over the full-precision series of the Python module."""
+
+from __future__ import annotations
+
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import penumbra
+
+from conftest import run_cli
+
+pd = pytest.importorskip("pandas")
+
+START, STOP = "2025-01-01", "2025-06-30T23:00"
+SITE = ("a", -89.5, 30.0)
+
+
+def _longest(x: np.ndarray) -> int:
+    best = cur = 0
+    for v in x:
+        cur = cur + 1 if v else 0
+        best = max(best, cur)
+    return best
+
+
+def _brute(sun, dte, m, lit_min, dark_max, dte_min, blackout_max):
+    valid = []
+    for k in range(len(sun) - m + 1):
+        s, d = sun[k:k + m], dte[k:k + m]
+        ok = (100 * np.mean(s > 0) >= lit_min - 1e-9
+              and (dark_max is None or _longest(s <= 0) <= dark_max + 1e-9)
+              and 100 * np.mean(d) >= dte_min - 1e-9
+              and (blackout_max is None or _longest(~d) <= blackout_max + 1e-9))
+        if ok:
+            valid.append(k)
+    runs = []
+    for k in valid:
+        if runs and runs[-1][1] + 1 == k:
+            runs[-1][1] = k
+        else:
+            runs.append([k, k])
+    return runs
+
+
+@pytest.mark.parametrize(
+    "flags, m, crit",
+    [
+        (["--profile", "artemis3"], 156, (100.0, None, 50.0, 48)),
+        (["--stay-h", "240", "--min-lit-pct", "70", "--max-dark-h", "48", "--min-dte-pct", "60"],
+         240, (70.0, 48, 60.0, None)),
+    ],
+)
+def test_windows_match_a_brute_force_scan(cli: Path, tmp_path: Path, flags, m, crit) -> None:
+    run_cli(cli, tmp_path, "windows", "--synthetic", "--site", ",".join(map(str, SITE)),
+            "--start", START, "--stop", STOP, "--step", "1h", "--no-plots", *flags,
+            "--out-dir", "w")
+    got = pd.read_csv(tmp_path / "w" / "windows.csv")
+    table, _ = penumbra.series(penumbra.Terrain.synthetic(), [(*SITE, 2.0)],
+                               penumbra.time_range(START, STOP, "1h"))
+    utc = table["utc"]
+    runs = _brute(table["sun_visible_fraction"], table["dte"].astype(bool), m, *crit)
+    assert runs, "the scan finds windows: the test compares something"
+    want_first = [str(utc[a])[:19] + "Z" for a, _ in runs]
+    want_last = [str(utc[b])[:19] + "Z" for _, b in runs]
+    print(f"{len(runs)} windows, {sum(b - a + 1 for a, b in runs)} valid starts")
+    assert list(got.first_start_utc) == want_first
+    assert list(got.last_start_utc) == want_last
+    assert list(got.starts) == [b - a + 1 for a, b in runs]
+    # Ranks: 1 = the most valid starts.
+    assert got.sort_values("rank").starts.is_monotonic_decreasing
+    ics = (tmp_path / "w" / "windows.ics").read_text()
+    assert ics.count("BEGIN:VEVENT") == len(runs)
+    # The series' files are there too, the same as `penumbra series` writes.
+    assert (tmp_path / "w" / "a" / "series.csv").is_file()
+
+
+@pytest.mark.parametrize(
+    "extra, message",
+    [
+        (["--stay-h", "0"], "stay 0 h"),
+        (["--stay-h", "100000"], "longer than the period"),
+        (["--stay-h", "10", "--min-sun-fraction", "1.5"], "minimum Sun fraction 1.5"),
+        (["--profile", "moonwalk"], "profile 'moonwalk'"),
+        (["--profile", "artemis3", "--stations", "none"], "no ground stations"),
+        ([], "give --stay-h"),
+    ],
+)
+def test_bad_windows_input_gets_one_line_and_exit_2(cli: Path, tmp_path: Path, extra,
+                                                    message) -> None:
+    out = tmp_path / "o"
+    r = subprocess.run(
+        [str(cli), "windows", "--synthetic", "--site", "a,-89.5,0", "--start", START,
+         "--stop", "2025-01-10", "--step", "1h", "--out-dir", str(out), *extra],
+        capture_output=True, text=True)
+    assert r.returncode == 2, r.stderr
+    lines = [line for line in r.stderr.splitlines() if line.strip()]
+    assert len(lines) == 1 and message in lines[0], r.stderr
+    assert not out.exists()

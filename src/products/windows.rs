@@ -1,0 +1,377 @@
+//! `penumbra windows`: landing windows. Every start epoch whose stay satisfies a mission profile
+//! (stay length, lit fraction, longest dark, DTE share, longest blackout) at each site of a
+//! series, merged into windows of consecutive valid starts, ranked; `windows.csv`,
+//! `windows.json` and `windows.ics` beside the series' own files. Definitions: `docs/power.md`,
+//! "Landing windows".
+
+use std::path::Path;
+
+use hifitime::{Duration, Epoch};
+use serde::{Deserialize, Serialize};
+
+use super::series::{SeriesRequest, SiteOutcome};
+
+/// A mission profile: what a stay starting at an epoch must satisfy. `None` = no condition.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Profile {
+    /// Length of the stay, hours (> 0).
+    pub stay_h: f64,
+    /// The Sun's visible fraction at every sample of the stay ≥ this (0 … 1).
+    pub min_sun_fraction: Option<f64>,
+    /// % of the stay with any part of the Sun visible ≥ this.
+    pub min_lit_pct: Option<f64>,
+    /// Longest run without any part of the Sun within the stay ≤ this, hours.
+    pub max_dark_h: Option<f64>,
+    /// % of the stay with direct-to-Earth ≥ this (needs ground stations).
+    pub min_dte_pct: Option<f64>,
+    /// Longest run without direct-to-Earth within the stay ≤ this, hours (needs stations).
+    pub max_blackout_h: Option<f64>,
+}
+
+impl Profile {
+    /// The presets: `artemis3` (156 h, 100 % lit, ≥ 50 % DTE, ≤ 48 h blackout), `clps` (240 h,
+    /// ≥ 70 % lit, ≤ 48 h dark, ≥ 60 % DTE), `rover` (2,400 h, ≥ 55 % lit, ≤ 110 h dark, ≥ 50 %
+    /// DTE, ≤ 200 h blackout), as LunaHorizon defines them.
+    pub fn preset(name: &str) -> anyhow::Result<Self> {
+        let p = |stay_h, lit, dark, dte, blackout| Profile {
+            stay_h,
+            min_sun_fraction: None,
+            min_lit_pct: Some(lit),
+            max_dark_h: dark,
+            min_dte_pct: Some(dte),
+            max_blackout_h: blackout,
+        };
+        Ok(match name {
+            "artemis3" => p(156.0, 100.0, None, 50.0, Some(48.0)),
+            "clps" => p(240.0, 70.0, Some(48.0), 60.0, None),
+            "rover" => p(2400.0, 55.0, Some(110.0), 50.0, Some(200.0)),
+            o => anyhow::bail!("profile '{o}': use artemis3, clps or rover"),
+        })
+    }
+
+    /// Checks every number; `has_dte`: the run has ground stations.
+    pub fn validate(&self, has_dte: bool) -> anyhow::Result<()> {
+        let in_range = |what: &str, v: Option<f64>, lo: f64, hi: f64| -> anyhow::Result<()> {
+            if let Some(v) = v
+                && !(v.is_finite() && v >= lo && v <= hi)
+            {
+                anyhow::bail!("{what} {v} is outside [{lo}, {hi}]");
+            }
+            Ok(())
+        };
+        if !(self.stay_h.is_finite() && self.stay_h > 0.0) {
+            anyhow::bail!("stay {} h: give a positive length (--stay-h)", self.stay_h);
+        }
+        in_range("minimum Sun fraction", self.min_sun_fraction, 0.0, 1.0)?;
+        in_range("minimum lit %", self.min_lit_pct, 0.0, 100.0)?;
+        in_range("minimum DTE %", self.min_dte_pct, 0.0, 100.0)?;
+        in_range("longest dark (h)", self.max_dark_h, 0.0, f64::MAX)?;
+        in_range("longest blackout (h)", self.max_blackout_h, 0.0, f64::MAX)?;
+        if !has_dte && (self.min_dte_pct.is_some() || self.max_blackout_h.is_some()) {
+            anyhow::bail!(
+                "the profile asks for direct-to-Earth (DTE % or blackout) but the run has no ground stations (--stations none)"
+            );
+        }
+        Ok(())
+    }
+}
+
+/// The figures of one stay.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct StayFigures {
+    /// Smallest visible Sun fraction.
+    pub sun_fraction_min: f64,
+    /// % of the stay with any part of the Sun visible.
+    pub lit_pct: f64,
+    /// Longest run without the Sun, hours.
+    pub longest_dark_h: f64,
+    /// % of the stay with DTE (`NaN` without stations).
+    pub dte_pct: f64,
+    /// Longest run without DTE, hours (`NaN` without stations).
+    pub longest_blackout_h: f64,
+}
+
+/// The samples of a stay of `stay_h` hours with samples `step_s` apart: each sample holds for
+/// one step, so a stay covers `ceil(stay / step)` samples.
+pub fn stay_samples(stay_h: f64, step_s: f64) -> usize {
+    ((stay_h * 3600.0 / step_s) - 1e-9).ceil().max(1.0) as usize
+}
+
+fn longest_run(on: impl Iterator<Item = bool>) -> usize {
+    let (mut best, mut cur) = (0, 0);
+    for x in on {
+        cur = if x { cur + 1 } else { 0 };
+        best = best.max(cur);
+    }
+    best
+}
+
+/// The figures of the stay of `m` samples starting at sample `k`.
+pub fn stay_figures(
+    sun: &[f64],
+    dte: Option<&[bool]>,
+    k: usize,
+    m: usize,
+    step_h: f64,
+) -> StayFigures {
+    let s = &sun[k..k + m];
+    let lit = s.iter().filter(|&&f| f > 0.0).count();
+    let (dte_pct, longest_blackout_h) = match dte {
+        Some(d) => {
+            let d = &d[k..k + m];
+            (
+                100.0 * d.iter().filter(|&&x| x).count() as f64 / m as f64,
+                longest_run(d.iter().map(|&x| !x)) as f64 * step_h,
+            )
+        }
+        None => (f64::NAN, f64::NAN),
+    };
+    StayFigures {
+        sun_fraction_min: s.iter().copied().fold(f64::INFINITY, f64::min),
+        lit_pct: 100.0 * lit as f64 / m as f64,
+        longest_dark_h: longest_run(s.iter().map(|&f| f <= 0.0)) as f64 * step_h,
+        dte_pct,
+        longest_blackout_h,
+    }
+}
+
+/// Whether a stay's figures satisfy `p`.
+pub fn satisfies(p: &Profile, f: &StayFigures) -> bool {
+    p.min_sun_fraction.is_none_or(|v| f.sun_fraction_min >= v)
+        && p.min_lit_pct.is_none_or(|v| f.lit_pct >= v - 1e-9)
+        && p.max_dark_h.is_none_or(|v| f.longest_dark_h <= v + 1e-9)
+        && p.min_dte_pct.is_none_or(|v| f.dte_pct >= v - 1e-9)
+        && p.max_blackout_h
+            .is_none_or(|v| f.longest_blackout_h <= v + 1e-9)
+}
+
+/// A landing window: consecutive valid start epochs at a site and the worst figures among them.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Window {
+    /// The site.
+    pub site: String,
+    /// Rank at the site (1 = the most valid starts; ties by the earlier window).
+    pub rank: usize,
+    /// First valid start (UTC, ISO 8601).
+    pub first_start_utc: String,
+    /// Last valid start (UTC).
+    pub last_start_utc: String,
+    /// Number of valid starts.
+    pub starts: usize,
+    /// Length of the stay, hours.
+    pub stay_h: f64,
+    /// Worst (smallest) Sun fraction over the window's stays.
+    pub min_sun_fraction: f64,
+    /// Worst lit %.
+    pub min_lit_pct: f64,
+    /// Worst longest dark, hours.
+    pub max_dark_h: f64,
+    /// Worst DTE % (`null` without stations).
+    pub min_dte_pct: Option<f64>,
+    /// Worst longest blackout, hours (`null` without stations).
+    pub max_blackout_h: Option<f64>,
+    #[serde(skip)]
+    first: usize,
+    #[serde(skip)]
+    last: usize,
+}
+
+/// The windows of one site: `sun` its Sun fractions, `dte` its DTE flags (if stations), samples
+/// from `start` every `step_s`.
+pub fn site_windows(
+    site: &str,
+    sun: &[f64],
+    dte: Option<&[bool]>,
+    start: Epoch,
+    step_s: f64,
+    p: &Profile,
+) -> Vec<Window> {
+    let m = stay_samples(p.stay_h, step_s);
+    let step_h = step_s / 3600.0;
+    let n = sun.len();
+    let mut out: Vec<Window> = Vec::new();
+    if m > n {
+        return out;
+    }
+    let at = |k: usize| {
+        crate::ephem::time::format_iso(start + Duration::from_seconds(k as f64 * step_s))
+    };
+    for k in 0..=n - m {
+        let f = stay_figures(sun, dte, k, m, step_h);
+        if !satisfies(p, &f) {
+            continue;
+        }
+        match out.last_mut() {
+            Some(w) if w.last + 1 == k => {
+                w.last = k;
+                w.starts += 1;
+                w.last_start_utc = at(k);
+                w.min_sun_fraction = w.min_sun_fraction.min(f.sun_fraction_min);
+                w.min_lit_pct = w.min_lit_pct.min(f.lit_pct);
+                w.max_dark_h = w.max_dark_h.max(f.longest_dark_h);
+                w.min_dte_pct = w.min_dte_pct.map(|v| v.min(f.dte_pct));
+                w.max_blackout_h = w.max_blackout_h.map(|v| v.max(f.longest_blackout_h));
+            }
+            _ => out.push(Window {
+                site: site.to_string(),
+                rank: 0,
+                first_start_utc: at(k),
+                last_start_utc: at(k),
+                starts: 1,
+                stay_h: m as f64 * step_h,
+                min_sun_fraction: f.sun_fraction_min,
+                min_lit_pct: f.lit_pct,
+                max_dark_h: f.longest_dark_h,
+                min_dte_pct: dte.map(|_| f.dte_pct),
+                max_blackout_h: dte.map(|_| f.longest_blackout_h),
+                first: k,
+                last: k,
+            }),
+        }
+    }
+    let mut order: Vec<usize> = (0..out.len()).collect();
+    order.sort_by(|&a, &b| out[b].starts.cmp(&out[a].starts).then(a.cmp(&b)));
+    for (r, i) in order.into_iter().enumerate() {
+        out[i].rank = r + 1;
+    }
+    out
+}
+
+/// The CSV header of `windows.csv`.
+pub const WINDOWS_CSV_HEADER: &str = "site,rank,first_start_utc,last_start_utc,starts,stay_h,min_sun_fraction,min_lit_pct,max_dark_h,min_dte_pct,max_blackout_h";
+
+fn write_files(
+    out_dir: &Path,
+    windows: &[Window],
+    profile: &Profile,
+    start: Epoch,
+    step_s: f64,
+) -> anyhow::Result<Vec<String>> {
+    let opt = |v: Option<f64>| v.map_or(String::new(), |x| format!("{x:.3}"));
+    crate::output::write_atomic(&out_dir.join("windows.csv"), |w| -> anyhow::Result<()> {
+        writeln!(w, "{WINDOWS_CSV_HEADER}")?;
+        for x in windows {
+            let name = if x.site.contains([',', '"']) {
+                format!("\"{}\"", x.site.replace('"', "\"\""))
+            } else {
+                x.site.clone()
+            };
+            writeln!(
+                w,
+                "{name},{},{},{},{},{:.3},{:.6},{:.3},{:.3},{},{}",
+                x.rank,
+                x.first_start_utc,
+                x.last_start_utc,
+                x.starts,
+                x.stay_h,
+                x.min_sun_fraction,
+                x.min_lit_pct,
+                x.max_dark_h,
+                opt(x.min_dte_pct),
+                opt(x.max_blackout_h)
+            )?;
+        }
+        Ok(())
+    })?;
+    let json = serde_json::json!({ "profile": profile, "windows": windows });
+    crate::output::write_atomic(&out_dir.join("windows.json"), |w| -> anyhow::Result<()> {
+        serde_json::to_writer_pretty(&mut *w, &json)?;
+        writeln!(w)?;
+        Ok(())
+    })?;
+    // The calendar: one event per window, from its first start to the end of its last stay.
+    let events: Vec<crate::comms::IcsEvent> = windows
+        .iter()
+        .map(|x| {
+            let first = start + Duration::from_seconds(x.first as f64 * step_s);
+            let span_s = (x.last - x.first) as f64 * step_s + x.stay_h * 3600.0;
+            crate::comms::IcsEvent {
+                start: first,
+                end: first + Duration::from_seconds(span_s),
+                id: format!("landing-{}-{}", x.site, x.rank),
+                summary: format!(
+                    "Landing window {} #{} ({} starts, {:.0} h stay)",
+                    x.site, x.rank, x.starts, x.stay_h
+                ),
+            }
+        })
+        .collect();
+    crate::comms::write_ics(&out_dir.join("windows.ics"), "landing windows", &events)?;
+    Ok(vec![
+        "windows.csv".into(),
+        "windows.json".into(),
+        "windows.ics".into(),
+    ])
+}
+
+/// Runs `penumbra windows`: the series of `req` (its files included), then the windows of
+/// `profile` at each site.
+pub fn run(req: &SeriesRequest, profile: &Profile) -> anyhow::Result<Vec<Window>> {
+    let t0 = std::time::Instant::now();
+    let has_dte = req
+        .config
+        .stations
+        .resolve(req.config.station_mask_deg)?
+        .is_some();
+    profile.validate(has_dte)?;
+    let step_s = req.epochs.step_s();
+    let n = req.epochs.epochs().len();
+    let m = stay_samples(profile.stay_h, step_s);
+    if m > n {
+        anyhow::bail!(
+            "stay of {} h is longer than the period ({} epochs of {} s)",
+            profile.stay_h,
+            n,
+            step_s
+        );
+    }
+    let (run, mut prov, _lock) = super::series::execute(req)?;
+    let start = req.epochs.epochs()[0];
+    let windows: Vec<Window> = run
+        .outcomes
+        .iter()
+        .flat_map(|o: &SiteOutcome| {
+            let dte = (!o.dte.is_empty()).then_some(o.dte.as_slice());
+            site_windows(o.site.name(), &o.sun_fraction, dte, start, step_s, profile)
+        })
+        .collect();
+    prov.outputs
+        .extend(write_files(&req.out_dir, &windows, profile, start, step_s)?);
+    crate::note!(
+        "penumbra: {} landing window(s) of {} h stays at {} site(s)",
+        windows.len(),
+        profile.stay_h,
+        run.outcomes.len()
+    );
+    super::series::finish(req, prov, t0)?;
+    Ok(windows)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn windows_merge_consecutive_valid_starts() {
+        // 10 samples of 1 h; a 3 h stay needs 3 lit samples in a row.
+        let sun = [0.0, 1.0, 1.0, 1.0, 1.0, 0.0, 1.0, 1.0, 1.0, 0.5];
+        let p = Profile {
+            stay_h: 3.0,
+            min_sun_fraction: Some(0.9),
+            min_lit_pct: None,
+            max_dark_h: None,
+            min_dte_pct: None,
+            max_blackout_h: None,
+        };
+        let t0 = Epoch::from_gregorian_utc_at_midnight(2025, 1, 1);
+        let w = site_windows("a", &sun, None, t0, 3600.0, &p);
+        assert_eq!(w.len(), 2);
+        assert_eq!(
+            (w[0].first, w[0].last, w[0].starts, w[0].rank),
+            (1, 2, 2, 1)
+        );
+        assert_eq!((w[1].first, w[1].last, w[1].rank), (6, 6, 2));
+        assert_eq!(stay_samples(3.0, 3600.0), 3);
+        assert_eq!(stay_samples(2.5, 3600.0), 3);
+    }
+}
