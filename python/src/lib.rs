@@ -867,6 +867,91 @@ fn site_columns(
 /// `transform`, `crs_wkt`, `descriptions`, `engine`. With the horizons engine `progress(done,
 /// total)` hears the sweep's directions, then the statistics' rows, and Ctrl-C stops the run
 /// between them.
+/// `landing_windows(table, profile=None, stay_h=None, …)`: the landing windows of `penumbra
+/// windows` in the long table `series()` returns (its `site`, `utc`, `sun_visible_fraction` and,
+/// for DTE conditions, `dte` columns; evenly spaced times). `profile` is a preset (`artemis3`,
+/// `clps`, `rover`); the other values override it. Returns a list of dicts, the windows of
+/// `windows.json`.
+#[pyfunction]
+#[pyo3(signature = (table, profile = None, stay_h = None, min_sun_fraction = None, min_lit_pct = None, max_dark_h = None, min_dte_pct = None, max_blackout_h = None))]
+#[allow(clippy::too_many_arguments, reason = "Python keyword arguments")]
+fn landing_windows<'py>(
+    py: Python<'py>,
+    table: &Bound<'py, PyDict>,
+    profile: Option<&str>,
+    stay_h: Option<f64>,
+    min_sun_fraction: Option<f64>,
+    min_lit_pct: Option<f64>,
+    max_dark_h: Option<f64>,
+    min_dte_pct: Option<f64>,
+    max_blackout_h: Option<f64>,
+) -> PyResult<Bound<'py, PyAny>> {
+    use penumbra::products::windows as win;
+    let p = win::Profile::from_options(
+        profile,
+        win::ProfileOptions {
+            stay_h,
+            min_sun_fraction,
+            min_lit_pct,
+            max_dark_h,
+            min_dte_pct,
+            max_blackout_h,
+        },
+    )
+    .map_err(|e| bad(penumbra::products::one_line(&e)))?;
+    let column = |name: &str| -> PyResult<Bound<'py, PyAny>> {
+        table.get_item(name)?.ok_or_else(|| {
+            bad(format!(
+                "landing_windows: the table has no '{name}' column (pass what series() returns)"
+            ))
+        })
+    };
+    let sites: Vec<String> = column("site")?.call_method0("tolist")?.extract()?;
+    let sun: Vec<f64> = column("sun_visible_fraction")?
+        .call_method0("tolist")?
+        .extract()?;
+    let dte: Option<Vec<bool>> = match table.get_item("dte")? {
+        Some(d) => Some(
+            d.call_method0("tolist")?
+                .extract::<Vec<i64>>()?
+                .into_iter()
+                .map(|x| x != 0)
+                .collect(),
+        ),
+        None => None,
+    };
+    p.validate(dte.is_some())
+        .map_err(|e| bad(penumbra::products::one_line(&e)))?;
+    let utc = epochs_from(&column("utc")?)?;
+    if sites.len() != sun.len() || sites.len() != utc.len() {
+        return Err(bad("landing_windows: the table's columns differ in length"));
+    }
+    let mut out = Vec::new();
+    let mut a = 0;
+    while a < sites.len() {
+        let mut b = a;
+        while b < sites.len() && sites[b] == sites[a] {
+            b += 1;
+        }
+        let step_s = match b - a {
+            1 => 3600.0,
+            _ => epoch_range(&utc[a..b])?.step_s(),
+        };
+        win::check_stay(&p, b - a, step_s).map_err(|e| bad(penumbra::products::one_line(&e)))?;
+        out.extend(win::site_windows(
+            &sites[a],
+            &sun[a..b],
+            dte.as_ref().map(|d| &d[a..b]),
+            utc[a],
+            step_s,
+            &p,
+        ));
+        a = b;
+    }
+    let json = serde_json::to_string(&out).map_err(|e| bad(e.to_string()))?;
+    py.import("json")?.call_method1("loads", (json,))
+}
+
 #[pyfunction]
 #[pyo3(signature = (terrain, times, engine = "auto", observer_height_m = 2.0, kernels = None, abcorr = "lt+s", horizons = None, azimuths = 720, max_step = 16, limb_darkening = "eddington", stations = "none", station_mask_deg = 10.0, progress = None))]
 fn map_statistics<'py>(
@@ -1356,6 +1441,7 @@ fn _penumbra(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(station_elevations, m)?)?;
     m.add_function(wrap_pyfunction!(horizon, m)?)?;
     m.add_function(wrap_pyfunction!(series, m)?)?;
+    m.add_function(wrap_pyfunction!(landing_windows, m)?)?;
     m.add_function(wrap_pyfunction!(map_statistics, m)?)?;
     m.add_function(wrap_pyfunction!(map_light, m)?)?;
     m.add_function(wrap_pyfunction!(map_shard, m)?)?;

@@ -70,6 +70,27 @@ def test_windows_match_a_brute_force_scan(cli: Path, tmp_path: Path, flags, m, c
     assert list(got.first_start_utc) == want_first
     assert list(got.last_start_utc) == want_last
     assert list(got.starts) == [b - a + 1 for a, b in runs]
+    # Python on the same table: the same windows.
+    kw = {"profile": "artemis3"} if flags[0] == "--profile" else {
+        "stay_h": 240.0, "min_lit_pct": 70.0, "max_dark_h": 48.0, "min_dte_pct": 60.0}
+    py = penumbra.landing_windows(table, **kw)
+    assert [w["first_start_utc"] for w in py] == want_first
+    assert [w["rank"] for w in py] == list(got["rank"])
+    # A scenario's [windows] table: the same windows.
+    from conftest import ROOT
+    spec = ('profile = "artemis3"\n' if flags[0] == "--profile" else
+            "stay_h = 240.0\nmin_lit_pct = 70.0\nmax_dark_h = 48.0\nmin_dte_pct = 60.0\n")
+    (tmp_path / "s.toml").write_text(
+        f'name = "w"\nkernels = "{ROOT / "kernels"}"\n'
+        f'[time]\nstart = "{START}"\nstop = "{STOP}"\nstep = "1h"\n'
+        "[terrain]\nsynthetic = { size_px = 400, px_m = 100.0, seed = 1 }\n"
+        "[series]\nplots = false\nwrite_csv = false\n"
+        f"[windows]\n{spec}"
+        f'[[sites]]\nname = "{SITE[0]}"\nlat_deg = {SITE[1]}\nlon_deg = {SITE[2]}\n'
+    )
+    run_cli(cli, tmp_path, "run", "s.toml", "--out-dir", "scn")
+    scn = pd.read_csv(tmp_path / "scn" / "windows.csv")
+    assert scn.equals(got), (scn, got)
     # Ranks: 1 = the most valid starts.
     assert got.sort_values("rank").starts.is_monotonic_decreasing
     ics = (tmp_path / "w" / "windows.ics").read_text()
@@ -86,7 +107,7 @@ def test_windows_match_a_brute_force_scan(cli: Path, tmp_path: Path, flags, m, c
         (["--stay-h", "10", "--min-sun-fraction", "1.5"], "minimum Sun fraction 1.5"),
         (["--profile", "moonwalk"], "profile 'moonwalk'"),
         (["--profile", "artemis3", "--stations", "none"], "no ground stations"),
-        ([], "give --stay-h"),
+        ([], "give a stay (--stay-h H)"),
     ],
 )
 def test_bad_windows_input_gets_one_line_and_exit_2(cli: Path, tmp_path: Path, extra,
@@ -100,3 +121,44 @@ def test_bad_windows_input_gets_one_line_and_exit_2(cli: Path, tmp_path: Path, e
     lines = [line for line in r.stderr.splitlines() if line.strip()]
     assert len(lines) == 1 and message in lines[0], r.stderr
     assert not out.exists()
+
+
+def test_landing_windows_refuses_like_the_cli() -> None:
+    table, _ = penumbra.series(penumbra.Terrain.synthetic(), [(*SITE, 2.0)],
+                               penumbra.time_range(START, "2025-01-10", "1h"), stations="none")
+    with pytest.raises(penumbra.PenumbraError, match="no ground stations"):
+        penumbra.landing_windows(table, profile="artemis3")
+    with pytest.raises(penumbra.PenumbraError, match="profile 'moonwalk'"):
+        penumbra.landing_windows(table, profile="moonwalk")
+    with pytest.raises(penumbra.PenumbraError, match="stay 0 h"):
+        penumbra.landing_windows(table, stay_h=0.0)
+    with pytest.raises(penumbra.PenumbraError, match="longer than the period"):
+        penumbra.landing_windows(table, stay_h=100000.0)
+
+
+@pytest.mark.parametrize(
+    "windows, series, message",
+    [
+        ('profile = "moonwalk"\n', "[series]\n", "profile 'moonwalk'"),
+        ("stay_h = 100000.0\n", "[series]\n", "longer than the period"),
+        ('profile = "artemis3"\n', '[series]\nstations = "none"\n', "no ground stations"),
+        ('profile = "artemis3"\n', "", "[windows] needs [series]"),
+    ],
+)
+def test_a_bad_windows_table_gets_one_line_and_exit_2(cli: Path, tmp_path: Path, windows, series,
+                                                     message) -> None:
+    from conftest import ROOT
+
+    (tmp_path / "s.toml").write_text(
+        f'name = "w"\nkernels = "{ROOT / "kernels"}"\n'
+        f'[time]\nstart = "{START}"\nstop = "2025-01-10"\nstep = "1h"\n'
+        "[terrain]\nsynthetic = { size_px = 64, px_m = 100.0, seed = 1 }\n"
+        f"{series}[windows]\n{windows}"
+        '[[sites]]\nname = "a"\nlat_deg = -89.9\nlon_deg = 0.0\n'
+    )
+    r = subprocess.run([str(cli), "run", "s.toml", "--out-dir", "o"], cwd=tmp_path,
+                       capture_output=True, text=True)
+    assert r.returncode == 2, r.stderr
+    lines = [line for line in r.stderr.splitlines() if line.strip()]
+    assert len(lines) == 1 and message in lines[0], r.stderr
+    assert not (tmp_path / "o").exists()

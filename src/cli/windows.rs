@@ -1,7 +1,7 @@
 //! `penumbra windows`.
 
 use clap::Args;
-use penumbra::products::windows::Profile;
+use penumbra::products::windows::{Profile, ProfileOptions};
 
 use super::series::SeriesArgs;
 
@@ -39,32 +39,17 @@ pub struct WindowsArgs {
 
 /// Runs `penumbra windows`.
 pub fn run(args: &WindowsArgs) -> anyhow::Result<()> {
-    let mut profile = match &args.profile {
-        Some(name) => Profile::preset(name)?,
-        None => Profile {
-            stay_h: args
-                .stay_h
-                .ok_or_else(|| anyhow::anyhow!("give --stay-h H or --profile NAME"))?,
-            min_sun_fraction: None,
-            min_lit_pct: None,
-            max_dark_h: None,
-            min_dte_pct: None,
-            max_blackout_h: None,
+    let profile = Profile::from_options(
+        args.profile.as_deref(),
+        ProfileOptions {
+            stay_h: args.stay_h,
+            min_sun_fraction: args.min_sun_fraction,
+            min_lit_pct: args.min_lit_pct,
+            max_dark_h: args.max_dark_h,
+            min_dte_pct: args.min_dte_pct,
+            max_blackout_h: args.max_blackout_h,
         },
-    };
-    if let Some(h) = args.stay_h {
-        profile.stay_h = h;
-    }
-    let set = |slot: &mut Option<f64>, v: Option<f64>| {
-        if v.is_some() {
-            *slot = v;
-        }
-    };
-    set(&mut profile.min_sun_fraction, args.min_sun_fraction);
-    set(&mut profile.min_lit_pct, args.min_lit_pct);
-    set(&mut profile.max_dark_h, args.max_dark_h);
-    set(&mut profile.min_dte_pct, args.min_dte_pct);
-    set(&mut profile.max_blackout_h, args.max_blackout_h);
+    )?;
     let req = super::series::request(&args.series)?;
     penumbra::products::windows::run(&req, &profile)?;
     Ok(())

@@ -49,6 +49,38 @@ impl Profile {
         })
     }
 
+    /// A preset (or none) with the given values overriding it; without a preset `stay_h` is
+    /// required. The command line and Python build their profile here.
+    pub fn from_options(preset: Option<&str>, o: ProfileOptions) -> anyhow::Result<Self> {
+        let mut p = match preset {
+            Some(name) => Profile::preset(name)?,
+            None => Profile {
+                stay_h: o
+                    .stay_h
+                    .ok_or_else(|| anyhow::anyhow!("give a stay (--stay-h H) or a profile"))?,
+                min_sun_fraction: None,
+                min_lit_pct: None,
+                max_dark_h: None,
+                min_dte_pct: None,
+                max_blackout_h: None,
+            },
+        };
+        if let Some(h) = o.stay_h {
+            p.stay_h = h;
+        }
+        let set = |slot: &mut Option<f64>, v: Option<f64>| {
+            if v.is_some() {
+                *slot = v;
+            }
+        };
+        set(&mut p.min_sun_fraction, o.min_sun_fraction);
+        set(&mut p.min_lit_pct, o.min_lit_pct);
+        set(&mut p.max_dark_h, o.max_dark_h);
+        set(&mut p.min_dte_pct, o.min_dte_pct);
+        set(&mut p.max_blackout_h, o.max_blackout_h);
+        Ok(p)
+    }
+
     /// Checks every number; `has_dte`: the run has ground stations.
     pub fn validate(&self, has_dte: bool) -> anyhow::Result<()> {
         let in_range = |what: &str, v: Option<f64>, lo: f64, hi: f64| -> anyhow::Result<()> {
@@ -74,6 +106,23 @@ impl Profile {
         }
         Ok(())
     }
+}
+
+/// The values that override a preset ([`Profile::from_options`]).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct ProfileOptions {
+    /// Length of the stay, hours.
+    pub stay_h: Option<f64>,
+    /// Minimum Sun fraction at every sample.
+    pub min_sun_fraction: Option<f64>,
+    /// Minimum lit %.
+    pub min_lit_pct: Option<f64>,
+    /// Longest dark, hours.
+    pub max_dark_h: Option<f64>,
+    /// Minimum DTE %.
+    pub min_dte_pct: Option<f64>,
+    /// Longest blackout, hours.
+    pub max_blackout_h: Option<f64>,
 }
 
 /// The figures of one stay.
@@ -237,10 +286,79 @@ pub fn site_windows(
     out
 }
 
+/// The windows of every site of a series run (its outcomes: Sun fractions and DTE flags).
+pub fn run_windows(
+    outcomes: &[SiteOutcome],
+    start: Epoch,
+    step_s: f64,
+    profile: &Profile,
+) -> Vec<Window> {
+    outcomes
+        .iter()
+        .flat_map(|o| {
+            let dte = (!o.dte.is_empty()).then_some(o.dte.as_slice());
+            site_windows(o.site.name(), &o.sun_fraction, dte, start, step_s, profile)
+        })
+        .collect()
+}
+
+/// A scenario's `[windows]` table: a preset and/or the values that override it (as
+/// `penumbra windows`), found in the scenario's series (needs `[series]`).
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct WindowsSpec {
+    /// `artemis3`, `clps` or `rover`.
+    pub profile: Option<String>,
+    /// Length of the stay, hours.
+    pub stay_h: Option<f64>,
+    /// Minimum Sun fraction at every sample.
+    pub min_sun_fraction: Option<f64>,
+    /// Minimum lit %.
+    pub min_lit_pct: Option<f64>,
+    /// Longest dark, hours.
+    pub max_dark_h: Option<f64>,
+    /// Minimum DTE %.
+    pub min_dte_pct: Option<f64>,
+    /// Longest blackout, hours.
+    pub max_blackout_h: Option<f64>,
+}
+
+impl WindowsSpec {
+    /// The profile of this table.
+    pub fn profile(&self) -> anyhow::Result<Profile> {
+        Profile::from_options(
+            self.profile.as_deref(),
+            ProfileOptions {
+                stay_h: self.stay_h,
+                min_sun_fraction: self.min_sun_fraction,
+                min_lit_pct: self.min_lit_pct,
+                max_dark_h: self.max_dark_h,
+                min_dte_pct: self.min_dte_pct,
+                max_blackout_h: self.max_blackout_h,
+            },
+        )
+    }
+}
+
+/// Refuses a stay longer than a series of `n` samples `step_s` apart.
+pub fn check_stay(profile: &Profile, n: usize, step_s: f64) -> anyhow::Result<()> {
+    if stay_samples(profile.stay_h, step_s) > n {
+        anyhow::bail!(
+            "stay of {} h is longer than the period ({} epochs of {} s)",
+            profile.stay_h,
+            n,
+            step_s
+        );
+    }
+    Ok(())
+}
+
 /// The CSV header of `windows.csv`.
 pub const WINDOWS_CSV_HEADER: &str = "site,rank,first_start_utc,last_start_utc,starts,stay_h,min_sun_fraction,min_lit_pct,max_dark_h,min_dte_pct,max_blackout_h";
 
-fn write_files(
+/// Writes `windows.csv`, `windows.json` and `windows.ics` into `out_dir` (the windows of a series
+/// starting at `start`, samples `step_s` apart); returns their names.
+pub fn write_files(
     out_dir: &Path,
     windows: &[Window],
     profile: &Profile,
@@ -315,26 +433,10 @@ pub fn run(req: &SeriesRequest, profile: &Profile) -> anyhow::Result<Vec<Window>
         .is_some();
     profile.validate(has_dte)?;
     let step_s = req.epochs.step_s();
-    let n = req.epochs.epochs().len();
-    let m = stay_samples(profile.stay_h, step_s);
-    if m > n {
-        anyhow::bail!(
-            "stay of {} h is longer than the period ({} epochs of {} s)",
-            profile.stay_h,
-            n,
-            step_s
-        );
-    }
+    check_stay(profile, req.epochs.epochs().len(), step_s)?;
     let (run, mut prov, _lock) = super::series::execute(req)?;
     let start = req.epochs.epochs()[0];
-    let windows: Vec<Window> = run
-        .outcomes
-        .iter()
-        .flat_map(|o: &SiteOutcome| {
-            let dte = (!o.dte.is_empty()).then_some(o.dte.as_slice());
-            site_windows(o.site.name(), &o.sun_fraction, dte, start, step_s, profile)
-        })
-        .collect();
+    let windows = run_windows(&run.outcomes, start, step_s, profile);
     prov.outputs
         .extend(write_files(&req.out_dir, &windows, profile, start, step_s)?);
     crate::note!(

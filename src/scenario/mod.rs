@@ -79,6 +79,9 @@ pub struct Scenario {
     pub terrain: Option<TerrainSpec>,
     /// Per-site illumination series (needs `[terrain]`); present = enabled.
     pub series: Option<crate::products::series::SeriesConfig>,
+    /// Landing windows in the series (needs `[series]`; as `penumbra windows`), written beside
+    /// the series' files; present = enabled.
+    pub windows: Option<crate::products::windows::WindowsSpec>,
     /// Illumination maps over the scenario's span (needs `[terrain]`); present = enabled.
     pub map: Option<MapSpec>,
     /// Rendered views (needs `[terrain]`), written to `<output_dir>/render/`.
@@ -314,6 +317,25 @@ impl Scenario {
                 p.validate()
                     .map_err(|e| invalid(format!("[series.power] {e}")))?;
             }
+        }
+        if let Some(w) = &self.windows {
+            let Some(s) = &self.series else {
+                return Err(invalid("[windows] needs [series]".into()));
+            };
+            let has_dte = s
+                .stations
+                .resolve(s.station_mask_deg)
+                .map_err(|e| invalid(format!("[series] stations: {e}")))?
+                .is_some();
+            let range = self
+                .epochs()
+                .map_err(|e| invalid(crate::products::one_line(&e)))?;
+            w.profile()
+                .and_then(|p| {
+                    p.validate(has_dte)?;
+                    crate::products::windows::check_stay(&p, range.epochs().len(), range.step_s())
+                })
+                .map_err(|e| invalid(format!("[windows] {}", crate::products::one_line(&e))))?;
         }
         if let Some(m) = &self.map {
             m.stations

@@ -95,6 +95,24 @@ pub fn run_file(args: &RunRequest) -> anyhow::Result<()> {
                 },
                 &out_dir,
             )?;
+            let mut run = run;
+            if let Some(w) = &scenario.windows {
+                // Landing windows of the series (part of its checkpoint: a resumed run keeps them).
+                let profile = w.profile().context("[windows]")?;
+                let windows = crate::products::windows::run_windows(
+                    &run.outcomes,
+                    epochs[0],
+                    range.step_s(),
+                    &profile,
+                );
+                run.files.extend(crate::products::windows::write_files(
+                    &out_dir,
+                    &windows,
+                    &profile,
+                    epochs[0],
+                    range.step_s(),
+                )?);
+            }
             cp.mark_done("series", &run.files, &run.backend)
                 .map_err(anyhow::Error::msg)?;
             prov.outputs.extend(run.files);

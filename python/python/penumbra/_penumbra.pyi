@@ -83,6 +83,16 @@ def series(
     battery_start_pct: Optional[float] = None,
     progress: Optional[Progress] = None,
 ) -> Tuple[Dict[str, npt.NDArray[Any]], Dict[str, Any]]: ...
+def landing_windows(
+    table: Dict[str, npt.NDArray[Any]],
+    profile: Optional[str] = None,
+    stay_h: Optional[float] = None,
+    min_sun_fraction: Optional[float] = None,
+    min_lit_pct: Optional[float] = None,
+    max_dark_h: Optional[float] = None,
+    min_dte_pct: Optional[float] = None,
+    max_blackout_h: Optional[float] = None,
+) -> List[Dict[str, Any]]: ...
 def map_statistics(
     terrain: Terrain,
     times: Times,
