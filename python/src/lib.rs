@@ -568,38 +568,18 @@ fn series<'py>(
 ) -> PyResult<(Bound<'py, PyDict>, Bound<'py, PyAny>)> {
     use penumbra::products::series::{self as ser, SeriesConfig};
     // The power options as the command line reads them: any one turns the panel on.
-    let power = {
-        use penumbra::illum::power::{Panel, PowerConfig};
-        let any = panel.is_some()
-            || panel_area_m2.is_some()
-            || panel_efficiency.is_some()
-            || panel_degradation_pct_per_year.is_some()
-            || load_w.is_some()
-            || night_load_w.is_some()
-            || battery_wh.is_some()
-            || battery_start_pct.is_some();
-        if any {
-            let d = PowerConfig::default();
-            let config = PowerConfig {
-                panel: match panel {
-                    Some(p) => Panel::parse(p).map_err(|e| bad(e.to_string()))?,
-                    None => d.panel,
-                },
-                area_m2: panel_area_m2.unwrap_or(d.area_m2),
-                efficiency: panel_efficiency.unwrap_or(d.efficiency),
-                degradation_pct_per_year: panel_degradation_pct_per_year
-                    .unwrap_or(d.degradation_pct_per_year),
-                load_w: load_w.unwrap_or(d.load_w),
-                night_load_w,
-                battery_wh,
-                battery_start_pct: battery_start_pct.unwrap_or(d.battery_start_pct),
-            };
-            config.validate().map_err(|e| bad(e.to_string()))?;
-            Some(config)
-        } else {
-            None
-        }
-    };
+    let power =
+        penumbra::illum::power::PowerConfig::from_options(&penumbra::illum::power::PowerOptions {
+            panel,
+            area_m2: panel_area_m2,
+            efficiency: panel_efficiency,
+            degradation_pct_per_year: panel_degradation_pct_per_year,
+            load_w,
+            night_load_w,
+            battery_wh,
+            battery_start_pct,
+        })
+        .map_err(|e| bad(e.to_string()))?;
     let relays = relays
         .iter()
         .map(|r| penumbra::comms::Relay::parse(r).map_err(|e| bad(e.to_string())))

@@ -136,36 +136,17 @@ pub struct SeriesArgs {
 
 /// The panel, load and battery of the power options; `None` when none is given.
 fn power_config(args: &SeriesArgs) -> anyhow::Result<Option<penumbra::illum::power::PowerConfig>> {
-    use penumbra::illum::power::{Panel, PowerConfig};
-    let any = args.panel.is_some()
-        || args.panel_area_m2.is_some()
-        || args.panel_efficiency.is_some()
-        || args.panel_degradation_pct_per_year.is_some()
-        || args.load_w.is_some()
-        || args.night_load_w.is_some()
-        || args.battery_wh.is_some()
-        || args.battery_start_pct.is_some();
-    if !any {
-        return Ok(None);
-    }
-    let d = PowerConfig::default();
-    let config = PowerConfig {
-        panel: match &args.panel {
-            Some(p) => Panel::parse(p)?,
-            None => d.panel,
-        },
-        area_m2: args.panel_area_m2.unwrap_or(d.area_m2),
-        efficiency: args.panel_efficiency.unwrap_or(d.efficiency),
-        degradation_pct_per_year: args
-            .panel_degradation_pct_per_year
-            .unwrap_or(d.degradation_pct_per_year),
-        load_w: args.load_w.unwrap_or(d.load_w),
+    use penumbra::illum::power::{PowerConfig, PowerOptions};
+    Ok(PowerConfig::from_options(&PowerOptions {
+        panel: args.panel.as_deref(),
+        area_m2: args.panel_area_m2,
+        efficiency: args.panel_efficiency,
+        degradation_pct_per_year: args.panel_degradation_pct_per_year,
+        load_w: args.load_w,
         night_load_w: args.night_load_w,
         battery_wh: args.battery_wh,
-        battery_start_pct: args.battery_start_pct.unwrap_or(d.battery_start_pct),
-    };
-    config.validate()?;
-    Ok(Some(config))
+        battery_start_pct: args.battery_start_pct,
+    })?)
 }
 
 fn parse_relay(text: &str) -> Result<penumbra::comms::Relay, String> {

@@ -179,7 +179,63 @@ impl Default for PowerConfig {
     }
 }
 
+/// The power options as the command line and Python take them (all optional; any one turns the
+/// panel on, the rest take [`PowerConfig::default`]'s values).
+#[derive(Debug, Clone, Default)]
+pub struct PowerOptions<'a> {
+    /// Panel orientation ([`Panel::parse`]).
+    pub panel: Option<&'a str>,
+    /// Area, m².
+    pub area_m2: Option<f64>,
+    /// Efficiency.
+    pub efficiency: Option<f64>,
+    /// Degradation, %/year.
+    pub degradation_pct_per_year: Option<f64>,
+    /// Day load, W.
+    pub load_w: Option<f64>,
+    /// Night load, W.
+    pub night_load_w: Option<f64>,
+    /// Battery capacity, Wh.
+    pub battery_wh: Option<f64>,
+    /// Start charge, %.
+    pub battery_start_pct: Option<f64>,
+}
+
 impl PowerConfig {
+    /// The validated configuration of `o`; `None` when no option is given.
+    pub fn from_options(o: &PowerOptions<'_>) -> Result<Option<Self>, PowerError> {
+        let any = o.panel.is_some()
+            || [
+                o.area_m2,
+                o.efficiency,
+                o.degradation_pct_per_year,
+                o.load_w,
+                o.night_load_w,
+                o.battery_wh,
+                o.battery_start_pct,
+            ]
+            .iter()
+            .any(Option::is_some);
+        if !any {
+            return Ok(None);
+        }
+        let d = PowerConfig::default();
+        let config = PowerConfig {
+            panel: o.panel.map_or(Ok(d.panel), Panel::parse)?,
+            area_m2: o.area_m2.unwrap_or(d.area_m2),
+            efficiency: o.efficiency.unwrap_or(d.efficiency),
+            degradation_pct_per_year: o
+                .degradation_pct_per_year
+                .unwrap_or(d.degradation_pct_per_year),
+            load_w: o.load_w.unwrap_or(d.load_w),
+            night_load_w: o.night_load_w,
+            battery_wh: o.battery_wh,
+            battery_start_pct: o.battery_start_pct.unwrap_or(d.battery_start_pct),
+        };
+        config.validate()?;
+        Ok(Some(config))
+    }
+
     /// Checks every number; the first wrong one is the error.
     pub fn validate(&self) -> Result<(), PowerError> {
         let check = |what, value: f64, ok: bool, range| {

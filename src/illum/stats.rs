@@ -81,13 +81,15 @@ impl SiteSeries<'_> {
 
 /// A time window of consecutive samples (see the module docs for the weighting).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-struct Run {
-    first: usize,
-    len: usize,
+pub struct Run {
+    /// Its first sample.
+    pub first: usize,
+    /// Its number of samples.
+    pub len: usize,
 }
 
 /// The earliest longest run of consecutive indices in `0..n` for which `pred` holds.
-fn longest_run(n: usize, pred: impl Fn(usize) -> bool) -> Option<Run> {
+pub fn longest_run(n: usize, pred: impl Fn(usize) -> bool) -> Option<Run> {
     let mut best: Option<Run> = None;
     let mut cur_first = 0;
     let mut cur_len = 0;

@@ -146,13 +146,9 @@ pub fn stay_samples(stay_h: f64, step_s: f64) -> usize {
     ((stay_h * 3600.0 / step_s) - 1e-9).ceil().max(1.0) as usize
 }
 
-fn longest_run(on: impl Iterator<Item = bool>) -> usize {
-    let (mut best, mut cur) = (0, 0);
-    for x in on {
-        cur = if x { cur + 1 } else { 0 };
-        best = best.max(cur);
-    }
-    best
+/// The length of the longest run of `pred` over `0..m`.
+fn longest(m: usize, pred: impl Fn(usize) -> bool) -> usize {
+    crate::illum::stats::longest_run(m, pred).map_or(0, |r| r.len)
 }
 
 /// The figures of the stay of `m` samples starting at sample `k`.
@@ -170,7 +166,7 @@ pub fn stay_figures(
             let d = &d[k..k + m];
             (
                 100.0 * d.iter().filter(|&&x| x).count() as f64 / m as f64,
-                longest_run(d.iter().map(|&x| !x)) as f64 * step_h,
+                longest(m, |i| !d[i]) as f64 * step_h,
             )
         }
         None => (f64::NAN, f64::NAN),
@@ -178,7 +174,7 @@ pub fn stay_figures(
     StayFigures {
         sun_fraction_min: s.iter().copied().fold(f64::INFINITY, f64::min),
         lit_pct: 100.0 * lit as f64 / m as f64,
-        longest_dark_h: longest_run(s.iter().map(|&f| f <= 0.0)) as f64 * step_h,
+        longest_dark_h: longest(m, |i| s[i] <= 0.0) as f64 * step_h,
         dte_pct,
         longest_blackout_h,
     }
