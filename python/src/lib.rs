@@ -539,7 +539,8 @@ struct SiteColumns {
 /// datetime64[ns], then the float64 columns of `series.csv`), one row per site and epoch;
 /// `stats` the dict of the CLI's `stats.json` (needs evenly spaced times).
 #[pyfunction]
-#[pyo3(signature = (terrain, sites, times, kernels = None, abcorr = "lt+s", limb_darkening = "eddington", disc_method = "exact", az_step_deg = 0.25, horizon_method = "fast", stations = "dsn", station_mask_deg = 10.0, relays = Vec::new(), relay_spks = Vec::new(), relay_max_range_km = None, panel = None, panel_area_m2 = None, panel_efficiency = None, panel_degradation_pct_per_year = None, load_w = None, night_load_w = None, battery_wh = None, battery_start_pct = None, progress = None))]
+#[pyo3(signature = (terrain, sites, times, kernels = None, abcorr = "lt+s", limb_darkening = "eddington", disc_method = "exact", az_step_deg = 0.25, horizon_method = "fast", stations = "dsn", station_mask_deg = 10.0, relays = Vec::new(), relay_spks = Vec::new(), relay_max_range_km = None, panel = None, panel_area_m2 = None, panel_efficiency = None, panel_degradation_pct_per_year = None, load_w = None, night_load_w = None, battery_wh = None, battery_start_pct = None, load_profile = None, progress = None))]
+#[allow(clippy::too_many_arguments, reason = "Python keyword arguments")]
 fn series<'py>(
     py: Python<'py>,
     terrain: &Terrain,
@@ -564,6 +565,7 @@ fn series<'py>(
     night_load_w: Option<f64>,
     battery_wh: Option<f64>,
     battery_start_pct: Option<f64>,
+    load_profile: Option<PathBuf>,
     progress: Option<Bound<'py, PyAny>>,
 ) -> PyResult<(Bound<'py, PyDict>, Bound<'py, PyAny>)> {
     use penumbra::products::series::{self as ser, SeriesConfig};
@@ -578,6 +580,7 @@ fn series<'py>(
             night_load_w,
             battery_wh,
             battery_start_pct,
+            load_profile: load_profile.as_deref(),
         })
         .map_err(|e| bad(e.to_string()))?;
     let relays = relays
@@ -585,6 +588,9 @@ fn series<'py>(
         .map(|r| penumbra::comms::Relay::parse(r).map_err(|e| bad(e.to_string())))
         .collect::<PyResult<Vec<_>>>()?;
     let epochs = epochs_from(times)?;
+    if let Some(p) = &power {
+        p.loads(&epochs).map_err(|e| bad(e.to_string()))?;
+    }
     let step_s = match epochs.len() {
         1 => 3600.0,
         _ => epoch_range(&epochs)?.step_s(),
@@ -804,7 +810,11 @@ fn site_columns(
     let mut track = config
         .power
         .as_ref()
-        .map(|p| ser::PowerTrack::new(p, table[0].epoch, step_s));
+        .map(|p| {
+            let epochs: Vec<_> = table.iter().map(|g| g.epoch).collect();
+            ser::PowerTrack::new(p, &epochs, step_s)
+        })
+        .transpose()?;
     let mut power = Vec::new();
     let (sun, earth) = ser::site_fractions(
         table,
@@ -853,7 +863,7 @@ fn site_columns(
 /// `clps`, `rover`); the other values override it. Returns a list of dicts, the windows of
 /// `windows.json`.
 #[pyfunction]
-#[pyo3(signature = (table, profile = None, stay_h = None, min_sun_fraction = None, min_lit_pct = None, max_dark_h = None, min_dte_pct = None, max_blackout_h = None))]
+#[pyo3(signature = (table, profile = None, stay_h = None, min_sun_fraction = None, min_lit_pct = None, max_dark_h = None, min_dte_pct = None, max_blackout_h = None, min_touchdown_sun_el_deg = None, max_touchdown_sun_el_deg = None))]
 #[allow(clippy::too_many_arguments, reason = "Python keyword arguments")]
 fn landing_windows<'py>(
     py: Python<'py>,
@@ -865,6 +875,8 @@ fn landing_windows<'py>(
     max_dark_h: Option<f64>,
     min_dte_pct: Option<f64>,
     max_blackout_h: Option<f64>,
+    min_touchdown_sun_el_deg: Option<f64>,
+    max_touchdown_sun_el_deg: Option<f64>,
 ) -> PyResult<Bound<'py, PyAny>> {
     use penumbra::products::windows as win;
     let p = win::Profile::from_options(
@@ -876,6 +888,8 @@ fn landing_windows<'py>(
             max_dark_h,
             min_dte_pct,
             max_blackout_h,
+            min_touchdown_sun_el_deg,
+            max_touchdown_sun_el_deg,
         },
     )
     .map_err(|e| bad(penumbra::products::one_line(&e)))?;
@@ -890,6 +904,7 @@ fn landing_windows<'py>(
     let sun: Vec<f64> = column("sun_visible_fraction")?
         .call_method0("tolist")?
         .extract()?;
+    let sun_el_deg: Vec<f64> = column("sun_el_deg")?.call_method0("tolist")?.extract()?;
     let dte: Option<Vec<bool>> = match table.get_item("dte")? {
         Some(d) => Some(
             d.call_method0("tolist")?
@@ -903,7 +918,7 @@ fn landing_windows<'py>(
     p.validate(dte.is_some())
         .map_err(|e| bad(penumbra::products::one_line(&e)))?;
     let utc = epochs_from(&column("utc")?)?;
-    if sites.len() != sun.len() || sites.len() != utc.len() {
+    if sites.len() != sun.len() || sites.len() != utc.len() || sites.len() != sun_el_deg.len() {
         return Err(bad("landing_windows: the table's columns differ in length"));
     }
     let mut out = Vec::new();
@@ -918,14 +933,12 @@ fn landing_windows<'py>(
             _ => epoch_range(&utc[a..b])?.step_s(),
         };
         win::check_stay(&p, b - a, step_s).map_err(|e| bad(penumbra::products::one_line(&e)))?;
-        out.extend(win::site_windows(
-            &sites[a],
-            &sun[a..b],
-            dte.as_ref().map(|d| &d[a..b]),
-            utc[a],
-            step_s,
-            &p,
-        ));
+        let x = win::SiteSamples {
+            sun: &sun[a..b],
+            sun_el_deg: &sun_el_deg[a..b],
+            dte: dte.as_ref().map(|d| &d[a..b]),
+        };
+        out.extend(win::site_windows(&sites[a], x, utc[a], step_s, &p));
         a = b;
     }
     let json = serde_json::to_string(&out).map_err(|e| bad(e.to_string()))?;
@@ -933,7 +946,7 @@ fn landing_windows<'py>(
 }
 
 #[pyfunction]
-#[pyo3(signature = (terrain, times, engine = "auto", observer_height_m = 2.0, kernels = None, abcorr = "lt+s", horizons = None, azimuths = 720, max_step = 16, limb_darkening = "eddington", stations = "none", station_mask_deg = 10.0, progress = None))]
+#[pyo3(signature = (terrain, times, engine = "auto", observer_height_m = 2.0, kernels = None, abcorr = "lt+s", horizons = None, azimuths = 720, max_step = 16, limb_darkening = "eddington", stations = "none", station_mask_deg = 10.0, panel = None, panel_area_m2 = None, panel_efficiency = None, panel_degradation_pct_per_year = None, load_w = None, night_load_w = None, load_profile = None, progress = None))]
 fn map_statistics<'py>(
     py: Python<'py>,
     terrain: &Terrain,
@@ -948,10 +961,30 @@ fn map_statistics<'py>(
     limb_darkening: &str,
     stations: &str,
     station_mask_deg: f64,
+    panel: Option<&str>,
+    panel_area_m2: Option<f64>,
+    panel_efficiency: Option<f64>,
+    panel_degradation_pct_per_year: Option<f64>,
+    load_w: Option<f64>,
+    night_load_w: Option<f64>,
+    load_profile: Option<PathBuf>,
     progress: Option<Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     use penumbra::compute::range::{HorizonsFrom, RangeHooks, RangeInputs};
     use penumbra::products::map as pm;
+    // The power options as `penumbra map` reads them: any one adds the power maps.
+    let power =
+        penumbra::illum::power::PowerConfig::from_options(&penumbra::illum::power::PowerOptions {
+            panel,
+            area_m2: panel_area_m2,
+            efficiency: panel_efficiency,
+            degradation_pct_per_year: panel_degradation_pct_per_year,
+            load_w,
+            night_load_w,
+            load_profile: load_profile.as_deref(),
+            ..Default::default()
+        })
+        .map_err(|e| bad(e.to_string()))?;
     let epochs = epoch_range(&epochs_from(times)?)?;
     let settings = pm::MapSettings {
         observer_height: observer_height(observer_height_m)?,
@@ -964,6 +997,7 @@ fn map_statistics<'py>(
         limb: limb_law(limb_darkening)?,
         stations: penumbra::comms::Stations::parse(stations),
         station_mask_deg,
+        power,
         ..pm::MapSettings::default()
     };
     let ab = self::abcorr(abcorr)?;

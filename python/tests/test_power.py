@@ -5,6 +5,7 @@ run's own irradiance columns, and a brute-force bisection of the battery capacit
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 from pathlib import Path
 
@@ -172,3 +173,129 @@ def test_bad_power_settings_get_one_line_and_exit_2(cli: Path, tmp_path: Path, e
     with pytest.raises(penumbra.PenumbraError, match=message.split("'")[0][:12]):
         penumbra.series(penumbra.Terrain.synthetic(), [("a", -89.5, 0.0, 2.0)],
                         penumbra.time_range("2025-01-01", "2025-01-02", "1h"), **{kw: value})
+
+
+def _profile(path: Path, rows) -> Path:
+    path.write_text("start_utc,stop_utc,load_w,night_load_w\n"
+                    + "".join(f"{a},{b},{d},{n}\n" for a, b, d, n in rows))
+    return path
+
+
+PROFILE_ROWS = [("2025-01-01", "2025-01-20T06:00", 80, 40),
+                ("2025-01-20T06:00", "2025-02-10", 150, 60),
+                ("2025-02-10", "2025-03-01", 20, 10)]
+
+
+def test_a_load_profile_drives_the_battery(cli: Path, tmp_path: Path) -> None:
+    prof = _profile(tmp_path / "loads.csv", PROFILE_ROWS)
+    args = ["--synthetic", "--site", "a,-89.5,30", *SERIES, "--no-plots", "--stations", "none",
+            "--panel", "vertical-tracking", "--battery-wh", "5000", "--load-profile", str(prof)]
+    run_cli(cli, tmp_path, "series", *args, "--out-dir", "o")
+    df = pd.read_csv(tmp_path / "o" / "a" / "series.csv")
+    stats = json.loads((tmp_path / "o" / "stats.json").read_text())["sites"][0]
+    t = pd.to_datetime(df.utc.str.rstrip("Z"))
+    lit = df.sun_visible_fraction > 0
+    load = np.full(len(df), np.nan)
+    for a, b, d, n in PROFILE_ROWS:
+        inside = (t >= pd.Timestamp(a)) & (t < pd.Timestamp(b))
+        load[inside] = np.where(lit[inside], d, n)
+    assert np.isfinite(load).all()
+    at_epoch, empty_h, required = _numpy_battery(df.power_w.to_numpy(), load, 1.0, 5000.0)
+    print(f"load profile: required battery {stats['required_battery_wh']:.1f} Wh "
+          f"(numpy {required:.1f}), empty {stats['hours_below_empty_h']:.2f} h")
+    assert np.abs(df.battery_wh - at_epoch).max() <= 1.0
+    assert stats["required_battery_wh"] == pytest.approx(required, abs=1.0)
+    assert stats["hours_below_empty_h"] == pytest.approx(empty_h, abs=0.05)
+    assert stats["load_energy_wh"] == pytest.approx(load.sum(), rel=1e-9)
+    # Python reads the same file the same way.
+    _, s = penumbra.series(
+        penumbra.Terrain.synthetic(), [("a", -89.5, 30.0, 2.0)],
+        penumbra.time_range("2025-01-01", "2025-02-28T23:00", "1h"), stations="none",
+        panel="vertical-tracking", battery_wh=5000.0, load_profile=str(prof))
+    assert s["sites"][0]["required_battery_wh"] == stats["required_battery_wh"]
+
+
+@pytest.mark.parametrize(
+    "rows, message",
+    [
+        ([("2025-01-01", "2025-01-20", 80, 40), ("2025-01-21", "2025-03-01", 80, 40)],
+         "a gap between 2025-01-20"),
+        ([("2025-01-01", "2025-01-20", 80, 40), ("2025-01-19", "2025-03-01", 80, 40)],
+         "an overlap between 2025-01-19"),
+        ([], "no rows (an empty profile)"),
+        ([("2025-01-02", "2025-03-01", 80, 40)], "not the epoch 2025-01-01"),
+        ([("2025-01-01", "2025-03-01", -3, 40)], "load -3 W is outside"),
+    ],
+)
+def test_bad_load_profiles_get_one_line_and_exit_2(cli: Path, tmp_path: Path, rows,
+                                                  message) -> None:
+    prof = _profile(tmp_path / "loads.csv", rows)
+    for cmd in (["series", "--site", "a,-89.5,0"], ["map", "--engine", "horizons"]):
+        out = tmp_path / "o"
+        r = subprocess.run(
+            [str(cli), cmd[0], "--synthetic", *cmd[1:], *SERIES, "--out-dir", str(out),
+             "--load-profile", str(prof)], capture_output=True, text=True)
+        assert r.returncode == 2, r.stderr
+        lines = [line for line in r.stderr.splitlines() if line.strip()]
+        assert len(lines) == 1 and message in lines[0], r.stderr
+        assert not out.exists()
+    with pytest.raises(penumbra.PenumbraError, match=re.escape(message[:12])):
+        penumbra.series(penumbra.Terrain.synthetic(), [("a", -89.5, 0.0, 2.0)],
+                        penumbra.time_range("2025-01-01", "2025-02-28T23:00", "1h"),
+                        load_profile=str(prof))
+
+
+MAP_POWER_BOUND_W = (0.5, 0.005)  # max(0.5 W, 0.5 %): docs/power.md, docs/VALIDATION.md
+MAP_BATTERY_BOUND = (60.0, 0.03)  # max(60 Wh, 3 %)
+
+
+def test_power_maps_agree_with_series_at_20_pixels(cli: Path, tmp_path: Path) -> None:
+    """A map cell (whole-grid line sweep, every pixel's epochs in the horizons engine) and a
+    series at that pixel (its own horizon scan, the series pipeline, the battery stepped row by
+    row): two engines, one answer. With a load profile by day and night."""
+    from rasterio.crs import CRS
+    from rasterio.warp import transform
+
+    prof = _profile(tmp_path / "loads.csv", PROFILE_ROWS)
+    power = ["--panel", "vertical-tracking", "--load-profile", str(prof)]
+    run_cli(cli, tmp_path, "map", "--synthetic", *SERIES, "--engine", "horizons", "--azimuths",
+            "360", *power, "--out-dir", "m")
+    with rasterio.open(tmp_path / "m" / "mean_power_w.tif") as src:
+        p_map, tr, crs = src.read(1), src.transform, src.crs
+    b_map = rasterio.open(tmp_path / "m" / "required_battery_wh.tif").read(1)
+    irr = rasterio.open(tmp_path / "m" / "irradiance_tracking_w_m2.tif").read(1)
+    # Mean power is the panel times the tracking irradiance of the same run.
+    ok = np.isfinite(p_map)
+    assert np.abs(p_map[ok] - 0.3 * irr[ok]).max() <= 1e-3 * max(1.0, float(p_map[ok].max()))
+    rng = np.random.default_rng(7)
+    cand = np.argwhere(ok & (p_map > 5))
+    cand = cand[(cand.min(axis=1) > 20) & (cand.max(axis=1) < 380)]
+    pick = cand[rng.choice(len(cand), 20, replace=False)]
+    xs = [tr.c + tr.a * (c + 0.5) for _, c in pick]
+    ys = [tr.f + tr.e * (r + 0.5) for r, _ in pick]
+    lon, lat = transform(crs, CRS.from_proj4("+proj=longlat +R=1737400 +no_defs"), xs, ys)
+    sites = [a for i, (la, lo) in enumerate(zip(lat, lon))
+             for a in ("--site", f"p{i},{la:.9f},{lo:.9f}")]
+    run_cli(cli, tmp_path, "series", "--synthetic", *sites, *SERIES, "--no-plots", "--no-csv",
+            "--stations", "none", *power, "--out-dir", "s")
+    stats = json.loads((tmp_path / "s" / "stats.json").read_text())["sites"]
+    dp, db = [], []
+    for (r, c), s in zip(pick, stats):
+        dp.append((p_map[r, c] - s["mean_power_w"],
+                   max(MAP_POWER_BOUND_W[0], MAP_POWER_BOUND_W[1] * s["mean_power_w"])))
+        db.append((b_map[r, c] - s["required_battery_wh"],
+                   max(MAP_BATTERY_BOUND[0], MAP_BATTERY_BOUND[1] * s["required_battery_wh"])))
+    dp, db = np.array(dp), np.array(db)
+    print(f"map - series at 20 pixels: mean power |d| median {np.median(abs(dp[:, 0])):.3f} W, "
+          f"max {abs(dp[:, 0]).max():.3f} W; required battery |d| median "
+          f"{np.median(abs(db[:, 0])):.1f} Wh, max {abs(db[:, 0]).max():.1f} Wh")
+    assert (abs(dp[:, 0]) <= dp[:, 1]).all(), dp
+    assert (abs(db[:, 0]) <= db[:, 1]).all(), db
+    assert np.median(abs(dp[:, 0])) <= 0.1 and np.median(abs(db[:, 0])) <= 30.0
+    # Python's map_statistics: the same arrays as the command line's files.
+    m = penumbra.map_statistics(
+        penumbra.Terrain.synthetic(), penumbra.time_range("2025-01-01", "2025-02-28T23:00", "1h"),
+        engine="horizons", azimuths=360, panel="vertical-tracking", load_profile=str(prof))
+    assert np.array_equal(m["required_battery_wh"], b_map, equal_nan=True)
+    assert np.array_equal(m["mean_power_w"], p_map, equal_nan=True)
+    assert (m["units"]["mean_power_w"], m["units"]["required_battery_wh"]) == ("W", "W h")

@@ -27,11 +27,14 @@ def _longest(x: np.ndarray) -> int:
     return best
 
 
-def _brute(sun, dte, m, lit_min, dark_max, dte_min, blackout_max):
+def _brute(sun, dte, m, lit_min, dark_max, dte_min, blackout_max, el=None, el_min=None,
+           el_max=None):
     valid = []
     for k in range(len(sun) - m + 1):
         s, d = sun[k:k + m], dte[k:k + m]
         ok = (100 * np.mean(s > 0) >= lit_min - 1e-9
+              and (el_min is None or el[k] >= el_min)
+              and (el_max is None or el[k] <= el_max)
               and (dark_max is None or _longest(s <= 0) <= dark_max + 1e-9)
               and 100 * np.mean(d) >= dte_min - 1e-9
               and (blackout_max is None or _longest(~d) <= blackout_max + 1e-9))
@@ -52,17 +55,23 @@ def _brute(sun, dte, m, lit_min, dark_max, dte_min, blackout_max):
         (["--profile", "artemis3"], 156, (100.0, None, 50.0, 48)),
         (["--stay-h", "240", "--min-lit-pct", "70", "--max-dark-h", "48", "--min-dte-pct", "60"],
          240, (70.0, 48, 60.0, None)),
+        (["--stay-h", "72", "--min-lit-pct", "90", "--min-touchdown-sun-el-deg", "0.6",
+          "--max-touchdown-sun-el-deg", "1.4", "--stations", "none"],
+         72, (90.0, None, 0.0, None, 0.6, 1.4)),
     ],
 )
 def test_windows_match_a_brute_force_scan(cli: Path, tmp_path: Path, flags, m, crit) -> None:
     run_cli(cli, tmp_path, "windows", "--synthetic", "--site", ",".join(map(str, SITE)),
-            "--start", START, "--stop", STOP, "--step", "1h", "--no-plots", *flags,
-            "--out-dir", "w")
+            "--start", START, "--stop", STOP, "--step", "1h", *flags, "--out-dir", "w")
     got = pd.read_csv(tmp_path / "w" / "windows.csv")
+    touchdown = len(crit) > 4
     table, _ = penumbra.series(penumbra.Terrain.synthetic(), [(*SITE, 2.0)],
-                               penumbra.time_range(START, STOP, "1h"))
+                               penumbra.time_range(START, STOP, "1h"),
+                               stations="none" if touchdown else "dsn")
     utc = table["utc"]
-    runs = _brute(table["sun_visible_fraction"], table["dte"].astype(bool), m, *crit)
+    dte = (np.ones(len(utc), bool) if touchdown else table["dte"].astype(bool))
+    el_crit = (table["sun_el_deg"], *crit[4:]) if touchdown else ()
+    runs = _brute(table["sun_visible_fraction"], dte, m, *crit[:4], *el_crit)
     assert runs, "the scan finds windows: the test compares something"
     want_first = [str(utc[a])[:19] + "Z" for a, _ in runs]
     want_last = [str(utc[b])[:19] + "Z" for _, b in runs]
@@ -70,9 +79,20 @@ def test_windows_match_a_brute_force_scan(cli: Path, tmp_path: Path, flags, m, c
     assert list(got.first_start_utc) == want_first
     assert list(got.last_start_utc) == want_last
     assert list(got.starts) == [b - a + 1 for a, b in runs]
+    if touchdown:
+        el = table["sun_el_deg"]
+        lo = [el[a:b + 1].min() for a, b in runs]
+        assert np.allclose(got.min_touchdown_sun_el_deg, lo, atol=5e-4)
+        assert (got.min_touchdown_sun_el_deg >= 0.6).all()
+        assert (got.max_touchdown_sun_el_deg <= 1.4).all()
+    # The timeline: one PNG.
+    assert (tmp_path / "w" / "windows.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     # Python on the same table: the same windows.
     kw = {"profile": "artemis3"} if flags[0] == "--profile" else {
         "stay_h": 240.0, "min_lit_pct": 70.0, "max_dark_h": 48.0, "min_dte_pct": 60.0}
+    if touchdown:
+        kw = {"stay_h": 72.0, "min_lit_pct": 90.0, "min_touchdown_sun_el_deg": 0.6,
+              "max_touchdown_sun_el_deg": 1.4}
     py = penumbra.landing_windows(table, **kw)
     assert [w["first_start_utc"] for w in py] == want_first
     assert [w["rank"] for w in py] == list(got["rank"])
@@ -80,12 +100,16 @@ def test_windows_match_a_brute_force_scan(cli: Path, tmp_path: Path, flags, m, c
     from conftest import ROOT
     spec = ('profile = "artemis3"\n' if flags[0] == "--profile" else
             "stay_h = 240.0\nmin_lit_pct = 70.0\nmax_dark_h = 48.0\nmin_dte_pct = 60.0\n")
+    if touchdown:
+        spec = ("stay_h = 72.0\nmin_lit_pct = 90.0\nmin_touchdown_sun_el_deg = 0.6\n"
+                "max_touchdown_sun_el_deg = 1.4\n")
     (tmp_path / "s.toml").write_text(
         f'name = "w"\nkernels = "{ROOT / "kernels"}"\n'
         f'[time]\nstart = "{START}"\nstop = "{STOP}"\nstep = "1h"\n'
         "[terrain]\nsynthetic = { size_px = 400, px_m = 100.0, seed = 1 }\n"
         "[series]\nplots = false\nwrite_csv = false\n"
-        f"[windows]\n{spec}"
+        + ('stations = "none"\n' if touchdown else "")
+        + f"[windows]\n{spec}"
         f'[[sites]]\nname = "{SITE[0]}"\nlat_deg = {SITE[1]}\nlon_deg = {SITE[2]}\n'
     )
     run_cli(cli, tmp_path, "run", "s.toml", "--out-dir", "scn")
@@ -107,6 +131,8 @@ def test_windows_match_a_brute_force_scan(cli: Path, tmp_path: Path, flags, m, c
         (["--stay-h", "10", "--min-sun-fraction", "1.5"], "minimum Sun fraction 1.5"),
         (["--profile", "moonwalk"], "profile 'moonwalk'"),
         (["--profile", "artemis3", "--stations", "none"], "no ground stations"),
+        (["--stay-h", "10", "--min-touchdown-sun-el-deg", "2", "--max-touchdown-sun-el-deg",
+          "1"], "the minimum 2 deg is above the maximum 1 deg"),
         ([], "give a stay (--stay-h H)"),
     ],
 )

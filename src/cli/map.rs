@@ -155,6 +155,10 @@ pub struct MapArgs {
     /// Aberration correction: lt+s or none.
     #[arg(long, default_value = "lt+s")]
     pub abcorr: String,
+    /// Solar panel and load (epoch ranges, the horizons engine): mean_power_w.tif and
+    /// required_battery_wh.tif.
+    #[command(flatten)]
+    pub power: super::power::PowerArgs,
     /// Kernels.
     #[command(flatten)]
     pub kernels: KernelArgs,
@@ -226,8 +230,14 @@ impl MapArgs {
     }
 
     /// How the map is computed.
-    fn settings(&self) -> MapSettings {
-        MapSettings {
+    fn settings(&self) -> anyhow::Result<MapSettings> {
+        if self.power.battery_wh.is_some() || self.power.battery_start_pct.is_some() {
+            anyhow::bail!(
+                "--battery-wh, --battery-start-pct: a map gives the smallest battery that survives \
+                 (required_battery_wh.tif), not the charge of a given one (use a series)"
+            );
+        }
+        Ok(MapSettings {
             observer_height: self.observer_height_m,
             engine: self.engine.kind(),
             backend: self.backend.into(),
@@ -243,7 +253,8 @@ impl MapArgs {
             limb: self.limb_darkening.into(),
             stations: penumbra::comms::Stations::parse(&self.stations),
             station_mask_deg: self.station_mask_deg,
-        }
+            power: self.power.config()?,
+        })
     }
 }
 
@@ -253,7 +264,7 @@ pub fn run(args: &MapArgs) -> anyhow::Result<()> {
         terrain: args.terrain.source(),
         kernels: args.kernels.source(),
         abcorr: super::abcorr(&args.abcorr)?,
-        settings: args.settings(),
+        settings: args.settings()?,
         task: args.task()?,
     };
     penumbra::products::map::run(&request)

@@ -16,6 +16,8 @@ mod gpu_info;
 mod horizon;
 mod horizon_map;
 mod map;
+mod mast;
+mod power;
 mod render;
 mod run;
 mod series;
@@ -72,6 +74,12 @@ pub enum Command {
     /// dark, DTE %, longest blackout) at each site, merged and ranked (windows.csv, .json, .ics),
     /// beside the series' own files.
     Windows(windows::WindowsArgs),
+    /// Mast-height trade at sites: % lit, DTE % and the required battery at each of a list of
+    /// heights (mast.csv, mast.png, one series folder per height).
+    Mast(mast::MastArgs),
+    /// Smallest mast height per pixel (of a list) at which the Sun is visible a given % of the
+    /// time (min_height_m.tif): one horizons-engine map per height.
+    MastMap(mast::MastMapArgs),
     /// Inspect or generate DEMs (GeoTIFF).
     Dem {
         /// The DEM action.
@@ -125,6 +133,8 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Dem { command } => dem::run(command),
         Command::Series(args) => series::run(&args),
         Command::Windows(args) => windows::run(&args),
+        Command::Mast(args) => mast::run(&args),
+        Command::MastMap(args) => mast::run_map(&args),
         Command::Map(args) => map::run(&args),
         Command::Merge(args) => penumbra::products::map::shard::merge(&args.out_dir, &args.shards),
         Command::Horizon(args) => horizon::run(&args),

@@ -97,56 +97,15 @@ pub struct SeriesArgs {
     /// Slant-range limit of a relay link, km (none by default).
     #[arg(long, value_name = "KM", allow_hyphen_values = true)]
     pub relay_max_range_km: Option<f64>,
-    /// Power: the orientation of a solar panel on the site's mast (its centre at the observer
-    /// height): vertical-tracking (the polar default), horizontal, vertical-fixed:AZ_DEG or
-    /// two-axis. Any power option adds power_w (and battery_wh with --battery-wh) to series.csv
-    /// and mean_power_w, required_battery_wh to stats.json (docs/power.md).
-    #[arg(long, value_name = "PANEL")]
-    pub panel: Option<String>,
-    /// Panel area, m² (default 1).
-    #[arg(long, value_name = "M2", allow_hyphen_values = true)]
-    pub panel_area_m2: Option<f64>,
-    /// Panel efficiency, 0 … 1 (default 0.30).
-    #[arg(long, value_name = "FRACTION", allow_hyphen_values = true)]
-    pub panel_efficiency: Option<f64>,
-    /// Linear loss of panel efficiency per year, % (default 0).
-    #[arg(long, value_name = "PCT", allow_hyphen_values = true)]
-    pub panel_degradation_pct_per_year: Option<f64>,
-    /// Load, W (default 100), while any part of the Sun is visible (and at night without
-    /// --night-load-w).
-    #[arg(long, value_name = "W", allow_hyphen_values = true)]
-    pub load_w: Option<f64>,
-    /// Load while the Sun is entirely hidden, W.
-    #[arg(long, value_name = "W", allow_hyphen_values = true)]
-    pub night_load_w: Option<f64>,
-    /// Battery capacity, Wh: adds battery_wh (the charge at each epoch) to series.csv and
-    /// min_battery_wh, hours_below_empty_h to stats.json.
-    #[arg(long, value_name = "WH", allow_hyphen_values = true)]
-    pub battery_wh: Option<f64>,
-    /// Battery charge at the first epoch, % of the capacity (default 100).
-    #[arg(long, value_name = "PCT", allow_hyphen_values = true)]
-    pub battery_start_pct: Option<f64>,
+    /// Solar panel, load and battery.
+    #[command(flatten)]
+    pub power: super::power::PowerArgs,
     /// Kernels.
     #[command(flatten)]
     pub kernels: KernelArgs,
     /// Output folder (created if needed): one sub-folder per site, plus stats.json and run.json.
     #[arg(long, value_name = "DIR")]
     pub out_dir: PathBuf,
-}
-
-/// The panel, load and battery of the power options; `None` when none is given.
-fn power_config(args: &SeriesArgs) -> anyhow::Result<Option<penumbra::illum::power::PowerConfig>> {
-    use penumbra::illum::power::{PowerConfig, PowerOptions};
-    Ok(PowerConfig::from_options(&PowerOptions {
-        panel: args.panel.as_deref(),
-        area_m2: args.panel_area_m2,
-        efficiency: args.panel_efficiency,
-        degradation_pct_per_year: args.panel_degradation_pct_per_year,
-        load_w: args.load_w,
-        night_load_w: args.night_load_w,
-        battery_wh: args.battery_wh,
-        battery_start_pct: args.battery_start_pct,
-    })?)
 }
 
 fn parse_relay(text: &str) -> Result<penumbra::comms::Relay, String> {
@@ -252,7 +211,7 @@ pub fn request(args: &SeriesArgs) -> anyhow::Result<SeriesRequest> {
         relays: args.relays.clone(),
         relay_spks: args.relay_spks.clone(),
         relay_max_range_km: args.relay_max_range_km,
-        power: power_config(args)?,
+        power: args.power.config()?,
     };
     Ok(SeriesRequest {
         terrain: args.terrain.source(),

@@ -35,6 +35,13 @@ pub struct WindowsArgs {
     /// Longest time without direct-to-Earth within the stay <= H hours.
     #[arg(long, value_name = "H", allow_hyphen_values = true)]
     pub max_blackout_h: Option<f64>,
+    /// The Sun's centre at touchdown (a stay's first epoch) at least DEG above the local
+    /// horizontal.
+    #[arg(long, value_name = "DEG", allow_hyphen_values = true)]
+    pub min_touchdown_sun_el_deg: Option<f64>,
+    /// The Sun's centre at touchdown at most DEG above the local horizontal.
+    #[arg(long, value_name = "DEG", allow_hyphen_values = true)]
+    pub max_touchdown_sun_el_deg: Option<f64>,
 }
 
 /// Runs `penumbra windows`.
@@ -48,6 +55,8 @@ pub fn run(args: &WindowsArgs) -> anyhow::Result<()> {
             max_dark_h: args.max_dark_h,
             min_dte_pct: args.min_dte_pct,
             max_blackout_h: args.max_blackout_h,
+            min_touchdown_sun_el_deg: args.min_touchdown_sun_el_deg,
+            max_touchdown_sun_el_deg: args.max_touchdown_sun_el_deg,
         },
     )?;
     let req = super::series::request(&args.series)?;

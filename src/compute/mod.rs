@@ -77,6 +77,9 @@ pub struct MapSettings {
     pub stations: crate::comms::Stations,
     /// Elevation mask of the DSN stations and of file rows without their own, degrees.
     pub station_mask_deg: f64,
+    /// A panel and its load: the maps of mean power and required battery (the horizons engine
+    /// over an epoch range; none by default).
+    pub power: Option<crate::illum::power::PowerConfig>,
 }
 
 impl Default for MapSettings {
@@ -91,11 +94,18 @@ impl Default for MapSettings {
             limb: crate::illum::LimbLaw::default(),
             stations: crate::comms::Stations::None,
             station_mask_deg: crate::comms::DEFAULT_MASK_DEG,
+            power: None,
         }
     }
 }
 
 impl MapSettings {
+    /// Whether the horizons engine's epoch loop must run on the CPU (the direct-to-Earth and
+    /// power statistics have no GPU kernel).
+    pub fn epoch_loop_on_cpu(&self) -> bool {
+        self.stations != crate::comms::Stations::None || self.power.is_some()
+    }
+
     /// Where the rays start.
     pub fn placement(&self) -> crate::model::ObserverPlacement {
         self.observers
@@ -110,25 +120,46 @@ impl MapSettings {
         &self,
         n_epochs: Option<usize>,
     ) -> anyhow::Result<(MapEngineKind, ResolvedBackend)> {
+        if let Some(p) = &self.power {
+            // Bad power settings fail first, with their own message.
+            p.validate()?;
+            if matches!(p.panel, crate::illum::power::Panel::VerticalFixed { .. }) {
+                anyhow::bail!(
+                    "--panel {}: power maps take vertical-tracking, horizontal or two-axis panels \
+                     (a fixed panel needs the Sun's azimuth at every epoch: use a series)",
+                    p.panel.name()
+                );
+            }
+        }
         if self.stations != crate::comms::Stations::None {
             // A bad station list fails first, with its own message.
             self.stations.resolve(self.station_mask_deg)?;
+        }
+        let only_horizons = [
+            (
+                self.stations != crate::comms::Stations::None,
+                "--stations: direct-to-Earth",
+            ),
+            (self.power.is_some(), "--panel: power"),
+        ];
+        for (asked, what) in only_horizons {
+            if !asked {
+                continue;
+            }
             if n_epochs.is_none() {
+                anyhow::bail!("{what} maps need an epoch range (--start, --stop, --step)");
+            }
+            if let Some(other) = self.engine.filter(|&e| e != MapEngineKind::Horizons) {
                 anyhow::bail!(
-                    "--stations: direct-to-Earth maps need an epoch range (--start, --stop, --step)"
+                    "{what} maps come from the horizons engine, not {} (use --engine horizons or \
+                     auto)",
+                    other.name()
                 );
             }
-            match self.engine {
-                None | Some(MapEngineKind::Horizons) => {
-                    let backend = resolve(self.backend, OnGpu::WhenAsked)?;
-                    return Ok((MapEngineKind::Horizons, backend));
-                }
-                Some(other) => anyhow::bail!(
-                    "--stations: direct-to-Earth maps come from the horizons engine, not {} \
-                     (use --engine horizons or auto)",
-                    other.name()
-                ),
-            }
+        }
+        if self.epoch_loop_on_cpu() {
+            let backend = resolve(self.backend, OnGpu::WhenAsked)?;
+            return Ok((MapEngineKind::Horizons, backend));
         }
         let on_gpu = match self.engine {
             Some(engine) => map_engine_on_gpu(engine, n_epochs.is_some()),

@@ -91,6 +91,10 @@ pub fn range_statistics(
     hooks: RangeHooks<'_>,
 ) -> anyhow::Result<RangeResult> {
     let (engine, backend) = settings.engine_and_backend(Some(inputs.epochs.len()))?;
+    if let Some(p) = &settings.power {
+        // A load profile that does not cover the epochs fails before any work.
+        p.loads(&inputs.epochs.epochs())?;
+    }
     let step_h = inputs.epochs.step_s() / 3600.0;
     if engine == MapEngineKind::Horizons {
         let fine = inputs.stack.layers.first().context("no DEM layer")?;
@@ -128,7 +132,7 @@ pub fn check_budget(what: &str, bytes: u64, advice: &str) -> anyhow::Result<()> 
 /// The memory the horizons engine holds in arrays for `rows` rows of the finest layer, bytes:
 /// every terrain layer (f32), the horizons of those rows (int16 per sweep direction, or a block
 /// of rows read from a horizon file), the sweep's per-direction buffers of those rows and the
-/// statistics (53 bytes a pixel).
+/// statistics (69 bytes a pixel).
 pub fn arrays_bytes(stack: &TerrainStack, rows: usize, horizons: &HorizonsFrom) -> u64 {
     let fine = &stack.layers[0];
     let px = (rows * fine.grid.cols) as u64;
@@ -151,7 +155,7 @@ pub fn arrays_bytes(stack: &TerrainStack, rows: usize, horizons: &HorizonsFrom) 
         }
         HorizonsFrom::File(_) => 64 << 20,
     };
-    terrain + horizons + px * 53
+    terrain + horizons + px * 69
 }
 
 /// The horizons engine's raw statistics of the finest layer's `rows` (all of them, or a shard's:
@@ -245,6 +249,10 @@ pub fn horizon_statistics_rows(
         Some((flags, stations)) => engine.with_link(flags, stations),
         None => engine,
     };
+    let engine = match power_inputs(map, &epochs, inputs.epochs.step_s())? {
+        Some(p) => engine.with_power(p),
+        None => engine,
+    };
     let t1 = std::time::Instant::now();
     let progress = crate::output::progress_bar(
         rows.len(),
@@ -254,10 +262,10 @@ pub fn horizon_statistics_rows(
     // The epoch loop on the GPU (`shaders/horizon_stats.wgsl`) with the GPU backend.
     #[cfg(feature = "gpu")]
     let mut gpu_kernel = match backend {
-        ResolvedBackend::Gpu(_) if map.stations != crate::comms::Stations::None => {
+        ResolvedBackend::Gpu(_) if map.epoch_loop_on_cpu() => {
             crate::note!(
-                "penumbra: note: the direct-to-Earth statistics have no GPU kernel: the \
-                 statistics' epoch loop runs on the CPU"
+                "penumbra: note: the direct-to-Earth and power statistics have no GPU kernel: \
+                 the statistics' epoch loop runs on the CPU"
             );
             None
         }
@@ -298,7 +306,7 @@ pub fn horizon_statistics_rows(
             format!("line sweep in memory ({azimuths} azimuths requested, max step {max_step})")
         }
     };
-    let link_on_cpu = map.stations != crate::comms::Stations::None;
+    let link_on_cpu = map.epoch_loop_on_cpu();
     let ran = match (backend, &map.horizons) {
         (ResolvedBackend::Gpu(_), HorizonsFrom::Sweep { .. }) if link_on_cpu => {
             "gpu (the line sweep's hulls and tangents; the statistics' epoch loop on the cpu)"
@@ -386,6 +394,35 @@ fn per_epoch(
         #[cfg(not(feature = "gpu"))]
         ResolvedBackend::Gpu(ctx) => match **ctx {},
     }
+}
+
+/// The settings' panel and load at `epochs` (`step_s` apart), for the power statistics; `None`
+/// without a panel.
+fn power_inputs(
+    map: &MapSettings,
+    epochs: &[hifitime::Epoch],
+    step_s: f64,
+) -> anyhow::Result<Option<crate::horizon::statistics::PowerInputs>> {
+    let Some(p) = &map.power else {
+        return Ok(None);
+    };
+    p.validate()?;
+    let loads = p.loads(epochs)?;
+    let start = epochs.first().copied().unwrap_or_default();
+    let effective_area_m2 = epochs
+        .iter()
+        .map(|&t| {
+            let years = (t - start).to_seconds() / (365.25 * 86_400.0);
+            p.area_m2 * p.efficiency * (1.0 - p.degradation_pct_per_year / 100.0 * years).max(0.0)
+        })
+        .collect();
+    Ok(Some(crate::horizon::statistics::PowerInputs {
+        panel: p.panel,
+        effective_area_m2,
+        loads,
+        step_h: step_s / 3600.0,
+        described: p.describe(),
+    }))
 }
 
 /// Per epoch, whether one of the settings' ground stations sees the centre of `fine` (on the

@@ -1307,6 +1307,116 @@ pub fn write_map_preview(
     Ok(())
 }
 
+/// One panel of a [`write_height_plot`]: its y-axis label and one line per site, `(site,
+/// [(height_m, value)])` (NaN values are left out).
+pub type HeightPanel<'a> = (&'a str, Vec<(&'a str, Vec<(f64, f64)>)>);
+
+/// Figures against the mast height, one panel per figure stacked top to bottom, one line (with
+/// markers) per site: `mast.png`.
+pub fn write_height_plot(
+    path: &Path,
+    title: &str,
+    panels: &[HeightPanel<'_>],
+    size_px: (u32, u32),
+) -> Result<(), IllumError> {
+    const WHAT: &str = "mast height plot";
+    const COLOURS: [RGBColor; 6] = [
+        RGBColor(31, 119, 180),
+        RGBColor(214, 39, 40),
+        RGBColor(44, 160, 44),
+        RGBColor(148, 103, 189),
+        RGBColor(255, 127, 14),
+        RGBColor(23, 190, 207),
+    ];
+    let finite = |v: &[(f64, f64)]| {
+        v.iter()
+            .copied()
+            .filter(|p| p.0.is_finite() && p.1.is_finite())
+            .collect::<Vec<_>>()
+    };
+    let all: Vec<(f64, f64)> = panels
+        .iter()
+        .flat_map(|p| p.1.iter().flat_map(|l| finite(&l.1)))
+        .collect();
+    if panels.is_empty() || all.is_empty() {
+        return Err(IllumError::EmptySeries {
+            site: title.to_string(),
+        });
+    }
+    let h_max = all.iter().map(|p| p.0).fold(0.0_f64, f64::max) * 1.05;
+    let png = render_png(WHAT, size_px, |root| {
+        let root = root
+            .titled(title, ("sans-serif", 22))
+            .map_err(plot_err(WHAT))?;
+        let areas = root.split_evenly((panels.len(), 1));
+        for (area, (label, lines)) in areas.iter().zip(panels) {
+            let pts: Vec<(f64, f64)> = lines.iter().flat_map(|l| finite(&l.1)).collect();
+            let (lo, hi) = pts
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| {
+                    (a.min(p.1), b.max(p.1))
+                });
+            let pad = ((hi - lo) * 0.08).max(1e-3 * hi.abs().max(1.0));
+            // The legend where the lines are not: low on the right when they end high.
+            let ends: Vec<f64> = lines
+                .iter()
+                .filter_map(|l| finite(&l.1).last().map(|p| p.1))
+                .collect();
+            let end_mean = ends.iter().sum::<f64>() / ends.len().max(1) as f64;
+            let legend_at = if end_mean > 0.5 * (lo + hi) {
+                SeriesLabelPosition::LowerRight
+            } else {
+                SeriesLabelPosition::UpperRight
+            };
+            let y = if lo.is_finite() {
+                (lo - pad)..(hi + pad)
+            } else {
+                0.0..1.0
+            };
+            let mut chart = ChartBuilder::on(area)
+                .margin(10)
+                .x_label_area_size(36)
+                .y_label_area_size(80)
+                .build_cartesian_2d(0.0..h_max.max(1.0), y)
+                .map_err(plot_err(WHAT))?;
+            chart
+                .configure_mesh()
+                .x_desc("mast height above ground, m")
+                .y_desc(*label)
+                .light_line_style(BLACK.mix(0.05))
+                .label_style(("sans-serif", 13))
+                .axis_desc_style(("sans-serif", 15))
+                .draw()
+                .map_err(plot_err(WHAT))?;
+            for (i, (site, values)) in lines.iter().enumerate() {
+                let c = COLOURS[i % COLOURS.len()];
+                let v = finite(values);
+                chart
+                    .draw_series(LineSeries::new(v.iter().copied(), c.stroke_width(2)))
+                    .map_err(plot_err(WHAT))?
+                    .label(*site)
+                    .legend(move |(x, y)| {
+                        PathElement::new(vec![(x, y), (x + 18, y)], c.stroke_width(2))
+                    });
+                chart
+                    .draw_series(v.iter().map(|&p| Circle::new(p, 3, c.filled())))
+                    .map_err(plot_err(WHAT))?;
+            }
+            chart
+                .configure_series_labels()
+                .background_style(WHITE.mix(0.85))
+                .border_style(BLACK.mix(0.3))
+                .label_font(("sans-serif", 13))
+                .position(legend_at)
+                .draw()
+                .map_err(plot_err(WHAT))?;
+        }
+        Ok(())
+    })?;
+    crate::output::write_bytes_atomic(path, &png)?;
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -39,6 +39,9 @@ pub enum PowerError {
         "panel '{0}': use vertical-tracking, horizontal, vertical-fixed:AZ_DEG (0 … 360) or two-axis"
     )]
     Panel(String),
+    /// A load profile that cannot be used.
+    #[error("{0}")]
+    Profile(String),
     /// A number out of its range.
     #[error("{what} {value} is outside {range}")]
     Range {
@@ -162,6 +165,10 @@ pub struct PowerConfig {
     pub battery_wh: Option<f64>,
     /// Charge at the first epoch, % of the capacity (default 100).
     pub battery_start_pct: f64,
+    /// A time-varying load instead of `load_w` / `night_load_w`: a CSV file of
+    /// `start_utc,stop_utc,load_w[,night_load_w]` rows ([`LoadProfile`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub load_profile: Option<std::path::PathBuf>,
 }
 
 impl Default for PowerConfig {
@@ -175,6 +182,7 @@ impl Default for PowerConfig {
             night_load_w: None,
             battery_wh: None,
             battery_start_pct: 100.0,
+            load_profile: None,
         }
     }
 }
@@ -199,6 +207,8 @@ pub struct PowerOptions<'a> {
     pub battery_wh: Option<f64>,
     /// Start charge, %.
     pub battery_start_pct: Option<f64>,
+    /// A load profile file ([`LoadProfile`]).
+    pub load_profile: Option<&'a std::path::Path>,
 }
 
 impl PowerConfig {
@@ -215,9 +225,15 @@ impl PowerConfig {
                 o.battery_start_pct,
             ]
             .iter()
-            .any(Option::is_some);
+            .any(Option::is_some)
+            || o.load_profile.is_some();
         if !any {
             return Ok(None);
+        }
+        if o.load_profile.is_some() && (o.load_w.is_some() || o.night_load_w.is_some()) {
+            return Err(PowerError::Profile(
+                "give a load (--load-w, --night-load-w) or a load profile, not both".into(),
+            ));
         }
         let d = PowerConfig::default();
         let config = PowerConfig {
@@ -231,13 +247,22 @@ impl PowerConfig {
             night_load_w: o.night_load_w,
             battery_wh: o.battery_wh,
             battery_start_pct: o.battery_start_pct.unwrap_or(d.battery_start_pct),
+            load_profile: o.load_profile.map(std::path::Path::to_path_buf),
         };
         config.validate()?;
         Ok(Some(config))
     }
 
-    /// Checks every number; the first wrong one is the error.
+    /// Checks every number; the first wrong one is the error. (A load profile's file is read
+    /// and checked against the epochs by [`Self::loads`].)
     pub fn validate(&self) -> Result<(), PowerError> {
+        if self.load_profile.is_some()
+            && (self.load_w != Self::default().load_w || self.night_load_w.is_some())
+        {
+            return Err(PowerError::Profile(
+                "give a load (--load-w, --night-load-w) or a load profile, not both".into(),
+            ));
+        }
         let check = |what, value: f64, ok: bool, range| {
             if ok && value.is_finite() {
                 Ok(())
@@ -308,12 +333,187 @@ impl PowerConfig {
             * self.panel.incidence_factor(sun_el_deg, sun_az_deg)
     }
 
-    /// The load, W, with the Sun's visible fraction `fraction` (night: the Sun entirely hidden).
-    pub fn load_at(&self, fraction: f64) -> f64 {
-        match self.night_load_w {
-            Some(n) if fraction <= 0.0 => n,
-            _ => self.load_w,
+    /// The panel and load in words (for the files' descriptions).
+    pub fn describe(&self) -> String {
+        let mut t = format!(
+            "{} panel, {} m2, efficiency {}",
+            self.panel.name(),
+            self.area_m2,
+            self.efficiency
+        );
+        if self.degradation_pct_per_year > 0.0 {
+            t += &format!(", -{} %/year", self.degradation_pct_per_year);
         }
+        match (&self.load_profile, self.night_load_w) {
+            (Some(p), _) => t += &format!(", load profile {}", p.display()),
+            (None, Some(n)) => t += &format!(", load {} W by day, {n} W by night", self.load_w),
+            (None, None) => t += &format!(", load {} W", self.load_w),
+        }
+        t
+    }
+
+    /// The loads at `epochs`, W, as `(day, night)` per epoch (night: the Sun entirely hidden):
+    /// the constant loads, or the load profile's rows, which must cover every epoch.
+    pub fn loads(&self, epochs: &[hifitime::Epoch]) -> Result<Vec<Loads>, PowerError> {
+        let Some(path) = &self.load_profile else {
+            let l = Loads {
+                day_w: self.load_w,
+                night_w: self.night_load_w.unwrap_or(self.load_w),
+            };
+            return Ok(vec![l; epochs.len()]);
+        };
+        LoadProfile::read(path)?.at(epochs)
+    }
+}
+
+/// The load at one epoch, W.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Loads {
+    /// While any part of the Sun is visible.
+    pub day_w: f64,
+    /// While the Sun is entirely hidden.
+    pub night_w: f64,
+}
+
+impl Loads {
+    /// The load with the Sun's visible fraction `fraction`.
+    pub fn at(&self, fraction: f64) -> f64 {
+        if fraction <= 0.0 {
+            self.night_w
+        } else {
+            self.day_w
+        }
+    }
+}
+
+/// A time-varying load: rows `start_utc,stop_utc,load_w[,night_load_w]` (a header line, then
+/// one row per interval `[start, stop)`; each row starts where the one before stops, no gap and
+/// no overlap; without `night_load_w` the load is the same by night). A sample takes the load of
+/// the row its epoch falls in and holds it for its step, as a constant load does.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LoadProfile {
+    /// The file, for messages.
+    pub path: std::path::PathBuf,
+    /// `(start, stop, loads)` per row, in time order.
+    pub rows: Vec<(hifitime::Epoch, hifitime::Epoch, Loads)>,
+}
+
+impl LoadProfile {
+    /// Reads and checks a profile file.
+    pub fn read(path: &std::path::Path) -> Result<Self, PowerError> {
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| PowerError::Profile(format!("load profile {}: {e}", path.display())))?;
+        Self::parse(&text, path)
+    }
+
+    /// Parses a profile's text (`path` for messages).
+    pub fn parse(text: &str, path: &std::path::Path) -> Result<Self, PowerError> {
+        let bad =
+            |why: String| PowerError::Profile(format!("load profile {}: {why}", path.display()));
+        let mut reader = csv::ReaderBuilder::new()
+            .trim(csv::Trim::All)
+            .comment(Some(b'#'))
+            .flexible(true)
+            .from_reader(text.as_bytes());
+        let header: Vec<String> = reader
+            .headers()
+            .map_err(|e| bad(e.to_string()))?
+            .iter()
+            .map(str::to_string)
+            .collect();
+        let want = ["start_utc", "stop_utc", "load_w"];
+        if header.len() < 3
+            || header[..3] != want
+            || header.len() > 4
+            || (header.len() == 4 && header[3] != "night_load_w")
+        {
+            return Err(bad(format!(
+                "its header is '{}'; it must be 'start_utc,stop_utc,load_w[,night_load_w]'",
+                header.join(",")
+            )));
+        }
+        let mut rows: Vec<(hifitime::Epoch, hifitime::Epoch, Loads)> = Vec::new();
+        for (i, rec) in reader.records().enumerate() {
+            let line = i + 2;
+            let rec = rec.map_err(|e| bad(format!("line {line}: {e}")))?;
+            if rec.len() != header.len() {
+                return Err(bad(format!(
+                    "line {line} has {} fields, the header {}",
+                    rec.len(),
+                    header.len()
+                )));
+            }
+            let time = |k: usize| {
+                crate::ephem::time::parse_utc(&rec[k]).map_err(|e| bad(format!("line {line}: {e}")))
+            };
+            let load = |k: usize| {
+                let v: f64 = rec[k]
+                    .parse()
+                    .map_err(|_| bad(format!("line {line}: '{}' is not a load in W", &rec[k])))?;
+                if !(v.is_finite() && (0.0..=1e9).contains(&v)) {
+                    return Err(bad(format!(
+                        "line {line}: load {v} W is outside [0, 1e9] W"
+                    )));
+                }
+                Ok(v)
+            };
+            let (start, stop) = (time(0)?, time(1)?);
+            if stop <= start {
+                return Err(bad(format!("line {line}: it stops at or before it starts")));
+            }
+            if let Some(&(_, prev_stop, _)) = rows.last()
+                && start != prev_stop
+            {
+                let what = if start > prev_stop {
+                    "a gap"
+                } else {
+                    "an overlap"
+                };
+                return Err(bad(format!(
+                    "{what} between {} and {} (line {line}): each row must start where the one \
+                     before stops",
+                    crate::ephem::time::format_utc(prev_stop.min(start)),
+                    crate::ephem::time::format_utc(prev_stop.max(start)),
+                )));
+            }
+            let day_w = load(2)?;
+            let night_w = if rec.len() == 4 { load(3)? } else { day_w };
+            rows.push((start, stop, Loads { day_w, night_w }));
+        }
+        if rows.is_empty() {
+            return Err(bad("it has no rows (an empty profile)".into()));
+        }
+        Ok(LoadProfile {
+            path: path.to_path_buf(),
+            rows,
+        })
+    }
+
+    /// The loads at `epochs` (in time order), each from the row it falls in.
+    pub fn at(&self, epochs: &[hifitime::Epoch]) -> Result<Vec<Loads>, PowerError> {
+        let (first, last) = (self.rows[0].0, self.rows[self.rows.len() - 1].1);
+        let mut k = 0;
+        epochs
+            .iter()
+            .map(|&t| {
+                if t < first || t >= last {
+                    return Err(PowerError::Profile(format!(
+                        "load profile {} covers {} to {}, not the epoch {}",
+                        self.path.display(),
+                        crate::ephem::time::format_utc(first),
+                        crate::ephem::time::format_utc(last),
+                        crate::ephem::time::format_utc(t)
+                    )));
+                }
+                if t < self.rows[k].0 {
+                    k = 0;
+                }
+                while t >= self.rows[k].1 {
+                    k += 1;
+                }
+                Ok(self.rows[k].2)
+            })
+            .collect()
     }
 }
 

@@ -58,6 +58,19 @@ pub struct HorizonExtras {
     pub limb_law: String,
     /// Direct-to-Earth statistics, with ground stations.
     pub dte: Option<DteCounts>,
+    /// Power statistics, with a panel and its load.
+    pub power: Option<PowerMaps>,
+}
+
+/// A panel's power per pixel ([`crate::illum::power`]).
+#[derive(Debug, Clone)]
+pub struct PowerMaps {
+    /// Time-mean power, W.
+    pub mean_power_w: Vec<f32>,
+    /// The smallest battery that, starting full, carries the load through every epoch, Wh.
+    pub required_battery_wh: Vec<f32>,
+    /// The panel and load, described.
+    pub described: String,
 }
 
 /// Direct-to-Earth per pixel: any part of the Earth above the terrain horizon while a ground
@@ -90,6 +103,11 @@ impl RangeStats {
                 irradiance_horizontal_mean_w_m2: mean(&h.irradiance_horizontal_sum_w_m2),
                 irradiance_tracking_mean_w_m2: mean(&h.irradiance_tracking_sum_w_m2),
                 limb_law: limb_law.to_string(),
+                power: h.power.map(|described| PowerMaps {
+                    mean_power_w: mean(&h.power_sum_w),
+                    required_battery_wh: h.required_battery_wh.iter().map(|&x| x as f32).collect(),
+                    described,
+                }),
                 dte: h.link.map(|stations| DteCounts {
                     dte_count: h.dte_count,
                     longest_dte_blackout_epochs: h.longest_dte_blackout_epochs,

@@ -12,7 +12,8 @@ mod rasters;
 mod sites;
 
 pub use engine::{
-    HorizonExtras, MapEngine, MapEngineKind, ObserverPlacement, RangeStats, per_epoch_statistics,
+    HorizonExtras, MapEngine, MapEngineKind, ObserverPlacement, PowerMaps, RangeStats,
+    per_epoch_statistics,
 };
 pub(crate) use grid::BelowSphereTally;
 pub use grid::{MAX_MODEL_CELLS, MapGrid, MapSample, RasterInfo, VISIBLE_MIN_FRACTION, write_on};

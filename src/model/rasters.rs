@@ -37,7 +37,8 @@ pub fn range_metadata(span: &str, s: &RangeStats) -> Vec<(String, String)> {
     ]
 }
 
-/// The GeoTIFF unit of a statistic, from its file stem's suffix (`_pct`, `_h`, `_w_m2`).
+/// The GeoTIFF unit of a statistic, from its file stem's suffix (`_pct`, `_h`, `_w_m2`, `_wh`,
+/// `_w`).
 pub fn geotiff_unit(stem: &str) -> &'static str {
     if stem.ends_with("_pct") {
         "%"
@@ -45,6 +46,10 @@ pub fn geotiff_unit(stem: &str) -> &'static str {
         "h"
     } else if stem.ends_with("_w_m2") {
         "W m-2"
+    } else if stem.ends_with("_wh") {
+        "W h"
+    } else if stem.ends_with("_w") {
+        "W"
     } else {
         ""
     }
@@ -206,6 +211,35 @@ pub fn range_rasters(
                 "W/m²".into(),
             ),
         ]);
+        if let Some(p) = &e.power {
+            let top = |v: &[f32]| {
+                f64::from(
+                    v.iter()
+                        .filter(|x| x.is_finite())
+                        .fold(1.0_f32, |a, &b| a.max(b)),
+                )
+            };
+            outputs.extend([
+                (
+                    "mean_power_w",
+                    format!("time-mean power of the panel ({}), W", p.described),
+                    p.mean_power_w.clone(),
+                    top(&p.mean_power_w),
+                    "W".into(),
+                ),
+                (
+                    "required_battery_wh",
+                    format!(
+                        "smallest battery that, starting full, carries the load through every \
+                         epoch ({}), Wh",
+                        p.described
+                    ),
+                    p.required_battery_wh.clone(),
+                    top(&p.required_battery_wh),
+                    "Wh".into(),
+                ),
+            ]);
+        }
         if let Some(d) = &e.dte {
             outputs.extend([
                 (

@@ -21,6 +21,7 @@ pub mod horizon;
 pub mod horizon_map;
 pub mod kernels;
 pub mod map;
+pub mod mast;
 pub mod render;
 pub mod series;
 pub mod windows;

@@ -26,6 +26,11 @@ pub struct Profile {
     pub min_dte_pct: Option<f64>,
     /// Longest run without direct-to-Earth within the stay ≤ this, hours (needs stations).
     pub max_blackout_h: Option<f64>,
+    /// The Sun's centre at touchdown (the stay's first epoch) at least this high above the
+    /// local horizontal, degrees.
+    pub min_touchdown_sun_el_deg: Option<f64>,
+    /// … and at most this high, degrees.
+    pub max_touchdown_sun_el_deg: Option<f64>,
 }
 
 impl Profile {
@@ -40,6 +45,8 @@ impl Profile {
             max_dark_h: dark,
             min_dte_pct: Some(dte),
             max_blackout_h: blackout,
+            min_touchdown_sun_el_deg: None,
+            max_touchdown_sun_el_deg: None,
         };
         Ok(match name {
             "artemis3" => p(156.0, 100.0, None, 50.0, Some(48.0)),
@@ -63,6 +70,8 @@ impl Profile {
                 max_dark_h: None,
                 min_dte_pct: None,
                 max_blackout_h: None,
+                min_touchdown_sun_el_deg: None,
+                max_touchdown_sun_el_deg: None,
             },
         };
         if let Some(h) = o.stay_h {
@@ -78,6 +87,8 @@ impl Profile {
         set(&mut p.max_dark_h, o.max_dark_h);
         set(&mut p.min_dte_pct, o.min_dte_pct);
         set(&mut p.max_blackout_h, o.max_blackout_h);
+        set(&mut p.min_touchdown_sun_el_deg, o.min_touchdown_sun_el_deg);
+        set(&mut p.max_touchdown_sun_el_deg, o.max_touchdown_sun_el_deg);
         Ok(p)
     }
 
@@ -99,6 +110,25 @@ impl Profile {
         in_range("minimum DTE %", self.min_dte_pct, 0.0, 100.0)?;
         in_range("longest dark (h)", self.max_dark_h, 0.0, f64::MAX)?;
         in_range("longest blackout (h)", self.max_blackout_h, 0.0, f64::MAX)?;
+        in_range(
+            "minimum touchdown Sun elevation (deg)",
+            self.min_touchdown_sun_el_deg,
+            -90.0,
+            90.0,
+        )?;
+        in_range(
+            "maximum touchdown Sun elevation (deg)",
+            self.max_touchdown_sun_el_deg,
+            -90.0,
+            90.0,
+        )?;
+        if let (Some(lo), Some(hi)) = (self.min_touchdown_sun_el_deg, self.max_touchdown_sun_el_deg)
+            && lo > hi
+        {
+            anyhow::bail!(
+                "touchdown Sun elevation: the minimum {lo} deg is above the maximum {hi} deg"
+            );
+        }
         if !has_dte && (self.min_dte_pct.is_some() || self.max_blackout_h.is_some()) {
             anyhow::bail!(
                 "the profile asks for direct-to-Earth (DTE % or blackout) but the run has no ground stations (--stations none)"
@@ -123,6 +153,10 @@ pub struct ProfileOptions {
     pub min_dte_pct: Option<f64>,
     /// Longest blackout, hours.
     pub max_blackout_h: Option<f64>,
+    /// Lowest Sun elevation at touchdown, degrees.
+    pub min_touchdown_sun_el_deg: Option<f64>,
+    /// Highest Sun elevation at touchdown, degrees.
+    pub max_touchdown_sun_el_deg: Option<f64>,
 }
 
 /// The figures of one stay.
@@ -138,6 +172,8 @@ pub struct StayFigures {
     pub dte_pct: f64,
     /// Longest run without DTE, hours (`NaN` without stations).
     pub longest_blackout_h: f64,
+    /// The Sun's elevation at touchdown (the stay's first sample), degrees.
+    pub touchdown_sun_el_deg: f64,
 }
 
 /// The samples of a stay of `stay_h` hours with samples `step_s` apart: each sample holds for
@@ -151,14 +187,25 @@ fn longest(m: usize, pred: impl Fn(usize) -> bool) -> usize {
     crate::illum::stats::longest_run(m, pred).map_or(0, |r| r.len)
 }
 
+/// A site's samples: the Sun's visible fraction, its elevation and direct-to-Earth (with
+/// stations), one per epoch.
+#[derive(Debug, Clone, Copy)]
+pub struct SiteSamples<'a> {
+    /// The Sun's visible fraction.
+    pub sun: &'a [f64],
+    /// The Sun's centre's elevation above the local horizontal, degrees.
+    pub sun_el_deg: &'a [f64],
+    /// Direct-to-Earth (`None` without stations).
+    pub dte: Option<&'a [bool]>,
+}
+
 /// The figures of the stay of `m` samples starting at sample `k`.
-pub fn stay_figures(
-    sun: &[f64],
-    dte: Option<&[bool]>,
-    k: usize,
-    m: usize,
-    step_h: f64,
-) -> StayFigures {
+pub fn stay_figures(x: SiteSamples<'_>, k: usize, m: usize, step_h: f64) -> StayFigures {
+    let SiteSamples {
+        sun,
+        sun_el_deg,
+        dte,
+    } = x;
     let s = &sun[k..k + m];
     let lit = s.iter().filter(|&&f| f > 0.0).count();
     let (dte_pct, longest_blackout_h) = match dte {
@@ -177,6 +224,7 @@ pub fn stay_figures(
         longest_dark_h: longest(m, |i| s[i] <= 0.0) as f64 * step_h,
         dte_pct,
         longest_blackout_h,
+        touchdown_sun_el_deg: sun_el_deg[k],
     }
 }
 
@@ -188,6 +236,10 @@ pub fn satisfies(p: &Profile, f: &StayFigures) -> bool {
         && p.min_dte_pct.is_none_or(|v| f.dte_pct >= v - 1e-9)
         && p.max_blackout_h
             .is_none_or(|v| f.longest_blackout_h <= v + 1e-9)
+        && p.min_touchdown_sun_el_deg
+            .is_none_or(|v| f.touchdown_sun_el_deg >= v)
+        && p.max_touchdown_sun_el_deg
+            .is_none_or(|v| f.touchdown_sun_el_deg <= v)
 }
 
 /// A landing window: consecutive valid start epochs at a site and the worst figures among them.
@@ -215,25 +267,28 @@ pub struct Window {
     pub min_dte_pct: Option<f64>,
     /// Worst longest blackout, hours (`null` without stations).
     pub max_blackout_h: Option<f64>,
+    /// Lowest Sun elevation at touchdown among the window's starts, degrees.
+    pub min_touchdown_sun_el_deg: f64,
+    /// Highest, degrees.
+    pub max_touchdown_sun_el_deg: f64,
     #[serde(skip)]
     first: usize,
     #[serde(skip)]
     last: usize,
 }
 
-/// The windows of one site: `sun` its Sun fractions, `dte` its DTE flags (if stations), samples
-/// from `start` every `step_s`.
+/// The windows of one site: its samples from `start` every `step_s`.
 pub fn site_windows(
     site: &str,
-    sun: &[f64],
-    dte: Option<&[bool]>,
+    x: SiteSamples<'_>,
     start: Epoch,
     step_s: f64,
     p: &Profile,
 ) -> Vec<Window> {
     let m = stay_samples(p.stay_h, step_s);
     let step_h = step_s / 3600.0;
-    let n = sun.len();
+    let n = x.sun.len().min(x.sun_el_deg.len());
+    let dte = x.dte;
     let mut out: Vec<Window> = Vec::new();
     if m > n {
         return out;
@@ -242,7 +297,7 @@ pub fn site_windows(
         crate::ephem::time::format_iso(start + Duration::from_seconds(k as f64 * step_s))
     };
     for k in 0..=n - m {
-        let f = stay_figures(sun, dte, k, m, step_h);
+        let f = stay_figures(x, k, m, step_h);
         if !satisfies(p, &f) {
             continue;
         }
@@ -256,6 +311,8 @@ pub fn site_windows(
                 w.max_dark_h = w.max_dark_h.max(f.longest_dark_h);
                 w.min_dte_pct = w.min_dte_pct.map(|v| v.min(f.dte_pct));
                 w.max_blackout_h = w.max_blackout_h.map(|v| v.max(f.longest_blackout_h));
+                w.min_touchdown_sun_el_deg = w.min_touchdown_sun_el_deg.min(f.touchdown_sun_el_deg);
+                w.max_touchdown_sun_el_deg = w.max_touchdown_sun_el_deg.max(f.touchdown_sun_el_deg);
             }
             _ => out.push(Window {
                 site: site.to_string(),
@@ -269,6 +326,8 @@ pub fn site_windows(
                 max_dark_h: f.longest_dark_h,
                 min_dte_pct: dte.map(|_| f.dte_pct),
                 max_blackout_h: dte.map(|_| f.longest_blackout_h),
+                min_touchdown_sun_el_deg: f.touchdown_sun_el_deg,
+                max_touchdown_sun_el_deg: f.touchdown_sun_el_deg,
                 first: k,
                 last: k,
             }),
@@ -292,8 +351,12 @@ pub fn run_windows(
     outcomes
         .iter()
         .flat_map(|o| {
-            let dte = (!o.dte.is_empty()).then_some(o.dte.as_slice());
-            site_windows(o.site.name(), &o.sun_fraction, dte, start, step_s, profile)
+            let x = SiteSamples {
+                sun: &o.sun_fraction,
+                sun_el_deg: &o.sun_el_deg,
+                dte: (!o.dte.is_empty()).then_some(o.dte.as_slice()),
+            };
+            site_windows(o.site.name(), x, start, step_s, profile)
         })
         .collect()
 }
@@ -317,6 +380,10 @@ pub struct WindowsSpec {
     pub min_dte_pct: Option<f64>,
     /// Longest blackout, hours.
     pub max_blackout_h: Option<f64>,
+    /// Lowest Sun elevation at touchdown, degrees.
+    pub min_touchdown_sun_el_deg: Option<f64>,
+    /// Highest Sun elevation at touchdown, degrees.
+    pub max_touchdown_sun_el_deg: Option<f64>,
 }
 
 impl WindowsSpec {
@@ -331,6 +398,8 @@ impl WindowsSpec {
                 max_dark_h: self.max_dark_h,
                 min_dte_pct: self.min_dte_pct,
                 max_blackout_h: self.max_blackout_h,
+                min_touchdown_sun_el_deg: self.min_touchdown_sun_el_deg,
+                max_touchdown_sun_el_deg: self.max_touchdown_sun_el_deg,
             },
         )
     }
@@ -350,17 +419,32 @@ pub fn check_stay(profile: &Profile, n: usize, step_s: f64) -> anyhow::Result<()
 }
 
 /// The CSV header of `windows.csv`.
-pub const WINDOWS_CSV_HEADER: &str = "site,rank,first_start_utc,last_start_utc,starts,stay_h,min_sun_fraction,min_lit_pct,max_dark_h,min_dte_pct,max_blackout_h";
+pub const WINDOWS_CSV_HEADER: &str = "site,rank,first_start_utc,last_start_utc,starts,stay_h,min_sun_fraction,min_lit_pct,max_dark_h,min_dte_pct,max_blackout_h,min_touchdown_sun_el_deg,max_touchdown_sun_el_deg";
 
-/// Writes `windows.csv`, `windows.json` and `windows.ics` into `out_dir` (the windows of a series
-/// starting at `start`, samples `step_s` apart); returns their names.
+/// The series the windows were found in: its first epoch, the step and the number of samples, and
+/// its sites in order (the timeline's rows).
+#[derive(Debug, Clone, Copy)]
+pub struct SeriesSpan<'a> {
+    /// First epoch.
+    pub start: Epoch,
+    /// Seconds between samples.
+    pub step_s: f64,
+    /// Samples per site.
+    pub samples: usize,
+    /// The sites, in order.
+    pub sites: &'a [String],
+}
+
+/// Writes `windows.csv`, `windows.json`, `windows.ics` and (with `plot`) the timeline
+/// `windows.png` into `out_dir`; returns their names.
 pub fn write_files(
     out_dir: &Path,
     windows: &[Window],
     profile: &Profile,
-    start: Epoch,
-    step_s: f64,
+    span: SeriesSpan<'_>,
+    plot: bool,
 ) -> anyhow::Result<Vec<String>> {
+    let SeriesSpan { start, step_s, .. } = span;
     let opt = |v: Option<f64>| v.map_or(String::new(), |x| format!("{x:.3}"));
     crate::output::write_atomic(&out_dir.join("windows.csv"), |w| -> anyhow::Result<()> {
         writeln!(w, "{WINDOWS_CSV_HEADER}")?;
@@ -372,7 +456,7 @@ pub fn write_files(
             };
             writeln!(
                 w,
-                "{name},{},{},{},{},{:.3},{:.6},{:.3},{:.3},{},{}",
+                "{name},{},{},{},{},{:.3},{:.6},{:.3},{:.3},{},{},{:.3},{:.3}",
                 x.rank,
                 x.first_start_utc,
                 x.last_start_utc,
@@ -382,7 +466,9 @@ pub fn write_files(
                 x.min_lit_pct,
                 x.max_dark_h,
                 opt(x.min_dte_pct),
-                opt(x.max_blackout_h)
+                opt(x.max_blackout_h),
+                x.min_touchdown_sun_el_deg,
+                x.max_touchdown_sun_el_deg
             )?;
         }
         Ok(())
@@ -411,11 +497,68 @@ pub fn write_files(
         })
         .collect();
     crate::comms::write_ics(&out_dir.join("windows.ics"), "landing windows", &events)?;
-    Ok(vec![
+    let mut files = vec![
         "windows.csv".into(),
         "windows.json".into(),
         "windows.ics".into(),
-    ])
+    ];
+    if plot && span.samples > 0 && !span.sites.is_empty() {
+        write_timeline(&out_dir.join("windows.png"), windows, profile, span)?;
+        files.push("windows.png".into());
+    }
+    Ok(files)
+}
+
+/// The timeline of the windows: one row per site, a bar over each window's valid touchdown
+/// epochs (from its first start to one step after its last).
+fn write_timeline(
+    path: &Path,
+    windows: &[Window],
+    profile: &Profile,
+    span: SeriesSpan<'_>,
+) -> anyhow::Result<()> {
+    const COLOURS: [(u8, u8, u8); 4] = [
+        (31, 119, 180),
+        (214, 39, 40),
+        (44, 160, 44),
+        (148, 103, 189),
+    ];
+    let on: Vec<Vec<bool>> = span
+        .sites
+        .iter()
+        .map(|site| {
+            let mut on = vec![false; span.samples];
+            for w in windows.iter().filter(|w| &w.site == site) {
+                on[w.first..=w.last.min(span.samples - 1)].fill(true);
+            }
+            on
+        })
+        .collect();
+    let rows: Vec<crate::illum::plot::WindowRow<'_>> = span
+        .sites
+        .iter()
+        .zip(&on)
+        .enumerate()
+        .map(|(i, (site, on))| crate::illum::plot::WindowRow {
+            label: site,
+            on,
+            rgb: COLOURS[i % COLOURS.len()],
+        })
+        .collect();
+    let height = (120 + 45 * rows.len()).min(2000) as u32;
+    crate::illum::plot::write_windows_plot(
+        path,
+        &format!(
+            "Landing windows: valid touchdown epochs ({:.0} h stay, {} window(s))",
+            profile.stay_h,
+            windows.len()
+        ),
+        span.start,
+        span.step_s,
+        &rows,
+        (1400, height.max(260)),
+    )?;
+    Ok(())
 }
 
 /// Runs `penumbra windows`: the series of `req` (its files included), then the windows of
@@ -433,8 +576,24 @@ pub fn run(req: &SeriesRequest, profile: &Profile) -> anyhow::Result<Vec<Window>
     let (run, mut prov, _lock) = super::series::execute(req)?;
     let start = req.epochs.epochs()[0];
     let windows = run_windows(&run.outcomes, start, step_s, profile);
-    prov.outputs
-        .extend(write_files(&req.out_dir, &windows, profile, start, step_s)?);
+    let sites: Vec<String> = run
+        .outcomes
+        .iter()
+        .map(|o| o.site.name().to_string())
+        .collect();
+    let span = SeriesSpan {
+        start,
+        step_s,
+        samples: req.epochs.epochs().len(),
+        sites: &sites,
+    };
+    prov.outputs.extend(write_files(
+        &req.out_dir,
+        &windows,
+        profile,
+        span,
+        req.config.plots,
+    )?);
     crate::note!(
         "penumbra: {} landing window(s) of {} h stays at {} site(s)",
         windows.len(),
@@ -460,9 +619,17 @@ mod tests {
             max_dark_h: None,
             min_dte_pct: None,
             max_blackout_h: None,
+            min_touchdown_sun_el_deg: None,
+            max_touchdown_sun_el_deg: None,
         };
         let t0 = Epoch::from_gregorian_utc_at_midnight(2025, 1, 1);
-        let w = site_windows("a", &sun, None, t0, 3600.0, &p);
+        let el = [0.5; 10];
+        let x = SiteSamples {
+            sun: &sun,
+            sun_el_deg: &el,
+            dte: None,
+        };
+        let w = site_windows("a", x, t0, 3600.0, &p);
         assert_eq!(w.len(), 2);
         assert_eq!(
             (w[0].first, w[0].last, w[0].starts, w[0].rank),

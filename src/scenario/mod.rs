@@ -128,6 +128,10 @@ pub struct MapSpec {
     /// Elevation mask of the DSN stations and of file rows without their own, degrees (10).
     #[serde(default = "default_station_mask_deg")]
     pub station_mask_deg: f64,
+    /// A panel and its load (`[map.power]`, the keys of `[series.power]`): adds
+    /// `mean_power_w.tif` and `required_battery_wh.tif` (the horizons engine).
+    #[serde(default)]
+    pub power: Option<crate::illum::power::PowerConfig>,
 }
 
 fn default_map_stations() -> crate::comms::Stations {
@@ -291,11 +295,17 @@ impl Scenario {
             for p in &mut series.relay_spks {
                 *p = base.join(&*p);
             }
+            if let Some(f) = series.power.as_mut().and_then(|p| p.load_profile.as_mut()) {
+                *f = base.join(&*f);
+            }
         }
-        if let Some(map) = &mut scenario.map
-            && let crate::comms::Stations::File(f) = &map.stations
-        {
-            map.stations = crate::comms::Stations::File(base.join(f));
+        if let Some(map) = &mut scenario.map {
+            if let crate::comms::Stations::File(f) = &map.stations {
+                map.stations = crate::comms::Stations::File(base.join(f));
+            }
+            if let Some(f) = map.power.as_mut().and_then(|p| p.load_profile.as_mut()) {
+                *f = base.join(&*f);
+            }
         }
         scenario.validate(path)?;
         Ok(scenario)
@@ -309,13 +319,25 @@ impl Scenario {
         if self.sites.is_empty() {
             return Err(invalid("no [[sites]] and no sites_file given".into()));
         }
+        // A panel's numbers, and its load profile against the scenario's span.
+        let check_power = |p: &crate::illum::power::PowerConfig, table: &str| {
+            p.validate()
+                .map_err(|e| invalid(format!("[{table}] {e}")))?;
+            if p.load_profile.is_some() {
+                let range = self
+                    .epochs()
+                    .map_err(|e| invalid(crate::products::one_line(&e)))?;
+                p.loads(&range.epochs())
+                    .map_err(|e| invalid(format!("[{table}] {e}")))?;
+            }
+            Ok(())
+        };
         if let Some(s) = &self.series {
             s.stations
                 .resolve(s.station_mask_deg)
                 .map_err(|e| invalid(format!("[series] stations: {e}")))?;
             if let Some(p) = &s.power {
-                p.validate()
-                    .map_err(|e| invalid(format!("[series.power] {e}")))?;
+                check_power(p, "series.power")?;
             }
         }
         if let Some(w) = &self.windows {
@@ -341,6 +363,16 @@ impl Scenario {
             m.stations
                 .resolve(m.station_mask_deg)
                 .map_err(|e| invalid(format!("[map] stations: {e}")))?;
+            if let Some(p) = &m.power {
+                check_power(p, "map.power")?;
+                if p.battery_wh.is_some() {
+                    return Err(invalid(
+                        "[map.power] battery_wh: a map gives the smallest battery that survives \
+                         (required_battery_wh.tif), not the charge of a given one"
+                            .into(),
+                    ));
+                }
+            }
         }
         self.sites()
             .map_err(|e| invalid(crate::products::one_line(&e)))?;

@@ -105,12 +105,23 @@ pub fn run_file(args: &RunRequest) -> anyhow::Result<()> {
                     range.step_s(),
                     &profile,
                 );
+                let sites: Vec<String> = run
+                    .outcomes
+                    .iter()
+                    .map(|o| o.site.name().to_string())
+                    .collect();
+                let span = crate::products::windows::SeriesSpan {
+                    start: epochs[0],
+                    step_s: range.step_s(),
+                    samples: epochs.len(),
+                    sites: &sites,
+                };
                 run.files.extend(crate::products::windows::write_files(
                     &out_dir,
                     &windows,
                     &profile,
-                    epochs[0],
-                    range.step_s(),
+                    span,
+                    config.plots,
                 )?);
             }
             cp.mark_done("series", &run.files, &run.backend)
@@ -403,6 +414,7 @@ fn run_map_spec(
         limb: spec.limb_darkening,
         stations: spec.stations.clone(),
         station_mask_deg: spec.station_mask_deg,
+        power: spec.power.clone(),
     };
     let hooks = RangeHooks {
         report: &mut |_, _| true,

@@ -81,6 +81,7 @@ def series(
     night_load_w: Optional[float] = None,
     battery_wh: Optional[float] = None,
     battery_start_pct: Optional[float] = None,
+    load_profile: Optional[Path] = None,
     progress: Optional[Progress] = None,
 ) -> Tuple[Dict[str, npt.NDArray[Any]], Dict[str, Any]]: ...
 def landing_windows(
@@ -92,6 +93,8 @@ def landing_windows(
     max_dark_h: Optional[float] = None,
     min_dte_pct: Optional[float] = None,
     max_blackout_h: Optional[float] = None,
+    min_touchdown_sun_el_deg: Optional[float] = None,
+    max_touchdown_sun_el_deg: Optional[float] = None,
 ) -> List[Dict[str, Any]]: ...
 def map_statistics(
     terrain: Terrain,
@@ -106,6 +109,13 @@ def map_statistics(
     limb_darkening: str = "eddington",
     stations: str = "none",
     station_mask_deg: float = 10.0,
+    panel: Optional[str] = None,
+    panel_area_m2: Optional[float] = None,
+    panel_efficiency: Optional[float] = None,
+    panel_degradation_pct_per_year: Optional[float] = None,
+    load_w: Optional[float] = None,
+    night_load_w: Optional[float] = None,
+    load_profile: Optional[Path] = None,
     progress: Optional[Progress] = None,
 ) -> Dict[str, Any]: ...
 def map_light(

@@ -57,6 +57,9 @@ impl HorizonStatistics {
             link: None,
             irradiance_horizontal_sum_w_m2: vec![0.0; n_px],
             irradiance_tracking_sum_w_m2: vec![0.0; n_px],
+            power_sum_w: vec![0.0; n_px],
+            required_battery_wh: vec![0.0; n_px],
+            power: None,
             below_sphere: BelowSphereExits::default(),
         }
     }
@@ -65,7 +68,7 @@ impl HorizonStatistics {
     /// (little-endian; read back by [`Self::place_block_bytes`]).
     pub(crate) fn block_bytes(&self, first_px: usize, n_px: usize, below: (u64, u64)) -> Vec<u8> {
         let r = first_px..first_px + n_px;
-        let mut b = Vec::with_capacity(64 + n_px * 53);
+        let mut b = Vec::with_capacity(64 + n_px * 69);
         b.extend_from_slice(MAGIC);
         for v in [
             first_px as u64,
@@ -81,6 +84,8 @@ impl HorizonStatistics {
             &self.sun_fraction_sum,
             &self.irradiance_horizontal_sum_w_m2,
             &self.irradiance_tracking_sum_w_m2,
+            &self.power_sum_w,
+            &self.required_battery_wh,
         ] {
             a[r.clone()].iter().for_each(|v| b.extend(v.to_le_bytes()));
         }
@@ -115,7 +120,7 @@ impl HorizonStatistics {
         bytes: &[u8],
     ) -> bool {
         let header = 8 + 5 * 8;
-        if bytes.len() != header + n_px * (1 + 3 * 8 + 8 * 4) || &bytes[..8] != MAGIC {
+        if bytes.len() != header + n_px * (1 + 5 * 8 + 8 * 4) || &bytes[..8] != MAGIC {
             return false;
         }
         let word = |i: usize| {
@@ -139,6 +144,8 @@ impl HorizonStatistics {
             &mut self.sun_fraction_sum,
             &mut self.irradiance_horizontal_sum_w_m2,
             &mut self.irradiance_tracking_sum_w_m2,
+            &mut self.power_sum_w,
+            &mut self.required_battery_wh,
         ] {
             read_le(bytes, &mut at, &mut a[px.clone()], f64::from_le_bytes);
         }

@@ -56,6 +56,139 @@ pub(super) struct Epochs {
     /// Per block of [`BLOCK`] epochs from the first, bit `j`: a station sees the DEM at epoch
     /// `j` of the block (direct-to-Earth statistics); empty without a link.
     pub link_bits: Vec<u32>,
+    /// A panel and its load (the power statistics); `None` without.
+    pub power: Option<PowerSoa>,
+}
+
+/// A panel and its load per epoch, in the kernel's units.
+#[derive(Debug, Clone, Default)]
+pub(super) struct PowerSoa {
+    /// The panel's incidence factor: 0 `cos el` (vertical, tracking the Sun's azimuth), 1
+    /// `max(sin el, 0)` (horizontal), 2 one (two-axis).
+    pub panel: u8,
+    /// Watts per W/m² of normal irradiance on the disc's visible part: area × efficiency ×
+    /// (1 − degradation).
+    pub scale: Vec<f32>,
+    /// Energy the load draws over the sample's step, Wh, while any part of the Sun is visible.
+    pub day_wh: Vec<f32>,
+    /// The same while the Sun is entirely hidden.
+    pub night_wh: Vec<f32>,
+    /// Hours per sample.
+    pub step_h: f32,
+}
+
+/// [`PowerSoa`] over one chunk of epochs.
+#[derive(Clone, Copy)]
+struct PowerChunk<'a> {
+    panel: u8,
+    scale: &'a [f32],
+    day_wh: &'a [f32],
+    night_wh: &'a [f32],
+    step_h: f32,
+}
+
+/// A cell's panel and battery over a chunk: the power's sum (W, the chunk's in f32), the
+/// battery's deficit below full and its largest, Wh.
+struct Battery {
+    power_sum_w: f32,
+    deficit_wh: f64,
+    max_deficit_wh: f64,
+}
+
+/// The power statistics of a cell over the chunk's epochs, once its Sun fractions are known
+/// (and, wherever the Sun is visible, its elevation): each epoch's power and net energy at
+/// block by block (vectorised; a block with the Sun hidden throughout takes the night load at
+/// once), the battery's deficit in time order ([`drain`]).
+#[inline(always)]
+fn power_chunk(pw: &PowerChunk<'_>, sun_w: &[f32], sun: &Seen, b: &mut Battery) {
+    let n = sun_w.len().min(CHUNK);
+    let mut net = [0.0_f32; BLOCK];
+    let mut p = [0.0_f32; BLOCK];
+    let mut j0 = 0;
+    while j0 < n {
+        let j1 = (j0 + BLOCK).min(n);
+        let m = j1 - j0;
+        let f = &sun.fraction[j0..j1];
+        let night = &pw.night_wh[j0..j1];
+        if f.iter().fold(0_u32, |a, &x| a | u32::from(x > 0.0)) == 0 {
+            // The Sun hidden throughout: no power, the night load.
+            drain(night, &mut b.deficit_wh, &mut b.max_deficit_wh);
+            j0 = j1;
+            continue;
+        }
+        let (scale, w, day) = (&pw.scale[j0..j1], &sun_w[j0..j1], &pw.day_wh[j0..j1]);
+        let (sin_el, cos_el) = (&sun.sin_el[j0..j1], &sun.cos_el[j0..j1]);
+        // One loop per panel, so that each vectorises; where the Sun is hidden the elevation
+        // may be stale, so the power is selected, not multiplied by a zero.
+        macro_rules! each {
+            ($g:expr) => {
+                for i in 0..m {
+                    let v = scale[i] * (w[i] * f[i]) * $g(sin_el[i], cos_el[i]);
+                    p[i] = if f[i] > 0.0 { v } else { 0.0 };
+                }
+            };
+        }
+        match pw.panel {
+            0 => each!(|_: f32, c: f32| c),
+            1 => each!(|s: f32, _: f32| s.max(0.0)),
+            _ => each!(|_: f32, _: f32| 1.0_f32),
+        }
+        for i in 0..m {
+            let load = if f[i] > 0.0 { day[i] } else { night[i] };
+            net[i] = load - p[i] * pw.step_h;
+        }
+        b.power_sum_w += sum8(&p[..m]);
+        drain(&net[..m], &mut b.deficit_wh, &mut b.max_deficit_wh);
+        j0 = j1;
+    }
+}
+
+/// The sum of `x` in eight partial sums (so that it vectorises instead of one chain of
+/// dependent additions).
+#[inline(always)]
+fn sum8(x: &[f32]) -> f32 {
+    let mut lanes = [0.0_f32; 8];
+    let mut chunks = x.chunks_exact(8);
+    for c in &mut chunks {
+        for k in 0..8 {
+            lanes[k] += c[k];
+        }
+    }
+    lanes.iter().sum::<f32>() + chunks.remainder().iter().sum::<f32>()
+}
+
+/// The battery's deficit below full (Wh) through a block of epochs short of the load by `net`
+/// each (`D ← max(0, D + net)`, the largest `D` kept): at once when every `net` has one sign
+/// (a surplus only drains the deficit toward 0, a shortfall only adds to it), epoch by epoch
+/// otherwise.
+#[inline(always)]
+fn drain(net: &[f32], deficit: &mut f64, max_deficit: &mut f64) {
+    let (mut surplus, mut short) = ([0_u32; 8], [0_u32; 8]);
+    let mut chunks = net.chunks_exact(8);
+    for c in &mut chunks {
+        for k in 0..8 {
+            surplus[k] |= u32::from(c[k] < 0.0);
+            short[k] |= u32::from(c[k] > 0.0);
+        }
+    }
+    for &x in chunks.remainder() {
+        surplus[0] |= u32::from(x < 0.0);
+        short[0] |= u32::from(x > 0.0);
+    }
+    let any_surplus = surplus.iter().any(|&x| x != 0);
+    let any_short = short.iter().any(|&x| x != 0);
+    let sum = sum8(net);
+    if !any_short {
+        *deficit = (*deficit + f64::from(sum)).max(0.0);
+    } else if !any_surplus {
+        *deficit += f64::from(sum);
+        *max_deficit = max_deficit.max(*deficit);
+    } else {
+        for &x in net {
+            *deficit = (*deficit + f64::from(x)).max(0.0);
+            *max_deficit = max_deficit.max(*deficit);
+        }
+    }
 }
 
 impl Epochs {
@@ -118,6 +251,12 @@ pub(super) struct CellAcc {
     pub dte_off_run: u32,
     pub dte_off_max: u32,
     pub below_sphere: u32,
+    /// Sum of the panel's power over the epochs, W.
+    pub power_sum_w: f64,
+    /// The battery's deficit below full now and its largest so far, Wh (the required
+    /// capacity: [`crate::illum::power`]).
+    pub deficit_wh: f64,
+    pub max_deficit_wh: f64,
 }
 
 /// Thresholds of the statistics.
@@ -576,6 +715,13 @@ fn run_cells(task: RunCells<'_>) {
     ];
     let link = (!epochs.link_bits.is_empty())
         .then(|| &epochs.link_bits[range.start / BLOCK..range.start / BLOCK + n_blocks]);
+    let power = epochs.power.as_ref().map(|p| PowerChunk {
+        panel: p.panel,
+        scale: &p.scale[range.clone()],
+        day_wh: &p.day_wh[range.clone()],
+        night_wh: &p.night_wh[range.clone()],
+        step_h: p.step_h,
+    });
     // Per body and block: decided whole (full or visible: true; dark: false), or epoch by epoch.
     let mut decided = [[None::<bool>; CHUNK / BLOCK]; 2];
     for (i, ((cell, h), a)) in cells
@@ -690,6 +836,11 @@ fn run_cells(task: RunCells<'_>) {
         let mut s = *a;
         let mut sum = 0.0_f32;
         let (mut irr_h, mut irr_t) = (0.0_f32, 0.0_f32);
+        let mut battery = Battery {
+            power_sum_w: 0.0,
+            deficit_wh: s.deficit_wh,
+            max_deficit_wh: s.max_deficit_wh,
+        };
         let bound = cell.beyond.sin_dip_bound();
         for k in 0..n_blocks {
             let (j0, j1) = (k * BLOCK, ((k + 1) * BLOCK).min(n));
@@ -793,10 +944,15 @@ fn run_cells(task: RunCells<'_>) {
                 }
             }
         }
+        if let Some(pw) = &power {
+            power_chunk(pw, sun_w, sun, &mut battery);
+        }
         // Chunk sums in f32 (≤ CHUNK terms), the running totals in f64.
         s.sun_fraction_sum += f64::from(sum);
         s.irradiance_horizontal_sum += f64::from(irr_h);
         s.irradiance_tracking_sum += f64::from(irr_t);
+        s.power_sum_w += f64::from(battery.power_sum_w);
+        (s.deficit_wh, s.max_deficit_wh) = (battery.deficit_wh, battery.max_deficit_wh);
         *a = s;
     }
 }
@@ -835,7 +991,34 @@ impl pulp::WithSimd for RunCells<'_> {
 
 #[cfg(test)]
 mod tests {
-    use super::{count_epochs, count_mask};
+    use super::{count_epochs, count_mask, drain};
+
+    /// A block drained at once equals the epoch-by-epoch recursion `D ← max(0, D + x)`.
+    #[test]
+    fn drain_equals_epoch_by_epoch() {
+        let blocks: [&[f32]; 5] = [
+            &[-3.0, -1.0, -0.5, -7.0],
+            &[2.0, 0.0, 4.5, 1.0],
+            &[2.0, -5.0, 4.5, -1.0, 3.0],
+            &[0.0, 0.0],
+            &[-1.0, 6.0, -2.0],
+        ];
+        for start in [0.0, 2.5, 10.0] {
+            for net in blocks {
+                let (mut d, mut m) = (start, start + 1.0);
+                drain(net, &mut d, &mut m);
+                let (mut wd, mut wm) = (start, start + 1.0_f64);
+                for &x in net {
+                    wd = (wd + f64::from(x)).max(0.0);
+                    wm = wm.max(wd);
+                }
+                assert!(
+                    (d - wd).abs() < 1e-9 && (m - wm).abs() < 1e-9,
+                    "{net:?} from {start}"
+                );
+            }
+        }
+    }
 
     /// Every 12-epoch pattern (and blocks of 1, 16 and 32 epochs from a small generator), from
     /// several running states: the counts at once equal the epoch-by-epoch counts.

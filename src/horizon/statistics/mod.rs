@@ -136,6 +136,14 @@ pub struct HorizonStatistics {
     pub irradiance_horizontal_sum_w_m2: Vec<f64>,
     /// Sum over the epochs of the irradiance on a vertical panel facing the Sun's azimuth, W/m².
     pub irradiance_tracking_sum_w_m2: Vec<f64>,
+    /// Sum over the epochs of the panel's power, W ([`StatisticsEngine::with_power`]; all 0
+    /// without).
+    pub power_sum_w: Vec<f64>,
+    /// The smallest battery that, starting full, carries the load through every epoch, Wh (all
+    /// 0 without a panel).
+    pub required_battery_wh: Vec<f64>,
+    /// The panel and load of the power statistics, described (`None` without).
+    pub power: Option<String>,
     /// Lit results resting on rays the Moon beyond the DEM would block.
     pub below_sphere: BelowSphereExits,
 }
@@ -385,6 +393,25 @@ pub struct StatisticsEngine<'a> {
     /// Per epoch: a ground station sees the DEM, and the stations described
     /// ([`Self::with_link`]).
     link: Option<(Vec<bool>, String)>,
+    /// A panel and its load ([`Self::with_power`]).
+    power: Option<PowerInputs>,
+}
+
+/// A panel and its load per epoch, for the power statistics ([`crate::illum::power`]): each
+/// sample's power and load hold for its step, as in `series`.
+#[derive(Debug, Clone)]
+pub struct PowerInputs {
+    /// The panel's orientation (not `vertical-fixed`: the kernel does not follow the Sun's
+    /// azimuth at every epoch).
+    pub panel: crate::illum::power::Panel,
+    /// Per epoch: area × efficiency × (1 − degradation), m².
+    pub effective_area_m2: Vec<f64>,
+    /// Per epoch: the load by day and by night, W.
+    pub loads: Vec<crate::illum::power::Loads>,
+    /// Hours per sample.
+    pub step_h: f64,
+    /// The panel and load, in words (for the files).
+    pub described: String,
 }
 
 impl<'a> StatisticsEngine<'a> {
@@ -408,6 +435,7 @@ impl<'a> StatisticsEngine<'a> {
             block_decisions: true,
             layers_reach_m,
             link: None,
+            power: None,
         })
     }
 
@@ -417,6 +445,13 @@ impl<'a> StatisticsEngine<'a> {
     /// DTE at a pixel and epoch: any part of the Earth visible and the flag. The CPU only.
     pub fn with_link(mut self, station_sees_dem: Vec<bool>, stations: String) -> Self {
         self.link = Some((station_sees_dem, stations));
+        self
+    }
+
+    /// Adds the power statistics of a panel and its load: the mean power and the smallest
+    /// battery that survives every epoch, per pixel. The CPU only.
+    pub fn with_power(mut self, power: PowerInputs) -> Self {
+        self.power = Some(power);
         self
     }
 
@@ -558,6 +593,51 @@ impl<'a> StatisticsEngine<'a> {
                 })
                 .collect();
         }
+        if let Some(p) = &self.power {
+            use crate::illum::power::Panel;
+            let panel = match p.panel {
+                Panel::VerticalTracking => 0,
+                Panel::Horizontal => 1,
+                Panel::TwoAxis => 2,
+                Panel::VerticalFixed { .. } => {
+                    return Err(HorizonError::SweepUnsupported {
+                        reason: "power maps of a fixed panel (vertical-fixed:AZ needs the Sun's \
+                                 azimuth at every epoch): use vertical-tracking, horizontal or \
+                                 two-axis, or a series at the site"
+                            .into(),
+                    });
+                }
+            };
+            if p.effective_area_m2.len() != epochs.len() || p.loads.len() != epochs.len() {
+                return Err(HorizonError::SweepUnsupported {
+                    reason: format!(
+                        "power inputs of {} epochs for {}",
+                        p.loads.len(),
+                        epochs.len()
+                    ),
+                });
+            }
+            if kernel.is_some() {
+                return Err(HorizonError::SweepUnsupported {
+                    reason: "power statistics on the GPU kernel".into(),
+                });
+            }
+            soa.power = Some(kernel::PowerSoa {
+                panel,
+                scale: p.effective_area_m2.iter().map(|&a| a as f32).collect(),
+                day_wh: p
+                    .loads
+                    .iter()
+                    .map(|l| (l.day_w * p.step_h) as f32)
+                    .collect(),
+                night_wh: p
+                    .loads
+                    .iter()
+                    .map(|l| (l.night_w * p.step_h) as f32)
+                    .collect(),
+                step_h: p.step_h as f32,
+            });
+        }
         // The bodies' paths over every epoch, from the grid centre.
         let (reference, reach_m) = {
             let projector = UnitProjector::new(&fine.projection);
@@ -641,6 +721,7 @@ impl<'a> StatisticsEngine<'a> {
 
         let mut out = HorizonStatistics::empty(n_px, epochs.len());
         out.link = self.link.as_ref().map(|l| l.1.clone());
+        out.power = self.power.as_ref().map(|p| p.described.clone());
         let arch = pulp::Arch::new();
         // At least MIN_BLOCKS blocks: the units a killed run keeps.
         let rows_per_block = (BLOCK_BYTES / (2 * n * g.cols).max(1))
@@ -776,6 +857,8 @@ impl<'a> StatisticsEngine<'a> {
                 out.longest_dte_blackout_epochs[px] = a.dte_off_max;
                 out.irradiance_horizontal_sum_w_m2[px] = a.irradiance_horizontal_sum;
                 out.irradiance_tracking_sum_w_m2[px] = a.irradiance_tracking_sum;
+                out.power_sum_w[px] = a.power_sum_w;
+                out.required_battery_wh[px] = a.max_deficit_wh;
                 if a.below_sphere > 0 {
                     below.0 += 1;
                     below.1 += u64::from(a.below_sphere);
@@ -892,6 +975,8 @@ impl<'a> StatisticsEngine<'a> {
                     dte_off_run: 0,
                     dte_off_max: 0,
                     below_sphere,
+                    // Nor power statistics.
+                    ..CellAcc::default()
                 };
                 (px, acc)
             })

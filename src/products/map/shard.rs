@@ -119,6 +119,9 @@ pub struct ShardManifest {
     /// The ground stations of the direct-to-Earth maps, described (absent without).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub link: Option<String>,
+    /// The panel and load of the power maps, described (absent without).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub power: Option<String>,
     /// What ran (the run.json `backend`).
     pub backend: String,
     /// The kernel files with sizes and sha256 (as in run.json).
@@ -280,6 +283,7 @@ pub fn write_partial(
         span: run.span.clone(),
         limb_law: run.limb_law.clone(),
         link: stats.link.clone(),
+        power: stats.power.clone(),
         backend: p.backend.clone(),
         kernels: serde_json::to_value(&p.kernels)?,
         dem_layers: p.dem_layers.clone(),
@@ -513,6 +517,7 @@ pub fn merge(out_dir: &Path, dirs: &[PathBuf]) -> anyhow::Result<()> {
     }
     stats.below_sphere.cells_total = stats.nodata.iter().filter(|&&nd| !nd).count() as u64;
     stats.link = first.link.clone();
+    stats.power = first.power.clone();
     let below = stats.below_sphere;
     // The finest layer as the writers see it: its grid, projection and nodata.
     let dem = Dem {

@@ -59,6 +59,8 @@ pub struct SiteOutcome {
     pub sun_fraction: Vec<f64>,
     /// Visible fraction of the Earth per epoch.
     pub earth_fraction: Vec<f64>,
+    /// The Sun centre's elevation above the local horizontal per epoch, degrees.
+    pub sun_el_deg: Vec<f64>,
     /// Statistics of the link to Earth (`None` without stations).
     pub link: Option<illum::stats::LinkStats>,
     /// Statistics of the relays (`None` without).
@@ -493,20 +495,30 @@ pub struct PowerTrack {
     battery: illum::power::Battery,
     start: Epoch,
     step_h: f64,
+    loads: Vec<illum::power::Loads>,
+    next: usize,
 }
 
 impl PowerTrack {
-    /// The track of `config`'s panel from `start`, samples `step_s` apart.
-    pub fn new(config: &illum::power::PowerConfig, start: Epoch, step_s: f64) -> Self {
-        PowerTrack {
+    /// The track of `config`'s panel over `epochs` (its load profile read and checked against
+    /// them), samples `step_s` apart.
+    pub fn new(
+        config: &illum::power::PowerConfig,
+        epochs: &[Epoch],
+        step_s: f64,
+    ) -> Result<Self, illum::power::PowerError> {
+        Ok(PowerTrack {
             battery: illum::power::Battery::new(config),
             config: config.clone(),
-            start,
+            start: epochs.first().copied().unwrap_or_default(),
             step_h: step_s / 3600.0,
-        }
+            loads: config.loads(epochs)?,
+            next: 0,
+        })
     }
 
-    /// One sample (in time order): `(power_w, battery_wh at the epoch)`.
+    /// The next sample (in the order of the epochs given to [`Self::new`]): `(power_w,
+    /// battery_wh at the epoch)`.
     pub fn sample(&mut self, epoch: Epoch, r: &SeriesRow) -> (f64, Option<f64>) {
         let years = (epoch - self.start).to_seconds() / (365.25 * 86_400.0);
         let power_w = self.config.power_w(
@@ -516,7 +528,8 @@ impl PowerTrack {
             r.sun_fraction,
             years,
         );
-        let load_w = self.config.load_at(r.sun_fraction);
+        let load_w = self.loads[self.next.min(self.loads.len() - 1)].at(r.sun_fraction);
+        self.next += 1;
         (power_w, self.battery.step(power_w, load_w, self.step_h))
     }
 
@@ -582,6 +595,7 @@ pub fn run_series(
     config.stations.resolve(config.station_mask_deg)?;
     if let Some(p) = &config.power {
         p.validate()?;
+        p.loads(epochs)?;
     }
     let table = ephem::moon_geometry_table(kernels, epochs)?;
     let link = LinkContext::new(kernels, config, &table)?;
@@ -833,8 +847,10 @@ fn run_one_site(
     let mut power = config
         .power
         .as_ref()
-        .map(|p| PowerTrack::new(p, epochs[0], step_s));
+        .map(|p| PowerTrack::new(p, epochs, step_s))
+        .transpose()?;
     let mut power_w: Vec<f64> = Vec::new();
+    let mut sun_el_deg: Vec<f64> = Vec::with_capacity(epochs.len());
     let mut battery_wh: Vec<f64> = Vec::new();
     let power_needs_az = config
         .power
@@ -848,6 +864,7 @@ fn run_one_site(
             let sample =
                 link.map(|l| l.sample(table, k, &site, &r.earth, &link_profile, &mut scratch));
             let p = power.as_mut().map(|t| t.sample(epochs[k], r));
+            sun_el_deg.push(r.sun.el_deg);
             if let Some((pw, b)) = p
                 && config.plots
             {
@@ -1025,6 +1042,7 @@ fn run_one_site(
         horizon,
         sun_fraction,
         earth_fraction,
+        sun_el_deg,
         link: link_stats,
         relay: relay_stats,
         power: power_stats,

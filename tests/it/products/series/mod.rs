@@ -243,9 +243,16 @@ fn the_demo_scenario_runs_as_the_readme_says() {
         "longest_earth_hidden_h.tif",
         "irradiance_horizontal_w_m2.tif",
         "psr_mask.tif",
+        "mean_power_w.tif",
+        "required_battery_wh.tif",
     ] {
         assert!(map.contains(&f.to_string()), "map/{f} missing: {map:?}");
     }
+    // The panel at each site and the landing windows ([series.power], [windows]).
+    for f in ["windows.csv", "windows.ics", "windows.png"] {
+        assert!(files.contains(&f.to_string()), "{f} missing: {files:?}");
+    }
+    assert!(files_in(&res.join("ridge")).contains(&"power.png".to_string()));
     assert!(
         run["backend"].as_str().unwrap().contains("horizons engine"),
         "{}",
