@@ -352,6 +352,7 @@ pub fn run_map(req: &MastMapRequest) -> anyhow::Result<Vec<HeightCost>> {
         ("heights_m".to_string(), heights_text.clone()),
         ("target_lit_pct".to_string(), req.target_lit_pct.to_string()),
     ];
+    let top = req.heights.last().map_or(1.0, |h| h.m());
     crate::model::write_on(
         fine,
         &req.out_dir.join("min_height_m.tif"),
@@ -362,10 +363,12 @@ pub fn run_map(req: &MastMapRequest) -> anyhow::Result<Vec<HeightCost>> {
             items,
         },
     )?;
-    let top = req.heights.last().map_or(1.0, |h| h.m());
     crate::illum::plot::write_map_preview(
         &req.out_dir.join("min_height_m.png"),
-        &format!("{description} — {span}"),
+        &format!(
+            "minimum mast height for >= {} % lit, m (NaN: above {top} m)",
+            req.target_lit_pct
+        ),
         &min_height,
         fine.grid.rows,
         fine.grid.cols,
