@@ -41,3 +41,16 @@ def lola() -> Path:
     if not crop.is_file():
         pytest.skip(f"shared LOLA data absent: {crop}")
     return LOLA
+
+
+def pixel_sites(transform, crs, pixels) -> list[str]:
+    """`--site pI,LAT,LON` flags at the centres of raster `pixels` ((row, col) pairs), the
+    latitudes and longitudes from PROJ (rasterio) on the 1737.4 km sphere, not from penumbra."""
+    from rasterio.crs import CRS
+    from rasterio.warp import transform as warp
+
+    xs = [transform.c + transform.a * (c + 0.5) for _, c in pixels]
+    ys = [transform.f + transform.e * (r + 0.5) for r, _ in pixels]
+    lon, lat = warp(crs, CRS.from_proj4("+proj=longlat +R=1737400 +no_defs"), xs, ys)
+    return [a for i, (la, lo) in enumerate(zip(lat, lon))
+            for a in ("--site", f"p{i},{la:.9f},{lo:.9f}")]

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import run_cli
+from conftest import pixel_sites, run_cli
 
 pd = pytest.importorskip("pandas")
 rasterio = pytest.importorskip("rasterio")
@@ -69,9 +69,6 @@ def test_min_height_map_agrees_with_series_at_20_pixels(cli: Path, tmp_path: Pat
     """Each pixel's smallest height reaching the target, from one horizons-engine map per
     height, against the series at that pixel over the same heights (per-site horizon scans):
     equal, or one step of the list apart where the pixel sits at the target."""
-    from rasterio.crs import CRS
-    from rasterio.warp import transform
-
     heights = [2, 5, 10, 15, 20, 30, 40, 50]
     target = 55.0
     run_cli(cli, tmp_path, "dem", "synth", "--size", "200", "--out", "d.tif")
@@ -89,11 +86,7 @@ def test_min_height_map_agrees_with_series_at_20_pixels(cli: Path, tmp_path: Pat
     cand = cand[(cand.min(axis=1) > 10) & (cand.max(axis=1) < 190)]
     assert len(set(mh[tuple(cand.T)])) >= 3, "the map spreads over several heights"
     pick = cand[rng.choice(len(cand), 20, replace=False)]
-    xs = [tr.c + tr.a * (c + 0.5) for _, c in pick]
-    ys = [tr.f + tr.e * (r + 0.5) for r, _ in pick]
-    lon, lat = transform(crs, CRS.from_proj4("+proj=longlat +R=1737400 +no_defs"), xs, ys)
-    sites = [a for i, (la, lo) in enumerate(zip(lat, lon))
-             for a in ("--site", f"p{i},{la:.9f},{lo:.9f}")]
+    sites = pixel_sites(tr, crs, pick)
     run_cli(cli, tmp_path, "mast", "--dem", "d.tif", *sites, *SPAN, "--heights", hs,
             "--stations", "none", "--no-plots", "--out-dir", "ms")
     t = pd.read_csv(tmp_path / "ms" / "mast.csv")

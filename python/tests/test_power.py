@@ -14,7 +14,7 @@ import pytest
 
 import penumbra
 
-from conftest import ROOT, run_cli
+from conftest import ROOT, pixel_sites, run_cli
 
 spice = pytest.importorskip("spiceypy")
 pd = pytest.importorskip("pandas")
@@ -253,9 +253,6 @@ def test_power_maps_agree_with_series_at_20_pixels(cli: Path, tmp_path: Path) ->
     """A map cell (whole-grid line sweep, every pixel's epochs in the horizons engine) and a
     series at that pixel (its own horizon scan, the series pipeline, the battery stepped row by
     row): two engines, one answer. With a load profile by day and night."""
-    from rasterio.crs import CRS
-    from rasterio.warp import transform
-
     prof = _profile(tmp_path / "loads.csv", PROFILE_ROWS)
     power = ["--panel", "vertical-tracking", "--load-profile", str(prof)]
     run_cli(cli, tmp_path, "map", "--synthetic", *SERIES, "--engine", "horizons", "--azimuths",
@@ -271,11 +268,7 @@ def test_power_maps_agree_with_series_at_20_pixels(cli: Path, tmp_path: Path) ->
     cand = np.argwhere(ok & (p_map > 5))
     cand = cand[(cand.min(axis=1) > 20) & (cand.max(axis=1) < 380)]
     pick = cand[rng.choice(len(cand), 20, replace=False)]
-    xs = [tr.c + tr.a * (c + 0.5) for _, c in pick]
-    ys = [tr.f + tr.e * (r + 0.5) for r, _ in pick]
-    lon, lat = transform(crs, CRS.from_proj4("+proj=longlat +R=1737400 +no_defs"), xs, ys)
-    sites = [a for i, (la, lo) in enumerate(zip(lat, lon))
-             for a in ("--site", f"p{i},{la:.9f},{lo:.9f}")]
+    sites = pixel_sites(tr, crs, pick)
     run_cli(cli, tmp_path, "series", "--synthetic", *sites, *SERIES, "--no-plots", "--no-csv",
             "--stations", "none", *power, "--out-dir", "s")
     stats = json.loads((tmp_path / "s" / "stats.json").read_text())["sites"]

@@ -164,11 +164,7 @@ fn write_site_files(
     crate::output::write_atomic(&out_dir.join("mast.csv"), |w| -> anyhow::Result<()> {
         writeln!(w, "{MAST_CSV_HEADER}")?;
         for r in rows {
-            let name = if r.site.contains([',', '"']) {
-                format!("\"{}\"", r.site.replace('"', "\"\""))
-            } else {
-                r.site.clone()
-            };
+            let name = crate::products::series::csv_field(&r.site);
             writeln!(
                 w,
                 "{name},{},{:.4},{:.4},{:.3},{},{},{}",

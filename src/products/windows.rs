@@ -449,11 +449,7 @@ pub fn write_files(
     crate::output::write_atomic(&out_dir.join("windows.csv"), |w| -> anyhow::Result<()> {
         writeln!(w, "{WINDOWS_CSV_HEADER}")?;
         for x in windows {
-            let name = if x.site.contains([',', '"']) {
-                format!("\"{}\"", x.site.replace('"', "\"\""))
-            } else {
-                x.site.clone()
-            };
+            let name = crate::products::series::csv_field(&x.site);
             writeln!(
                 w,
                 "{name},{},{},{},{},{:.3},{:.6},{:.3},{:.3},{},{},{:.3},{:.3}",

@@ -15,8 +15,8 @@ pub use config::{SeriesConfig, SeriesEngine};
 pub use pipeline::{
     BATTERY_CSV_COLUMN, LINK_CSV_COLUMNS, LONG_TABLE, LONG_TABLE_SITE_COLUMNS, LinkContext,
     LinkScratch, POWER_CSV_COLUMNS, PowerTrack, RELAY_CSV_COLUMNS, SERIES_CSV_HEADER, SeriesRow,
-    SeriesRun, SiteFractions, SiteOutcome, extra_csv_columns, link_record, row_values, run_series,
-    site_fractions, site_location,
+    SeriesRun, SiteFractions, SiteOutcome, csv_field, extra_csv_columns, link_record, row_values,
+    run_series, site_fractions, site_location,
 };
 
 /// What `penumbra series` computes.

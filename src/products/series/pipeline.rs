@@ -781,7 +781,7 @@ fn write_long_table(
 }
 
 /// A CSV field: quoted (with doubled quotes) when it holds a comma, a quote or a space at an end.
-fn csv_field(s: &str) -> String {
+pub fn csv_field(s: &str) -> String {
     if s.contains([',', '"', '\n', '\r']) || s.starts_with(' ') || s.ends_with(' ') {
         format!("\"{}\"", s.replace('"', "\"\""))
     } else {
