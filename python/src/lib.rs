@@ -225,17 +225,28 @@ impl Terrain {
         })
     }
 
-    /// `Terrain.synthetic(size_px=400, px_m=100.0, seed=1)`: penumbra's seeded synthetic
-    /// south-polar DEM (the command line's `--synthetic`).
+    /// `Terrain.synthetic(size_px=400, px_m=100.0, seed=1, far_field=False)`: penumbra's seeded
+    /// synthetic south-polar DEM (the command line's `--synthetic`; with `far_field=True` also
+    /// its far field, `--synthetic-far-field`).
     #[staticmethod]
-    #[pyo3(signature = (size_px = 400, px_m = 100.0, seed = 1))]
-    fn synthetic(py: Python<'_>, size_px: usize, px_m: f64, seed: u64) -> PyResult<Self> {
-        let source =
-            penumbra::products::TerrainSource::Synthetic(penumbra::terrain::synth::SynthParams {
-                size_px,
-                px_m,
-                seed,
-            });
+    #[pyo3(signature = (size_px = 400, px_m = 100.0, seed = 1, far_field = false))]
+    fn synthetic(
+        py: Python<'_>,
+        size_px: usize,
+        px_m: f64,
+        seed: u64,
+        far_field: bool,
+    ) -> PyResult<Self> {
+        let params = penumbra::terrain::synth::SynthParams {
+            size_px,
+            px_m,
+            seed,
+        };
+        let source = if far_field {
+            penumbra::products::TerrainSource::SyntheticWithFarField(params)
+        } else {
+            penumbra::products::TerrainSource::Synthetic(params)
+        };
         let (stack, layers) = py.allow_threads(|| source.load()).map_err(py_err)?;
         Ok(Terrain {
             stack: Arc::new(stack),
@@ -499,6 +510,8 @@ fn horizon<'py>(
         .map_err(|e| py_err(e.into()))?;
     let out = PyDict::new(py);
     out.set_item("az_deg", h.az_deg.into_pyarray(py))?;
+    // `horizon_el_deg` as in horizon.csv; `elevation_deg` is its old name, kept for a while.
+    out.set_item("horizon_el_deg", h.elevation_deg.clone().into_pyarray(py))?;
     out.set_item("elevation_deg", h.elevation_deg.into_pyarray(py))?;
     out.set_item("distance_m", h.distance_m.into_pyarray(py))?;
     out.set_item("ground_height_m", h.ground_height_m)?;
@@ -539,12 +552,12 @@ struct SiteColumns {
 /// datetime64[ns], then the float64 columns of `series.csv`), one row per site and epoch;
 /// `stats` the dict of the CLI's `stats.json` (needs evenly spaced times).
 #[pyfunction]
-#[pyo3(signature = (terrain, sites, times, kernels = None, abcorr = "lt+s", limb_darkening = "eddington", disc_method = "exact", az_step_deg = 0.25, horizon_method = "fast", stations = "dsn", station_mask_deg = 10.0, relays = Vec::new(), relay_spks = Vec::new(), relay_max_range_km = None, panel = None, panel_area_m2 = None, panel_efficiency = None, panel_degradation_pct_per_year = None, load_w = None, night_load_w = None, battery_wh = None, battery_start_pct = None, load_profile = None, progress = None))]
+#[pyo3(signature = (terrain, sites, times, kernels = None, abcorr = "lt+s", limb_darkening = "eddington", disc_method = "exact", az_step_deg = 0.25, horizon_method = "fast", stations = "dsn", station_mask_deg = 10.0, relays = Vec::new(), relay_spks = Vec::new(), relay_max_range_km = None, panel = None, panel_area_m2 = None, panel_efficiency = None, panel_degradation_pct_per_year = None, load_w = None, night_load_w = None, battery_wh = None, battery_start_pct = None, load_profile = None, neighbourhood_m = None, out_dir = None, progress = None))]
 #[allow(clippy::too_many_arguments, reason = "Python keyword arguments")]
 fn series<'py>(
     py: Python<'py>,
     terrain: &Terrain,
-    sites: Vec<(String, f64, f64, f64)>,
+    sites: Vec<Bound<'py, PyAny>>,
     times: &Bound<'py, PyAny>,
     kernels: Option<PathBuf>,
     abcorr: &str,
@@ -566,9 +579,14 @@ fn series<'py>(
     battery_wh: Option<f64>,
     battery_start_pct: Option<f64>,
     load_profile: Option<PathBuf>,
+    neighbourhood_m: Option<f64>,
+    out_dir: Option<PathBuf>,
     progress: Option<Bound<'py, PyAny>>,
 ) -> PyResult<(Bound<'py, PyDict>, Bound<'py, PyAny>)> {
     use penumbra::products::series::{self as ser, SeriesConfig};
+    if let Some(r) = neighbourhood_m {
+        ser::neighbourhood::check_radius_m(r).map_err(|e| bad(e.to_string()))?;
+    }
     // The power options as the command line reads them: any one turns the panel on.
     let power =
         penumbra::illum::power::PowerConfig::from_options(&penumbra::illum::power::PowerOptions {
@@ -606,6 +624,7 @@ fn series<'py>(
         relay_spks,
         relay_max_range_km,
         power,
+        neighbourhood_m,
         ..SeriesConfig::default()
     };
     // A bad station list fails before any work, with the command line's message.
@@ -630,8 +649,10 @@ fn series<'py>(
         o => return Err(bad(format!("horizon_method '{o}': use fast or exact"))),
     };
     let specs: Vec<Site> = sites
-        .into_iter()
-        .map(|(name, lat_deg, lon_deg, height_m)| {
+        .iter()
+        .enumerate()
+        .map(|(i, t)| {
+            let (name, lat_deg, lon_deg, height_m) = site_tuple(i, t)?;
             Site::new(&name, lat_deg, lon_deg, observer_height(height_m)?)
                 .map_err(|e| refused("sites", e))
         })
@@ -642,6 +663,7 @@ fn series<'py>(
         ));
     }
     penumbra::model::check_distinct_sites(&specs).map_err(|e| refused("sites", e))?;
+    let kernels_dir = kernels.clone();
     let kernels = load_kernels(kernels)?;
     let stack = Arc::clone(&terrain.stack);
 
@@ -783,9 +805,59 @@ fn series<'py>(
         }
         s.power = r.power_stats.clone();
     }
-    let json = serde_json::to_string(&stats).map_err(|e| bad(e.to_string()))?;
+    let json = match out_dir {
+        // The files `penumbra series` writes, by the same product: the returned statistics are
+        // then those of the written stats.json (with each site's neighbourhood).
+        Some(dir) => {
+            let req = ser::SeriesRequest {
+                terrain: terrain.source.clone(),
+                sites: specs.clone(),
+                epochs: match epochs.len() {
+                    1 => penumbra::model::Epochs::One(epochs[0]),
+                    _ => penumbra::model::Epochs::Range(epoch_range(&epochs)?),
+                },
+                config: config.clone(),
+                kernels: penumbra::products::KernelSource {
+                    dir: kernels_dir.clone(),
+                },
+                out_dir: dir.clone(),
+            };
+            py.allow_threads(|| ser::run(&req)).map_err(py_err)?;
+            std::fs::read_to_string(dir.join("stats.json")).map_err(|e| bad(e.to_string()))?
+        }
+        None => {
+            if config.neighbourhood_m.is_some_and(|r| r > 0.0) {
+                return Err(bad(
+                    "series: neighbourhood_m needs out_dir (the neighbourhood is written with the files)",
+                ));
+            }
+            // The numbers as stats.json writes them.
+            let mut value = serde_json::to_value(&stats).map_err(|e| bad(e.to_string()))?;
+            penumbra::output::round_json_numbers(&mut value);
+            value.to_string()
+        }
+    };
     let stats = py.import("json")?.call_method1("loads", (json,))?;
     Ok((out, stats))
+}
+
+/// A site as Python gives it: `(name, lat_deg, lon_deg)` (2 m above the ground, as the command
+/// line's `--site NAME,LAT,LON`) or `(name, lat_deg, lon_deg, height_above_ground_m)`, with one
+/// clear error naming the site's index otherwise.
+fn site_tuple(i: usize, t: &Bound<'_, PyAny>) -> PyResult<(String, f64, f64, f64)> {
+    let wrong = || {
+        bad(format!(
+            "sites[{i}]: expected (name, lat_deg, lon_deg) or (name, lat_deg, lon_deg, height_above_ground_m), got {}",
+            t.repr().map_or_else(|_| "?".to_string(), |r| r.to_string())
+        ))
+    };
+    if let Ok((name, lat, lon, h)) = t.extract::<(String, f64, f64, f64)>() {
+        return Ok((name, lat, lon, h));
+    }
+    if let Ok((name, lat, lon)) = t.extract::<(String, f64, f64)>() {
+        return Ok((name, lat, lon, penumbra::DEFAULT_OBSERVER_HEIGHT_M));
+    }
+    Err(wrong())
 }
 
 /// One site's rows, as `series.csv` has them.
@@ -1003,6 +1075,7 @@ fn map_statistics<'py>(
     let ab = self::abcorr(abcorr)?;
     let kernels = load_kernels(kernels)?;
     let stack = Arc::clone(&terrain.stack);
+    let (source, layers) = (terrain.source.clone(), terrain.layers.clone());
     // Progress and Ctrl-C from inside the Rust run: the GIL is taken back for each report.
     let callback: Option<Py<PyAny>> = progress.map(Bound::unbind);
     let mut stopped: Option<PyErr> = None;
@@ -1031,7 +1104,21 @@ fn map_statistics<'py>(
         let result = pm::statistics(&settings, inputs, hooks)?;
         let (rasters, psr) =
             pm::range_rasters(&stack.layers[0], result.model.as_ref(), &result.stats)?;
-        let items = pm::range_metadata(&pm::span_text(&epochs.epochs()), &result.stats);
+        let span = pm::span_text(&epochs.epochs());
+        let mut items = pm::range_metadata(&span, &result.stats);
+        // How the maps were made, as the command line's GeoTIFFs say it.
+        let mut prov = penumbra::output::Provenance::new();
+        prov.dem_layers = layers.clone();
+        prov.dem_files = source.dem_files()?;
+        prov.kernels = kernels.files.clone();
+        let made = penumbra::output::MadeWith::new(
+            &prov,
+            settings.observer_height.m(),
+            result.engine.name(),
+            &result.stats.limb_law(),
+            &span,
+        );
+        items.extend(made.items());
         Ok((rasters, psr, result.note, items))
     });
     let (rasters, psr, note, items) = match (result, stopped) {
@@ -1230,7 +1317,7 @@ enum ExposureArg {
 /// `height_m` above the ground, `look_az_deg`, `look_el_deg`; orbit camera: `altitude_km` above
 /// the sphere, looking at (`target_lat_deg`, `target_lon_deg`).
 #[pyfunction]
-#[pyo3(signature = (terrain, utc, lat_deg, lon_deg, camera = "site", height_m = 2.0, look_az_deg = 0.0, look_el_deg = 0.0, altitude_km = None, target_lat_deg = None, target_lon_deg = None, fov_deg = 60.0, width = 640, height = 400, brdf = "hapke", exposure = None, kernels = None, abcorr = "lt+s", backend = "auto"))]
+#[pyo3(signature = (terrain, utc, lat_deg, lon_deg, camera = "site", height_m = 2.0, look_az_deg = 0.0, look_el_deg = 0.0, altitude_km = None, target_lat_deg = None, target_lon_deg = None, fov_deg = 60.0, width = 640, height = 400, brdf = "hapke", exposure = None, kernels = None, abcorr = "lt+s", backend = "auto", observer_height_m = None, width_px = None, height_px = None))]
 fn render<'py>(
     py: Python<'py>,
     terrain: &Terrain,
@@ -1252,8 +1339,16 @@ fn render<'py>(
     kernels: Option<PathBuf>,
     abcorr: &str,
     backend: &str,
+    observer_height_m: Option<f64>,
+    width_px: Option<u32>,
+    height_px: Option<u32>,
 ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
     use penumbra::products::render::{BrdfChoice, CameraKind, CameraSpec, RenderOptions};
+    // The command line's names (`observer_height_m`, `width_px`, `height_px`) win over the old
+    // ones (`height_m`, `width`, `height`), which stay accepted.
+    let height_m = observer_height_m.unwrap_or(height_m);
+    let width = width_px.unwrap_or(width);
+    let height = height_px.unwrap_or(height);
     let kind = match camera {
         "site" => CameraKind::Site,
         "orbit" => CameraKind::Orbit,

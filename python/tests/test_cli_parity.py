@@ -23,12 +23,12 @@ def test_series_equals_the_cli(cli: Path, tmp_path: Path) -> None:
     args = ["--start", "2027-01-18", "--stop", "2027-01-22", "--step", "1h"]
     site_args = sum((["--site", f"{n},{la},{lo},{h}"] for n, la, lo, h in SITES), [])
     run_cli(cli, tmp_path, "series", "--synthetic", *site_args, *args, "--no-plots",
-            "--out-dir", "s")
+            "--neighbourhood-m", "0", "--out-dir", "s")
     table, stats = penumbra.series(
         penumbra.Terrain.synthetic(), SITES,
         penumbra.time_range("2027-01-18", "2027-01-22", "1h"),
     )
-    # stats.json: the same statistics, bit for bit (JSON floats round-trip).
+    # stats.json: the same statistics, to the same printed precision (JSON floats round-trip).
     cli_stats = json.loads((tmp_path / "s" / "stats.json").read_text())
     assert stats == cli_stats
     # series.csv: every column to the CSV's printed decimals.
@@ -51,6 +51,54 @@ def test_series_equals_the_cli(cli: Path, tmp_path: Path) -> None:
             tol = 5.01e-4 if "irradiance" in col else 5.01e-5 if col.endswith("_el_deg") and (
                 col.startswith(("station", "relay"))) else 5.01e-7
             assert np.allclose(mine, want, rtol=0, atol=tol, equal_nan=True), col
+
+
+def test_cli_scenario_and_python_write_the_same_files(cli: Path, tmp_path: Path) -> None:
+    """One site and one set of options through the three doors (`penumbra series`, a scenario's
+    `[series]`, `penumbra.series(out_dir=…)`), on the synthetic DEM with its far field: the same
+    files, byte for byte, neighbourhood included (run.json differs by design: it records the
+    command line)."""
+    site = ("ridge", -89.6, 0.0, 2.0)
+    run_cli(cli, tmp_path, "series", "--synthetic-far-field", "--site", ",".join(map(str, site)),
+            "--start", "2027-01-18", "--stop", "2027-01-22", "--step", "1h", "--no-plots",
+            "--neighbourhood-m", "250", "--out-dir", "cli")
+    (tmp_path / "s.toml").write_text(f"""
+name = "parity"
+output_dir = "scn"
+[time]
+start = "2027-01-18T00:00:00"
+stop = "2027-01-22T00:00:00"
+step = "1h"
+[terrain]
+synthetic = {{ size_px = 400, px_m = 100.0, seed = 1, far_field = true }}
+[series]
+plots = false
+neighbourhood_m = 250.0
+[[sites]]
+name = "{site[0]}"
+lat_deg = {site[1]}
+lon_deg = {site[2]}
+height_above_ground_m = {site[3]}
+""")
+    run_cli(cli, tmp_path, "run", "s.toml")
+    _, stats = penumbra.series(
+        penumbra.Terrain.synthetic(far_field=True), [site],
+        penumbra.time_range("2027-01-18", "2027-01-22", "1h"),
+        neighbourhood_m=250.0, out_dir=tmp_path / "py",
+    )
+    files = ["stats.json", "series_long.csv", "ridge/series.csv", "ridge/horizon.csv",
+             "ridge/stats.json", "ridge/neighbourhood.csv", "ridge/dte_windows.csv"]
+    for f in files:
+        want = (tmp_path / "cli" / f).read_bytes()
+        assert (tmp_path / "scn" / f).read_bytes() == want, f"scenario {f}"
+        assert (tmp_path / "py" / f).read_bytes() == want, f"python {f}"
+    hood = stats["sites"][0]["neighbourhood"]
+    assert hood["radius_m"] == 250.0 and hood["pixels"] >= 15
+    # The neighbourhood's rows are pixel centres within the radius, the site first.
+    rows = list(csv.DictReader(open(tmp_path / "py" / "ridge" / "neighbourhood.csv")))
+    assert rows[0]["point"] == "site" and len(rows) == hood["pixels"] + 1
+    assert all(0 < float(r["distance_m"]) <= 250.0 for r in rows[1:])
+    assert hood["sun_visible_pct"]["min"] <= hood["sun_visible_pct"]["here"] <= hood["sun_visible_pct"]["max"]
 
 
 def test_map_statistics_equal_the_cli_geotiffs_byte_for_byte(cli: Path, tmp_path: Path) -> None:

@@ -36,11 +36,12 @@ def test_mast_table_matches_series_at_each_height(cli: Path, tmp_path: Path) -> 
     stats = json.loads((tmp_path / "s10" / "stats.json").read_text())["sites"]
     for s in stats:
         row = t[(t.site == s["site"]) & (t.height_m == 10)].iloc[0]
-        assert row.sun_visible_pct == pytest.approx(s["sun_visible_pct"], abs=1e-4)
+        # stats.json's printed precision: 2 decimals for %, W and Wh, 3 for hours.
+        assert row.sun_visible_pct == pytest.approx(s["sun_visible_pct"], abs=0.0051)
         assert row.longest_dark_h == pytest.approx(s["longest_dark_h"], abs=1e-3)
-        assert row.mean_power_w == pytest.approx(s["mean_power_w"], abs=1e-4)
-        assert row.required_battery_wh == pytest.approx(s["required_battery_wh"], abs=1e-3)
-        assert row.dte_pct == pytest.approx(s["dte_pct"], abs=1e-4)
+        assert row.mean_power_w == pytest.approx(s["mean_power_w"], abs=0.0051)
+        assert row.required_battery_wh == pytest.approx(s["required_battery_wh"], abs=0.0051)
+        assert row.dte_pct == pytest.approx(s["dte_pct"], abs=0.0051)
     # A raised observer sees over nearer terrain: lit % and power never fall with height, the
     # battery it needs never grows (up to the horizon quantisation).
     for _, g in t.groupby("site"):

@@ -111,7 +111,8 @@ def test_power_and_battery_match_a_numpy_integration(cli: Path, tmp_path: Path) 
     assert np.abs(df.battery_wh - at_epoch).max() <= 1.0  # CSV power rounding, accumulated
     assert stats["hours_below_empty_h"] == pytest.approx(empty_h, abs=0.05)
     assert stats["required_battery_wh"] == pytest.approx(required, abs=1.0)
-    assert stats["mean_power_w"] == pytest.approx(df.power_w.mean(), abs=1e-3)
+    # stats.json prints W with 2 decimals; the CSV's power_w 3.
+    assert stats["mean_power_w"] == pytest.approx(df.power_w.mean(), abs=0.006)
     assert stats["required_battery_wh"] > 3000 and empty_h > 0
     # Brute force: the smallest capacity that never runs empty, by bisection on the simulator.
     lo, hi = 0.0, 4 * stats["required_battery_wh"]
@@ -129,7 +130,9 @@ def test_power_and_battery_match_a_numpy_integration(cli: Path, tmp_path: Path) 
             hi = mid
     print(f"required battery: drawdown {stats['required_battery_wh']:.3f} Wh, "
           f"bisection {hi:.3f} Wh")
-    assert hi == pytest.approx(stats["required_battery_wh"], rel=1e-6, abs=1e-3)
+    # stats.json prints Wh with 2 decimals and hours with 3: the bisection's "never empty"
+    # (hours_below_empty_h == 0) misses deficits under 1.8 s, a few hundredths of a Wh.
+    assert hi == pytest.approx(stats["required_battery_wh"], rel=0, abs=0.05)
     # Python and the command line: the same numbers; and a scenario's [series.power].
     assert np.allclose(table["power_w"], df.power_w, atol=5e-4)
     (tmp_path / "s.toml").write_text(

@@ -132,7 +132,8 @@ def test_relay_elevations_and_visibility_match_spice(cli: Path, tmp_path: Path,
     clear = np.abs(el - horizon_el) > 0.01
     assert want[clear].any() and (~want[clear]).any()
     assert np.array_equal(df.relay_visible.to_numpy()[clear], want[clear].astype(int))
-    assert stats["relay_pct"] == pytest.approx(100 * df.relay_visible.mean(), abs=1e-9)
+    # stats.json prints percentages with 2 decimals.
+    assert stats["relay_pct"] == pytest.approx(100 * df.relay_visible.mean(), abs=0.0051)
     # Without stations the link is the relay alone.
     assert stats["link_pct"] == stats["relay_pct"]
     # Python: the same numbers.
@@ -166,7 +167,7 @@ def test_relays_with_stations_count_any_link(cli: Path, tmp_path: Path, relay_sp
     df = pd.read_csv(out / "a" / "series.csv")
     stats = json.loads((out / "stats.json").read_text())["sites"][0]
     link = (df.dte == 1) | (df.relay_visible == 1)
-    assert stats["link_pct"] == pytest.approx(100 * link.mean(), abs=1e-9)
+    assert stats["link_pct"] == pytest.approx(100 * link.mean(), abs=0.0051)
     assert stats["link_pct"] >= max(stats["dte_pct"], stats["relay_pct"])
 
 

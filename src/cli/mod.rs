@@ -165,8 +165,16 @@ fn man(out_dir: Option<&std::path::Path>) -> anyhow::Result<()> {
     std::fs::create_dir_all(dir)?;
     let mut pages = vec![("penumbra".to_string(), cmd.clone())];
     for sub in cmd.get_subcommands() {
+        // The page is named as man(1) expects (`penumbra-series`, its NAME section too); its
+        // usage line is the command as typed (`penumbra series`).
         let name = format!("penumbra-{}", sub.get_name());
-        pages.push((name, sub.clone()));
+        // (clap takes a command's name as `&'static str`: a few bytes per page, once per run.)
+        let static_name: &'static str = Box::leak(name.clone().into_boxed_str());
+        let page = sub
+            .clone()
+            .name(static_name)
+            .bin_name(format!("penumbra {}", sub.get_name()));
+        pages.push((name, page));
     }
     for (name, page) in pages {
         let path = dir.join(format!("{name}.1"));
@@ -197,12 +205,18 @@ pub struct TerrainArgs {
     #[arg(
         long = "dem",
         value_name = "FILE",
-        required_unless_present = "synthetic"
+        required_unless_present_any = ["synthetic", "synthetic_far_field"]
     )]
     pub dem: Vec<PathBuf>,
-    /// Use penumbra's synthetic south-polar DEM (400 x 400 px at 100 m, seed 1) instead of --dem.
+    /// Use penumbra's synthetic south-polar DEM (400 x 400 px at 100 m, seed 1) instead of --dem
+    /// (no far field: rays that leave it toward the sphere are counted and warned about).
     #[arg(long, conflicts_with = "dem")]
     pub synthetic: bool,
+    /// The synthetic DEM with its far field (400 x 400 px at 1 km, generated the same way and
+    /// blended into the DEM's edge): two layers, no ray leaving the terrain. The per-epoch map
+    /// engines then build a 4000 x 4000 model grid; the horizons engine and series stay cheap.
+    #[arg(long, conflicts_with = "dem")]
+    pub synthetic_far_field: bool,
 }
 
 /// A place on the Moon: planetocentric latitude and east longitude.
@@ -246,7 +260,9 @@ impl KernelArgs {
 impl TerrainArgs {
     /// The terrain of `--dem FILE…` or `--synthetic`.
     pub fn source(&self) -> TerrainSource {
-        if self.synthetic {
+        if self.synthetic_far_field {
+            TerrainSource::SyntheticWithFarField(penumbra::terrain::synth::SynthParams::default())
+        } else if self.synthetic {
             TerrainSource::Synthetic(penumbra::terrain::synth::SynthParams::default())
         } else {
             TerrainSource::Dems(self.dem.clone())

@@ -100,6 +100,12 @@ pub struct SeriesArgs {
     /// Solar panel, load and battery.
     #[command(flatten)]
     pub power: super::power::PowerArgs,
+    /// Radius of each site's neighbourhood, metres (0 … 20000; 0: none; default 3 pixels of the
+    /// finest layer under the site): the key statistics at every pixel centre within it, their
+    /// spread, the best spot (stats.json, <site>/neighbourhood.csv) and a caution when the
+    /// value at the typed point is that sensitive (docs/sites.md).
+    #[arg(long, value_name = "M", allow_hyphen_values = true)]
+    pub neighbourhood_m: Option<f64>,
     /// Kernels.
     #[command(flatten)]
     pub kernels: KernelArgs,
@@ -212,6 +218,7 @@ pub fn request(args: &SeriesArgs) -> anyhow::Result<SeriesRequest> {
         relay_spks: args.relay_spks.clone(),
         relay_max_range_km: args.relay_max_range_km,
         power: args.power.config()?,
+        neighbourhood_m: args.neighbourhood_m,
     };
     Ok(SeriesRequest {
         terrain: args.terrain.source(),

@@ -65,6 +65,8 @@ pub struct RangeResult {
     pub note: String,
     /// The model grid of model-cell statistics (the GPU's per-epoch DP), for writing them.
     pub model: Option<MapGrid>,
+    /// The engine that ran (`auto` resolved).
+    pub engine: MapEngineKind,
 }
 
 /// A caller's progress report: `(done, total)` of the current stage (the horizons engine: the
@@ -111,6 +113,7 @@ pub fn range_statistics(
             stats: RangeStats::from_horizons(stats, step_h, settings.limb.name()),
             note,
             model: None,
+            engine,
         });
     }
     let grid = MapGrid::new(inputs.stack)?;
@@ -119,7 +122,12 @@ pub fn range_statistics(
     let lights = epoch_lights(&grid, inputs.kernels, &epochs, inputs.abcorr)?;
     let (stats, note) = per_epoch(&backend, &grid, (engine, settings), &lights, step_h)?;
     let model = (!stats.on_dem_grid).then_some(grid);
-    Ok(RangeResult { stats, note, model })
+    Ok(RangeResult {
+        stats,
+        note,
+        model,
+        engine,
+    })
 }
 
 /// `what` needs `bytes` of memory: an error naming `what` and `advice` beyond the budget

@@ -81,8 +81,9 @@ pub fn resolve_backend(requested: Backend) -> Result<ResolvedBackend, GpuError> 
             Ok(ctx) if ctx.is_software() => {
                 // A software adapter (lavapipe) runs the same kernels on the same CPU cores, more
                 // slowly than the rayon engines: `auto` means "the fast path", so it is skipped.
-                eprintln!(
-                    "penumbra: warning: --backend auto: only a software adapter ({}) was found; \
+                // What `auto` is for, not a problem: a line of information, not a warning.
+                crate::note!(
+                    "penumbra: --backend auto: only a software adapter ({}) was found; \
                      using the CPU backend (--backend gpu forces it)",
                     ctx.adapter_name()
                 );
@@ -91,8 +92,8 @@ pub fn resolve_backend(requested: Backend) -> Result<ResolvedBackend, GpuError> 
             }
             Ok(ctx) => Ok(ResolvedBackend::Gpu(ctx)),
             Err(err) => {
-                eprintln!(
-                    "penumbra: warning: --backend auto: {}; using the CPU backend",
+                crate::note!(
+                    "penumbra: --backend auto: {}; using the CPU backend",
                     one_line(&err)
                 );
                 AUTO_FELL_BACK.store(true, std::sync::atomic::Ordering::Relaxed);

@@ -16,6 +16,7 @@
 //! is the observer's own ground and is ignored; a direction with no terrain has horizon `-90°`
 //! and distance `NaN`. Definitions, methods and measurements: `docs/horizon.md`.
 
+pub mod beyond;
 mod io;
 mod scan;
 pub mod statistics;

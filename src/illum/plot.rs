@@ -13,6 +13,7 @@ use hifitime::Epoch;
 use plotters::coord::Shift;
 use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
+use plotters::style::text_anchor::{HPos, Pos, VPos};
 
 use super::IllumError;
 use super::disc::HorizonProfile;
@@ -91,7 +92,7 @@ fn rect_chart<'a, 'b>(
     title: &str,
     x: std::ops::Range<f64>,
     y: std::ops::Range<f64>,
-    what: &'static str,
+    (what, y_label_px): (&'static str, u32),
 ) -> Result<
     ChartContext<'a, BitMapBackend<'b>, Cartesian2d<RangedCoordf64, RangedCoordf64>>,
     IllumError,
@@ -100,7 +101,7 @@ fn rect_chart<'a, 'b>(
         .caption(title, ("sans-serif", 24))
         .margin(12)
         .x_label_area_size(50)
-        .y_label_area_size(60)
+        .y_label_area_size(y_label_px)
         .build_cartesian_2d(x, y)
         .map_err(plot_err(what))
 }
@@ -228,7 +229,7 @@ fn render_fraction_plot_png(
     let x_of = |k: usize| k as f64 * series.step_s / unit_s;
     let start = series.start_utc;
     render_png(WHAT, size_px, |root| {
-        let mut chart = rect_chart(root, title, 0.0..x_max, -0.02..1.2, WHAT)?;
+        let mut chart = rect_chart(root, title, 0.0..x_max, -0.02..1.2, (WHAT, 60))?;
         chart
             .configure_mesh()
             .x_desc("date (UTC)")
@@ -301,8 +302,15 @@ pub fn write_windows_plot(
     let (unit_s, _) = time_unit(span_s);
     let x_of = |k: usize| k as f64 * step_s / unit_s;
     let m = rows.len() as f64;
+    // Room for the longest row label (≈ 8 px a character at 15 px).
+    let label_px = rows
+        .iter()
+        .map(|r| 8 * r.label.chars().count() as u32 + 16)
+        .max()
+        .unwrap_or(0)
+        .max(60);
     let png = render_png(WHAT, size_px, |root| {
-        let mut chart = rect_chart(root, title, 0.0..span_s / unit_s, 0.0..m, WHAT)?;
+        let mut chart = rect_chart(root, title, 0.0..span_s / unit_s, 0.0..m, (WHAT, label_px))?;
         chart
             .configure_mesh()
             .x_desc("date (UTC)")
@@ -445,6 +453,50 @@ pub fn write_power_plot(
     Ok(())
 }
 
+/// Tick marks, labels and light grid lines at chosen values of a chart's x and y axes (plotters'
+/// own labels are off: its choice of values cannot be made to fall on calendar months or to
+/// stop at 100 %). `area` is the drawing area the chart was built on.
+fn draw_ticks<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    chart: &ChartContext<'_, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>,
+    x_ticks: &[(f64, String)],
+    y_ticks: &[(f64, String)],
+) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
+    let (x_range, y_range) = (chart.x_range(), chart.y_range());
+    let base = area.get_base_pixel();
+    let plot = chart.plotting_area();
+    let font = ("sans-serif", 14).into_font();
+    for (x, text) in x_ticks {
+        plot.draw(&PathElement::new(
+            vec![(*x, y_range.start), (*x, y_range.end)],
+            BLACK.mix(0.12),
+        ))?;
+        let (px, py) = chart.backend_coord(&(*x, y_range.start));
+        let (px, py) = (px - base.0, py - base.1);
+        area.draw(&PathElement::new(vec![(px, py), (px, py + 5)], BLACK))?;
+        area.draw(&Text::new(
+            text.clone(),
+            (px, py + 8),
+            TextStyle::from(font.clone()).pos(Pos::new(HPos::Center, VPos::Top)),
+        ))?;
+    }
+    for (y, text) in y_ticks {
+        plot.draw(&PathElement::new(
+            vec![(x_range.start, *y), (x_range.end, *y)],
+            BLACK.mix(0.12),
+        ))?;
+        let (px, py) = chart.backend_coord(&(x_range.start, *y));
+        let (px, py) = (px - base.0, py - base.1);
+        area.draw(&PathElement::new(vec![(px - 5, py), (px, py)], BLACK))?;
+        area.draw(&Text::new(
+            text.clone(),
+            (px - 8, py),
+            TextStyle::from(font.clone()).pos(Pos::new(HPos::Right, VPos::Center)),
+        ))?;
+    }
+    Ok(())
+}
+
 /// Monthly bars: mean visible % of the Sun and the Earth (top), longest darkness (bottom).
 fn render_monthly_png(
     title: &str,
@@ -460,7 +512,21 @@ fn render_monthly_png(
             .map(|s| format!("{}-{:02}", s.year_month.0, s.year_month.1))
             .unwrap_or_default()
     };
-    let bars_per_label = (months.len() / 12).max(1);
+    // Month labels at a regular step (1, 2, 3, 6 months, or whole years), on calendar
+    // boundaries (January, April, …), at most about 12 of them.
+    let step = [1usize, 2, 3, 6, 12, 24, 60, 120]
+        .into_iter()
+        .find(|k| months.len() / k <= 12)
+        .unwrap_or(240);
+    let month_ticks: Vec<(f64, String)> = months
+        .iter()
+        .enumerate()
+        .filter(|(_, s)| {
+            let (y, mo) = (i64::from(s.year_month.0), i64::from(s.year_month.1));
+            (y * 12 + (mo - 1)).rem_euclid(step as i64) == 0
+        })
+        .map(|(i, _)| (i as f64, label(i as f64)))
+        .collect();
     let has_earth = months.iter().any(|s| !s.earth_pct.is_nan());
     render_png(WHAT, size_px, |root| {
         let root = root
@@ -471,26 +537,24 @@ fn render_monthly_png(
             .margin(12)
             .x_label_area_size(30)
             .y_label_area_size(60)
-            // Head room above 100 % for the legend, so that it covers no bar.
+            // Head room above 100 % for the legend, so that it covers no bar; ticks (and
+            // labels) only at 0, 20, …, 100.
             .build_cartesian_2d(0.0..m, 0.0..135.0)
             .map_err(plot_err(WHAT))?;
         chart
             .configure_mesh()
-            .x_labels((months.len() / bars_per_label).clamp(2, 13))
-            .x_label_formatter(&|x| label(*x))
-            .y_label_formatter(&|y| {
-                if *y <= 100.0 {
-                    format!("{y:.0}")
-                } else {
-                    String::new()
-                }
-            })
+            .disable_mesh()
+            .x_labels(0)
+            .y_labels(0)
             .y_desc("mean visible % of the month")
-            .light_line_style(BLACK.mix(0.04))
             .label_style(("sans-serif", 14))
             .axis_desc_style(("sans-serif", 16))
             .draw()
             .map_err(plot_err(WHAT))?;
+        let pct_ticks: Vec<(f64, String)> = (0..=5)
+            .map(|k| (20.0 * k as f64, format!("{}", 20 * k)))
+            .collect();
+        draw_ticks(&top, &chart, &month_ticks, &pct_ticks).map_err(plot_err(WHAT))?;
         let width = if has_earth { 0.42 } else { 0.84 };
         // The Sun's bars (body 0), then the Earth's beside them.
         let bars = [
@@ -526,15 +590,21 @@ fn render_monthly_png(
             .map_err(plot_err(WHAT))?;
         chart
             .configure_mesh()
-            .x_labels((months.len() / bars_per_label).clamp(2, 13))
-            .x_label_formatter(&|x| label(*x))
+            .disable_mesh()
+            .x_labels(0)
+            .y_labels(0)
             .x_desc("month (UTC)")
             .y_desc("longest darkness (h)")
-            .light_line_style(BLACK.mix(0.04))
             .label_style(("sans-serif", 14))
             .axis_desc_style(("sans-serif", 16))
             .draw()
             .map_err(plot_err(WHAT))?;
+        let (values, decimals) = nice_ticks(0.0, dark_max / 1.1, 5);
+        let dark_ticks: Vec<(f64, String)> = values
+            .into_iter()
+            .map(|v| (v, format!("{v:.decimals$}")))
+            .collect();
+        draw_ticks(&bottom, &chart, &month_ticks, &dark_ticks).map_err(plot_err(WHAT))?;
         chart
             .draw_series(months.iter().enumerate().map(|(i, s)| {
                 Rectangle::new(
@@ -663,7 +733,7 @@ fn render_horizon_plot_png(
     const WHAT: &str = "horizon plot";
     let (el_lo, el_hi) = el_range_deg(horizon, tracks);
     render_png(WHAT, size_px, |root| {
-        let mut chart = rect_chart(root, title, 0.0..360.0, el_lo..el_hi, WHAT)?;
+        let mut chart = rect_chart(root, title, 0.0..360.0, el_lo..el_hi, (WHAT, 60))?;
         chart
             .configure_mesh()
             .x_desc("azimuth (deg, clockwise from north)")
@@ -883,12 +953,14 @@ fn viridis(t: f64) -> RGBColor {
 
 /// Where a raster lies on the Moon: its grid and map projection (for the graticule, the scale
 /// bar and the north arrow of [`write_map_preview`]).
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone)]
 pub struct MapPlace {
     /// The raster's grid.
     pub grid: crate::terrain::GridGeometry,
     /// Its projection.
     pub projection: crate::terrain::Projection,
+    /// Sites to mark on it: name, latitude and east longitude, degrees.
+    pub marks: Vec<(String, f64, f64)>,
 }
 
 /// The graticule, scale bar and north arrow of a map preview, in preview pixels.
@@ -897,6 +969,8 @@ struct Overlay {
     line: Vec<bool>,
     /// Labels: text and preview pixel (x, y) where it goes.
     labels: Vec<(String, i32, i32)>,
+    /// Sites inside the preview: name and preview pixel (x, y).
+    marks: Vec<(String, i32, i32)>,
     /// Degrees between parallels and between meridians.
     steps_deg: (f64, f64),
     /// Scale bar: length in preview pixels and its label.
@@ -1082,9 +1156,21 @@ impl Overlay {
             let n = dx.hypot(dy);
             Some((dx / n, dy / n))
         };
+        let marks = place
+            .marks
+            .iter()
+            .filter_map(|(name, lat, lon)| {
+                let (x, y) = place.projection.xy_from_lat_lon(*lat, *lon);
+                let (row, col) = g.row_col_from_xy(x, y);
+                let (i, j) = ((col + 0.5) / scale, (row + 0.5) / scale);
+                (i >= 0.0 && j >= 0.0 && i < w as f64 && j < h as f64)
+                    .then(|| (name.clone(), i as i32, j as i32))
+            })
+            .collect();
         Overlay {
             line,
             labels,
+            marks,
             steps_deg: (lat_step, lon_step),
             scale_bar: (bar_m / m_per_px, bar_label),
             north,
@@ -1112,13 +1198,32 @@ fn render_map_png(
             message: format!("{} values for a {rows} x {cols} raster", values.len()),
         });
     }
-    let scale = (rows.max(cols) as f64 / 800.0).max(1.0);
+    // Grid cells per drawn pixel: large grids are thinned to at most 800 px a side, small ones
+    // drawn with several pixels per cell, about 640 px a side.
+    let n = rows.max(cols) as f64;
+    let scale = if n < 640.0 {
+        n / 640.0
+    } else {
+        (n / 800.0).max(1.0)
+    };
     let (w_map, h_map) = (
         ((cols as f64 / scale).round() as u32).max(1),
         ((rows as f64 / scale).round() as u32).max(1),
     );
-    let (left, top) = (20_i32, 50_i32);
-    let size_px = ((w_map + 300).max(500), (h_map + 110).max(330));
+    let title_lines = title.splitn(4, " — ").count() as i32;
+    let (left, top) = (20_i32, 50_i32 + 17 * (title_lines - 2).max(0));
+    // Wide enough for the title's lines (≈ 0.5 em per character) and the colour bar's labels.
+    let title_w = title
+        .splitn(4, " — ")
+        .zip([16.0, 13.0, 12.0, 12.0])
+        .map(|(l, size)| (l.chars().count() as f64 * 0.5 * size) as u32)
+        .max()
+        .unwrap_or(0)
+        + 2 * left as u32;
+    let size_px = (
+        (w_map + 300).max(500).max(title_w),
+        (h_map + top as u32 + 84).max(330),
+    );
     let overlay = place.map(|p| Overlay::new(p, w_map as usize, h_map as usize, scale));
     let colour_of = |v: f32| -> RGBColor {
         if v.is_nan() {
@@ -1136,20 +1241,17 @@ fn render_map_png(
         }
     };
     render_png(WHAT, size_px, |root| {
-        // The title may carry a second line after " — ".
-        let (line1, line2) = title.split_once(" — ").unwrap_or((title, ""));
-        root.draw(&Text::new(
-            line1.to_string(),
-            (left, 6),
-            ("sans-serif", 16).into_font(),
-        ))
-        .map_err(plot_err(WHAT))?;
-        root.draw(&Text::new(
-            line2.to_string(),
-            (left, 27),
-            ("sans-serif", 13).into_font(),
-        ))
-        .map_err(plot_err(WHAT))?;
+        // The title may carry up to three more lines, each after " — ".
+        let mut lines = title.splitn(4, " — ");
+        for (size, y) in [(16, 6), (13, 27), (12, 45), (12, 61)] {
+            let Some(line) = lines.next() else { break };
+            root.draw(&Text::new(
+                line.to_string(),
+                (left, y),
+                ("sans-serif", size).into_font(),
+            ))
+            .map_err(plot_err(WHAT))?;
+        }
         for py in 0..h_map {
             let row = ((f64::from(py) + 0.5) * scale) as usize;
             for px in 0..w_map {
@@ -1168,12 +1270,22 @@ fn render_map_png(
             }
         }
         if let Some(o) = &overlay {
+            // Labels that would overlap one already drawn are left out (corners crowd).
+            let mut drawn: Vec<(i32, i32, i32, i32)> = Vec::new();
             for (text, i, j) in &o.labels {
                 let width = 7 * text.chars().count() as i32;
                 let (x, y) = (
                     (left + i).clamp(left, left + w_map as i32 - width),
                     (top + j).clamp(top, top + h_map as i32 - 14),
                 );
+                let bx = (x - 2, y - 1, x + width, y + 13);
+                if drawn
+                    .iter()
+                    .any(|d| bx.0 < d.2 && d.0 < bx.2 && bx.1 < d.3 && d.1 < bx.3)
+                {
+                    continue;
+                }
+                drawn.push(bx);
                 // A dark box behind the label, so that it reads on bright data.
                 root.draw(&Rectangle::new(
                     [(x - 2, y - 1), (x + width, y + 13)],
@@ -1184,6 +1296,28 @@ fn render_map_png(
                     text.clone(),
                     (x, y),
                     ("sans-serif", 12).into_font().color(&WHITE),
+                ))
+                .map_err(plot_err(WHAT))?;
+            }
+            // Sites: a ring and the name, where the map holds them.
+            for (name, i, j) in &o.marks {
+                let (x, y) = (left + i, top + j);
+                root.draw(&Circle::new((x, y), 5, WHITE.stroke_width(3)))
+                    .map_err(plot_err(WHAT))?;
+                root.draw(&Circle::new((x, y), 5, RGBColor(200, 0, 0).stroke_width(2)))
+                    .map_err(plot_err(WHAT))?;
+                let width = 7 * name.chars().count() as i32;
+                let tx = (x + 8).min(left + w_map as i32 - width).max(left);
+                let ty = (y - 7).clamp(top, top + h_map as i32 - 14);
+                root.draw(&Rectangle::new(
+                    [(tx - 2, ty - 1), (tx + width, ty + 13)],
+                    RGBAColor(255, 255, 255, 0.7).filled(),
+                ))
+                .map_err(plot_err(WHAT))?;
+                root.draw(&Text::new(
+                    name.clone(),
+                    (tx, ty),
+                    ("sans-serif", 12).into_font(),
                 ))
                 .map_err(plot_err(WHAT))?;
             }
@@ -1240,16 +1374,33 @@ fn render_map_png(
                     ))
                     .map_err(plot_err(WHAT))?;
                 }
-                for j in 0..=4 {
-                    let t = f64::from(j) / 4.0;
+                // Round ticks: 1, 2, 2.5 or 5 times a power of ten, about five of them.
+                let span = (max - min).max(f64::MIN_POSITIVE);
+                let raw = span / 5.0;
+                let mag = 10f64.powf(raw.log10().floor());
+                let step = [1.0, 2.0, 2.5, 5.0, 10.0]
+                    .iter()
+                    .map(|f| f * mag)
+                    .find(|s| span / s <= 6.0)
+                    .unwrap_or(10.0 * mag);
+                let decimals = (-step.log10().floor()).max(0.0) as usize
+                    + usize::from((step / mag - 2.5).abs() < 1e-9);
+                let mut v = (min / step).ceil() * step;
+                while v <= max + 1e-9 * span {
+                    let t = (v - min) / span;
                     let y = top + ((1.0 - t) * f64::from(bar_h - 1)) as i32;
-                    let label = format!("{:.3}", min + t * (max - min));
+                    root.draw(&Rectangle::new(
+                        [(x0 + 24, y), (x0 + 28, y + 1)],
+                        BLACK.filled(),
+                    ))
+                    .map_err(plot_err(WHAT))?;
                     root.draw(&Text::new(
-                        label,
+                        format!("{v:.decimals$}"),
                         (x0 + 30, y - 7),
                         ("sans-serif", 14).into_font(),
                     ))
                     .map_err(plot_err(WHAT))?;
+                    v += step;
                 }
                 root.draw(&Text::new(
                     unit.clone(),
@@ -1284,7 +1435,7 @@ fn render_map_png(
         };
         root.draw(&Text::new(
             note,
-            (left, top + h_map as i32 + 10),
+            (left, top + h_map as i32 + 58),
             ("sans-serif", 13).into_font(),
         ))
         .map_err(plot_err(WHAT))?;
@@ -1438,6 +1589,7 @@ mod tests {
     fn polar_place(n: usize, px_m: f64, xc: f64, yc: f64) -> MapPlace {
         let half = n as f64 * px_m / 2.0;
         MapPlace {
+            marks: Vec::new(),
             grid: crate::terrain::GridGeometry {
                 rows: n,
                 cols: n,

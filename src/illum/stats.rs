@@ -216,6 +216,121 @@ pub struct SiteStats {
     /// Solar power and battery (absent when the run has no panel).
     #[serde(default, flatten, skip_serializing_if = "Option::is_none")]
     pub power: Option<super::power::PowerStats>,
+    /// The same statistics over the pixels around the site, the best spot among them and the
+    /// cautions they raise (absent when the run asks for none).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub neighbourhood: Option<Neighbourhood>,
+    /// What a bare sphere beyond the DEM would change (absent when the DEM holds every ray
+    /// that matters).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub beyond_dem: Option<BeyondDemEffect>,
+}
+
+/// A statistic at the site and its spread over the site's neighbourhood.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Spread {
+    /// At the site itself.
+    pub here: f64,
+    /// The smallest over the neighbourhood's pixels and the site.
+    pub min: f64,
+    /// The median over the neighbourhood's pixels and the site.
+    pub median: f64,
+    /// The largest over the neighbourhood's pixels and the site.
+    pub max: f64,
+}
+
+impl Spread {
+    /// The spread of `values` (not empty), `here` the site's own value.
+    pub fn of(here: f64, values: &[f64]) -> Self {
+        let mut v: Vec<f64> = values.iter().copied().chain([here]).collect();
+        v.sort_by(f64::total_cmp);
+        let n = v.len();
+        let median = if n % 2 == 1 {
+            v[n / 2]
+        } else {
+            0.5 * (v[n / 2 - 1] + v[n / 2])
+        };
+        Spread {
+            here,
+            min: v[0],
+            median,
+            max: v[n - 1],
+        }
+    }
+
+    /// `max − min`.
+    pub fn range(&self) -> f64 {
+        self.max - self.min
+    }
+}
+
+/// One point of a neighbourhood: where it is and its key statistics.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct SpotStats {
+    /// Planetocentric latitude, degrees.
+    pub lat_deg: f64,
+    /// East longitude, degrees.
+    pub lon_deg: f64,
+    /// Ground distance from the site (on the 1737.4 km sphere), metres.
+    pub distance_m: f64,
+    /// Direction from the site, degrees clockwise from north.
+    pub bearing_deg: f64,
+    /// Ground height above the sphere, metres.
+    pub ground_height_m: f64,
+    /// % of time any part of the Sun is visible.
+    pub sun_visible_pct: f64,
+    /// Time-mean visible fraction of the Sun (0–1).
+    pub sun_mean_visible_fraction: f64,
+    /// Longest continuous darkness, hours.
+    pub longest_dark_h: f64,
+    /// % of time any part of the Earth is visible.
+    pub earth_visible_pct: f64,
+}
+
+/// How a site's statistics vary over the pixels around it (`docs/sites.md`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Neighbourhood {
+    /// Radius of the neighbourhood, metres.
+    pub radius_m: f64,
+    /// The layer whose pixel centres make the neighbourhood (the finest under the site).
+    pub layer: String,
+    /// That layer's pixel size, metres.
+    pub px_m: f64,
+    /// Number of pixel centres within the radius.
+    pub pixels: usize,
+    /// % of time any part of the Sun is visible.
+    pub sun_visible_pct: Spread,
+    /// Time-mean visible fraction of the Sun.
+    pub sun_mean_visible_fraction: Spread,
+    /// Longest continuous darkness, hours.
+    pub longest_dark_h: Spread,
+    /// % of time any part of the Earth is visible.
+    pub earth_visible_pct: Spread,
+    /// The point with the most Sun (ties: the nearest), the site itself included.
+    pub best: SpotStats,
+    /// Ground distance to the nearest terrain that sets the horizon where the Sun goes behind
+    /// it (azimuths whose horizon is above the Sun's lowest elevation), metres.
+    pub nearest_sun_horizon_m: f64,
+    /// % of those azimuths whose horizon is set by ground within [`NEAR_HORIZON_PX`] pixels.
+    pub near_sun_horizon_pct: f64,
+    /// One line per reason to doubt the value at the typed point (empty when there is none).
+    pub cautions: Vec<String>,
+}
+
+/// A horizon set by ground within this many pixels of the site is "near": the result then
+/// rests on the DEM at pixel scale.
+pub const NEAR_HORIZON_PX: f64 = 3.0;
+
+/// What a bare sphere beyond the outermost layer would change at a site: rays toward the Sun
+/// leave the layers below the sphere, so the Moon there would hide what the DEM shows lit.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct BeyondDemEffect {
+    /// % of the horizon's azimuths whose horizon the sphere beyond the DEM would raise.
+    pub azimuths_raised_pct: f64,
+    /// % of time any part of the Sun is visible with the sphere beyond the DEM.
+    pub sun_visible_pct_with_sphere: f64,
+    /// % of time any part of the Earth is visible with the sphere beyond the DEM.
+    pub earth_visible_pct_with_sphere: f64,
 }
 
 /// Statistics of a site's relays: a relay visible (above the terrain horizon, within range),
@@ -394,6 +509,8 @@ fn site_stats(series: &SiteSeries<'_>) -> Result<SiteStats, IllumError> {
         link: None,
         relay: None,
         power: None,
+        neighbourhood: None,
+        beyond_dem: None,
     })
 }
 
@@ -536,9 +653,12 @@ impl StatsFile {
         })
     }
 
-    /// Writes the statistics as pretty JSON, atomically.
+    /// Writes the statistics as pretty JSON, atomically, each number to the precision of its
+    /// unit ([`crate::output::round_json_numbers`]).
     pub fn write_json(&self, path: &Path) -> Result<(), IllumError> {
-        let mut bytes = serde_json::to_vec_pretty(self)?;
+        let mut value = serde_json::to_value(self)?;
+        crate::output::round_json_numbers(&mut value);
+        let mut bytes = serde_json::to_vec_pretty(&value)?;
         bytes.push(b'\n');
         crate::output::write_bytes_atomic(path, &bytes)?;
         Ok(())
@@ -686,7 +806,17 @@ mod tests {
         let path = dir.path().join("stats.json");
         file.write_json(&path).unwrap();
         let back: StatsFile = serde_json::from_slice(&std::fs::read(&path).unwrap()).unwrap();
-        assert_eq!(back, file);
+        // The file holds each number to its unit's precision: the same statistics, rounded.
+        let mut rounded = serde_json::to_value(&file).unwrap();
+        crate::output::round_json_numbers(&mut rounded);
+        assert_eq!(back, serde_json::from_value::<StatsFile>(rounded).unwrap());
+        assert_eq!(back.sites[0].samples, file.sites[0].samples);
+        let pct = back.sites[0].sun_visible_pct;
+        assert!(
+            (pct - file.sites[0].sun_visible_pct).abs() <= 0.005
+                && ((pct * 100.0).round() - pct * 100.0).abs() < 1e-9,
+            "{pct}"
+        );
         let text = std::fs::read_to_string(&path).unwrap();
         assert!(text.contains("\"longest_dark_h\""), "{text}");
     }

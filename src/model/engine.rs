@@ -86,6 +86,14 @@ pub struct DteCounts {
 }
 
 impl RangeStats {
+    /// The Sun's limb darkening in the mean fraction: the horizons engine's law, else a uniform
+    /// disc (the per-epoch engines).
+    pub fn limb_law(&self) -> String {
+        self.extra
+            .as_ref()
+            .map_or_else(|| "none (uniform disc)".to_string(), |e| e.limb_law.clone())
+    }
+
     /// The statistics from the horizons engine's (`step_h` hours apart).
     pub fn from_horizons(
         h: crate::horizon::statistics::HorizonStatistics,

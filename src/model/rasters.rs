@@ -295,20 +295,26 @@ pub fn range_rasters(
 /// Writes the statistics of an epoch range as GeoTIFFs and PNG previews into `out_dir` on the grid of
 /// `dem` (the finest layer); returns the file names. Statistics per model cell
 /// (`!s.on_dem_grid`, the GPU per-epoch DP) are resampled through `model`, which they need.
+/// Every file says how it was made (`made`: tags of the GeoTIFFs, subtitles of the PNGs);
+/// the previews mark `marks` (name, latitude, east longitude in degrees).
 pub fn write_range(
     dem: &Dem,
     model: Option<&MapGrid>,
     s: &RangeStats,
     out_dir: &Path,
-    span: &str,
+    made: &crate::output::MadeWith,
+    marks: &[(String, f64, f64)],
 ) -> anyhow::Result<Vec<String>> {
     let (rasters, psr_out) = range_rasters(dem, model, s)?;
     let mut files = Vec::new();
-    let items = range_metadata(span, s);
+    let mut items = range_metadata(&made.span_utc, s);
+    items.extend(made.items());
+    let subtitle = format!("{} — {}", made.subtitle(), made.sources());
     let (rows, cols) = (dem.grid.rows, dem.grid.cols);
     let place = MapPlace {
         grid: dem.grid,
         projection: dem.projection,
+        marks: marks.to_vec(),
     };
     for r in rasters {
         let out = r.values;
@@ -329,7 +335,7 @@ pub fn write_range(
         let png = format!("{}.png", r.name);
         write_map_preview(
             &out_dir.join(&png),
-            &format!("{} — {span}", r.description),
+            &format!("{} — {subtitle}", r.description),
             &out,
             rows,
             cols,
@@ -364,7 +370,7 @@ pub fn write_range(
         .collect();
     write_map_preview(
         &out_dir.join("psr_mask.png"),
-        &format!("Never lit (PSR over the span) — {span}"),
+        &format!("Never lit (PSR over the span) — {subtitle}"),
         &psr_f,
         rows,
         cols,

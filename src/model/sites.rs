@@ -28,8 +28,9 @@ const MAX_SITES: usize = 100_000;
 /// Reads the sites of `path`: a CSV table with a header (`name`, `lat_deg`, `lon_deg` and
 /// optionally `height_m`; `lat`/`latitude`, `lon`/`longitude` and `height_above_ground_m` are
 /// accepted too) or GeoJSON (`.geojson`/`.json`, or text starting with `{`): a FeatureCollection
-/// of Points `[lon_deg, lat_deg]` (a third coordinate is ignored: heights here are above the
-/// ground) with `properties.name` and optionally `properties.height_m`. Sites without a height
+/// of Points `[lon_deg, lat_deg]` (or `[x_m, y_m]` in a lunar polar stereographic `crs`; a third
+/// coordinate is ignored: heights here are above the ground) with `properties.name` and
+/// optionally `properties.height_m` (any letter case). Sites without a height
 /// get `default_height`. Errors name the file and the row or feature.
 pub fn read_sites_file(
     path: &std::path::Path,
@@ -128,27 +129,47 @@ fn sites_from_geojson(text: &str, default_height: ObserverHeight) -> Result<Vec<
         Some("Feature") => vec![doc.clone()],
         _ => return Err("expected a GeoJSON FeatureCollection or Feature of Points".into()),
     };
+    let crs = geojson_crs(&doc)?;
     let mut sites = Vec::with_capacity(features.len());
     for (i, f) in features.iter().enumerate() {
         let geometry = f.get("geometry").unwrap_or(&serde_json::Value::Null);
         if geometry.get("type").and_then(|t| t.as_str()) != Some("Point") {
             return Err(format!("feature {i}: its geometry is not a Point"));
         }
-        let coords = geometry
+        let xy = geometry
             .get("coordinates")
             .and_then(|c| c.as_array())
             .filter(|c| (2..=3).contains(&c.len()))
             .and_then(|c| Some((c[0].as_f64()?, c[1].as_f64()?)))
-            .ok_or_else(|| format!("feature {i}: coordinates must be [lon_deg, lat_deg]"))?;
-        let props = f.get("properties").unwrap_or(&serde_json::Value::Null);
-        let name = props
-            .get("name")
+            .ok_or_else(|| match crs {
+                None => format!("feature {i}: coordinates must be [lon_deg, lat_deg]"),
+                Some(_) => format!("feature {i}: coordinates must be [x_m, y_m]"),
+            })?;
+        let coords = match crs {
+            None => xy,
+            Some(p) => {
+                let (lat, lon) = p.lat_lon_from_xy(xy.0, xy.1);
+                (lon.rem_euclid(360.0), lat)
+            }
+        };
+        // Property names as GIS tools write them: any letter case.
+        let props_map = f
+            .get("properties")
+            .and_then(|p| p.as_object())
+            .cloned()
+            .unwrap_or_default();
+        let prop = |names: &[&str]| {
+            props_map
+                .iter()
+                .find(|(k, _)| names.iter().any(|n| k.eq_ignore_ascii_case(n)))
+                .map(|(_, v)| v.clone())
+        };
+        let name_value = prop(&["name", "site"]);
+        let name = name_value
+            .as_ref()
             .and_then(|n| n.as_str())
             .ok_or_else(|| format!("feature {i}: no properties.name"))?;
-        let height = match props
-            .get("height_m")
-            .or_else(|| props.get("height_above_ground_m"))
-        {
+        let height = match prop(&["height_m", "height_above_ground_m"]) {
             None | Some(serde_json::Value::Null) => default_height,
             Some(h) => ObserverHeight::new(
                 h.as_f64()
@@ -161,4 +182,49 @@ fn sites_from_geojson(text: &str, default_height: ObserverHeight) -> Result<Vec<
         );
     }
     Ok(sites)
+}
+
+/// The CRS of a GeoJSON document's coordinates: `None` for longitude/latitude in degrees (no
+/// `crs` member, or a geographic lunar CRS: `IAU_2015:30100`, `ESRI:104903`, `OGC CRS84`), the
+/// projection for the lunar polar stereographic CRSs penumbra writes (`IAU_2015:30135` south,
+/// `IAU_2015:30130` north, on the 1737.4 km sphere); any other CRS is refused (its coordinates
+/// would be read wrongly).
+fn geojson_crs(doc: &serde_json::Value) -> Result<Option<crate::terrain::Projection>, String> {
+    let Some(crs) = doc.get("crs") else {
+        return Ok(None);
+    };
+    let name = crs
+        .get("properties")
+        .and_then(|p| p.get("name"))
+        .and_then(|n| n.as_str())
+        .ok_or("a `crs` member without properties.name (use a named CRS or none)")?;
+    // `urn:ogc:def:crs:IAU_2015::30135`, `IAU_2015:30135`, `IAU:30135`, … → authority, code.
+    let upper = name.to_ascii_uppercase();
+    let parts: Vec<&str> = upper.split(':').filter(|p| !p.is_empty()).collect();
+    let code = parts.last().copied().unwrap_or("");
+    let authority = parts
+        .iter()
+        .rev()
+        .skip(1)
+        .find(|p| !p.chars().all(|c| c.is_ascii_digit() || c == '.'))
+        .copied()
+        .unwrap_or("");
+    let polar = |south: bool| {
+        Some(crate::terrain::Projection::PolarStereographic {
+            south,
+            lon0_deg: 0.0,
+            k0: 1.0,
+            radius_m: crate::MOON_RADIUS_M,
+        })
+    };
+    match (authority, code) {
+        ("OGC", "CRS84") | ("IAU_2015" | "IAU2015" | "IAU", "30100") | ("ESRI", "104903") => {
+            Ok(None)
+        }
+        ("IAU_2015" | "IAU2015" | "IAU", "30135") => Ok(polar(true)),
+        ("IAU_2015" | "IAU2015" | "IAU", "30130") => Ok(polar(false)),
+        _ => Err(format!(
+            "GeoJSON crs '{name}' is not one penumbra reads: give lunar longitude/latitude in degrees (no crs, IAU_2015:30100) or polar stereographic metres (IAU_2015:30135 south, IAU_2015:30130 north)"
+        )),
+    }
 }

@@ -152,6 +152,62 @@ pub fn write_bytes_atomic(path: &Path, bytes: &[u8]) -> Result<(), OutputError> 
     })
 }
 
+/// Decimals a statistic is written with, by the unit its JSON key ends in (`_pct` 2, `_h` 3,
+/// `_fraction` 4, `_deg` 6, `_m` 3, `_km` 4, `_s` 3, `_w`/`_wh`/`_w_m2` 2); `None` for other keys.
+fn decimals_for_key(key: &str) -> Option<i32> {
+    const RULES: [(&str, i32); 10] = [
+        ("_pct", 2),
+        ("_fraction", 4),
+        ("_deg", 6),
+        ("_km", 4),
+        ("_w_m2", 2),
+        ("_wh", 2),
+        ("_w", 2),
+        ("_m", 3),
+        ("_h", 3),
+        ("_s", 3),
+    ];
+    RULES
+        .iter()
+        .find(|(suffix, _)| key.ends_with(suffix))
+        .map(|&(_, d)| d)
+}
+
+/// Rounds every number of a JSON document to the precision its key's unit deserves
+/// (`decimals_for_key`; members of an object without a unit of their own, such as a
+/// statistic's `min`/`max`, take their parent's), so that `stats.json` says 67.81, not
+/// 67.80821917808219. Integers and keys without a unit are left alone.
+pub fn round_json_numbers(value: &mut serde_json::Value) {
+    fn walk(v: &mut serde_json::Value, decimals: Option<i32>) {
+        match v {
+            serde_json::Value::Object(map) => {
+                for (k, child) in map.iter_mut() {
+                    walk(child, decimals_for_key(k).or(decimals));
+                }
+            }
+            serde_json::Value::Array(items) => {
+                for child in items {
+                    walk(child, decimals);
+                }
+            }
+            serde_json::Value::Number(n) => {
+                if let (Some(d), Some(x)) = (decimals, n.as_f64())
+                    && !n.is_i64()
+                    && !n.is_u64()
+                {
+                    let scale = 10f64.powi(d);
+                    let r = (x * scale).round() / scale;
+                    if let Some(m) = serde_json::Number::from_f64(if r == 0.0 { 0.0 } else { r }) {
+                        *n = m;
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+    walk(value, None);
+}
+
 /// Lowercase hex sha256 of a file's contents.
 pub fn sha256_file(path: &Path) -> std::io::Result<String> {
     use sha2::Digest as _;
@@ -215,8 +271,115 @@ pub struct Provenance {
     /// counted.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub map_rays_blocked_beyond_dem: Option<BelowSphereExits>,
+    /// How the maps were made (observer height, engine, limb darkening, span, layers, kernels),
+    /// as their GeoTIFF tags and PNG subtitles say it (map products only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub map_made_with: Option<MadeWith>,
     /// Wall time of the run, seconds.
     pub wall_time_s: f64,
+}
+
+/// How a map was made, so that a copied GeoTIFF or PNG still says it: the observer's height,
+/// the engine, the limb darkening, the epochs, the DEM layers and the kernels (each with the
+/// start of its sha256). Written into every statistics GeoTIFF's tags, every preview's subtitle
+/// and the map's `run.json` (`map_made_with`).
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct MadeWith {
+    /// Observer height above the ground, metres.
+    pub observer_height_m: f64,
+    /// The engine that computed the maps (`horizons`, `combined`, …).
+    pub engine: String,
+    /// The Sun's limb darkening in the mean fraction.
+    pub limb_darkening: String,
+    /// The epochs: `first .. last, N epochs`.
+    pub span_utc: String,
+    /// Each DEM layer: its file name and `sha256:` + 12 hex digits, or the synthetic DEM's
+    /// description.
+    pub layers: Vec<String>,
+    /// Each kernel: its file name and `sha256:` + 12 hex digits.
+    pub kernels: Vec<String>,
+}
+
+impl MadeWith {
+    /// From a run's provenance (layers, kernels) and the map's own settings.
+    pub fn new(
+        prov: &Provenance,
+        observer_height_m: f64,
+        engine: &str,
+        limb_darkening: &str,
+        span_utc: &str,
+    ) -> Self {
+        let file_name = |p: &str| {
+            Path::new(p)
+                .file_name()
+                .map_or_else(|| p.to_string(), |n| n.to_string_lossy().into_owned())
+        };
+        let short = |sha: &str| sha.chars().take(12).collect::<String>();
+        let layers = if prov.dem_files.is_empty() {
+            prov.dem_layers.clone()
+        } else {
+            prov.dem_files
+                .iter()
+                .map(|f| format!("{} (sha256:{})", file_name(&f.path), short(&f.sha256)))
+                .collect()
+        };
+        let kernels = prov
+            .kernels
+            .iter()
+            .map(|k| {
+                format!(
+                    "{} (sha256:{})",
+                    file_name(&k.path.display().to_string()),
+                    short(&k.sha256)
+                )
+            })
+            .collect();
+        MadeWith {
+            observer_height_m,
+            engine: engine.to_string(),
+            limb_darkening: limb_darkening.to_string(),
+            span_utc: span_utc.to_string(),
+            layers,
+            kernels,
+        }
+    }
+
+    /// The GeoTIFF metadata items.
+    pub fn items(&self) -> Vec<(String, String)> {
+        vec![
+            (
+                "observer_height_m".into(),
+                format!("{}", self.observer_height_m),
+            ),
+            ("engine".into(), self.engine.clone()),
+            ("limb_darkening".into(), self.limb_darkening.clone()),
+            ("dem_layers".into(), self.layers.join("; ")),
+            ("kernels".into(), self.kernels.join("; ")),
+        ]
+    }
+
+    /// The preview's second line: epochs, height, engine, limb darkening.
+    pub fn subtitle(&self) -> String {
+        format!(
+            "{}; observer {} m above ground; {} engine; {} limb darkening",
+            self.span_utc, self.observer_height_m, self.engine, self.limb_darkening
+        )
+    }
+
+    /// The preview's third and fourth lines (split at ` — `): layers and kernels, by file name.
+    pub fn sources(&self) -> String {
+        let names = |v: &[String]| {
+            v.iter()
+                .map(|s| s.split(" (sha256").next().unwrap_or(s).to_string())
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        format!(
+            "DEM: {} — kernels: {}",
+            names(&self.layers),
+            names(&self.kernels)
+        )
+    }
 }
 
 /// An input file of a run (a DEM layer), identified like the kernels: path, size, sha256.
@@ -292,6 +455,7 @@ impl Provenance {
             ground_stations: None,
             outputs: Vec::new(),
             map_rays_blocked_beyond_dem: None,
+            map_made_with: None,
             wall_time_s: 0.0,
         }
     }

@@ -374,6 +374,7 @@ pub fn run_map(req: &MastMapRequest) -> anyhow::Result<Vec<HeightCost>> {
             unit: "m".into(),
         },
         Some(&crate::illum::plot::MapPlace {
+            marks: Vec::new(),
             grid: fine.grid,
             projection: fine.projection,
         }),

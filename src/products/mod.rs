@@ -33,6 +33,9 @@ pub enum TerrainSource {
     Dems(Vec<PathBuf>),
     /// penumbra's synthetic south-polar DEM with these parameters.
     Synthetic(SynthParams),
+    /// The synthetic DEM and its far field ([`synthetic_stack_with_far_field`]): two layers,
+    /// no ray leaving the terrain.
+    SyntheticWithFarField(SynthParams),
 }
 
 impl TerrainSource {
@@ -42,6 +45,10 @@ impl TerrainSource {
             TerrainSource::Synthetic(params) => {
                 let (stack, what) = synthetic_stack(params)?;
                 Ok((stack, vec![what]))
+            }
+            TerrainSource::SyntheticWithFarField(params) => {
+                let (stack, what) = synthetic_stack_with_far_field(params)?;
+                Ok((stack, what))
             }
             TerrainSource::Dems(paths) => {
                 let stack = load_stack(paths)?;
@@ -141,7 +148,7 @@ impl TerrainSource {
     /// The DEM files with sizes and sha256, for provenance (none for the synthetic DEM).
     pub fn dem_files(&self) -> anyhow::Result<Vec<crate::output::InputFile>> {
         match self {
-            TerrainSource::Synthetic(_) => Ok(Vec::new()),
+            TerrainSource::Synthetic(_) | TerrainSource::SyntheticWithFarField(_) => Ok(Vec::new()),
             TerrainSource::Dems(paths) => paths
                 .iter()
                 .map(|p| Ok(crate::output::InputFile::of(p)?))
@@ -166,6 +173,24 @@ pub fn synthetic_stack(params: &SynthParams) -> anyhow::Result<(TerrainStack, St
         params.size_px, params.size_px, params.px_m, params.seed
     );
     Ok((TerrainStack::new(vec![dem]), what))
+}
+
+/// The built-in synthetic DEM and its far field
+/// ([`crate::terrain::synth::south_polar_far_field`]) as a two-layer stack, and one
+/// description per layer for provenance. (Per-epoch map engines build one model grid at the
+/// near pixel over every layer: 16 M cells for the default's ±200 km far field.)
+pub fn synthetic_stack_with_far_field(
+    params: &SynthParams,
+) -> anyhow::Result<(TerrainStack, Vec<String>)> {
+    let (near, what) = synthetic_stack(params)?;
+    let far = crate::terrain::synth::south_polar_far_field(&near.layers[0], params)?;
+    let far_what = format!(
+        "synthetic far field ({} x {} px at {} m, seed {})",
+        far.grid.rows, far.grid.cols, far.grid.px_x_m, params.seed
+    );
+    let mut layers = near.layers;
+    layers.push(far);
+    Ok((TerrainStack::new(layers), vec![what, far_what]))
 }
 
 /// Where the SPICE kernels come from: a folder or a meta-kernel (`.tm`), or the default search

@@ -184,6 +184,10 @@ pub struct SynthSpec {
     pub px_m: f64,
     /// Seed.
     pub seed: u64,
+    /// Add the synthetic far field (400 km square at 10 x the pixel, blended into the DEM's
+    /// edge), so that no ray leaves the terrain (default false, as `--synthetic`).
+    #[serde(default)]
+    pub far_field: bool,
 }
 
 /// The epoch range of a scenario (UTC).
@@ -459,6 +463,10 @@ impl Scenario {
         }
         if let Some(cfg) = &self.series {
             crate::horizon::azimuth_count(cfg.az_step_deg).context("[series] az_step_deg")?;
+            if let Some(r) = cfg.neighbourhood_m {
+                crate::products::series::neighbourhood::check_radius_m(r)
+                    .context("[series] neighbourhood_m")?;
+            }
         }
         if let Some(m) = &self.map {
             self.map_epochs(m)?;

@@ -34,9 +34,11 @@ pub struct PathSpec {
     pub frames: Option<usize>,
     /// Time between frames (e.g. `10m`), from the first keyframe (or `frames`).
     pub step: Option<String>,
-    /// Image width, pixels.
+    /// Image width, pixels (`width_px`, as the command line's `--width-px`, or `width`).
+    #[serde(alias = "width_px")]
     pub width: Option<u32>,
-    /// Image height, pixels.
+    /// Image height, pixels (`height_px` or `height`).
+    #[serde(alias = "height_px")]
     pub height: Option<u32>,
     /// `hapke` (default) or `lambert`.
     pub brdf: Option<crate::products::render::BrdfChoice>,
@@ -62,6 +64,7 @@ pub struct KeyframeSpec {
     /// Camera east longitude, degrees.
     pub lon_deg: f64,
     /// Site camera: height above the ground, metres (default 2).
+    #[serde(alias = "observer_height_m")]
     pub height_m: Option<f64>,
     /// Site camera: view azimuth, degrees from north clockwise (default 0).
     pub look_az_deg: Option<f64>,
@@ -184,6 +187,7 @@ pub struct ViewSpec {
     /// Camera east longitude, degrees.
     pub lon_deg: f64,
     /// Site camera: height above the ground, metres.
+    #[serde(alias = "observer_height_m")]
     pub height_m: Option<f64>,
     /// Site camera: view azimuth, degrees from north clockwise.
     pub look_az_deg: Option<f64>,
@@ -205,9 +209,11 @@ pub struct ViewSpec {
     pub stop: Option<String>,
     /// Step of the range (e.g. `6h`).
     pub step: Option<String>,
-    /// Image width, pixels.
+    /// Image width, pixels (`width_px`, as the command line's `--width-px`, or `width`).
+    #[serde(alias = "width_px")]
     pub width: Option<u32>,
-    /// Image height, pixels.
+    /// Image height, pixels (`height_px` or `height`).
+    #[serde(alias = "height_px")]
     pub height: Option<u32>,
     /// `hapke` (default) or `lambert`.
     pub brdf: Option<crate::products::render::BrdfChoice>,

@@ -168,8 +168,12 @@ pub fn run_file(args: &RunRequest) -> anyhow::Result<()> {
     if let (Some(stack), Some(spec)) = (&stack, &scenario.map) {
         let (files, below, map_backend) = match cp.part("map") {
             Some((files, note)) if cp.is_done("map") => {
-                let (below, backend): (Option<crate::output::BelowSphereExits>, String) =
-                    serde_json::from_str(note).context("the checkpoint of [map]")?;
+                let (below, backend, made): (
+                    Option<crate::output::BelowSphereExits>,
+                    String,
+                    Option<crate::output::MadeWith>,
+                ) = serde_json::from_str(note).context("the checkpoint of [map]")?;
+                prov.map_made_with = made;
                 (files, below, backend)
             }
             _ => {
@@ -184,12 +188,20 @@ pub fn run_file(args: &RunRequest) -> anyhow::Result<()> {
                     &base,
                     &out_dir.join("map"),
                     &mut cp,
+                    MapContext {
+                        prov: &mut prov,
+                        marks: &scenario
+                            .sites
+                            .iter()
+                            .map(|s| (s.name.clone(), s.lat_deg, s.lon_deg))
+                            .collect::<Vec<_>>(),
+                    },
                 )?;
                 let files: Vec<String> = files.into_iter().map(|f| format!("map/{f}")).collect();
                 cp.mark_done(
                     "map",
                     &files,
-                    &serde_json::to_string(&(below, &map_backend))?,
+                    &serde_json::to_string(&(below, &map_backend, &prov.map_made_with))?,
                 )
                 .map_err(anyhow::Error::msg)?;
                 (files, below, map_backend)
@@ -358,19 +370,31 @@ fn load_terrain(
             px_m: s.px_m,
             seed: s.seed,
         };
-        let (stack, what) = crate::products::synthetic_stack(&params)?;
+        let (stack, what) = if s.far_field {
+            crate::products::synthetic_stack_with_far_field(&params)?
+        } else {
+            let (stack, what) = crate::products::synthetic_stack(&params)?;
+            (stack, vec![what])
+        };
         std::fs::create_dir_all(out_dir)
             .with_context(|| format!("creating output folder {}", out_dir.display()))?;
-        crate::terrain::write_dem(
-            &out_dir.join("terrain_synthetic.tif"),
-            &stack.layers[0],
-            &[(
-                "software",
-                &format!("penumbra {}", env!("CARGO_PKG_VERSION")),
-            )],
-        )?;
-        prov.outputs.push("terrain_synthetic.tif".into());
-        prov.dem_layers.push(what);
+        // Both layers, so that the run can be repeated with `layers = [...]` or by a GIS.
+        for (layer, file) in stack
+            .layers
+            .iter()
+            .zip(["terrain_synthetic.tif", "terrain_synthetic_far.tif"])
+        {
+            crate::terrain::write_dem(
+                &out_dir.join(file),
+                layer,
+                &[(
+                    "software",
+                    &format!("penumbra {}", env!("CARGO_PKG_VERSION")),
+                )],
+            )?;
+            prov.outputs.push(file.into());
+        }
+        prov.dem_layers.extend(what);
         return Ok(stack);
     }
     let paths: Vec<PathBuf> = spec.layers.iter().map(|p| base.join(p)).collect();
@@ -384,6 +408,13 @@ fn load_terrain(
     Ok(stack)
 }
 
+/// What a scenario's `[map]` records and draws besides its statistics: the run's provenance
+/// (it adds how the maps were made) and the sites to mark on the previews.
+struct MapContext<'a> {
+    prov: &'a mut crate::output::Provenance,
+    marks: &'a [(String, f64, f64)],
+}
+
 /// Runs a scenario's `[map]`: the statistics over the scenario's span at the map's step, written
 /// into `dir`.
 fn run_map_spec(
@@ -392,6 +423,7 @@ fn run_map_spec(
     base: &Path,
     dir: &Path,
     store: &mut dyn crate::horizon::statistics::BlockStore,
+    MapContext { prov, marks }: MapContext<'_>,
 ) -> anyhow::Result<(Vec<String>, Option<crate::output::BelowSphereExits>, String)> {
     use crate::products::map as pm;
     let settings = pm::MapSettings {
@@ -431,13 +463,22 @@ fn run_map_spec(
         spec.step
     );
     let stats = &result.stats;
+    let made = crate::output::MadeWith::new(
+        prov,
+        settings.observer_height.m(),
+        result.engine.name(),
+        &stats.limb_law(),
+        &span,
+    );
     let files = pm::write_range(
         &inputs.stack.layers[0],
         result.model.as_ref(),
         stats,
         dir,
-        &span,
+        &made,
+        marks,
     )?;
+    prov.map_made_with = Some(made);
     if let Some(b) = stats.below_sphere {
         b.warn();
     }

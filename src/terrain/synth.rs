@@ -315,20 +315,27 @@ pub fn south_polar_dem(params: &SynthParams) -> Result<Dem> {
     craters.insert(insert_at, polar);
 
     let mut dem = base;
+    apply_craters(&mut dem, &craters);
+    Ok(dem)
+}
+
+/// Overprints `craters` on `dem` in order (later craters over earlier ones).
+fn apply_craters(dem: &mut Dem, craters: &[Crater]) {
     let grid = dem.grid;
-    for c in &craters {
+    let (rows, cols) = (grid.rows, grid.cols);
+    for c in craters {
         let reach_m = Crater::REACH * c.diameter_m / 2.0;
         let (r0, c0) = grid.row_col_from_xy(c.x_m - reach_m, c.y_m + reach_m);
         let (r1, c1) = grid.row_col_from_xy(c.x_m + reach_m, c.y_m - reach_m);
         let row_lo = r0.floor().max(0.0) as usize;
-        let row_hi = (r1.ceil().max(-1.0) + 1.0).min(n as f64) as usize;
+        let row_hi = (r1.ceil().max(-1.0) + 1.0).min(rows as f64) as usize;
         let col_lo = c0.floor().max(0.0) as usize;
-        let col_hi = (c1.ceil().max(-1.0) + 1.0).min(n as f64) as usize;
+        let col_hi = (c1.ceil().max(-1.0) + 1.0).min(cols as f64) as usize;
         if row_lo >= row_hi || col_lo >= col_hi {
             continue;
         }
-        dem.heights_m[row_lo * n..row_hi * n]
-            .par_chunks_mut(n)
+        dem.heights_m[row_lo * cols..row_hi * cols]
+            .par_chunks_mut(cols)
             .enumerate()
             .for_each(|(i, out)| {
                 let row = row_lo + i;
@@ -339,7 +346,71 @@ pub fn south_polar_dem(params: &SynthParams) -> Result<Dem> {
                 }
             });
     }
-    Ok(dem)
+}
+
+/// Pixel size of the far-field layer, in pixels of the near one.
+pub const FAR_FIELD_PX_FACTOR: f64 = 10.0;
+
+/// Smallest half-width of the far-field layer, metres: rays leaving it are then at least
+/// `R (1 − cos p)` ≈ 11.5 km above the sphere for a level observer, so no ray toward the Sun
+/// (at most ≈ 1.9° below the horizontal at the pole) leaves it below the sphere.
+pub const FAR_FIELD_HALF_WIDTH_M: f64 = 200_000.0;
+
+/// The far-field layer of the synthetic DEM `near` (made by [`south_polar_dem`] with
+/// `params`): a south-polar grid of [`FAR_FIELD_PX_FACTOR`] times the near pixel, reaching at
+/// least [`FAR_FIELD_HALF_WIDTH_M`] from the pole (and 4 near extents), generated like the near
+/// one at its own scale (fBm roughness and a crater population of `N(>D) ∝ D⁻²` from 4 of its
+/// pixels to 30 km, Pike profiles), equal to the near DEM over the near DEM's extent and
+/// blended into it across a 10 km band, so that rays leave the near layer into terrain, not
+/// into the void, and there is no cliff at its edge.
+pub fn south_polar_far_field(near: &Dem, params: &SynthParams) -> Result<Dem> {
+    let px_m = FAR_FIELD_PX_FACTOR * params.px_m;
+    let near_half_m = params.size_px as f64 * params.px_m / 2.0;
+    let half_m = FAR_FIELD_HALF_WIDTH_M.max(4.0 * near_half_m);
+    let n = ((2.0 * half_m / px_m).ceil() as usize).clamp(16, 4096);
+    let extent_m = n as f64 * px_m;
+    let mut rng = SplitMix64(params.seed ^ 0xFA2F_1E1D_7A11);
+    let salt = rng.next_u64();
+    let mut far = dem_from_fn(n, n, px_m, "synth:south-polar-far", |x, y| {
+        400.0 * fbm(x / (extent_m / 6.0), y / (extent_m / 6.0), 6, 0.5, salt)
+    });
+    let d_min_m = 4.0 * px_m;
+    let d_max_m = 30_000.0f64.max(2.0 * d_min_m);
+    let area_m2 = extent_m * extent_m;
+    let count = ((0.05 * area_m2 / (d_min_m * d_min_m)) as usize).min(3000);
+    let mut craters: Vec<Crater> = (0..count)
+        .map(|_| {
+            let u = rng.next_f64().max(1e-12);
+            let d = (d_min_m / u.sqrt()).min(d_max_m);
+            let x = (rng.next_f64() - 0.5) * extent_m;
+            let y = (rng.next_f64() - 0.5) * extent_m;
+            Crater::from_pike(x, y, d)
+        })
+        .collect();
+    craters.sort_by(|a, b| b.diameter_m.total_cmp(&a.diameter_m));
+    apply_craters(&mut far, &craters);
+
+    // The near DEM over its own extent; outside, its edge blended into the far terrain.
+    let blend_m = 10_000.0;
+    let inner_m = near_half_m - params.px_m / 2.0;
+    let grid = far.grid;
+    far.heights_m
+        .par_chunks_mut(n)
+        .enumerate()
+        .for_each(|(row, out)| {
+            for (col, h) in out.iter_mut().enumerate() {
+                let (x, y) = grid.xy_from_row_col(row as f64, col as f64);
+                let (cx, cy) = (x.clamp(-inner_m, inner_m), y.clamp(-inner_m, inner_m));
+                let Some(edge) = near.height_at_xy_m(cx, cy) else {
+                    continue;
+                };
+                let d = (x - cx).hypot(y - cy);
+                let t = (d / blend_m).clamp(0.0, 1.0);
+                let w = t * t * (3.0 - 2.0 * t);
+                *h = ((1.0 - w) * edge + w * f64::from(*h)) as f32;
+            }
+        });
+    Ok(far)
 }
 
 #[cfg(test)]

@@ -12,8 +12,11 @@ layers, horizons, per-site series and statistics, whole-grid map statistics.
 
 Units are in every name (``_deg``, ``_m``, ``_km``, ``_w_m2``); times are UTC, given as ISO
 strings, lists of them, or numpy ``datetime64`` arrays (``time_range`` builds one); azimuths are
-from local north, clockwise; elevations above the plane normal to the radial direction; heights
-above the 1737.4 km sphere. Bad arguments raise ``PenumbraError`` (a ``ValueError``) with the
+from local north, clockwise; elevations above the plane normal to the radial direction; a site's
+or an observer's height (``height_above_ground_m``, ``observer_height_m``) is above the ground,
+ground and terrain heights (``ground_height_m``, ``Terrain.heights_m``) above the 1737.4 km
+sphere. The names are the command line's (``--observer-height-m`` → ``observer_height_m``,
+``--width-px`` → ``width_px``); older names stay accepted. Bad arguments raise ``PenumbraError`` (a ``ValueError``) with the
 command line's one-line message. Long calls release the GIL, accept a ``progress(done, total)``
 callback where noted and stop on Ctrl-C between chunks of work.
 """

@@ -22,7 +22,7 @@ class Terrain:
     @staticmethod
     def open(paths: Sequence[Path]) -> Terrain: ...
     @staticmethod
-    def synthetic(size_px: int = 400, px_m: float = 100.0, seed: int = 1) -> Terrain: ...
+    def synthetic(size_px: int = 400, px_m: float = 100.0, seed: int = 1, far_field: bool = False) -> Terrain: ...
     @property
     def layers(self) -> List[str]: ...
     @property
@@ -60,7 +60,7 @@ def horizon(
 ) -> Dict[str, Any]: ...
 def series(
     terrain: Terrain,
-    sites: Sequence[Tuple[str, float, float, float]],
+    sites: Sequence[Union[Tuple[str, float, float], Tuple[str, float, float, float]]],
     times: Times,
     kernels: Optional[Path] = None,
     abcorr: str = "lt+s",
@@ -82,6 +82,8 @@ def series(
     battery_wh: Optional[float] = None,
     battery_start_pct: Optional[float] = None,
     load_profile: Optional[Path] = None,
+    neighbourhood_m: Optional[float] = None,
+    out_dir: Optional[Path] = None,
     progress: Optional[Progress] = None,
 ) -> Tuple[Dict[str, npt.NDArray[Any]], Dict[str, Any]]: ...
 def landing_windows(
@@ -177,6 +179,9 @@ def render(
     kernels: Optional[Path] = None,
     abcorr: str = "lt+s",
     backend: str = "auto",
+    observer_height_m: Optional[float] = None,
+    width_px: Optional[int] = None,
+    height_px: Optional[int] = None,
 ) -> Tuple[npt.NDArray[np.uint8], npt.NDArray[np.float32]]: ...
 def run_scenario(
     path: Path,

@@ -65,13 +65,22 @@ pub(super) fn range_job(
         )?,
         None => {
             let result = crate::compute::range::range_statistics(range, &req.settings, hooks)?;
+            let made = crate::output::MadeWith::new(
+                &prov,
+                req.settings.observer_height.m(),
+                result.engine.name(),
+                &result.stats.limb_law(),
+                &span_text(&epoch_list),
+            );
             prov.outputs = crate::model::write_range(
                 &inputs.stack.layers[0],
                 result.model.as_ref(),
                 &result.stats,
                 out_dir,
-                &span_text(&epoch_list),
+                &made,
+                &[],
             )?;
+            prov.map_made_with = Some(made);
             prov.backend = result.note;
             if let Some(stations) = req
                 .settings

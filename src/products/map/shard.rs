@@ -116,6 +116,9 @@ pub struct ShardManifest {
     pub span: String,
     /// The Sun's limb darkening law.
     pub limb_law: String,
+    /// How the maps are made (absent in partials of older versions).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub made_with: Option<crate::output::MadeWith>,
     /// The ground stations of the direct-to-Earth maps, described (absent without).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub link: Option<String>,
@@ -167,6 +170,8 @@ pub struct ShardRun<'a> {
     pub limb_law: String,
     /// Bytes of the arrays held.
     pub arrays_bytes: u64,
+    /// The observer's height above the ground, metres.
+    pub observer_height_m: f64,
 }
 
 /// One shard of a job and what its run needs.
@@ -229,6 +234,7 @@ pub fn run(job: ShardJob<'_>, hooks: crate::compute::range::RangeHooks<'_>) -> a
         span: super::span_text(&inputs.epochs.epochs()),
         limb_law: settings.limb.name().to_string(),
         arrays_bytes,
+        observer_height_m: settings.observer_height.m(),
     };
     let manifest = write_partial(out_dir, &run, &stats, t0.elapsed().as_secs_f64())?;
     crate::note!(
@@ -282,6 +288,13 @@ pub fn write_partial(
         step_h: run.step_h,
         span: run.span.clone(),
         limb_law: run.limb_law.clone(),
+        made_with: Some(crate::output::MadeWith::new(
+            p,
+            run.observer_height_m,
+            "horizons",
+            &run.limb_law,
+            &run.span,
+        )),
         link: stats.link.clone(),
         power: stats.power.clone(),
         backend: p.backend.clone(),
@@ -529,7 +542,17 @@ pub fn merge(out_dir: &Path, dirs: &[PathBuf]) -> anyhow::Result<()> {
     let _lock =
         crate::output::cleanup::RunLock::begin(out_dir, "run.json").map_err(anyhow::Error::msg)?;
     let sweep = crate::model::RangeStats::from_horizons(stats, first.step_h, &first.limb_law);
-    let files = super::write_range(&dem, None, &sweep, out_dir, &first.span)?;
+    let made = first
+        .made_with
+        .clone()
+        .unwrap_or_else(|| crate::output::MadeWith {
+            engine: "horizons".into(),
+            limb_darkening: first.limb_law.clone(),
+            span_utc: first.span.clone(),
+            layers: first.dem_layers.clone(),
+            ..Default::default()
+        });
+    let files = super::write_range(&dem, None, &sweep, out_dir, &made, &[])?;
     let mut prov = crate::output::Provenance::new();
     prov.dem_layers = first.dem_layers.clone();
     prov.epoch_start_utc = first.epoch_start_utc.clone();
@@ -538,6 +561,7 @@ pub fn merge(out_dir: &Path, dirs: &[PathBuf]) -> anyhow::Result<()> {
     prov.backend = format!("{} (merged from {n} shards)", first.backend);
     prov.outputs = files;
     prov.map_rays_blocked_beyond_dem = Some(below);
+    prov.map_made_with = Some(made);
     below.warn();
     prov.wall_time_s = t0.elapsed().as_secs_f64();
     let mut record = serde_json::to_value(&prov)?;

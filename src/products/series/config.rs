@@ -70,6 +70,10 @@ pub struct SeriesConfig {
     /// A solar panel, load and battery: adds `power_w` (and `battery_wh`) to `series.csv` and
     /// the power statistics to `stats.json` ([`crate::illum::power`]); none by default.
     pub power: Option<crate::illum::power::PowerConfig>,
+    /// Radius of each site's neighbourhood, metres: the key statistics at every pixel centre
+    /// of the finest layer within it, their spread and the best spot (`neighbourhood.csv`,
+    /// `stats.json`; docs/sites.md). `None`: 3 pixels of the layer under the site; 0: none.
+    pub neighbourhood_m: Option<f64>,
 }
 
 mod backend_serde {
@@ -132,6 +136,7 @@ impl Default for SeriesConfig {
             relay_spks: Vec::new(),
             relay_max_range_km: None,
             power: None,
+            neighbourhood_m: None,
         }
     }
 }

@@ -4,6 +4,8 @@
 //! horizons and the smap-dp engine through [`crate::compute`].
 
 mod config;
+pub mod gis;
+pub mod neighbourhood;
 mod pipeline;
 
 use std::path::PathBuf;

@@ -33,6 +33,7 @@ use crate::illum::{self, Disc, HorizonProfile, LimbDarkening};
 use crate::model::Site;
 use crate::terrain::TerrainStack;
 
+use super::neighbourhood::{self, SiteNeighbourhood};
 use super::{SeriesConfig, SeriesEngine};
 
 /// The CSV header of a site's `series.csv`.
@@ -69,6 +70,10 @@ pub struct SiteOutcome {
     pub power: Option<illum::power::PowerStats>,
     /// Direct-to-Earth per epoch (empty without stations).
     pub dte: Vec<bool>,
+    /// The site's neighbourhood (`None` when the run asks for none).
+    pub neighbourhood: Option<illum::stats::Neighbourhood>,
+    /// What a bare sphere beyond the DEM would change (`None` when nothing).
+    pub beyond_dem: Option<illum::stats::BeyondDemEffect>,
     /// Files written, relative to the output folder.
     pub files: Vec<String>,
 }
@@ -591,8 +596,11 @@ pub fn run_series(
     if sites.is_empty() {
         anyhow::bail!("no sites given");
     }
-    // Stations and power first: bad settings fail before any work.
+    // Stations, power and the neighbourhood first: bad settings fail before any work.
     config.stations.resolve(config.station_mask_deg)?;
+    if let Some(r) = config.neighbourhood_m {
+        neighbourhood::check_radius_m(r)?;
+    }
     if let Some(p) = &config.power {
         p.validate()?;
         p.loads(epochs)?;
@@ -628,9 +636,15 @@ pub fn run_series(
             (run.horizons, Some(run.fractions), run.note)
         }
     };
+    let hoods = neighbourhoods(stack, sites, config)?;
     std::fs::create_dir_all(out_dir)
         .with_context(|| format!("creating output folder {}", out_dir.display()))?;
 
+    let quiet = SeriesConfig {
+        write_csv: false,
+        plots: false,
+        ..config.clone()
+    };
     let progress = crate::output::progress_bar(
         sites.len() * epochs.len(),
         "{spinner} series [{bar:30}] {percent}% ({pos}/{len} site-epochs, eta {eta})",
@@ -643,12 +657,15 @@ pub fn run_series(
         out_dir,
         progress: &progress,
         link: link.as_ref(),
+        stack,
+        quiet: &quiet,
     };
     let outcomes: Vec<SiteOutcome> = sites
         .par_iter()
         .zip(horizons)
+        .zip(&hoods)
         .enumerate()
-        .map(|(i, (spec, horizon))| {
+        .map(|(i, ((spec, horizon), hood))| {
             let source = match &fractions {
                 Some(f) => SiteFractions::Given {
                     sun: &f[i].0,
@@ -656,10 +673,13 @@ pub fn run_series(
                 },
                 None => SiteFractions::FromHorizon,
             };
-            run_one_site(&shared, spec, horizon, source)
+            run_one_site(&shared, spec, horizon, source, hood.as_ref())
         })
         .collect::<anyhow::Result<_>>()?;
     progress.finish_and_clear();
+    for o in &outcomes {
+        report_site(o);
+    }
 
     let mut files: Vec<String> = outcomes.iter().flat_map(|o| o.files.clone()).collect();
     let all: Vec<SiteSeries<'_>> = outcomes
@@ -678,9 +698,12 @@ pub fn run_series(
         s.link = o.link.clone();
         s.relay = o.relay.clone();
         s.power = o.power.clone();
+        s.neighbourhood = o.neighbourhood.clone();
+        s.beyond_dem = o.beyond_dem;
     }
     stats.write_json(&out_dir.join("stats.json"))?;
     files.push("stats.json".into());
+    files.extend(super::gis::write_sites(out_dir, &stats.sites)?);
     if config.write_csv {
         write_long_table(&outcomes, out_dir, link.as_ref(), config)?;
         files.push(LONG_TABLE.into());
@@ -798,6 +821,9 @@ struct Shared<'a> {
     out_dir: &'a Path,
     progress: &'a indicatif::ProgressBar,
     link: Option<&'a LinkContext>,
+    stack: &'a TerrainStack,
+    /// The run's settings without CSV and plots, for the neighbourhood and the sphere check.
+    quiet: &'a SeriesConfig,
 }
 
 /// One site's slice of [`run_series`]: its fractions, files and outcome.
@@ -806,6 +832,7 @@ fn run_one_site(
     spec: &Site,
     horizon: Horizon,
     source: SiteFractions<'_>,
+    hood: Option<&HoodHorizons>,
 ) -> anyhow::Result<SiteOutcome> {
     let Shared {
         table,
@@ -815,6 +842,7 @@ fn run_one_site(
         out_dir,
         progress,
         link,
+        ..
     } = *shared;
     let site_dir = out_dir.join(spec.name());
     std::fs::create_dir_all(&site_dir)
@@ -936,6 +964,26 @@ fn run_one_site(
     site_stats.sites[0].link = link_stats.clone();
     site_stats.sites[0].relay = relay_stats.clone();
     site_stats.sites[0].power = power_stats.clone();
+    let neighbourhood = match hood {
+        Some((h, horizons)) => {
+            let n = site_neighbourhood(
+                shared,
+                spec,
+                &horizon,
+                &site_stats.sites[0],
+                h,
+                horizons,
+                &sun_el_deg,
+            )?;
+            neighbourhood::write_csv(&site_dir.join(neighbourhood::NEIGHBOURHOOD_CSV), &n.0, &n.1)?;
+            files.push(rel(neighbourhood::NEIGHBOURHOOD_CSV));
+            Some(n.2)
+        }
+        None => None,
+    };
+    let beyond_dem = sphere_effect(shared, spec, &horizon)?;
+    site_stats.sites[0].neighbourhood = neighbourhood.clone();
+    site_stats.sites[0].beyond_dem = beyond_dem;
     site_stats.write_json(&site_dir.join("stats.json"))?;
     files.push(rel("stats.json"));
 
@@ -1050,6 +1098,226 @@ fn run_one_site(
             Some(l) if l.has_stations() => links.iter().map(LinkSample::dte).collect(),
             _ => Vec::new(),
         },
+        neighbourhood,
+        beyond_dem,
         files,
     })
+}
+
+/// A site's neighbourhood and the horizon of each of its pixels.
+type HoodHorizons = (SiteNeighbourhood, Vec<Horizon>);
+
+/// Each site's neighbourhood ([`neighbourhood::neighbour_pixels`]) with the horizons of its
+/// pixels, computed together (one batch on the run's backend).
+fn neighbourhoods(
+    stack: &TerrainStack,
+    sites: &[Site],
+    config: &SeriesConfig,
+) -> anyhow::Result<Vec<Option<HoodHorizons>>> {
+    let hoods = sites
+        .iter()
+        .map(|s| neighbourhood::neighbour_pixels(stack, s, config.neighbourhood_m))
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    let all: Vec<Site> = hoods
+        .iter()
+        .flatten()
+        .flat_map(|h| h.pixels.iter().map(|p| p.0.clone()))
+        .collect();
+    let mut horizons = if all.is_empty() {
+        Vec::new()
+    } else {
+        crate::compute::horizons::site_horizons(
+            config.backend,
+            stack,
+            &all,
+            config.az_step_deg,
+            config.horizon_method,
+        )?
+        .0
+    }
+    .into_iter();
+    Ok(hoods
+        .into_iter()
+        .map(|h| {
+            h.map(|h| {
+                let n = h.pixels.len();
+                let hs: Vec<Horizon> = horizons.by_ref().take(n).collect();
+                (h, hs)
+            })
+        })
+        .collect())
+}
+
+/// The statistics of one point's series from its horizon (no files written).
+fn point_stats(
+    shared: &Shared<'_>,
+    name: &str,
+    (lat_deg, lon_deg, height_above_ground_m): (f64, f64, f64),
+    horizon: &Horizon,
+) -> anyhow::Result<illum::stats::SiteStats> {
+    let site = ephem::Site::new(
+        lat_deg,
+        lon_deg,
+        horizon.ground_height_m + height_above_ground_m,
+    )?;
+    let (sun, earth) = site_fractions(
+        shared.table,
+        &site,
+        horizon,
+        SiteFractions::FromHorizon,
+        shared.quiet,
+        |_| false,
+        |_, _| Ok(()),
+    )?;
+    let series = SiteSeries {
+        site: name,
+        start_utc: shared.epochs[0],
+        step_s: shared.step_s,
+        sun_fraction: &sun,
+        earth_fraction: &earth,
+    };
+    Ok(StatsFile::from_series(&[series])?.sites.remove(0))
+}
+
+/// The site's neighbourhood: the site's own spot, every pixel's, and the summary.
+fn site_neighbourhood(
+    shared: &Shared<'_>,
+    spec: &Site,
+    horizon: &Horizon,
+    here_stats: &illum::stats::SiteStats,
+    hood: &SiteNeighbourhood,
+    horizons: &[Horizon],
+    sun_el_deg: &[f64],
+) -> anyhow::Result<(
+    illum::stats::SpotStats,
+    Vec<illum::stats::SpotStats>,
+    illum::stats::Neighbourhood,
+)> {
+    let here = neighbourhood::spot(
+        (spec.lat_deg(), spec.lon_deg()),
+        (0.0, 0.0),
+        horizon.ground_height_m,
+        here_stats,
+    );
+    let spots = hood
+        .pixels
+        .par_iter()
+        .zip(horizons)
+        .map(|((p, distance_m, bearing_deg), h)| {
+            let s = point_stats(
+                shared,
+                p.name(),
+                (p.lat_deg(), p.lon_deg(), p.height_above_ground_m()),
+                h,
+            )?;
+            Ok(neighbourhood::spot(
+                (p.lat_deg(), p.lon_deg()),
+                (*distance_m, *bearing_deg),
+                h.ground_height_m,
+                &s,
+            ))
+        })
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    let nearness = neighbourhood::sun_horizon_nearness(
+        horizon,
+        sun_el_deg,
+        illum::stats::NEAR_HORIZON_PX * hood.px_m,
+    );
+    let summary = neighbourhood::summarise(spec, &here, hood, &spots, nearness);
+    Ok((here, spots, summary))
+}
+
+/// What a bare sphere beyond the DEM would change at the site: its horizon raised to the
+/// sphere's floor ([`crate::horizon::beyond::sphere_floor_deg`]) and the statistics again;
+/// `None` when the floor raises no azimuth or changes neither percentage.
+fn sphere_effect(
+    shared: &Shared<'_>,
+    spec: &Site,
+    horizon: &Horizon,
+) -> anyhow::Result<Option<illum::stats::BeyondDemEffect>> {
+    let floor = crate::horizon::beyond::sphere_floor_deg(shared.stack, horizon);
+    let raised = horizon
+        .elevation_deg
+        .iter()
+        .zip(&floor)
+        .filter(|(e, f)| e < f)
+        .count();
+    if raised == 0 {
+        return Ok(None);
+    }
+    let mut floored = horizon.clone();
+    for (e, f) in floored.elevation_deg.iter_mut().zip(&floor) {
+        *e = e.max(*f);
+    }
+    let location = (spec.lat_deg(), spec.lon_deg(), spec.height_above_ground_m());
+    let with = point_stats(shared, spec.name(), location, &floored)?;
+    let without = point_stats(shared, spec.name(), location, horizon)?;
+    let effect = illum::stats::BeyondDemEffect {
+        azimuths_raised_pct: 100.0 * raised as f64 / floor.len() as f64,
+        sun_visible_pct_with_sphere: with.sun_visible_pct,
+        earth_visible_pct_with_sphere: with.earth_visible_pct,
+    };
+    let changed = (with.sun_visible_pct - without.sun_visible_pct).abs() >= 0.005
+        || (with.earth_visible_pct - without.earth_visible_pct).abs() >= 0.005;
+    Ok(changed.then_some(effect))
+}
+
+/// Says what a site gave (one line) and, on stderr whatever the verbosity, its cautions and
+/// what the Moon beyond the DEM would change.
+fn report_site(o: &SiteOutcome) {
+    let n = o.sun_fraction.len().max(1) as f64;
+    let pct = |f: &[f64]| {
+        100.0
+            * f.iter()
+                .filter(|&&x| x > illum::stats::VISIBLE_MIN_FRACTION)
+                .count() as f64
+            / n
+    };
+    let hood = o
+        .neighbourhood
+        .as_ref()
+        .map(|h| {
+            format!(
+                "; within {:.0} m ({} px): Sun {:.1}–{:.1} %, best {:.1} % {:.0} m away",
+                h.radius_m,
+                h.pixels,
+                h.sun_visible_pct.min,
+                h.sun_visible_pct.max,
+                h.best.sun_visible_pct,
+                h.best.distance_m
+            )
+        })
+        .unwrap_or_default();
+    crate::note!(
+        "penumbra: {}: Sun visible {:.1} %, Earth visible {:.1} %{hood}",
+        o.site.name(),
+        pct(&o.sun_fraction),
+        pct(&o.earth_fraction)
+    );
+    for c in o.neighbourhood.iter().flat_map(|h| &h.cautions) {
+        eprintln!("penumbra: caution: {c}");
+    }
+    if let Some(b) = o.beyond_dem {
+        let mut changes = Vec::new();
+        for (body, with, without) in [
+            ("Sun", b.sun_visible_pct_with_sphere, pct(&o.sun_fraction)),
+            (
+                "Earth",
+                b.earth_visible_pct_with_sphere,
+                pct(&o.earth_fraction),
+            ),
+        ] {
+            if (with - without).abs() >= 0.005 {
+                changes.push(format!(
+                    "the {body} visible {with:.2} % of the time, not {without:.2} %"
+                ));
+            }
+        }
+        eprintln!(
+            "penumbra: warning: site '{}': rays leave the DEM below the sphere on {:.0} % of its azimuths; with a bare sphere beyond the DEM: {} (add a far-field layer)",
+            o.site.name(),
+            b.azimuths_raised_pct,
+            changes.join(", ")
+        );
+    }
 }

@@ -435,9 +435,11 @@ fn dp_twin_hard_matches_brute_next_to_holes() {
 /// 16 / 16 / 17 at 290°, none at 270°; 11 s in debug builds, 3 × (3 brute + 3 DP masks)).
 #[test]
 fn dp_twin_vs_cpu_dp_on_synthetic_dem() {
-    let (stack, _) =
-        penumbra::products::synthetic_stack(&penumbra::terrain::synth::SynthParams::default())
-            .unwrap();
+    // The synthetic DEM alone (its far field is not what these DP checks are about).
+    let stack = penumbra::terrain::TerrainStack::new(vec![
+        penumbra::terrain::synth::south_polar_dem(&penumbra::terrain::synth::SynthParams::default())
+            .unwrap(),
+    ]);
     let grid = penumbra::model::MapGrid::new(&stack).unwrap();
     let hf = &grid.hf;
     let march = MarchGrid::from_height_field(hf, OBSERVER_M).unwrap();
@@ -580,9 +582,11 @@ struct PixelCase {
 }
 
 fn pixel_case() -> PixelCase {
-    let (stack, _) =
-        penumbra::products::synthetic_stack(&penumbra::terrain::synth::SynthParams::default())
-            .unwrap();
+    // The synthetic DEM alone (its far field is not what these DP checks are about).
+    let stack = penumbra::terrain::TerrainStack::new(vec![
+        penumbra::terrain::synth::south_polar_dem(&penumbra::terrain::synth::SynthParams::default())
+            .unwrap(),
+    ]);
     let grid = penumbra::model::MapGrid::new(&stack).unwrap();
     let observers = grid.pixel_observers(OBSERVER_M);
     let march = MarchGrid::from_height_field(&grid.hf, OBSERVER_M).unwrap();

@@ -113,6 +113,8 @@ fn series_cli_writes_every_file_and_the_combined_statistics() {
             "ridge",
             "run.json",
             "series_long.csv",
+            "sites.geojson",
+            "sites.kml",
             "stats.json"
         ]
     );
@@ -125,6 +127,7 @@ fn series_cli_writes_every_file_and_the_combined_statistics() {
             "horizon.csv",
             "horizon.png",
             "horizon_polar.png",
+            "neighbourhood.csv",
             "series.csv",
             "stats.json",
             "visibility.png"
