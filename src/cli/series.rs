@@ -101,7 +101,7 @@ pub struct SeriesArgs {
     #[command(flatten)]
     pub power: super::power::PowerArgs,
     /// Radius of each site's neighbourhood, metres (0 … 20000; 0: none; default 3 pixels of the
-    /// finest layer under the site): the key statistics at every pixel centre within it, their
+    /// finest layer under the site for runs of up to 10 sites, none beyond): the key statistics at every pixel centre within it, their
     /// spread, the best spot (stats.json, <site>/neighbourhood.csv) and a caution when the
     /// value at the typed point is that sensitive (docs/sites.md).
     #[arg(long, value_name = "M", allow_hyphen_values = true)]

@@ -1383,8 +1383,9 @@ fn render_map_png(
                     .map(|f| f * mag)
                     .find(|s| span / s <= 6.0)
                     .unwrap_or(10.0 * mag);
-                let decimals = (-step.log10().floor()).max(0.0) as usize
-                    + usize::from((step / mag - 2.5).abs() < 1e-9);
+                // 2.5 × 10^k needs one decimal more than 10^k (0.25, 2.5; not 25 or 250).
+                let quarter = f64::from(u8::from((step / mag - 2.5).abs() < 1e-9));
+                let decimals = (-step.log10().floor() + quarter).max(0.0) as usize;
                 let mut v = (min / step).ceil() * step;
                 while v <= max + 1e-9 * span {
                     let t = (v - min) / span;

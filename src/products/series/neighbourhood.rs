@@ -24,6 +24,9 @@ use crate::terrain::TerrainStack;
 /// The default radius, in pixels of the finest layer under the site.
 pub const DEFAULT_RADIUS_PX: f64 = 3.0;
 
+/// Runs of more sites than this get no neighbourhood unless they ask for one (a radius).
+pub const DEFAULT_MAX_SITES: usize = 10;
+
 /// The largest radius, metres.
 pub const MAX_RADIUS_M: f64 = 20_000.0;
 
@@ -248,16 +251,22 @@ pub fn summarise(
     }
     let mut cautions = Vec::new();
     if !why.is_empty() {
-        let better = if best.distance_m > 0.0 {
-            format!(
-                "; best {:.1} % at ({:.5}°, {:.5}°), {:.0} m away",
-                best.sun_visible_pct, best.lat_deg, best.lon_deg, best.distance_m
+        let (better, so) = if best.distance_m > 0.0 {
+            (
+                format!(
+                    "; best {:.1} % at ({:.5}°, {:.5}°), {:.0} m away",
+                    best.sun_visible_pct, best.lat_deg, best.lon_deg, best.distance_m
+                ),
+                "the value depends on where exactly the site stands",
             )
         } else {
-            String::new()
+            (
+                String::new(),
+                "the site is the best spot within the radius, and the value falls off it",
+            )
         };
         cautions.push(format!(
-            "site '{}': Sun visible {:.1} % here, {}{better}: the value depends on where exactly the site stands",
+            "site '{}': Sun visible {:.1} % here, {}{better}: {so}",
             site.name(),
             sun.here,
             why.join("; ")

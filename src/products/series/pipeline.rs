@@ -1114,6 +1114,16 @@ fn neighbourhoods(
     sites: &[Site],
     config: &SeriesConfig,
 ) -> anyhow::Result<Vec<Option<HoodHorizons>>> {
+    // The default (no radius given) is for a planner's handful of sites: a ranking of many
+    // sites is its own neighbourhood, and would pay ~29 series per site.
+    if config.neighbourhood_m.is_none() && sites.len() > neighbourhood::DEFAULT_MAX_SITES {
+        crate::note!(
+            "penumbra: {} sites: no neighbourhoods by default beyond {} sites (give --neighbourhood-m to ask for them)",
+            sites.len(),
+            neighbourhood::DEFAULT_MAX_SITES
+        );
+        return Ok(vec![None; sites.len()]);
+    }
     let hoods = sites
         .iter()
         .map(|s| neighbourhood::neighbour_pixels(stack, s, config.neighbourhood_m))
