@@ -981,7 +981,7 @@ fn run_one_site(
         }
         None => None,
     };
-    let beyond_dem = sphere_effect(shared, spec, &horizon)?;
+    let beyond_dem = sphere_effect(shared, spec, &horizon, &site_stats.sites[0])?;
     site_stats.sites[0].neighbourhood = neighbourhood.clone();
     site_stats.sites[0].beyond_dem = beyond_dem;
     site_stats.write_json(&site_dir.join("stats.json"))?;
@@ -1238,12 +1238,14 @@ fn site_neighbourhood(
 }
 
 /// What a bare sphere beyond the DEM would change at the site: its horizon raised to the
-/// sphere's floor ([`crate::horizon::beyond::sphere_floor_deg`]) and the statistics again;
+/// sphere's floor ([`crate::horizon::beyond::sphere_floor_deg`]) and the statistics again,
+/// compared with `here` (the site's own statistics: those of `horizon` for the horizon engine);
 /// `None` when the floor raises no azimuth or changes neither percentage.
 fn sphere_effect(
     shared: &Shared<'_>,
     spec: &Site,
     horizon: &Horizon,
+    here: &illum::stats::SiteStats,
 ) -> anyhow::Result<Option<illum::stats::BeyondDemEffect>> {
     let floor = crate::horizon::beyond::sphere_floor_deg(shared.stack, horizon);
     let raised = horizon
@@ -1261,7 +1263,16 @@ fn sphere_effect(
     }
     let location = (spec.lat_deg(), spec.lon_deg(), spec.height_above_ground_m());
     let with = point_stats(shared, spec.name(), location, &floored)?;
-    let without = point_stats(shared, spec.name(), location, horizon)?;
+    // The horizon engine's own statistics are those of this horizon; smap-dp's are not, so
+    // its comparison takes the unraised horizon's.
+    let without_owned;
+    let without = match shared.config.engine {
+        SeriesEngine::Horizon => here,
+        SeriesEngine::SmapDp => {
+            without_owned = point_stats(shared, spec.name(), location, horizon)?;
+            &without_owned
+        }
+    };
     let effect = illum::stats::BeyondDemEffect {
         azimuths_raised_pct: 100.0 * raised as f64 / floor.len() as f64,
         sun_visible_pct_with_sphere: with.sun_visible_pct,
