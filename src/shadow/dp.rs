@@ -501,11 +501,30 @@ pub fn soft_combined<'a>(
     let cap = full_visibility_cap(&dir, angular_radius_rad);
     // Class codes: 0 dark, 1 lit, 2 DP, 3 nodata.
     let min_s = observers.min_s_cells();
+    // SMap samples only the major-axis lines, so near its edges a thin occluder can be missed
+    // (a cell wholly wrong). A verdict counts only where the observer's four neighbours one cell
+    // away (same height) share it; cells on an SMap edge go to DP.
+    let same_all = |smap: Option<&SMap>, limb: &LightDir, obs: &Observer, v: bool| {
+        [(-1.0, 0.0), (1.0, 0.0), (0.0, -1.0), (0.0, 1.0)]
+            .iter()
+            .all(|&(dr, dc)| {
+                let near = Observer {
+                    row: obs.row + dr,
+                    col: obs.col + dc,
+                    z_m: obs.z_m,
+                };
+                shadowed(smap, limb, &near) == v
+            })
+    };
     let out: Vec<(f32, u8)> = map_observers(hf, &observers, (f32::NAN, 3u8), |_, obs| {
-        if !shadowed(smap_lower.as_ref(), &lower, obs) {
+        if !shadowed(smap_lower.as_ref(), &lower, obs)
+            && same_all(smap_lower.as_ref(), &lower, obs, false)
+        {
             return (1.0, 1);
         }
-        if shadowed(smap_upper.as_ref(), &upper, obs) {
+        if shadowed(smap_upper.as_ref(), &upper, obs)
+            && same_all(smap_upper.as_ref(), &upper, obs, true)
+        {
             return (0.0, 0);
         }
         let j = dp_cost_beyond(&scene, obs, &dir, cap, min_s);

@@ -259,10 +259,8 @@ fn plots_render_readable_pngs() {
 /// error < 0.1% there), the Moon's curvature as a drop of d²/(2R).
 fn crude_lola_horizon() -> Option<Vec<f64>> {
     let path = crate::util::shared_lola("ldem75s_crop_240m_pm184km.tif")?;
-    let Ok(file) = std::fs::File::open(&path) else {
-        println!("skipping: {} cannot be opened", path.display());
-        return None;
-    };
+    let file = std::fs::File::open(&path)
+        .unwrap_or_else(|e| panic!("{} cannot be opened: {e}", path.display()));
     let mut dec = tiff::decoder::Decoder::new(std::io::BufReader::new(file)).unwrap();
     let (cols, rows) = dec.dimensions().unwrap();
     let tiff::decoder::DecodingResult::F32(z) = dec.read_image().unwrap() else {

@@ -20,12 +20,10 @@ fn run(args: &[&str]) -> Output {
     penumbra_command().args(args).output_within().unwrap()
 }
 
+/// Whether the GDAL tool `tool` runs ([`crate::util::tool`]: a failure naming it, or a recorded
+/// skip with `PENUMBRA_SKIP=gdal`).
 fn has_tool(tool: &str) -> bool {
-    let found = Command::new(tool).arg("--version").output_within().is_ok();
-    if !found {
-        println!("skipped: `{tool}` is not installed");
-    }
-    found
+    crate::util::tool(tool, "gdal-bin")
 }
 
 /// Asserts the CLI failed cleanly: exit code 2, one line on stderr, no panic.
@@ -186,7 +184,7 @@ fn reading_the_1536_dem_peaks_below_one_and_a_half_times_its_size() {
     };
     let time = Path::new("/usr/bin/time");
     if !time.exists() {
-        println!("skipped: /usr/bin/time is absent");
+        crate::util::missing("tools", "/usr/bin/time", "apt-get install time");
         return;
     }
     let dir = tempfile::tempdir().unwrap();
@@ -788,8 +786,10 @@ fn cog_validator() -> Option<PathBuf> {
         .filter(|o| o.status.success())
         .map(|o| PathBuf::from(String::from_utf8_lossy(&o.stdout).trim()));
     if script.is_none() {
-        println!(
-            "skipped: GDAL's validate_cloud_optimized_geotiff (python3-gdal) is not installed"
+        crate::util::missing(
+            "gdal",
+            "GDAL's validate_cloud_optimized_geotiff",
+            "apt-get install python3-gdal",
         );
     }
     script

@@ -22,17 +22,89 @@ pub fn kernels_dir() -> PathBuf {
     root().join("kernels")
 }
 
-/// A file of the shared LOLA data, or `None` (with a printed reason) when it is absent.
+/// The folder of the team's shared data: `$PENUMBRA_SHARED`, else `../shared` beside the clone.
+pub fn shared_dir() -> PathBuf {
+    std::env::var_os("PENUMBRA_SHARED")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| root().join("../shared"))
+}
+
+/// A file of the shared LOLA data. When it is absent the test fails naming the file, unless
+/// `PENUMBRA_SKIP` lists `lola`: then `None`, and the skip is recorded ([`missing`]).
 pub fn shared_lola(name: &str) -> Option<PathBuf> {
-    let p = root()
-        .join("../shared/data/lola-south-pole-moondao")
-        .join(name);
+    let p = shared_dir().join("data/lola-south-pole-moondao").join(name);
     if p.is_file() {
         Some(p)
     } else {
-        eprintln!("skipping: shared LOLA data {} is absent", p.display());
+        missing(
+            "lola",
+            &format!("the shared LOLA grid {}", p.display()),
+            "set PENUMBRA_SHARED to the folder that holds data/lola-south-pole-moondao/",
+        );
         None
     }
+}
+
+/// Where skipped tests are listed, one `test<TAB>need<TAB>reason` line each (`.ci/run` prints
+/// the count and the lines in its summary).
+pub fn skip_log() -> PathBuf {
+    PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("penumbra-skipped.tsv")
+}
+
+/// The prerequisites a test may name in `missing`, and what `PENUMBRA_SKIP` accepts.
+pub const NEEDS: [&str; 4] = ["gpu", "gdal", "lola", "tools"];
+
+/// A prerequisite of the running test is missing. No hollow pass: the test fails naming `what`
+/// and how to provide it, unless `PENUMBRA_SKIP` (comma-separated, e.g. `gpu,gdal`) lists
+/// `need`; then the skip is written to [`skip_log`] and on stderr, and the caller returns.
+pub fn missing(need: &str, what: &str, provide: &str) {
+    assert!(NEEDS.contains(&need), "unknown need {need}");
+    let skip = std::env::var("PENUMBRA_SKIP").unwrap_or_default();
+    let allowed = skip.split(',').any(|k| k.trim() == need);
+    assert!(
+        allowed,
+        "missing {what}: {provide} (or PENUMBRA_SKIP={need} to count the tests that need it as skipped)"
+    );
+    record_skip(need, what);
+}
+
+/// Writes a skipped test to [`skip_log`] (a test that could not run here for a reason that is
+/// not a missing prerequisite, e.g. an adapter whose limits leave nothing to show, records
+/// itself too: it is counted, not passed).
+pub fn record_skip(need: &str, why: &str) {
+    use std::io::Write as _;
+    let test = std::thread::current()
+        .name()
+        .unwrap_or("unnamed test")
+        .to_string();
+    eprintln!("SKIPPED {test}: {why}");
+    let log = skip_log();
+    let _ = std::fs::create_dir_all(log.parent().unwrap());
+    let mut f = std::fs::OpenOptions::new()
+        .create(true)
+        .append(true)
+        .open(&log)
+        .expect("open the skip log");
+    writeln!(f, "{test}\t{need}\t{}", why.replace(['\t', '\n'], " ")).expect("write the skip log");
+}
+
+/// Whether the command-line tool `tool` runs (`tool --version`); when it does not, [`missing`]
+/// (need `gdal` for GDAL's tools, `tools` for others) with the Debian package that provides it.
+pub fn tool(name: &str, package: &str) -> bool {
+    let found = Command::new(name).arg("--version").output().is_ok();
+    if !found {
+        let need = if package.contains("gdal") {
+            "gdal"
+        } else {
+            "tools"
+        };
+        missing(
+            need,
+            &format!("the command `{name}`"),
+            &format!("apt-get install {package}"),
+        );
+    }
+    found
 }
 
 /// The penumbra binary cargo built for these tests.
@@ -251,28 +323,34 @@ lon_deg = 0.0
     )
 }
 
-/// The GPU context shared by every GPU test of the binary, or `None` with a printed reason (a
-/// failure instead when `PENUMBRA_REQUIRE_GPU=1`).
+/// The GPU context shared by every GPU test of the binary. Without an adapter the test fails
+/// naming the adapter error, unless `PENUMBRA_SKIP` lists `gpu` ([`missing`]): then `None`.
 #[cfg(feature = "gpu")]
 pub fn gpu() -> Option<&'static penumbra::gpu::GpuContext> {
-    static CTX: std::sync::OnceLock<Option<penumbra::gpu::GpuContext>> = std::sync::OnceLock::new();
-    CTX.get_or_init(|| match penumbra::gpu::GpuContext::new() {
-        Ok(ctx) => {
+    static CTX: std::sync::OnceLock<Result<penumbra::gpu::GpuContext, String>> =
+        std::sync::OnceLock::new();
+    let ctx = CTX.get_or_init(|| {
+        let ctx = penumbra::gpu::GpuContext::new().map_err(|e| e.to_string());
+        if let Ok(ctx) = &ctx {
             eprintln!(
                 "GPU tests run on adapter: {} ({})",
                 ctx.adapter_name(),
                 ctx.adapter_kind()
             );
-            Some(ctx)
         }
+        ctx
+    });
+    match ctx {
+        Ok(ctx) => Some(ctx),
         Err(e) => {
-            let required = std::env::var("PENUMBRA_REQUIRE_GPU").is_ok_and(|v| v == "1");
-            assert!(!required, "PENUMBRA_REQUIRE_GPU=1 but no GPU context: {e}");
-            eprintln!("skipping GPU test: {e}");
+            missing(
+                "gpu",
+                &format!("a GPU adapter ({e})"),
+                "apt-get install mesa-vulkan-drivers libvulkan1 and run with WGPU_BACKEND=vulkan (lavapipe)",
+            );
             None
         }
-    })
-    .as_ref()
+    }
 }
 
 /// Sun direction in model space for an azimuth (from north, clockwise) and elevation.

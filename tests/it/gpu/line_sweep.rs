@@ -4,7 +4,7 @@
 //! band) and against the exact per-site scan (a different algorithm) on a synthetic two-layer
 //! stack and on the real LOLA 240 m grid + far field (skipped with a reason when absent); on an
 //! adapter (lavapipe in CI: `WGPU_BACKEND=vulkan`) the GPU against the twin and the f64 sweep.
-//! No adapter: the GPU tests are skipped with a printed reason, unless `PENUMBRA_REQUIRE_GPU=1`.
+//! No adapter: the GPU tests fail naming it, unless `PENUMBRA_SKIP=gpu` (a counted skip).
 
 use penumbra::horizon::sweep::grid_convergence_deg;
 use penumbra::horizon::{HorizonEngine, HorizonMethod, HorizonParams, HorizonSweep, SweepParams};
@@ -179,7 +179,12 @@ fn twin_matches_the_cpu_sweep_and_the_exact_scan_on_a_two_layer_stack() {
     println!(
         "twin - exact scan, two-layer stack: p50 {p50:.2e} p99 {p99:.2e} max {max:.2e} bias {bias:.2e} deg"
     );
-    assert!(p99 <= 0.02 && bias.abs() <= 0.002, "p99 {p99} bias {bias}");
+    // Measured p99 9.2e-3, max 0.29° (one steep near-field pixel-azimuth: the sweep's straight
+    // map line against the exact scan's great circle), bias -7e-5°.
+    assert!(
+        p99 <= 0.02 && max <= 0.5 && bias.abs() <= 0.002,
+        "p99 {p99} max {max} bias {bias}"
+    );
 }
 
 /// The batched pipeline (lines packed on one thread while the looks of the previous batch run on
@@ -512,21 +517,33 @@ mod on_gpu {
 }
 
 /// The 256² crop (rows and columns 640–895) of the real 240 m grid + far field, every pixel and
-/// band of a 90-azimuth sweep: twin vs the f64 sweep. Ignored (≈ 1 min); the figure in
-/// docs/VALIDATION.md. Run: `PENUMBRA_CROP256=/tmp/lola/crop256.tif cargo test --release --test
-/// it twin_matches_the_cpu_sweep_on_a_lola_crop -- --ignored --nocapture` after
-/// `gdal_translate -srcwin 640 640 256 256 $D/ldem75s_crop_240m_pm184km.tif /tmp/lola/crop256.tif`.
+/// band of a 90-azimuth sweep: twin vs the f64 sweep (≈ 1 min; the figure in
+/// docs/VALIDATION.md): `cargo test --release --test it twin_matches_the_cpu_sweep_on_a_lola_crop
+/// -- --nocapture`.
 #[test]
-#[ignore]
 fn twin_matches_the_cpu_sweep_on_a_lola_crop() {
-    let (Ok(crop), Some(far)) = (
-        std::env::var("PENUMBRA_CROP256"),
+    let (Some(inner), Some(far)) = (
+        crate::util::shared_lola("ldem75s_crop_240m_pm184km.tif"),
         crate::util::shared_lola("ldem75s_far_1787m_pm457km_feathered.tif"),
     ) else {
-        println!("skipping: PENUMBRA_CROP256 or the far field is missing");
         return;
     };
-    let stack = TerrainStack::load(&[std::path::PathBuf::from(crop), far]).unwrap();
+    let whole = penumbra::terrain::read_geotiff(&inner).unwrap();
+    let (r0, c0, n) = (640, 640, 256);
+    let mut crop = whole.clone();
+    crop.grid.rows = n;
+    crop.grid.cols = n;
+    crop.grid.x_left_m = whole.grid.x_left_m + c0 as f64 * whole.grid.px_x_m;
+    crop.grid.y_top_m = whole.grid.y_top_m - r0 as f64 * whole.grid.px_y_m;
+    crop.heights_m = (0..n)
+        .flat_map(|r| {
+            let row = (r0 + r) * whole.grid.cols + c0;
+            whole.heights_m[row..row + n].to_vec()
+        })
+        .collect();
+    crop.name = "crop256".into();
+    let far = penumbra::terrain::read_geotiff(&far).unwrap();
+    let stack = TerrainStack::new(vec![crop, far]);
     let params = SweepParams {
         azimuths: 90,
         ..SweepParams::default()

@@ -1,7 +1,7 @@
 //! GPU backend: naga validation of every shader (never skipped), the adapter listing, the
-//! `--backend` switch without an adapter, and `map --backend gpu` against `--backend cpu`. The
-//! GPU test skips with a printed reason when no adapter exists; `PENUMBRA_REQUIRE_GPU=1` turns
-//! the skip into a failure. In CI it runs on lavapipe (`WGPU_BACKEND=vulkan`). The kernels'
+//! `--backend` switch without an adapter, and `map --backend gpu` against `--backend cpu`. No
+//! adapter is a failure naming the adapter error, unless `PENUMBRA_SKIP=gpu` counts the GPU
+//! tests as skipped. In CI it runs on lavapipe (`WGPU_BACKEND=vulkan`). The kernels'
 //! GPU-vs-twin parity tests are in the submodules, one per kernel as in `src/gpu/`.
 
 mod dp;
@@ -161,10 +161,7 @@ const MIN_PSR_AGREEMENT: f64 = 0.999;
 #[cfg(feature = "gpu")]
 #[test]
 fn map_backend_gpu_matches_cpu_psr_mask() {
-    if let Err(e) = penumbra::gpu::GpuContext::new() {
-        let required = std::env::var("PENUMBRA_REQUIRE_GPU").is_ok_and(|v| v == "1");
-        assert!(!required, "PENUMBRA_REQUIRE_GPU=1 but no GPU context: {e}");
-        eprintln!("skipping GPU test: {e}");
+    if crate::util::gpu().is_none() {
         return;
     }
     let dir = tempfile::tempdir().unwrap();

@@ -3,7 +3,7 @@
 //! the `--backend` switch of `penumbra render`, and naga validation of shaders/render.wgsl.
 //!
 //! GPU tests need an adapter (lavapipe: `WGPU_BACKEND=vulkan XDG_RUNTIME_DIR=/tmp`); without one
-//! they print the reason and pass, unless `PENUMBRA_REQUIRE_GPU=1`.
+//! they fail naming it, unless `PENUMBRA_SKIP=gpu` counts them as skipped.
 
 use penumbra::render::cast::image_error;
 use penumbra::render::{Camera, Lights, Sample, Scene, TraceMethod};

@@ -176,10 +176,10 @@ fn horizons_engine_agrees_with_series_at_pixel_centres() {
             (m(&m_mean) / 100.0 - s_mean).abs(),
             (m(&m_earth) - s_earth).abs(),
             (m(&m_full) - s_full).abs(),
-            (m(&m_dark) - s_dark).abs() / s_dark.max(150.0),
-            (m(&m_ehid) - s_ehid).abs() / s_ehid.max(150.0),
+            (m(&m_dark) - s_dark).abs() / (0.02 * s_dark).max(6.0),
+            (m(&m_ehid) - s_ehid).abs() / (0.02 * s_ehid).max(6.0),
             (m(&m_dte) - s_dte).abs(),
-            (m(&m_blackout) - s_blackout).abs() / s_blackout.max(150.0),
+            (m(&m_blackout) - s_blackout).abs() / (0.02 * s_blackout).max(6.0),
         ];
         for (w, d) in worst.iter_mut().zip(d) {
             *w = w.max(d);
@@ -187,31 +187,50 @@ fn horizons_engine_agrees_with_series_at_pixel_centres() {
     }
     println!(
         "worst: sun% {:.3} pp, mean {:.4}, earth% {:.3} pp, full% {:.3} pp, longest dark {:.3} \
-         (relative, 3 h floor), longest Earth-hidden {:.3}, DTE% {:.3} pp, longest DTE \
+         (of max(6 h, 2 %)), longest Earth-hidden {:.3}, DTE% {:.3} pp, longest DTE \
          blackout {:.3}",
         worst[0], worst[1], worst[2], worst[3], worst[4], worst[5], worst[6], worst[7]
     );
     // The issue's tolerances: % lit within 0.5 pp, mean fraction within 0.005, longest night
-    // within max(3 h, 2 %) (here: 6 h steps, so within one step on runs up to 300 h, 2 % beyond).
+    // within max(3 h, 2 %); with 6 h steps one step is the floor: the longest runs are divided
+    // by max(6 h, 2 % of the series' value), so 1.0 is the bound.
     assert!(worst[0] <= 0.5, "sun visible %: {}", worst[0]);
     assert!(worst[1] <= 0.005, "mean fraction: {}", worst[1]);
     assert!(worst[2] <= 1.0, "earth visible %: {}", worst[2]);
     assert!(worst[3] <= 0.5, "sun fully visible %: {}", worst[3]);
-    assert!(worst[4] <= 0.04, "longest dark: {}", worst[4]);
-    assert!(worst[5] <= 0.04, "longest Earth-hidden: {}", worst[5]);
+    assert!(worst[4] <= 1.0, "longest dark: {}", worst[4]);
+    assert!(worst[5] <= 1.0, "longest Earth-hidden: {}", worst[5]);
     // Direct-to-Earth: the Earth's bound (the station flag adds < 1 epoch in 1,460 here).
     assert!(worst[6] <= 1.0, "DTE %: {}", worst[6]);
-    assert!(worst[7] <= 0.04, "longest DTE blackout: {}", worst[7]);
+    assert!(worst[7] <= 1.0, "longest DTE blackout: {}", worst[7]);
     assert!(
         m_dte.iter().any(|&v| v > 0.0) && m_dte.iter().any(|&v| v.is_finite() && v < 100.0),
         "the DTE map says something"
     );
 }
 
+/// The share of a unit disc's light above the chord `y = d` (d > 0: above the centre) for the
+/// limb law `I(μ) = c0 + c1 μ`, by quadrature built here (not the library's closed form): each
+/// row y carries `c0·2a + c1·πa²/2` (a = √(1 − y²): the row's length and the integral of
+/// `√(a² − x²)`), summed over 20,000 midpoint rows, divided by the disc's `π(c0 + 2c1/3)`.
+fn disc_above_chord(d: f64, c0: f64, c1: f64) -> f64 {
+    let d = d.clamp(-1.0, 1.0);
+    let n = 20_000;
+    let dy = (1.0 - d) / n as f64;
+    let sum: f64 = (0..n)
+        .map(|k| {
+            let y = d + (k as f64 + 0.5) * dy;
+            let a2 = (1.0 - y * y).max(0.0);
+            c0 * 2.0 * a2.sqrt() + c1 * std::f64::consts::PI * a2 / 2.0
+        })
+        .sum();
+    sum * dy / (std::f64::consts::PI * (c0 + 2.0 * c1 / 3.0))
+}
+
 /// The engine over a flat sphere, where every interior pixel's horizon is the dip
 /// `−acos(R / (R + h))` in every direction: each pixel's statistics against the SPICE-exact
-/// topocentric Sun and Earth at that pixel (`ephem::sun_earth_series`, f64) and the chord
-/// fraction below the dip.
+/// topocentric Sun and Earth at that pixel (`ephem::sun_earth_series`, f64) and the disc's
+/// share above the dip by this file's own quadrature ([`disc_above_chord`]).
 #[test]
 fn flat_sphere_statistics_follow_each_pixels_own_sky() {
     let h_obs = 2.0;
@@ -276,14 +295,12 @@ fn flat_sphere_statistics_follow_each_pixels_own_sky() {
         .unwrap();
         let (mut sum, mut vis, mut earth) = (0.0, 0_u32, 0_u32);
         for v in &sky[0] {
-            let f = penumbra::illum::chord_visible_fraction(
+            let f = disc_above_chord(
                 (dip_deg - v.sun.el_deg) / v.sun.radius_deg,
-                &limb,
+                limb.c0,
+                limb.c1,
             );
-            let fe = penumbra::illum::chord_visible_fraction(
-                (dip_deg - v.earth.el_deg) / v.earth.radius_deg,
-                &LimbDarkening::UNIFORM,
-            );
+            let fe = disc_above_chord((dip_deg - v.earth.el_deg) / v.earth.radius_deg, 1.0, 0.0);
             sum += f;
             vis += u32::from(f > 1e-6);
             earth += u32::from(fe > 1e-6);

@@ -120,7 +120,8 @@ fn sweep_matches_the_exact_scan_on_a_two_layer_stack() {
         "sweep - exact ({} pixel-azimuths): p50 {p50:.2e} p99 {p99:.2e} max {max:.2e} bias {bias:.2e} deg",
         diffs.len()
     );
-    assert!(p99 <= 0.02, "p99 {p99}");
+    // Measured max 0.051° (two layers), 0.047° (LOLA, CI sample), 0.057° (LOLA, 2000 cells).
+    assert!(p99 <= 0.02 && max <= 0.1, "p99 {p99} max {max}");
     assert!(bias.abs() <= 0.002, "bias {bias}");
 }
 
@@ -200,21 +201,22 @@ fn sweep_matches_the_exact_scan_on_real_lola_grids() {
         diffs.len() / cells.len(),
         diffs.len()
     );
-    assert!(p99 <= 0.02, "p99 {p99}");
+    // Measured max 0.051° (two layers), 0.047° (LOLA, CI sample), 0.057° (LOLA, 2000 cells).
+    assert!(p99 <= 0.02 && max <= 0.1, "p99 {p99} max {max}");
     assert!(bias.abs() <= 0.002, "bias {bias}");
 }
 
-/// `gdallocationinfo -valonly -b <band> <file> <col> <row>` as text, or `None` without GDAL.
-fn gdal_value(file: &std::path::Path, band: usize, row: usize, col: usize) -> Option<String> {
+/// `gdallocationinfo -valonly -b <band> <file> <col> <row>` as text (the caller checked that
+/// GDAL is installed; a failure of the tool fails the test).
+fn gdal_value(file: &std::path::Path, band: usize, row: usize, col: usize) -> String {
     let out = std::process::Command::new("gdallocationinfo")
         .args(["-valonly", "-b", &band.to_string()])
         .arg(file)
         .args([col.to_string(), row.to_string()])
         .output_within()
-        .ok()?;
-    out.status
-        .success()
-        .then(|| String::from_utf8_lossy(&out.stdout).trim().to_string())
+        .expect("run gdallocationinfo");
+    assert!(out.status.success(), "gdallocationinfo: {out:?}");
+    String::from_utf8_lossy(&out.stdout).trim().to_string()
 }
 
 /// `penumbra horizon-map sweep` writes a multi-band GeoTIFF that GDAL reads: as many bands as
@@ -257,15 +259,14 @@ fn cli_sweep_writes_a_gdal_readable_multiband_geotiff() {
     )
     .unwrap();
     assert_eq!(sweep.directions().len(), 16);
-    let Some(info) = std::process::Command::new("gdalinfo")
+    if !crate::util::tool("gdalinfo", "gdal-bin") {
+        return;
+    }
+    let info = std::process::Command::new("gdalinfo")
         .arg(dir.path().join("hz.tif"))
         .output_within()
-        .ok()
-        .filter(|o| o.status.success())
-    else {
-        eprintln!("skipping the GDAL half: gdalinfo is not installed");
-        return;
-    };
+        .expect("run gdalinfo");
+    assert!(info.status.success(), "gdalinfo: {info:?}");
     let info = String::from_utf8_lossy(&info.stdout);
     assert_eq!(info.matches("Band ").count(), 16, "{info}");
     assert!(info.contains("Type=Int16"), "{info}");
@@ -278,14 +279,13 @@ fn cli_sweep_writes_a_gdal_readable_multiband_geotiff() {
     for (row, col) in [(0, 0), (10, 37), (24, 24), (47, 5)] {
         for band in [0, 3, 9, 15] {
             let (el, dist) = sweep.pixel_horizon(row, col, band).unwrap();
-            let got = gdal_value(&dir.path().join("hz.tif"), band + 1, row, col).unwrap();
+            let got = gdal_value(&dir.path().join("hz.tif"), band + 1, row, col);
             assert_eq!(
                 got,
                 format!("{}", (el * 100.0).round() as i64),
                 "{row},{col} b{band}"
             );
             let got_km: f64 = gdal_value(&dir.path().join("dist.tif"), band + 1, row, col)
-                .unwrap()
                 .parse()
                 .unwrap();
             if dist.is_nan() {

@@ -399,8 +399,9 @@ fn read_fractions(path: &std::path::Path) -> Vec<(f64, f64)> {
         .collect()
 }
 
-/// Whether a GPU context can be built (lavapipe counts); `PENUMBRA_REQUIRE_GPU=1` makes "no"
-/// a failure.
+/// Whether a GPU context can be built (lavapipe counts): in a GPU build, no adapter fails the
+/// test unless `PENUMBRA_SKIP=gpu` ([`crate::util::gpu`]); a CPU-only build has none and checks
+/// the refusal instead.
 fn gpu_available() -> bool {
     #[cfg(feature = "gpu")]
     {
@@ -408,11 +409,6 @@ fn gpu_available() -> bool {
     }
     #[cfg(not(feature = "gpu"))]
     {
-        let required = std::env::var("PENUMBRA_REQUIRE_GPU").is_ok_and(|v| v == "1");
-        assert!(
-            !required,
-            "PENUMBRA_REQUIRE_GPU=1 in a build without the gpu feature"
-        );
         false
     }
 }
