@@ -125,16 +125,18 @@ impl GpuSceneFractions {
 }
 
 /// A map grid on the GPU with its DEM pixels' own observers ([`MapGrid::pixel_observers`]):
-/// one-light DP maps and the soft sweep per DEM pixel (`shaders/dp_points.wgsl`,
-/// `dp_points_sweep.wgsl`), each ray starting at the pixel's own surface point with its own half
-/// pixel left out, as the CPU engines and a series site at the pixel centre. The
-/// heights, the mipmap and the observers go up once.
+/// DP fractions per DEM pixel and light (`shaders/dp_points.wgsl`), each ray starting at the
+/// pixel's own surface point and marching the model grid beyond the near field, whose DEM
+/// lattice the CPU marches (`src/model/near_field.rs`), as the CPU engines and a series site at
+/// the pixel centre. The heights, the mipmap and the observers go up once.
 pub struct GpuPixelMaps {
     grid: crate::gpu::dp::GpuDpGrid,
-    /// Point records of the pixels with data, and the DEM pixel of each.
+    /// Point records of the pixels with data (the model grid marched beyond the near field,
+    /// [`crate::model::NEAR_FIELD_CELLS`]), and the DEM pixel of each.
     points: Vec<[f32; 4]>,
     pixel_of_point: Vec<usize>,
-    pixels: usize,
+    /// The pixels' observers, for the near field on the DEM's own lattice (CPU).
+    observers: Vec<Option<crate::shadow::Observer>>,
 }
 
 impl GpuPixelMaps {
@@ -151,7 +153,7 @@ impl GpuPixelMaps {
         tiling: crate::gpu::tiles::DpTiling,
         placement: ObserverPlacement,
     ) -> anyhow::Result<(Option<Self>, ObserverPlacement)> {
-        use crate::twins::{DpMip, MarchGrid, pixel_point_records};
+        use crate::twins::{DpMip, MarchGrid, pixel_point_records_from};
         if placement == ObserverPlacement::Cells {
             return Ok((None, ObserverPlacement::Cells));
         }
@@ -166,19 +168,20 @@ impl GpuPixelMaps {
         }
         let mip = DpMip::build(&march);
         let on_gpu = crate::gpu::dp::GpuDpGrid::upload(ctx, &march, &mip)?;
-        let (pixel_of_point, points) = pixel_point_records(&march, observers);
+        let (pixel_of_point, points) =
+            pixel_point_records_from(&march, observers, crate::model::NEAR_FIELD_CELLS);
         let maps = GpuPixelMaps {
             grid: on_gpu,
             points,
             pixel_of_point,
-            pixels: observers.len(),
+            observers: observers.to_vec(),
         };
         Ok((Some(maps), ObserverPlacement::Pixels))
     }
 
     /// Per DEM pixel, `per_point` scattered back (`nodata` where a pixel has no data).
     fn scatter<T: Copy>(&self, per_point: &[T], nodata: T) -> Vec<T> {
-        let mut out = vec![nodata; self.pixels];
+        let mut out = vec![nodata; self.observers.len()];
         for (&pixel, &v) in self.pixel_of_point.iter().zip(per_point) {
             out[pixel] = v;
         }
@@ -186,8 +189,34 @@ impl GpuPixelMaps {
     }
 
     /// The visible fraction of a disc of angular radius `radius_rad` toward `light_in_model`
-    /// per DEM pixel (`NaN` for nodata); radius 0 gives 1 / 0.
+    /// per DEM pixel (`NaN` for nodata); radius 0 gives 1 / 0. The GPU marches the model grid
+    /// beyond the near field, the CPU the near field on the DEM's own lattice
+    /// ([`MapGrid::near_field_fractions`]), as the CPU engines: the smaller fraction.
     pub fn fraction(
+        &self,
+        ctx: &crate::gpu::GpuContext,
+        grid: &MapGrid,
+        light_in_model: [f64; 3],
+        radius_rad: f64,
+    ) -> anyhow::Result<Vec<f32>> {
+        let beyond = self.fraction_beyond(ctx, light_in_model, radius_rad)?;
+        let near = if radius_rad > 0.0 {
+            grid.near_field_fractions(&self.observers, light_in_model, radius_rad)?
+        } else {
+            grid.near_field_costs(&self.observers, light_in_model)?
+                .into_iter()
+                .map(|j| if j < 0.0 { 0.0 } else { 1.0 })
+                .collect()
+        };
+        Ok(beyond
+            .iter()
+            .zip(&near)
+            .map(|(&b, &n)| if b.is_nan() { b } else { b.min(n) })
+            .collect())
+    }
+
+    /// The GPU's part of [`GpuPixelMaps::fraction`]: the model grid beyond the near field.
+    fn fraction_beyond(
         &self,
         ctx: &crate::gpu::GpuContext,
         light_in_model: [f64; 3],
@@ -211,33 +240,13 @@ impl GpuPixelMaps {
     pub fn mask(
         &self,
         ctx: &crate::gpu::GpuContext,
+        grid: &MapGrid,
         light_in_model: [f64; 3],
     ) -> anyhow::Result<Vec<u8>> {
         Ok(self
-            .fraction(ctx, light_in_model, 0.0)?
+            .fraction(ctx, grid, light_in_model, 0.0)?
             .into_iter()
             .map(crate::twins::mask_of_fraction)
             .collect())
-    }
-
-    /// The soft sweep's statistics of `lights` per DEM pixel (as [`sweep_gpu_soft`], on the DEM
-    /// grid; zero statistics for nodata).
-    pub fn sweep(
-        &self,
-        ctx: &crate::gpu::GpuContext,
-        lights: &[EpochLights],
-        step_h: f64,
-    ) -> anyhow::Result<RangeStats> {
-        use crate::gpu::dp::{DpSweepOptions, dp_points_sweep_gpu};
-        let table = light_table(lights);
-        let per_point = dp_points_sweep_gpu(
-            ctx,
-            &self.grid,
-            &self.points,
-            &table,
-            DpSweepOptions::default(),
-        )?;
-        let stats = self.scatter(&per_point, crate::twins::DpCellStats::default());
-        Ok(sweep_stats(&stats, lights.len(), step_h, true))
     }
 }

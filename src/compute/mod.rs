@@ -221,11 +221,12 @@ pub fn map_engine_on_gpu(engine: MapEngineKind, range: bool) -> OnGpu {
 /// The engine `--engine auto` runs on `backend` for one light (`n_epochs` `None`) or a range of
 /// `n_epochs`: one light, `dp` on a GPU, else `combined`. A range: the horizons engine when its
 /// horizons are given as a file (`--horizons`: the sweep is paid for, and each epoch then costs
-/// it ≈ 35× less than a combined map on the CPU), or on the CPU from
-/// [`AUTO_HORIZONS_MIN_EPOCHS`] epochs on (where a whole-grid sweep costs less than the per-epoch
-/// maps; `cargo bench --bench statistics`, docs/PERFORMANCE.md); else `dp` on a GPU, `combined`
-/// on the CPU. Where a GPU's per-epoch maps overtake a CPU-built sweep has not been measured on
-/// a GPU.
+/// it ≈ 35× less than a combined map on the CPU), or from [`AUTO_HORIZONS_MIN_EPOCHS`] epochs
+/// on, whatever the backend (where a whole-grid sweep costs less than the per-epoch maps on the
+/// CPU, `cargo bench --bench statistics`, docs/PERFORMANCE.md; on a GPU machine too, so that the
+/// default computes the same physics on both: the per-epoch engines run on the resampled model
+/// grid, the horizons engine on the DEM's own pixels); else `dp` on a GPU, `combined` on the CPU
+/// (the same DP fractions: `combined` takes SMap's verdict only where it is unanimous).
 pub fn auto_engine(
     backend: &ResolvedBackend,
     n_epochs: Option<usize>,
@@ -241,9 +242,7 @@ pub fn auto_engine(
     match (n_epochs, horizons) {
         (None, _) => per_epoch,
         (Some(_), range::HorizonsFrom::File(_)) => MapEngineKind::Horizons,
-        (Some(n), range::HorizonsFrom::Sweep { .. })
-            if !on_gpu && n >= AUTO_HORIZONS_MIN_EPOCHS =>
-        {
+        (Some(n), range::HorizonsFrom::Sweep { .. }) if n >= AUTO_HORIZONS_MIN_EPOCHS => {
             MapEngineKind::Horizons
         }
         (Some(_), range::HorizonsFrom::Sweep { .. }) => per_epoch,

@@ -133,7 +133,7 @@ impl<'a> Prepared<'a> {
         let (grid, h_m) = (self.grid, self.observer_height_m);
         #[cfg(feature = "gpu")]
         if let (ResolvedBackend::Gpu(ctx), Some(pixels)) = (self.backend, &self.gpu_pixels) {
-            return pixels.fraction(ctx, light_in_model, radius_rad);
+            return pixels.fraction(ctx, grid, light_in_model, radius_rad);
         }
         match self.backend {
             ResolvedBackend::Cpu => self.engine.visible_fraction_on_dem(
@@ -167,7 +167,7 @@ impl<'a> Prepared<'a> {
         let (grid, h_m) = (self.grid, self.observer_height_m);
         #[cfg(feature = "gpu")]
         if let (ResolvedBackend::Gpu(ctx), Some(pixels)) = (self.backend, &self.gpu_pixels) {
-            return pixels.mask(ctx, light_in_model);
+            return pixels.mask(ctx, grid, light_in_model);
         }
         match self.backend {
             ResolvedBackend::Cpu => {

@@ -380,16 +380,27 @@ fn per_epoch(
             let tiling = crate::gpu::tiles::DpTiling {
                 tile_cells: map.gpu_tile_cells,
             };
+            let observers = grid.pixel_observers(h_m);
             let (pixels, placement) = super::gpu_maps::GpuPixelMaps::for_placement(
                 ctx,
                 grid,
-                &grid.pixel_observers(h_m),
+                &observers,
                 h_m,
                 tiling,
                 map.placement(),
             )?;
             let stats = match pixels {
-                Some(pixels) => pixels.sweep(ctx, lights, step_h)?,
+                // From the DEM pixels: each epoch's fractions on the GPU (the model grid beyond
+                // the near field) and the CPU (the near field on the DEM's lattice), folded as
+                // on the CPU backend.
+                Some(pixels) => crate::model::per_epoch_statistics_with(
+                    grid,
+                    &observers,
+                    true,
+                    lights,
+                    step_h,
+                    |light, radius| pixels.fraction(ctx, grid, light, radius),
+                )?,
                 None => super::gpu_maps::sweep_gpu_soft(ctx, grid, h_m, lights, step_h, tiling)?,
             };
             let note = format!(

@@ -281,12 +281,23 @@ impl MapEngine {
             )?));
         };
         Ok(match self {
-            MapEngine::Direct(e) => e.visible_fraction(
-                &grid.hf,
-                grid.pixel_points(observers),
-                light_in_model,
-                angular_radius_rad,
-            )?,
+            // The DEM's own lattice near each pixel, the model grid beyond
+            // (src/model/near_field.rs): the fraction of the smaller cost.
+            MapEngine::Direct(e) => {
+                let beyond = e.visible_fraction(
+                    &grid.hf,
+                    grid.pixel_points_beyond_near_field(observers),
+                    light_in_model,
+                    angular_radius_rad,
+                )?;
+                let near =
+                    grid.near_field_fractions(observers, light_in_model, angular_radius_rad)?;
+                beyond
+                    .iter()
+                    .zip(&near)
+                    .map(|(&b, &n)| if b.is_nan() { b } else { b.min(n) })
+                    .collect()
+            }
             MapEngine::Fourier(map) => grid.to_output_f32(
                 &crate::shadow::fourier::visible_fraction(map, light_in_model, angular_radius_rad)?,
             ),
@@ -311,7 +322,23 @@ impl MapEngine {
         };
         Ok(match self {
             MapEngine::Direct(e) => {
-                e.hard_mask(&grid.hf, grid.pixel_points(observers), light_in_model)?
+                let beyond = e.hard_mask(
+                    &grid.hf,
+                    grid.pixel_points_beyond_near_field(observers),
+                    light_in_model,
+                )?;
+                let near = grid.near_field_costs(observers, light_in_model)?;
+                beyond
+                    .iter()
+                    .zip(&near)
+                    .map(|(&b, &j)| {
+                        if b == crate::shadow::MASK_LIT && j < 0.0 {
+                            crate::shadow::MASK_SHADOW
+                        } else {
+                            b
+                        }
+                    })
+                    .collect()
             }
             MapEngine::Fourier(map) => {
                 grid.to_output_u8(&crate::shadow::fourier::hard_mask(map, light_in_model)?)
@@ -340,14 +367,47 @@ pub fn per_epoch_statistics(
     lights: &[EpochLights],
     step_h: f64,
 ) -> anyhow::Result<RangeStats> {
+    let on_dem_grid = placement == ObserverPlacement::Pixels;
+    let observers = grid.pixel_observers(observer_height_m);
+    per_epoch_statistics_with(
+        grid,
+        &observers,
+        on_dem_grid,
+        lights,
+        step_h,
+        |light, radius| {
+            if on_dem_grid {
+                engine.visible_fraction_on_dem(
+                    grid,
+                    Some(&observers),
+                    observer_height_m,
+                    light,
+                    radius,
+                )
+            } else {
+                engine.visible_fraction(&grid.hf, observer_height_m, light, radius)
+            }
+        },
+    )
+}
+
+/// [`per_epoch_statistics`] with the fractions of each light from `fraction(light, radius)`:
+/// per DEM pixel (`on_dem_grid`, the pixels' `observers`) or per model cell. The GPU's DP from
+/// the DEM pixels folds its fractions here too, so both backends count the same way.
+pub fn per_epoch_statistics_with(
+    grid: &MapGrid,
+    observers: &[Option<Observer>],
+    on_dem_grid: bool,
+    lights: &[EpochLights],
+    step_h: f64,
+    mut fraction: impl FnMut([f64; 3], f64) -> anyhow::Result<Vec<f32>>,
+) -> anyhow::Result<RangeStats> {
     let progress = crate::output::progress_bar(
         lights.len(),
         "{spinner} map [{bar:30}] {pos}/{len} epochs (eta {eta})",
     );
     // Per DEM pixel from the pixels' own observers, or per model cell (resampled at the end, as
     // the GPU per-epoch DP).
-    let on_dem_grid = placement == ObserverPlacement::Pixels;
-    let observers = grid.pixel_observers(observer_height_m);
     let n = if on_dem_grid {
         observers.len()
     } else {
@@ -367,21 +427,8 @@ pub fn per_epoch_statistics(
     };
     let mut sun_and_earth_count = vec![0_u32; n];
     let mut current_dark = vec![0_u32; n];
-    let mut below = BelowSphereTally::new(&observers);
+    let mut below = BelowSphereTally::new(observers);
     for l in lights {
-        let fraction = |light, radius| {
-            if on_dem_grid {
-                engine.visible_fraction_on_dem(
-                    grid,
-                    Some(&observers),
-                    observer_height_m,
-                    light,
-                    radius,
-                )
-            } else {
-                engine.visible_fraction(&grid.hf, observer_height_m, light, radius)
-            }
-        };
         let sun = fraction(l.sun, l.sun_radius_rad)?;
         if on_dem_grid {
             below.add(grid, l.sun, &sun)?;

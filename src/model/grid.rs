@@ -37,7 +37,7 @@ pub struct MapGrid {
     /// For each output pixel, its fractional (row, col) in `hf`; NaN for nodata pixels.
     rc_in_model: Vec<[f32; 2]>,
     /// For each output pixel, its surface point in model space (`None` for nodata pixels).
-    surface_in_model: Vec<Option<Vector3<f64>>>,
+    pub(super) surface_in_model: Vec<Option<Vector3<f64>>>,
     /// `Some(half-width km)` when the coarser layers reach beyond [`MAX_MODEL_CELLS`] and the
     /// grid was clipped to that half-width around the map centre.
     pub clipped_to_km: Option<f64>,
@@ -185,6 +185,19 @@ impl MapGrid {
         Observers::Points {
             list: observers,
             min_s_cells: crate::shadow::OWN_HALF_PIXEL_CELLS,
+        }
+    }
+
+    /// [`MapGrid::pixel_points`] whose rays march the model grid only beyond the near field
+    /// ([`super::near_field::NEAR_FIELD_CELLS`]): the near field is the DEM's own lattice's
+    /// ([`MapGrid::near_field_costs`]).
+    pub fn pixel_points_beyond_near_field<'a>(
+        &self,
+        observers: &'a [Option<Observer>],
+    ) -> Observers<'a> {
+        Observers::Points {
+            list: observers,
+            min_s_cells: super::near_field::NEAR_FIELD_CELLS,
         }
     }
 

@@ -8,12 +8,13 @@ mod engine;
 mod grid;
 mod input;
 mod lights;
+mod near_field;
 mod rasters;
 mod sites;
 
 pub use engine::{
     HorizonExtras, MapEngine, MapEngineKind, ObserverPlacement, PowerMaps, RangeStats,
-    per_epoch_statistics,
+    per_epoch_statistics, per_epoch_statistics_with,
 };
 pub(crate) use grid::BelowSphereTally;
 pub use grid::{MAX_MODEL_CELLS, MapGrid, MapSample, RasterInfo, VISIBLE_MIN_FRACTION, write_on};
@@ -21,6 +22,7 @@ pub use input::{
     EpochRange, Epochs, InputError, MAX_SITE_NAME_CHARS, ObserverHeight, Site, check_distinct_sites,
 };
 pub use lights::{EpochLights, epoch_lights};
+pub use near_field::NEAR_FIELD_CELLS;
 pub use rasters::{
     PSR_DESCRIPTION, RangeRaster, geotiff_unit, range_metadata, range_rasters, span_text,
     write_range,

@@ -657,7 +657,16 @@ pub fn pixel_point_records(
     grid: &MarchGrid,
     observers: &[Option<crate::shadow::Observer>],
 ) -> (Vec<usize>, Vec<[f32; 4]>) {
-    let min_s = crate::shadow::OWN_HALF_PIXEL_CELLS;
+    pixel_point_records_from(grid, observers, crate::shadow::OWN_HALF_PIXEL_CELLS)
+}
+
+/// [`pixel_point_records`] with the terrain nearer than `min_s` cells left out (the maps: the
+/// near field is the DEM lattice's, `crate::model::MapGrid::near_field_costs`).
+pub fn pixel_point_records_from(
+    grid: &MarchGrid,
+    observers: &[Option<crate::shadow::Observer>],
+    min_s: f64,
+) -> (Vec<usize>, Vec<[f32; 4]>) {
     observers
         .iter()
         .enumerate()

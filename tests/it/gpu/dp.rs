@@ -598,14 +598,18 @@ fn pixel_case() -> PixelCase {
 
 /// Oracle: the f64 CPU DP engine started from the same DEM pixels (`MapEngine::
 /// visible_fraction_on_dem` with the pixels' observers, the CPU maps' default). The f32 twin of
-/// `dp_points.wgsl` on the built-in synthetic DEM (404² pixels), a low Sun from three azimuths
-/// and one below the map centre's horizontal (the rims see it): soft fractions and hard masks.
+/// `dp_points.wgsl` (records marching beyond the near field, which the DEM lattice's own march
+/// covers, as the maps combine them) on the built-in synthetic DEM (404² pixels), a low Sun from
+/// three azimuths and one below the map centre's horizontal (the rims see it): soft fractions
+/// and hard masks.
 #[test]
 fn dp_points_twin_matches_the_cpu_dp_engine_from_the_pixels() {
     use penumbra::model::{MapEngine, MapEngineKind};
     let c = pixel_case();
     let engine = MapEngine::new(MapEngineKind::Direct(Engine::Dp), &c.grid, OBSERVER_M).unwrap();
     assert!(c.points.len() > 100_000);
+    let (_, beyond) =
+        twins::pixel_point_records_from(&c.march, &c.observers, penumbra::model::NEAR_FIELD_CELLS);
     for (az, el) in [(40.0, 1.0), (151.0, 1.5), (262.0, 0.5), (300.0, -0.3)] {
         let dir = sun_dir(az, el);
         for radius in [SUN_ANGULAR_RADIUS_RAD, 0.0] {
@@ -618,11 +622,25 @@ fn dp_points_twin_matches_the_cpu_dp_engine_from_the_pixels() {
                     radius,
                 )
                 .unwrap();
+            // As the maps run it: the twin beyond the near field, the near field on the DEM's
+            // own lattice (the CPU's, shared), the smaller fraction.
             let light = twins::disc_light_to_f32(&dir, radius);
-            let per_point = twins::dp_points(&c.march, &c.mip, &c.points, light);
+            let per_point = twins::dp_points(&c.march, &c.mip, &beyond, light);
+            let near: Vec<f32> = if radius > 0.0 {
+                c.grid
+                    .near_field_fractions(&c.observers, dir.into(), radius)
+                    .unwrap()
+            } else {
+                c.grid
+                    .near_field_costs(&c.observers, dir.into())
+                    .unwrap()
+                    .iter()
+                    .map(|&j| if j < 0.0 { 0.0 } else { 1.0 })
+                    .collect()
+            };
             let mut twin = vec![f32::NAN; cpu.len()];
             for (&p, &v) in c.pixel_of_point.iter().zip(&per_point) {
-                twin[p] = v;
+                twin[p] = v.min(near[p]);
             }
             let (max, mean, one_sided) = deltas(&cpu, &twin);
             let differ = cpu
