@@ -17,7 +17,9 @@ from pathlib import Path
 import penumbra
 
 HERE = Path(__file__).resolve().parent
-DATA = HERE.parent.parent / "shared" / "data" / "lola-south-pole-moondao"
+# The shared LOLA grids: $PENUMBRA_SHARED/data/..., else ../shared beside the repository.
+DATA = (Path(os.environ.get("PENUMBRA_SHARED", HERE.parent.parent / "shared"))
+        / "data" / "lola-south-pole-moondao")
 SITE = (-89.4455, -137.3137)
 
 

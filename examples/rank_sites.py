@@ -21,7 +21,9 @@ import numpy as np
 import penumbra
 
 HERE = Path(__file__).resolve().parent
-DATA = HERE.parent.parent / "shared" / "data" / "lola-south-pole-moondao"
+# The shared LOLA grids: $PENUMBRA_SHARED/data/..., else ../shared beside the repository.
+DATA = (Path(os.environ.get("PENUMBRA_SHARED", HERE.parent.parent / "shared"))
+        / "data" / "lola-south-pole-moondao")
 
 
 def candidates(n: int) -> List[Tuple[str, float, float, float]]:

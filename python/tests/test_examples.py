@@ -20,7 +20,7 @@ def run_example(root: Path, name: str, tmp_path: Path, *args: str) -> str:
 
 
 def test_rank_sites(root: Path, tmp_path: Path, lola: Path) -> None:
-    out = run_example(root, "rank_sites.py", tmp_path, "--out", "ranking.csv")
+    out = run_example(root, "rank_sites.py", tmp_path, "--out", "ranking.csv", "--data", str(lola))
     lines = (tmp_path / "ranking.csv").read_text().splitlines()
     assert lines[0].startswith("rank,site,lat_deg,lon_deg")
     assert len(lines) >= 6
@@ -28,7 +28,7 @@ def test_rank_sites(root: Path, tmp_path: Path, lola: Path) -> None:
 
 
 def test_mast_heights(root: Path, tmp_path: Path, lola: Path) -> None:
-    out = run_example(root, "mast_heights.py", tmp_path, "--out", "mast.csv")
+    out = run_example(root, "mast_heights.py", tmp_path, "--out", "mast.csv", "--data", str(lola))
     lines = (tmp_path / "mast.csv").read_text().splitlines()
     assert lines[0].startswith("height_m,sun_lit_pct")
     pct = [float(l.split(",")[1]) for l in lines[1:]]
