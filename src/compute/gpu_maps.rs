@@ -191,7 +191,7 @@ impl GpuPixelMaps {
     /// The visible fraction of a disc of angular radius `radius_rad` toward `light_in_model`
     /// per DEM pixel (`NaN` for nodata); radius 0 gives 1 / 0. The GPU marches the model grid
     /// beyond the near field, the CPU the near field on the DEM's own lattice
-    /// ([`MapGrid::near_field_fractions`]), as the CPU engines: the smaller fraction.
+    /// ([`MapGrid::with_near_field`]), as the CPU engines: the smaller fraction.
     pub fn fraction(
         &self,
         ctx: &crate::gpu::GpuContext,
@@ -200,19 +200,7 @@ impl GpuPixelMaps {
         radius_rad: f64,
     ) -> anyhow::Result<Vec<f32>> {
         let beyond = self.fraction_beyond(ctx, light_in_model, radius_rad)?;
-        let near = if radius_rad > 0.0 {
-            grid.near_field_fractions(&self.observers, light_in_model, radius_rad)?
-        } else {
-            grid.near_field_costs(&self.observers, light_in_model)?
-                .into_iter()
-                .map(|j| if j < 0.0 { 0.0 } else { 1.0 })
-                .collect()
-        };
-        Ok(beyond
-            .iter()
-            .zip(&near)
-            .map(|(&b, &n)| if b.is_nan() { b } else { b.min(n) })
-            .collect())
+        grid.with_near_field(&beyond, &self.observers, light_in_model, radius_rad)
     }
 
     /// The GPU's part of [`GpuPixelMaps::fraction`]: the model grid beyond the near field.

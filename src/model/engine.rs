@@ -290,13 +290,7 @@ impl MapEngine {
                     light_in_model,
                     angular_radius_rad,
                 )?;
-                let near =
-                    grid.near_field_fractions(observers, light_in_model, angular_radius_rad)?;
-                beyond
-                    .iter()
-                    .zip(&near)
-                    .map(|(&b, &n)| if b.is_nan() { b } else { b.min(n) })
-                    .collect()
+                grid.with_near_field(&beyond, observers, light_in_model, angular_radius_rad)?
             }
             MapEngine::Fourier(map) => grid.to_output_f32(
                 &crate::shadow::fourier::visible_fraction(map, light_in_model, angular_radius_rad)?,

@@ -56,7 +56,8 @@ impl MapGrid {
 
     /// The visible fraction of a disc of angular radius `angular_radius_rad` toward
     /// `light_in_model` left by the near field alone ([`MapGrid::near_field_costs`], the DP
-    /// engine's prism occlusion), per DEM pixel (1 where nothing is sampled).
+    /// engine's prism occlusion; radius 0: 1 lit, 0 dark), per DEM pixel (1 where nothing is
+    /// sampled).
     pub fn near_field_fractions(
         &self,
         observers: &[Option<Observer>],
@@ -68,12 +69,35 @@ impl MapGrid {
             .near_field_costs(observers, light_in_model)?
             .into_par_iter()
             .map(|j| {
-                if j.is_finite() {
+                if !j.is_finite() {
+                    1.0
+                } else if angular_radius_rad > 0.0 {
                     fraction_from_cost(j, &dir, angular_radius_rad) as f32
+                } else if j < 0.0 {
+                    0.0
                 } else {
                     1.0
                 }
             })
+            .collect())
+    }
+
+    /// Per DEM pixel, the smaller of `beyond` (the fractions from the model grid beyond the near
+    /// field, e.g. [`MapGrid::pixel_points_beyond_near_field`]; `NaN` for nodata stays) and the
+    /// near field's ([`MapGrid::near_field_fractions`]): a ray's cost is the smaller of the two
+    /// and the fraction is monotone in it. The one place the two parts meet, for every backend.
+    pub fn with_near_field(
+        &self,
+        beyond: &[f32],
+        observers: &[Option<Observer>],
+        light_in_model: [f64; 3],
+        angular_radius_rad: f64,
+    ) -> anyhow::Result<Vec<f32>> {
+        let near = self.near_field_fractions(observers, light_in_model, angular_radius_rad)?;
+        Ok(beyond
+            .iter()
+            .zip(&near)
+            .map(|(&b, &n)| if b.is_nan() { b } else { b.min(n) })
             .collect())
     }
 

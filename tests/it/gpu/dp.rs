@@ -626,22 +626,14 @@ fn dp_points_twin_matches_the_cpu_dp_engine_from_the_pixels() {
             // own lattice (the CPU's, shared), the smaller fraction.
             let light = twins::disc_light_to_f32(&dir, radius);
             let per_point = twins::dp_points(&c.march, &c.mip, &beyond, light);
-            let near: Vec<f32> = if radius > 0.0 {
-                c.grid
-                    .near_field_fractions(&c.observers, dir.into(), radius)
-                    .unwrap()
-            } else {
-                c.grid
-                    .near_field_costs(&c.observers, dir.into())
-                    .unwrap()
-                    .iter()
-                    .map(|&j| if j < 0.0 { 0.0 } else { 1.0 })
-                    .collect()
-            };
-            let mut twin = vec![f32::NAN; cpu.len()];
+            let mut beyond_px = vec![f32::NAN; cpu.len()];
             for (&p, &v) in c.pixel_of_point.iter().zip(&per_point) {
-                twin[p] = v.min(near[p]);
+                beyond_px[p] = v;
             }
+            let twin = c
+                .grid
+                .with_near_field(&beyond_px, &c.observers, dir.into(), radius)
+                .unwrap();
             let (max, mean, one_sided) = deltas(&cpu, &twin);
             let differ = cpu
                 .iter()
