@@ -162,7 +162,30 @@ pub fn load_stack(paths: &[PathBuf]) -> anyhow::Result<TerrainStack> {
     if paths.is_empty() {
         anyhow::bail!("no DEM given (use --dem FILE, repeatable)");
     }
-    Ok(TerrainStack::load(paths)?)
+    let stack = TerrainStack::load(paths)?;
+    require_polar_stereographic(&stack)?;
+    Ok(stack)
+}
+
+/// Refuses a stack with an equirectangular layer, up front for every product. The readers take
+/// equirectangular DEMs (`penumbra dem info` shows them), but the exact line sweep, the horizons
+/// map engine and the GPU horizon scan follow straight lines of a polar stereographic map, so a
+/// product would work or fail depending on its engine (and `--engine auto` on the epoch count).
+pub fn require_polar_stereographic(stack: &TerrainStack) -> anyhow::Result<()> {
+    if let Some(layer) = stack.layers.iter().find(|l| {
+        !matches!(
+            l.projection,
+            crate::terrain::Projection::PolarStereographic { .. }
+        )
+    }) {
+        anyhow::bail!(
+            "DEM {}: equirectangular; penumbra's products need polar stereographic DEMs (the \
+             horizon sweep follows straight map lines): reproject it first, e.g. `gdalwarp \
+             -t_srs IAU_2015:30135 -r bilinear in.tif out.tif` for the south pole",
+            layer.name
+        );
+    }
+    Ok(())
 }
 
 /// The built-in synthetic DEM as a one-layer stack, and its description for provenance.

@@ -399,7 +399,7 @@ fn load_terrain(
     }
     let paths: Vec<PathBuf> = spec.layers.iter().map(|p| base.join(p)).collect();
     prov.dem_layers = paths.iter().map(|p| p.display().to_string()).collect();
-    let stack = crate::terrain::TerrainStack::load(&paths)?;
+    let stack = crate::products::load_stack(&paths)?;
     crate::products::detail_terrain(&stack);
     prov.dem_files = paths
         .iter()

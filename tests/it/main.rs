@@ -8,9 +8,10 @@
 //!   engines, and the commands that are thin shells over them.
 //! - `products/`: `map/` (with `shard`) and `series/` (with `engines`), products without a
 //!   lower floor of their own.
-//! - `cli`, `blocking`, `reliability`, `fuzz`, `resume`: cross-cutting suites at the top; they
+//! - `cli`, `blocking`, `reliability`, `resume`: cross-cutting suites at the top; they
 //!   test one rule over every engine, command or reader (clap habits, the blocking rule, bad
-//!   input and signals, mutated files, kill and resume), so no single floor owns them.
+//!   input and signals, kill and resume), so no single floor owns them. Mutated files are in
+//!   the `fuzz` test binary (`tests/fuzz/`), a process of its own.
 //!
 //! Every run of the binary, fixture and shared data path goes through `util` (ripgrep
 //! `tests/util.rs`). Run a floor by its path: `cargo test --release --test it gpu::dp`.
@@ -18,7 +19,6 @@
 mod blocking;
 mod cli;
 mod ephem;
-mod fuzz;
 mod gpu;
 mod horizon;
 mod illum;

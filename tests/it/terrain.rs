@@ -1100,6 +1100,276 @@ fn pds3_dems_read_natively_as_gdal_reads_them() {
     }
 }
 
+/// A PDS4 label (2-D image, polar stereographic on the 1737.4 km sphere, pole-centred grid)
+/// written by hand from the PDS4 Cartography dictionary, for an image file `file`.
+fn pds4_label(file: &str, cols: usize, rows: usize, px_m: f64, element: &str) -> String {
+    let (x0, y0) = (-(cols as f64) * px_m / 2.0, rows as f64 * px_m / 2.0);
+    format!(
+        r#"<?xml version="1.0" encoding="UTF-8"?>
+<Product_Observational xmlns="http://pds.nasa.gov/pds4/pds/v1" xmlns:cart="http://pds.nasa.gov/pds4/cart/v1">
+  <Observation_Area><Discipline_Area><cart:Cartography>
+    <cart:Spatial_Reference_Information><cart:Horizontal_Coordinate_System_Definition><cart:Planar>
+      <cart:Map_Projection>
+        <cart:map_projection_name>Polar Stereographic</cart:map_projection_name>
+        <cart:Polar_Stereographic>
+          <cart:longitude_of_central_meridian unit="deg">0</cart:longitude_of_central_meridian>
+          <cart:latitude_of_projection_origin unit="deg">-90</cart:latitude_of_projection_origin>
+          <cart:scale_factor_at_projection_origin>1</cart:scale_factor_at_projection_origin>
+        </cart:Polar_Stereographic>
+      </cart:Map_Projection>
+      <cart:Planar_Coordinate_Information><cart:Coordinate_Representation>
+        <cart:pixel_resolution_x unit="m/pixel">{px_m}</cart:pixel_resolution_x>
+        <cart:pixel_resolution_y unit="m/pixel">{px_m}</cart:pixel_resolution_y>
+      </cart:Coordinate_Representation></cart:Planar_Coordinate_Information>
+      <cart:Geo_Transformation>
+        <cart:upperleft_corner_x unit="m">{x0}</cart:upperleft_corner_x>
+        <cart:upperleft_corner_y unit="m">{y0}</cart:upperleft_corner_y>
+      </cart:Geo_Transformation>
+    </cart:Planar>
+    <cart:Geodetic_Model>
+      <cart:a_axis_radius unit="m">1737400</cart:a_axis_radius>
+      <cart:b_axis_radius unit="m">1737400</cart:b_axis_radius>
+      <cart:c_axis_radius unit="m">1737400</cart:c_axis_radius>
+    </cart:Geodetic_Model>
+    </cart:Horizontal_Coordinate_System_Definition></cart:Spatial_Reference_Information>
+  </cart:Cartography></Discipline_Area></Observation_Area>
+  <File_Area_Observational>
+    <File><file_name>{file}</file_name></File>
+    <Array_2D_Image>
+      <offset unit="byte">0</offset>
+      <axes>2</axes>
+      <axis_index_order>Last Index Fastest</axis_index_order>
+      <Element_Array>{element}</Element_Array>
+      <Axis_Array><axis_name>Line</axis_name><elements>{rows}</elements><sequence_number>1</sequence_number></Axis_Array>
+      <Axis_Array><axis_name>Sample</axis_name><elements>{cols}</elements><sequence_number>2</sequence_number></Axis_Array>
+      <Special_Constants><missing_constant>-32768</missing_constant></Special_Constants>
+    </Array_2D_Image>
+  </File_Area_Observational>
+</Product_Observational>
+"#
+    )
+}
+
+/// PDS3 and PDS4 DEMs made by hand, read without GDAL: heights known in closed form
+/// (`h = 0.5 · (7 row − 3 col + 40)` m on a 24 × 20 grid of 50 m cells centred on the south
+/// pole, one hole) stored as LOLA stores them (16-bit integers × 0.5 + OFFSET 1737400 m = radii,
+/// least- and most-significant byte first), and as float32 heights (PDS3 attached label, MSB).
+/// penumbra must give every height exactly (they are multiples of 0.5 m), the hole as NaN, and
+/// the pole-centred grid the labels describe (x from −600 m, y from +500 m, 50 m cells).
+#[test]
+fn pds3_and_pds4_dems_read_without_gdal() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (cols, rows, px_m) = (24usize, 20usize, 50.0);
+    let hole = 5 * cols + 7;
+    let h = |i: usize| 0.5 * (7.0 * (i / cols) as f64 - 3.0 * (i % cols) as f64 + 40.0);
+    let radius_code = |i: usize| -> i16 {
+        if i == hole {
+            -32768
+        } else {
+            (h(i) / 0.5).round() as i16
+        }
+    };
+    let n = cols * rows;
+    let lsb: Vec<u8> = (0..n).flat_map(|i| radius_code(i).to_le_bytes()).collect();
+    let msb: Vec<u8> = (0..n).flat_map(|i| radius_code(i).to_be_bytes()).collect();
+    // PDS3, detached label, LSB int16 radii (as LOLA's LDEM products).
+    std::fs::write(d.join("lsb.img"), &lsb).unwrap();
+    let lsb_label = pds3_label(
+        cols,
+        rows,
+        px_m,
+        "\"lsb.img\"",
+        cols * 2,
+        ("LSB_INTEGER", 16),
+        (0.5, 1737400.0),
+    );
+    std::fs::write(d.join("lsb.lbl"), &lsb_label).unwrap();
+    // PDS3, detached label, MSB int16 radii.
+    std::fs::write(d.join("msb.img"), &msb).unwrap();
+    std::fs::write(
+        d.join("msb.lbl"),
+        lsb_label
+            .replace("lsb.img", "msb.img")
+            .replace("LSB_INTEGER", "MSB_INTEGER"),
+    )
+    .unwrap();
+    // PDS3, attached label, MSB float32 heights (IEEE_REAL), the hole as the missing constant.
+    let rb = cols * 4;
+    let probe = pds3_label(cols, rows, px_m, "99", rb, ("IEEE_REAL", 32), (1.0, 0.0));
+    let label_records = probe.len().div_ceil(rb);
+    let mut attached = pds3_label(
+        cols,
+        rows,
+        px_m,
+        &format!("{:>2}", label_records + 1),
+        rb,
+        ("IEEE_REAL", 32),
+        (1.0, 0.0),
+    )
+    .into_bytes();
+    attached.resize(label_records * rb, b' ');
+    for i in 0..n {
+        let v = if i == hole { -32768.0_f32 } else { h(i) as f32 };
+        attached.extend_from_slice(&v.to_be_bytes());
+    }
+    std::fs::write(d.join("attached.img"), &attached).unwrap();
+    // PDS4, MSB and LSB int16 radii.
+    std::fs::write(d.join("p4msb.img"), &msb).unwrap();
+    let element = "<data_type>SignedMSB2</data_type><scaling_factor>0.5</scaling_factor>\
+                   <value_offset>1737400</value_offset>";
+    std::fs::write(
+        d.join("p4msb.xml"),
+        pds4_label("p4msb.img", cols, rows, px_m, element),
+    )
+    .unwrap();
+    std::fs::write(d.join("p4lsb.img"), &lsb).unwrap();
+    std::fs::write(
+        d.join("p4lsb.xml"),
+        pds4_label(
+            "p4lsb.img",
+            cols,
+            rows,
+            px_m,
+            &element.replace("SignedMSB2", "SignedLSB2"),
+        ),
+    )
+    .unwrap();
+
+    for file in [
+        "lsb.lbl",
+        "lsb.img",
+        "msb.lbl",
+        "attached.img",
+        "p4msb.xml",
+        "p4lsb.xml",
+    ] {
+        let dem = terrain::load_dem(&d.join(file)).unwrap_or_else(|e| panic!("{file}: {e}"));
+        assert_eq!(dem.projection, Projection::LOLA_SOUTH_POLAR, "{file}");
+        let g = &dem.grid;
+        assert_eq!(
+            (g.cols, g.rows, g.x_left_m, g.y_top_m, g.px_x_m, g.px_y_m),
+            (cols, rows, -600.0, 500.0, px_m, px_m),
+            "{file}: grid"
+        );
+        for i in 0..n {
+            let got = dem.heights_m[i];
+            if i == hole {
+                assert!(
+                    got.is_nan(),
+                    "{file}: the missing constant is a hole, got {got}"
+                );
+            } else {
+                assert_eq!(f64::from(got), h(i), "{file}: sample {i}");
+            }
+        }
+    }
+}
+
+/// Equirectangular DEMs are read (`dem info`) but refused up front by every product, with one
+/// line that says why and how to reproject: before, `map` ran at 12 h steps and failed hourly
+/// (`--engine auto` switched to the line sweep, which needs a polar stereographic map).
+#[test]
+fn equirectangular_dems_are_refused_up_front_by_every_product() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let r = 1_737_400.0_f64;
+    let grid = GridGeometry {
+        rows: 40,
+        cols: 40,
+        x_left_m: -2000.0,
+        y_top_m: r * (-85.0_f64).to_radians(),
+        px_x_m: 100.0,
+        px_y_m: 100.0,
+    };
+    let eqc = Projection::Equirectangular {
+        lon0_deg: 0.0,
+        lat_ts_deg: 0.0,
+        radius_m: r,
+    };
+    let dem = d.join("eqc.tif");
+    let z: Vec<f32> = (0..1600).map(|i| (i % 40) as f32).collect();
+    terrain::write_geotiff(
+        &dem,
+        &grid,
+        &eqc,
+        &z,
+        None,
+        &[],
+        terrain::BandInfo::default(),
+    )
+    .unwrap();
+    let dem_s = dem.to_str().unwrap();
+    let info = run(&["dem", "info", dem_s]);
+    assert!(
+        info.status.success(),
+        "{}",
+        String::from_utf8_lossy(&info.stderr)
+    );
+    assert!(String::from_utf8_lossy(&info.stdout).contains("equirectangular"));
+    let k = crate::util::kernels_dir();
+    let k = k.to_str().unwrap();
+    let out = |name: &str| d.join(name).display().to_string();
+    let time = [
+        "--start",
+        "2025-01-01",
+        "--stop",
+        "2025-01-03",
+        "--kernels",
+        k,
+    ];
+    let (o1, o2, o3, o4) = (out("s"), out("m12"), out("m1"), out("h.csv"));
+    let mut series = vec![
+        "series",
+        "--dem",
+        dem_s,
+        "--site",
+        "a,-85.01,0.02,2",
+        "--step",
+        "6h",
+        "--out-dir",
+        &o1,
+    ];
+    series.extend(time);
+    let mut map12 = vec!["map", "--dem", dem_s, "--step", "12h", "--out-dir", &o2];
+    map12.extend(time);
+    let mut map1 = vec!["map", "--dem", dem_s, "--step", "1h", "--out-dir", &o3];
+    map1.extend(time);
+    let horizon = vec![
+        "horizon",
+        "--dem",
+        dem_s,
+        "--lat-deg",
+        "-85.01",
+        "--lon-deg",
+        "0.02",
+        "--out",
+        &o4,
+    ];
+    for args in [series, map12, map1, horizon] {
+        let o = run(&args);
+        assert_clean_failure(&o, "equirectangular");
+        assert!(
+            String::from_utf8_lossy(&o.stderr).contains("gdalwarp"),
+            "{args:?}: the line says how to reproject"
+        );
+        assert!(!d.join("s").exists() && !d.join("m12").exists() && !d.join("m1").exists());
+        assert!(!d.join("h.csv").exists());
+    }
+    // A scenario naming the DEM: the same line.
+    std::fs::write(
+        d.join("eqc.toml"),
+        format!(
+            "name = \"e\"\noutput_dir = \"sc\"\nkernels = \"{k}\"\n[time]\nstart = \"2025-01-01\"\n\
+             stop = \"2025-01-02\"\nstep = \"6h\"\n[[sites]]\nname = \"a\"\nlat_deg = -85.01\n\
+             lon_deg = 0.02\n[terrain]\nlayers = [\"eqc.tif\"]\n[series]\n"
+        ),
+    )
+    .unwrap();
+    let o = run(&["run", d.join("eqc.toml").to_str().unwrap()]);
+    assert_clean_failure(&o, "equirectangular");
+}
+
 /// GeoTIFF keys can only name EPSG codes, so penumbra writes the IAU Moon (2015) sphere CRSs
 /// (`IAU_2015:30135` south polar stereographic here) as GDAL itself writes them for
 /// `gdal_translate -a_srs IAU_2015:30135`: GDAL reads the same CRS (WKT equal, character for

@@ -1,7 +1,8 @@
 //! The renderer and `penumbra render`: analytic Lambert radiance on a plane, a wall's shadow,
-//! the golden image, earthshine against an integrated Lambert sphere, the orbital camera, epoch
-//! ranges with numbered frames, the float radiance TIFF, one exposure per sequence, scenario
-//! views, the CLI and bad input. The BRDFs are in `brdf`, camera paths in `path`, the GPU render
+//! a whole image of a wall scene computed in closed form (sky, lit ground, penumbra, full
+//! shadow), earthshine against an integrated Lambert sphere, the orbital camera, epoch ranges
+//! with numbered frames, the float radiance TIFF, one exposure per sequence, scenario views, the
+//! CLI and bad input. The BRDFs are in `brdf`, camera paths in `path`, the GPU render
 //! path in `gpu::render`.
 
 mod brdf;
@@ -120,6 +121,296 @@ fn wall_casts_its_analytic_shadow() {
         just_outside > 0.5 * lit,
         "3 m outside the edge: {just_outside}"
     );
+}
+
+/// What a ray meets in the closed-form scene of [`analytic_wall_scene_image`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum WallHit {
+    /// Nothing: the ray leaves over the grid's edge or above the horizon.
+    Sky,
+    /// Level ground (z = 0) at model x, m.
+    Ground { x_m: f64 },
+    /// The wall: its ramps or its top.
+    Wall,
+}
+
+/// The scene of [`analytic_wall_scene_image`] in closed form. Every row of the grid holds the
+/// same heights, so each bilinear patch between four cell centres is a plane and the terrain is
+/// exactly the extrusion along y of the polyline `profile` (x, z): ground from the grid's west
+/// outer edge to the cell centre west of the wall, a one-cell ramp up to the first wall node, the
+/// flat top, a ramp down, ground to the east outer edge; y spans the outer edges `y_min_m ..
+/// y_max_m`.
+struct WallScene {
+    profile: [(f64, f64); 6],
+    y_min_m: f64,
+    y_max_m: f64,
+}
+
+impl WallScene {
+    /// The first surface met by `origin + t * dir` (t > 0): each of the five planar pieces is
+    /// intersected as a plane and the crossing kept if it lies on the piece.
+    fn first_hit(&self, origin: &Vector3<f64>, dir: &Vector3<f64>) -> WallHit {
+        let mut best: Option<(f64, WallHit)> = None;
+        for (k, w) in self.profile.windows(2).enumerate() {
+            let ((x0, z0), (x1, z1)) = (w[0], w[1]);
+            // The piece's plane: normal (-(z1 - z0), 0, x1 - x0) through (x0, ., z0).
+            let (nx, nz) = (-(z1 - z0), x1 - x0);
+            let den = nx * dir.x + nz * dir.z;
+            if den.abs() < 1e-15 {
+                continue;
+            }
+            let t = (nx * (x0 - origin.x) + nz * (z0 - origin.z)) / den;
+            let (x, y) = (origin.x + t * dir.x, origin.y + t * dir.y);
+            if t <= 0.0 || x < x0 || x > x1 || y < self.y_min_m || y > self.y_max_m {
+                continue;
+            }
+            if best.is_none_or(|(tb, _)| t < tb) {
+                let hit = if k == 0 || k == 4 {
+                    WallHit::Ground { x_m: x }
+                } else {
+                    WallHit::Wall
+                };
+                best = Some((t, hit));
+            }
+        }
+        best.map_or(WallHit::Sky, |(_, h)| h)
+    }
+}
+
+/// Visible fraction of a uniform disc of angular radius `r` whose centre is `delta` above a
+/// straight horizontal horizon: the area above the chord at signed distance `-delta` from the
+/// centre, over the disc's, `(pi - acos t + t sqrt(1 - t^2)) / pi` with `t = delta / r` in
+/// [-1, 1].
+fn disc_fraction_above(delta_rad: f64, r_rad: f64) -> f64 {
+    let t = (delta_rad / r_rad).clamp(-1.0, 1.0);
+    (PI - t.acos() + t * (1.0 - t * t).sqrt()) / PI
+}
+
+/// A whole rendered image (48 x 32 px, one ray per pixel centre) against a scene known in closed
+/// form. Flat 256 x 200 grid of 1 m cells with a wall 10 m high and three cell centres thick
+/// (x = 92.5..94.5 m, every row), the Sun due east (+x) at 4 deg elevation, angular radius 0.267
+/// deg, Lambert albedo 0.12, the Earth below the horizon. The camera at (-110, -95, 40) m looks at
+/// azimuth 40 deg, 26 deg down, 80 deg field of view; the frame holds lit ground, the penumbra
+/// band, the full shadow, the wall and sky beyond the grid's edges.
+///
+/// The test computes each pixel independently of penumbra's code: the camera ray from the
+/// documented pinhole model (`u = (2 (col + 1/2) / w - 1) tan(fov/2)`, `v` alike scaled by
+/// `h / w`), its first intersection with the planar pieces of the terrain (see [`WallScene`]) or
+/// none (sky), and for ground at distance `d` west of the wall's top edge the elevation
+/// `a = atan(H / d)` of that edge, the visible fraction of the Sun's disc above it
+/// ([`disc_fraction_above`], the straight edge's curvature on the sky is ~1e-4 of the disc) and
+/// the radiance `albedo S sin(e) / pi * fraction` (`L_lit` times the fraction).
+///
+/// Requirements: every pixel the closed form calls sky is `Sample::Sky` (377 px), every pixel it
+/// calls terrain is terrain with a finite radiance >= 0 (none may turn to sky or NaN); on ground
+/// pixels more than one cell from the wall's footprint (1125 px: 696 lit, 156 in the penumbra,
+/// 273 in full shadow; the 34 px of the wall and of the ground within one cell of it, shaded with
+/// a central-difference normal that spans the ramp, are excluded and counted)
+/// |L - L_analytic| / L_lit <= 5e-3 at most, <= 2e-4 on average and <= 1e-3 on average over the
+/// penumbra pixels. Measured: max 3.56e-3 (in the penumbra), mean 7.2e-5, p95 5.5e-4, penumbra
+/// mean 4.8e-4. The engine's fractions at the cell centres are exact (2.8e-8, f32); all of the
+/// error is their bilinear interpolation across 1 m cells, which for this profile is at most
+/// 3.65e-3 (at the band's dark end, where the fraction grows as s^1.5). The bound is a
+/// requirement: the shadow edge one cell (1 m) longer gives 6.7e-2 (mid-band slope 0.067 per m)
+/// and a hard shadow without penumbra 0.5, both checked here to exceed twice the bound. Pixels
+/// whose ray passes within 1 cm of a silhouette or the grid's edge (sky or terrain changes when
+/// the camera moves by 1 cm; none in this frame) are left out and counted.
+#[test]
+fn analytic_wall_scene_image() {
+    const ROWS: usize = 200;
+    const COLS: usize = 256;
+    const WALL_COL: usize = 220;
+    const WALL_COLS: usize = 3;
+    const WIDTH: u32 = 48;
+    const HEIGHT: u32 = 32;
+    const MAX_BOUND: f64 = 5e-3;
+    const MEAN_BOUND: f64 = 2e-4;
+    const BAND_MEAN_BOUND: f64 = 1e-3;
+    let wall_h_m = 10.0;
+    let sun_el = 4.0_f64.to_radians();
+    let sun_r = 0.267_f64.to_radians();
+    let mut hf = HeightField::flat(ROWS, COLS, 1.0);
+    for row in 0..ROWS {
+        for col in WALL_COL..WALL_COL + WALL_COLS {
+            hf.z_m[row * COLS + col] = wall_h_m as f32;
+        }
+    }
+    // The closed form, from the documented grid convention (cell centres half a cell inside the
+    // outer edges, the grid centred on the origin, north up) only.
+    let node_x = |col: usize| -(COLS as f64) / 2.0 + col as f64 + 0.5;
+    let edge_x = COLS as f64 / 2.0;
+    let edge_y = ROWS as f64 / 2.0;
+    let top_west_x = node_x(WALL_COL);
+    let analytic = WallScene {
+        profile: [
+            (-edge_x, 0.0),
+            (node_x(WALL_COL - 1), 0.0),
+            (top_west_x, wall_h_m),
+            (node_x(WALL_COL + WALL_COLS - 1), wall_h_m),
+            (node_x(WALL_COL + WALL_COLS), 0.0),
+            (edge_x, 0.0),
+        ],
+        y_min_m: -edge_y,
+        y_max_m: edge_y,
+    };
+    // Ground within one cell of the ramps' feet is shaded with a tilted normal: not compared.
+    let near_wall = |x: f64| x > node_x(WALL_COL - 2) && x < node_x(WALL_COL + WALL_COLS + 1);
+    let l_lit = lambert_w_m2_sr(4.0);
+    // The fraction of the Sun seen from ground at x, with the wall's top edge moved west by
+    // `shift_m` (a perturbed model, to show the bound would catch it) or a hard shadow.
+    let fraction = |x: f64, shift_m: f64, hard: bool| {
+        let d = top_west_x - shift_m - x;
+        if d <= 0.0 {
+            return 1.0; // east of the wall: nothing between the ground and the Sun
+        }
+        let delta = sun_el - wall_h_m.atan2(d);
+        if hard {
+            f64::from(u8::from(delta > 0.0))
+        } else {
+            disc_fraction_above(delta, sun_r)
+        }
+    };
+
+    let sun = [sun_el.cos(), 0.0, sun_el.sin()];
+    let earth = dir_az_el_deg(200.0, -30.0);
+    let earth_r = 0.95_f64.to_radians();
+    let lights = Lights {
+        sun,
+        sun_radius_rad: sun_r,
+        earth,
+        earth_radius_rad: earth_r,
+    };
+    let scene = Scene::new(&hf, lights, Engine::Combined).unwrap();
+    // Diagnostic: the engine's fractions at the cell centres (every row alike) against the
+    // closed form, away from the wall; the image adds their bilinear interpolation.
+    let node_err = (0..WALL_COL - 1)
+        .flat_map(|col| (0..ROWS).map(move |row| (row, col)))
+        .map(|(row, col)| {
+            let got = f64::from(scene.fractions().0[row * COLS + col]);
+            (got - fraction(node_x(col), 0.0, false)).abs()
+        })
+        .fold(0.0_f64, f64::max);
+    let origin = Vector3::new(-110.0, -95.0, 40.0);
+    let (az, el, fov) = (40.0_f64, -26.0_f64, 80.0_f64);
+    let cam = Camera::from_az_el_deg(origin, &Matrix3::identity(), az, el, fov).unwrap();
+    let img = scene.render(&cam, WIDTH, HEIGHT).unwrap();
+
+    // The pinhole camera, written out: forward from azimuth/elevation (ENU), right = forward x
+    // up, the image's up = right x forward.
+    let (az, el) = (az.to_radians(), el.to_radians());
+    let fwd = Vector3::new(az.sin() * el.cos(), az.cos() * el.cos(), el.sin());
+    let right = fwd.cross(&Vector3::z()).normalize();
+    let up = right.cross(&fwd).normalize();
+    let tan_half = (fov.to_radians() / 2.0).tan();
+    let (w, h) = (f64::from(WIDTH), f64::from(HEIGHT));
+
+    let class = |hit: WallHit| match hit {
+        WallHit::Sky => 0,
+        WallHit::Ground { .. } => 1,
+        WallHit::Wall => 2,
+    };
+    let angle = |d: &Vector3<f64>, v: [f64; 3]| d.dot(&Vector3::from(v)).clamp(-1.0, 1.0).acos();
+    let (mut sky, mut ambiguous, mut excluded) = (0, 0, 0);
+    let (mut lit, mut dark, mut band) = (0, 0, 0);
+    let mut failures = Vec::new();
+    // Per compared pixel: |dL| / L_lit against the model, the shifted model and the hard shadow.
+    let (mut errs, mut band_errs) = (Vec::new(), Vec::new());
+    let (mut shifted_max, mut hard_max) = (0.0_f64, 0.0_f64);
+    for i in 0..HEIGHT {
+        for j in 0..WIDTH {
+            let u = (2.0 * (f64::from(j) + 0.5) / w - 1.0) * tan_half;
+            let v = (1.0 - 2.0 * (f64::from(i) + 0.5) / h) * tan_half * h / w;
+            let dir = (fwd + u * right + v * up).normalize();
+            let hit = analytic.first_hit(&origin, &dir);
+            let moved = [
+                Vector3::new(0.01, 0.0, 0.0),
+                Vector3::new(-0.01, 0.0, 0.0),
+                Vector3::new(0.0, 0.01, 0.0),
+                Vector3::new(0.0, -0.01, 0.0),
+                Vector3::new(0.0, 0.0, 0.01),
+                Vector3::new(0.0, 0.0, -0.01),
+            ];
+            if moved
+                .iter()
+                .any(|m| class(analytic.first_hit(&(origin + m), &dir)) != class(hit))
+            {
+                ambiguous += 1;
+                continue;
+            }
+            let got = img[(i * WIDTH + j) as usize];
+            let px = format!("pixel (row {i}, col {j}), analytic {hit:?}");
+            let terrain = match got {
+                Sample::Terrain { radiance_w_m2_sr } => Some(f64::from(radiance_w_m2_sr)),
+                _ => None,
+            };
+            match hit {
+                WallHit::Sky => {
+                    sky += 1;
+                    // The scene keeps the discs of the Sun and the Earth out of the frame.
+                    assert!(angle(&dir, sun) > 2.0 * sun_r && angle(&dir, earth) > 2.0 * earth_r);
+                    if got != Sample::Sky {
+                        failures.push(format!("{px}: got {got:?}, want sky"));
+                    }
+                }
+                _ if !terrain.is_some_and(|l| l.is_finite() && l >= 0.0) => {
+                    failures.push(format!("{px}: got {got:?}, want terrain"));
+                }
+                WallHit::Wall => excluded += 1,
+                WallHit::Ground { x_m } if near_wall(x_m) => excluded += 1,
+                WallHit::Ground { x_m } => {
+                    let l = terrain.unwrap_or(f64::NAN);
+                    let f = fraction(x_m, 0.0, false);
+                    let err = (l - l_lit * f).abs() / l_lit;
+                    errs.push(err);
+                    shifted_max =
+                        shifted_max.max((l - l_lit * fraction(x_m, 1.0, false)).abs() / l_lit);
+                    hard_max = hard_max.max((l - l_lit * fraction(x_m, 0.0, true)).abs() / l_lit);
+                    if f >= 1.0 {
+                        lit += 1;
+                    } else if f <= 0.0 {
+                        dark += 1;
+                    } else {
+                        band += 1;
+                        band_errs.push(err);
+                    }
+                }
+            }
+        }
+    }
+    let stats = |v: &mut Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        let q = |p: f64| v[((v.len() - 1) as f64 * p).round() as usize];
+        (q(1.0), v.iter().sum::<f64>() / v.len() as f64, q(0.95))
+    };
+    let (max, mean, p95) = stats(&mut errs);
+    let (band_max, band_mean, _) = stats(&mut band_errs);
+    eprintln!(
+        "analytic wall scene, {WIDTH} x {HEIGHT} px: {} compared ({lit} lit, {band} penumbra, \
+         {dark} full shadow), {excluded} excluded (wall, ground within one cell of it), {sky} \
+         sky, {ambiguous} within 1 cm of a silhouette or edge",
+        errs.len()
+    );
+    eprintln!(
+        "|dL| / L_lit (L_lit {l_lit:.4} W m^-2 sr^-1): max {max:.2e}, mean {mean:.2e}, p95 \
+         {p95:.2e}; penumbra max {band_max:.2e}, mean {band_mean:.2e}; against a shadow 1 m \
+         longer max {shifted_max:.2e}, against a hard shadow max {hard_max:.2e}; engine's \
+         fractions at the cell centres west of the wall: max |error| {node_err:.2e}"
+    );
+    assert!(
+        failures.is_empty(),
+        "{} pixels of the wrong kind:\n{}",
+        failures.len(),
+        failures[..failures.len().min(10)].join("\n")
+    );
+    // The frame holds every kind of pixel.
+    assert!(lit >= 100 && band >= 50 && dark >= 100 && sky >= 100 && excluded >= 10);
+    assert!(ambiguous <= 10, "{ambiguous} ambiguous pixels");
+    assert!(
+        max <= MAX_BOUND && mean <= MEAN_BOUND && band_mean <= BAND_MEAN_BOUND,
+        "max {max:.3e} mean {mean:.3e} penumbra mean {band_mean:.3e}"
+    );
+    // The bound is tight enough to see the shadow's edge moved by one cell or no penumbra.
+    assert!(shifted_max > 2.0 * MAX_BOUND && hard_max > 2.0 * MAX_BOUND);
 }
 
 fn render_args<'a>(out: &'a str, k: &'a str) -> Vec<&'a str> {
@@ -439,12 +730,12 @@ fn cli_epoch_range_writes_numbered_frames_and_radiance() {
     }
 }
 
-/// The float radiance TIFF holds exactly the in-memory radiance of a rendered frame (the golden
+/// The float radiance TIFF holds exactly the in-memory radiance of a rendered frame (the hills
 /// scene: values vary, some pixels are shadowed or sky).
 #[test]
 fn radiance_tiff_round_trips_the_frame() {
     let (w, h) = (32, 24);
-    let rad = golden_scene_radiance();
+    let rad = hills_scene_radiance();
     let bytes = penumbra::render::encode_f32_tiff(&rad, w, h, &[("k", "v")]).unwrap();
     let mut dec = tiff::decoder::Decoder::new(std::io::Cursor::new(bytes)).unwrap();
     assert_eq!(dec.dimensions().unwrap(), (w, h));
@@ -462,10 +753,10 @@ fn radiance_tiff_round_trips_the_frame() {
     assert!(lit > 0 && lit < rad.len() && sky > 10);
 }
 
-/// The synthetic scene of the golden image: a 64 x 64 grid of 10 m cells with sine hills of
+/// A synthetic scene for the radiance TIFF: a 64 x 64 grid of 10 m cells with sine hills of
 /// +-20 m, Sun at 8 deg elevation from azimuth ~37 deg, Earth at 8 deg from the south, Hapke
 /// BRDF; a 32 x 24 view from (-300, -300, 150) m looking north-east 15 deg down.
-fn golden_scene_radiance() -> Vec<f32> {
+fn hills_scene_radiance() -> Vec<f32> {
     use nalgebra::{Matrix3, Vector3};
     use penumbra::render::{Camera, Lights, Scene, radiance_image};
     let mut hf = penumbra::terrain::HeightField::flat(64, 64, 10.0);
@@ -494,47 +785,6 @@ fn golden_scene_radiance() -> Vec<f32> {
     )
     .unwrap();
     radiance_image(&scene.render(&cam, 32, 24).unwrap())
-}
-
-/// Golden image: the radiance of [`golden_scene_radiance`] against the committed
-/// `tests/fixtures/render_golden_32x24.tif` (float radiance, W m^-2 sr^-1): max |diff| <= 1e-3
-/// W m^-2 sr^-1 (f32 rounding and libm differences only) and mean |diff| <= 1e-5.
-/// `PENUMBRA_BLESS=1` rewrites the fixture.
-#[test]
-fn golden_image_matches() {
-    let path = crate::util::fixture("render_golden_32x24.tif");
-    let rad = golden_scene_radiance();
-    if std::env::var_os("PENUMBRA_BLESS").is_some() {
-        let bytes = penumbra::render::encode_f32_tiff(&rad, 32, 24, &[]).unwrap();
-        std::fs::write(&path, bytes).unwrap();
-        eprintln!("blessed {}", path.display());
-        return;
-    }
-    let mut dec = tiff::decoder::Decoder::new(std::fs::File::open(&path).unwrap()).unwrap();
-    assert_eq!(dec.dimensions().unwrap(), (32, 24));
-    let tiff::decoder::DecodingResult::F32(want) = dec.read_image().unwrap() else {
-        panic!("not f32")
-    };
-    let diffs: Vec<f64> = rad
-        .iter()
-        .zip(&want)
-        .map(|(a, b)| {
-            // Sky is NaN now; the fixture (written before) holds 0 there.
-            if a.is_nan() {
-                assert_eq!(*b, 0.0, "sky where the golden image has terrain");
-                0.0
-            } else {
-                f64::from((a - b).abs())
-            }
-        })
-        .collect();
-    let max = diffs.iter().copied().fold(0.0, f64::max);
-    let mean = diffs.iter().sum::<f64>() / diffs.len() as f64;
-    eprintln!("golden image: max |diff| {max:.2e}, mean {mean:.2e} W m^-2 sr^-1");
-    assert!(max <= 1e-3 && mean <= 1e-5, "max {max} mean {mean}");
-    // The golden image is not trivial: lit terrain, shadowed terrain and sky.
-    assert!(want.iter().any(|l| *l > 1.0));
-    assert!(want.iter().filter(|l| **l == 0.0).count() > 10);
 }
 
 /// Earthshine: `Lights::earth_irradiance_w_m2` against a direct integration of the light of a
