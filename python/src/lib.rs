@@ -1216,11 +1216,19 @@ fn map_light<'py>(
     let maps = py
         .allow_threads(|| pm::one_light(&settings, &stack, (light, kernels.as_ref(), ab), every))
         .map_err(py_err)?;
-    let (sun_f, mask, earth_f, items) = (
+    // The layers and kernels, as the command line records them.
+    let mut prov = penumbra::output::Provenance::new();
+    prov.dem_layers = terrain.layers.clone();
+    prov.dem_files = terrain.source.dem_files().map_err(py_err)?;
+    if let Some(k) = &kernels {
+        prov.kernels = k.files.clone();
+    }
+    let mut items = maps.metadata;
+    items.extend(pm::made_with_items(&prov, kernels.is_some()));
+    let (sun_f, mask, earth_f) = (
         maps.sun_fraction.unwrap_or_default(),
         maps.sun_mask.unwrap_or_default(),
         maps.earth_fraction,
-        maps.metadata,
     );
     let g = stack.layers[0].grid;
     let out = PyDict::new(py);
@@ -1317,7 +1325,7 @@ enum ExposureArg {
 /// `height_m` above the ground, `look_az_deg`, `look_el_deg`; orbit camera: `altitude_km` above
 /// the sphere, looking at (`target_lat_deg`, `target_lon_deg`).
 #[pyfunction]
-#[pyo3(signature = (terrain, utc, lat_deg, lon_deg, camera = "site", height_m = 2.0, look_az_deg = 0.0, look_el_deg = 0.0, altitude_km = None, target_lat_deg = None, target_lon_deg = None, fov_deg = 60.0, width = 640, height = 400, brdf = "hapke", exposure = None, kernels = None, abcorr = "lt+s", backend = "auto", observer_height_m = None, width_px = None, height_px = None))]
+#[pyo3(signature = (terrain, utc, lat_deg, lon_deg, camera = "site", height_m = 2.0, look_az_deg = 0.0, look_el_deg = 0.0, altitude_km = None, target_lat_deg = None, target_lon_deg = None, fov_deg = 60.0, width = 640, height = 400, brdf = "hapke", exposure = None, kernels = None, abcorr = "lt+s", backend = "auto", observer_height_m = None, width_px = None, height_px = None, annotate = true))]
 fn render<'py>(
     py: Python<'py>,
     terrain: &Terrain,
@@ -1342,6 +1350,7 @@ fn render<'py>(
     observer_height_m: Option<f64>,
     width_px: Option<u32>,
     height_px: Option<u32>,
+    annotate: bool,
 ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
     use penumbra::products::render::{BrdfChoice, CameraKind, CameraSpec, RenderOptions};
     // The command line's names (`observer_height_m`, `width_px`, `height_px`) win over the old
@@ -1381,6 +1390,7 @@ fn render<'py>(
         abcorr: self::abcorr(abcorr)?,
         backend,
         kernels: penumbra::products::KernelSource { dir: kernels },
+        annotate,
     };
     let spec = CameraSpec {
         kind,

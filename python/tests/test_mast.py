@@ -78,6 +78,12 @@ def test_min_height_map_agrees_with_series_at_20_pixels(cli: Path, tmp_path: Pat
             "--target-lit-pct", str(target), "--azimuths", "360", "--out-dir", "mm")
     with rasterio.open(tmp_path / "mm" / "min_height_m.tif") as src:
         mh, tr, crs = src.read(1), src.transform, src.crs
+        tags = src.tags()
+    # The map says how it was made: engine, limb darkening, the DEM with its sha256, the kernels.
+    assert tags["engine"] == "horizons"
+    assert tags["dem_layers"].startswith("d.tif (sha256:")
+    assert "naif0012.tls (sha256:" in tags["kernels"]
+    assert "limb_darkening" in tags and "observer_height_m" not in tags
     costs = pd.read_csv(tmp_path / "mm" / "heights.csv")
     assert list(costs.height_m) == heights
     assert costs.first_reached_px.sum() == np.isfinite(mh).sum()

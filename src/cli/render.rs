@@ -105,6 +105,10 @@ pub struct RenderArgs {
     /// the shadow fractions come from the GPU DP kernel, on the CPU from the CPU engine.
     #[arg(long, value_enum, default_value_t = BackendArg::Auto)]
     pub backend: BackendArg,
+    /// Keep the frames bare: no epoch, Sun/Earth elevation and azimuth, camera or azimuth ticks
+    /// drawn into them (they stay in the PNG's text chunks).
+    #[arg(long)]
+    pub no_annotation: bool,
     /// SPICE kernels.
     #[command(flatten)]
     pub kernels: KernelArgs,
@@ -127,6 +131,7 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
         abcorr: super::abcorr(&args.abcorr)?,
         backend: args.backend.into(),
         kernels: args.kernels.source(),
+        annotate: !args.no_annotation,
     };
     let camera = CameraSpec {
         kind: match args.camera {

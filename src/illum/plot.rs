@@ -1569,6 +1569,67 @@ pub fn write_height_plot(
     Ok(())
 }
 
+/// Smallest frame that gets burnt-in annotations, pixels (a smaller one keeps its picture whole).
+pub const ANNOTATE_MIN_PX: (u32, u32) = (240, 120);
+
+/// Burns the annotations of a rendered frame into its RGB8 pixels (`width` x `height`): `lines`
+/// in white on a half-transparent black box in the bottom-left corner, and `az_ticks` (column,
+/// label) as tick marks with labels along the top edge. Frames smaller than
+/// [`ANNOTATE_MIN_PX`] are left as they are. Returns the box (x0, y0, x1, y1) drawn, if any.
+pub fn annotate_frame(
+    rgb: &mut [u8],
+    (width, height): (u32, u32),
+    lines: &[String],
+    az_ticks: &[(u32, String)],
+) -> Result<Option<(u32, u32, u32, u32)>, IllumError> {
+    const WHAT: &str = "frame annotation";
+    if width < ANNOTATE_MIN_PX.0 || height < ANNOTATE_MIN_PX.1 {
+        return Ok(None);
+    }
+    ensure_font()?;
+    let size = (height / 36).clamp(11, 22);
+    let pad = size / 2;
+    let root = BitMapBackend::with_buffer(rgb, (width, height)).into_drawing_area();
+    let style = TextStyle::from(("sans-serif", size).into_font()).color(&WHITE);
+    let text_w = lines
+        .iter()
+        .map(|l| root.estimate_text_size(l, &style).map_or(0, |(w, _)| w))
+        .max()
+        .unwrap_or(0);
+    let line_h = size + size / 4;
+    let box_w = (text_w + 2 * pad).min(width);
+    let box_h = (line_h * lines.len() as u32 + 2 * pad).min(height);
+    let (x0, y0) = (0, height - box_h);
+    root.draw(&Rectangle::new(
+        [(x0 as i32, y0 as i32), (box_w as i32, height as i32)],
+        BLACK.mix(0.55).filled(),
+    ))
+    .map_err(plot_err(WHAT))?;
+    for (k, line) in lines.iter().enumerate() {
+        let y = y0 + pad + line_h * k as u32;
+        root.draw(&Text::new(
+            line.clone(),
+            (pad as i32, y as i32),
+            style.clone(),
+        ))
+        .map_err(plot_err(WHAT))?;
+    }
+    let tick_h = (size * 2 / 3) as i32;
+    for (col, label) in az_ticks {
+        let x = *col as i32;
+        root.draw(&PathElement::new(
+            vec![(x, 0), (x, tick_h)],
+            WHITE.stroke_width(2),
+        ))
+        .map_err(plot_err(WHAT))?;
+        let label_style = style.pos(Pos::new(HPos::Center, VPos::Top));
+        root.draw(&Text::new(label.clone(), (x, tick_h + 2), label_style))
+            .map_err(plot_err(WHAT))?;
+    }
+    root.present().map_err(plot_err(WHAT))?;
+    Ok(Some((x0, y0, box_w, height)))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

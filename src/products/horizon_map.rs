@@ -91,7 +91,16 @@ pub fn sweep(req: &HorizonSweepRequest) -> anyhow::Result<()> {
     use crate::horizon::{HorizonSweep, SweepParams};
     use crate::terrain::geotiff::{BandSample, MultiBandTiff};
 
-    let (stack, _) = req.terrain.load()?;
+    let inputs = crate::products::Inputs::load(
+        &req.terrain,
+        &crate::products::KernelSource::default(),
+        &[],
+        crate::products::DemFiles::Record,
+    )?;
+    let stack = inputs.stack;
+    let layers = crate::output::MadeWith::new(&inputs.provenance, f64::NAN, "", "", "")
+        .layers
+        .join("; ");
     let backend = crate::compute::resolve(req.backend, crate::compute::OnGpu::Preferred)?;
     let params = SweepParams {
         observer_height_m: req.observer_height.m(),
@@ -127,6 +136,7 @@ pub fn sweep(req: &HorizonSweepRequest) -> anyhow::Result<()> {
         ),
         ("observer_height_m", h.as_str()),
         ("max_step", ms.as_str()),
+        ("dem_layers", layers.as_str()),
     ];
     let mut el_tif = MultiBandTiff::create(
         &req.out,
@@ -152,6 +162,9 @@ pub fn sweep(req: &HorizonSweepRequest) -> anyhow::Result<()> {
                     "distance to the horizon point (line sweep)",
                 ),
                 ("units", "km (ground distance)"),
+                ("observer_height_m", h.as_str()),
+                ("max_step", ms.as_str()),
+                ("dem_layers", layers.as_str()),
             ],
         )?),
         None => None,

@@ -342,12 +342,26 @@ pub fn run_map(req: &MastMapRequest) -> anyhow::Result<Vec<HeightCost>> {
          visible >= {} % of the time, m (NaN: none of them)",
         req.target_lit_pct
     );
-    let items = vec![
+    let mut items = vec![
         ("span_utc".to_string(), span.clone()),
         ("epochs".to_string(), epochs.len().to_string()),
         ("heights_m".to_string(), heights_text.clone()),
         ("target_lit_pct".to_string(), req.target_lit_pct.to_string()),
     ];
+    // How it was made (engine, limb darkening, layers and kernels with sha256); the heights are
+    // the list above, not one observer height.
+    let made = crate::output::MadeWith::new(
+        &inputs.provenance,
+        f64::NAN,
+        MapEngineKind::Horizons.name(),
+        req.settings.limb.name(),
+        &span,
+    );
+    items.extend(
+        made.items()
+            .into_iter()
+            .filter(|(k, _)| k != "observer_height_m"),
+    );
     let top = req.heights.last().map_or(1.0, |h| h.m());
     crate::model::write_on(
         fine,

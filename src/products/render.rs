@@ -180,6 +180,10 @@ pub struct RenderOptions {
     pub backend: Backend,
     /// The kernels.
     pub kernels: KernelSource,
+    /// Burn the epoch, the Sun's and the Earth's elevation and azimuth, the camera and (for a
+    /// camera within 45° of level) azimuth ticks into each frame (default); `false` keeps the
+    /// picture bare (the same values are always in the PNG's text chunks).
+    pub annotate: bool,
 }
 
 /// Highest orbit camera above the 1737.4 km sphere, kilometres (the Earth is ≈ 384,000 km away).
@@ -403,6 +407,39 @@ fn place_camera(
     })
 }
 
+/// Azimuth ticks along the top edge of a frame: (column, label) where the horizontal centre
+/// row's rays cross multiples of 10° (30° for a field of view over 120°), for a camera within
+/// 45° of level (none for a camera looking down from orbit). `az_el_deg` gives a model-space
+/// direction's azimuth and elevation at the frame's reference point.
+fn azimuth_ticks(
+    camera: &crate::render::Camera,
+    az_el_deg: &dyn Fn(&nalgebra::Vector3<f64>) -> (f64, f64),
+    width: u32,
+    height: u32,
+) -> Vec<(u32, String)> {
+    if az_el_deg(&camera.forward_model).1.abs() > 45.0 {
+        return Vec::new();
+    }
+    let step = if camera.fov_deg > 120.0 { 30.0 } else { 10.0 };
+    let row = height / 2;
+    let mut ticks = Vec::new();
+    let mut prev = az_el_deg(&camera.ray_dir(row, 0, width, height)).0;
+    for col in 1..width {
+        let az = az_el_deg(&camera.ray_dir(row, col, width, height)).0;
+        // The azimuth from the previous column, unwrapped across north.
+        let next = prev + (az - prev + 180.0).rem_euclid(360.0) - 180.0;
+        let (lo, hi) = (prev.min(next), prev.max(next));
+        let mut k = (lo / step).floor() + 1.0;
+        while k * step <= hi {
+            let deg = (k * step).rem_euclid(360.0).round() as i64 % 360;
+            ticks.push((col, format!("{deg}°")));
+            k += 1.0;
+        }
+        prev = az;
+    }
+    ticks
+}
+
 /// Everything a frame needs besides its camera and epoch.
 struct FrameJob<'a> {
     opts: &'a RenderOptions,
@@ -443,11 +480,35 @@ fn render_one_frame(
     let up = job.hf.model_from_moon_me()
         * crate::frames::enu_from_moon_me(lat, lon).transpose()
         * nalgebra::Vector3::z();
-    let sun_el_deg = nalgebra::Vector3::from(lights.sun)
-        .dot(&up)
-        .clamp(-1.0, 1.0)
-        .asin()
-        .to_degrees();
+    let enu_to_model =
+        job.hf.model_from_moon_me() * crate::frames::enu_from_moon_me(lat, lon).transpose();
+    let (east, north) = (
+        enu_to_model * nalgebra::Vector3::x(),
+        enu_to_model * nalgebra::Vector3::y(),
+    );
+    let az_el_deg = |v: &nalgebra::Vector3<f64>| {
+        (
+            v.dot(&east)
+                .atan2(v.dot(&north))
+                .to_degrees()
+                .rem_euclid(360.0),
+            v.dot(&up).clamp(-1.0, 1.0).asin().to_degrees(),
+        )
+    };
+    let (sun_az_deg, sun_el_deg) = az_el_deg(&nalgebra::Vector3::from(lights.sun));
+    let (earth_az_deg, earth_el_deg) = az_el_deg(&nalgebra::Vector3::from(lights.earth));
+    if opts.annotate {
+        let lines = [
+            format!("{} UTC", format_utc(epoch)),
+            format!(
+                "Sun el {sun_el_deg:.2}°, az {sun_az_deg:.1}°   Earth el {earth_el_deg:.2}°, az \
+                 {earth_az_deg:.1}°"
+            ),
+            placed.what.clone(),
+        ];
+        let ticks = azimuth_ticks(camera, &az_el_deg, opts.width, opts.height);
+        crate::illum::plot::annotate_frame(&mut rgb, (opts.width, opts.height), &lines, &ticks)?;
+    }
     let text = [
         (
             "Software",
@@ -455,6 +516,9 @@ fn render_one_frame(
         ),
         ("penumbra:epoch_utc", crate::ephem::time::format_iso(epoch)),
         ("penumbra:sun_elevation_deg", format!("{sun_el_deg:.4}")),
+        ("penumbra:sun_azimuth_deg", format!("{sun_az_deg:.4}")),
+        ("penumbra:earth_elevation_deg", format!("{earth_el_deg:.4}")),
+        ("penumbra:earth_azimuth_deg", format!("{earth_az_deg:.4}")),
         ("penumbra:camera", placed.what.clone()),
         ("penumbra:brdf", format!("{:?}", job.brdf)),
         ("penumbra:exposure", format!("{exposure:.6e}")),

@@ -169,7 +169,7 @@ impl Camera {
 
     /// Unit ray direction (model space) through the centre of pixel (`px_row`, `px_col`) of a
     /// `width` x `height` image (row 0 at the top).
-    fn ray_dir(&self, px_row: u32, px_col: u32, width: u32, height: u32) -> Vector3<f64> {
+    pub fn ray_dir(&self, px_row: u32, px_col: u32, width: u32, height: u32) -> Vector3<f64> {
         let t = (self.fov_deg.to_radians() / 2.0).tan();
         let u = (2.0 * (f64::from(px_col) + 0.5) / f64::from(width) - 1.0) * t;
         let v = (1.0 - 2.0 * (f64::from(px_row) + 0.5) / f64::from(height)) * t * f64::from(height)

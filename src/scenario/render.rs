@@ -49,6 +49,9 @@ pub struct PathSpec {
     pub exposure: Option<crate::render::Exposure>,
     /// Also write float radiance TIFFs under `render/` with this name (numbered).
     pub out_radiance: Option<String>,
+    /// Draw the epoch, the Sun's and the Earth's elevation and azimuth and azimuth ticks into
+    /// the frames (default `true`; the command line's `--no-annotation` is `false`).
+    pub annotate: Option<bool>,
 }
 
 /// One keyframe of a `[[render.paths]]` entry: an epoch and a camera pose (the `penumbra
@@ -168,6 +171,7 @@ impl PathSpec {
             albedo: self.albedo,
             exposure: self.exposure,
             out_radiance: self.out_radiance.clone(),
+            annotate: self.annotate,
         }
     }
 }
@@ -224,6 +228,9 @@ pub struct ViewSpec {
     pub exposure: Option<crate::render::Exposure>,
     /// Also write the float radiance TIFF under `render/` with this name.
     pub out_radiance: Option<String>,
+    /// Draw the epoch, the Sun's and the Earth's elevation and azimuth and azimuth ticks into
+    /// the frame (default `true`; the command line's `--no-annotation` is `false`).
+    pub annotate: Option<bool>,
 }
 
 impl ViewSpec {
@@ -287,6 +294,7 @@ impl ViewSpec {
             abcorr,
             backend: crate::gpu::Backend::Auto,
             kernels,
+            annotate: self.annotate.unwrap_or(true),
         }
     }
 }

@@ -917,6 +917,7 @@ fn every_geotiff_output_is_a_cloud_optimized_geotiff_with_its_metadata() {
                     "observer_height_m",
                     "sun_az_deg_at_map_centre",
                     "sun_el_deg_at_map_centre",
+                    "kernels",
                 ] {
                     assert!(md[item].is_string(), "{name}: no {item}");
                 }
@@ -930,6 +931,15 @@ fn every_geotiff_output_is_a_cloud_optimized_geotiff_with_its_metadata() {
             assert!(
                 md["span_utc"].as_str().unwrap().contains("9 epochs"),
                 "{name}: {md}"
+            );
+        }
+        // Every product names its layers with their sha256 (the DEM itself is the input).
+        if name != "dem.tif" {
+            let layers = md["dem_layers"].as_str().unwrap_or("");
+            assert!(
+                layers.starts_with("dem.tif (sha256:")
+                    && layers.len() == "dem.tif (sha256:".len() + 13,
+                "{name}: dem_layers '{layers}'"
             );
         }
     }

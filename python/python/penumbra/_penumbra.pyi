@@ -182,6 +182,7 @@ def render(
     observer_height_m: Optional[float] = None,
     width_px: Optional[int] = None,
     height_px: Optional[int] = None,
+    annotate: bool = True,
 ) -> Tuple[npt.NDArray[np.uint8], npt.NDArray[np.float32]]: ...
 def run_scenario(
     path: Path,

@@ -24,7 +24,9 @@ pub use crate::model::{
     PSR_DESCRIPTION, RangeRaster, geotiff_unit, range_metadata, range_rasters, span_text,
     write_range,
 };
-pub use one_light::{EARTH_FRACTION_DESCRIPTION, SUN_FRACTION_DESCRIPTION, SUN_MASK_DESCRIPTION};
+pub use one_light::{
+    EARTH_FRACTION_DESCRIPTION, SUN_FRACTION_DESCRIPTION, SUN_MASK_DESCRIPTION, made_with_items,
+};
 pub use range::statistics;
 
 /// The files of a one-light map (at least one).

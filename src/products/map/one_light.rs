@@ -23,19 +23,35 @@ pub(super) fn one_light_job(
         _ => Vec::new(),
     };
     let (terrain, kernels) = (&req.terrain, &req.kernels);
-    let inputs = Inputs::load(terrain, kernels, &epochs, DemFiles::Skip)?;
-    let maps = crate::compute::one_light::one_light(
+    let inputs = Inputs::load(terrain, kernels, &epochs, DemFiles::Record)?;
+    let mut maps = crate::compute::one_light::one_light(
         &req.settings,
         &inputs.stack,
         (light, inputs.kernels.as_ref(), req.abcorr),
         files.outputs(),
     )?;
+    maps.metadata
+        .extend(made_with_items(&inputs.provenance, !epochs.is_empty()));
     write(&maps, files)?;
     crate::note!(
         "penumbra: map written ({:.1} s)",
         t0.elapsed().as_secs_f64()
     );
     Ok(())
+}
+
+/// The metadata items a one-light map adds to those of `one_light` (engine, observer height,
+/// light): its layers (file and sha256, or the synthetic DEM's description) and, for a light
+/// from the ephemeris, the kernels. The command line and Python's `map_light` write the same.
+pub fn made_with_items(
+    prov: &crate::output::Provenance,
+    light_from_ephemeris: bool,
+) -> Vec<(String, String)> {
+    crate::output::MadeWith::new(prov, f64::NAN, "", "", "")
+        .items()
+        .into_iter()
+        .filter(|(k, _)| k == "dem_layers" || (light_from_ephemeris && k == "kernels"))
+        .collect()
 }
 
 /// The checks of a one-light map that need no input read: the engine makes one light, the

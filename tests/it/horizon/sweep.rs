@@ -271,6 +271,9 @@ fn cli_sweep_writes_a_gdal_readable_multiband_geotiff() {
     assert_eq!(info.matches("Band ").count(), 16, "{info}");
     assert!(info.contains("Type=Int16"), "{info}");
     assert!(info.contains("NoData Value=-32768"), "{info}");
+    // It says how it was made: the observer height and the layer with its sha256.
+    assert!(info.contains("observer_height_m=2"), "{info}");
+    assert!(info.contains("dem_layers=small.tif (sha256:"), "{info}");
     let first = &sweep.directions()[3];
     assert!(
         info.contains(&format!("grid_az_deg={}", first.grid_az_deg)),

@@ -1096,3 +1096,105 @@ fn sequences_have_one_exposure_and_shading_survives_the_tone_curve() {
         assert!(bad.parse::<Exposure>().is_err(), "{bad}");
     }
 }
+
+/// Frames are annotated (issue 47): a 480 × 240 site frame (-89.6°, 0°, 10 m up, looking at
+/// azimuth 200°, 2° down, 60° field of view, 2027-01-20T00:00) carries, drawn into the picture,
+/// the epoch, the Sun's and the Earth's elevation and azimuth and the camera in a box in the
+/// bottom-left corner, and azimuth ticks along the top edge. Oracles: `penumbra ephem` at the
+/// site (Sun az 31.878°, el 0.932°; Earth az 356.484°, el 5.795°: the PNG's text chunks within
+/// 0.01°), and the pinhole model for the ticks: the tick of azimuth `a` at column
+/// `((tan(a - 200°) / tan 30°) + 1) · 240 − 0.5` (±2 px: the centre row is 1° below level and the
+/// marks are 2 px wide), 180° … 220° every 10° (170° and 230° fall on the edges). Against the same frame with `--no-annotation`, the
+/// pixels that differ all lie in the box or the tick strip.
+#[test]
+fn frames_carry_their_epoch_sun_earth_and_azimuth_ticks() {
+    let dir = tempfile::tempdir().unwrap();
+    let k = kernels_dir();
+    let k = k.to_str().unwrap();
+    let frame = |out: &str, bare: bool| {
+        let mut args = vec![
+            "render",
+            "--synthetic",
+            "--lat-deg",
+            "-89.6",
+            "--lon-deg",
+            "0",
+            "--height-m",
+            "10",
+            "--look-az-deg",
+            "200",
+            "--look-el-deg",
+            "-2",
+            "--fov-deg",
+            "60",
+            "--utc",
+            "2027-01-20T00:00",
+            "--width",
+            "480",
+            "--height",
+            "240",
+            "--backend",
+            "cpu",
+            "--out",
+            out,
+            "--kernels",
+            k,
+        ];
+        if bare {
+            args.push("--no-annotation");
+        }
+        let o = penumbra(dir.path(), &args);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        std::fs::read(dir.path().join(out)).unwrap()
+    };
+    let (annotated, bare) = (frame("a.png", false), frame("b.png", true));
+    for (key, want) in [
+        ("penumbra:sun_azimuth_deg", 31.878),
+        ("penumbra:sun_elevation_deg", 0.932),
+        ("penumbra:earth_azimuth_deg", 356.484),
+        ("penumbra:earth_elevation_deg", 5.795),
+    ] {
+        let got: f64 = png_text(&annotated, key).unwrap().parse().unwrap();
+        assert!((got - want).abs() < 0.01, "{key}: {got} vs ephem {want}");
+    }
+    let a = image::load_from_memory(&annotated).unwrap().to_rgb8();
+    let b = image::load_from_memory(&bare).unwrap().to_rgb8();
+    // The tick marks: white runs on row 1 (the sky above is black).
+    let white: Vec<u32> = (0..480)
+        .filter(|&c| a.get_pixel(c, 1).0 == [255, 255, 255])
+        .collect();
+    let mut runs: Vec<(u32, u32)> = Vec::new();
+    for c in white {
+        match runs.last_mut() {
+            Some((_, end)) if *end + 1 == c => *end = c,
+            _ => runs.push((c, c)),
+        }
+    }
+    let want: Vec<f64> = [180.0_f64, 190.0, 200.0, 210.0, 220.0]
+        .iter()
+        .map(|a| {
+            ((a - 200.0_f64).to_radians().tan() / 30.0_f64.to_radians().tan() + 1.0) * 240.0 - 0.5
+        })
+        .collect();
+    eprintln!("tick runs {runs:?}; pinhole columns {want:?}");
+    assert_eq!(runs.len(), want.len(), "{runs:?}");
+    for ((s, e), w) in runs.iter().zip(&want) {
+        let mid = f64::from(s + e) / 2.0;
+        assert!((mid - w).abs() <= 2.0, "tick at {mid} vs {w}");
+    }
+    // Where the two frames differ: the box (bottom-left) and the tick strip (top) only.
+    let (mut in_box, mut in_strip) = (0usize, 0usize);
+    for (x, y, p) in a.enumerate_pixels() {
+        if p != b.get_pixel(x, y) {
+            if y >= 240 - 70 && x < 480 {
+                in_box += 1;
+            } else if y < 40 {
+                in_strip += 1;
+            } else {
+                panic!("pixel ({x}, {y}) changed outside the box and the strip");
+            }
+        }
+    }
+    eprintln!("annotation: {in_box} px in the box, {in_strip} px in the tick strip");
+    assert!(in_box > 1000 && in_strip > 50, "{in_box} {in_strip}");
+}
