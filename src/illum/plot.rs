@@ -134,18 +134,69 @@ fn time_unit(span_s: f64) -> (f64, &'static str) {
 /// wall of colour), days.
 pub const AGGREGATE_AFTER_DAYS: f64 = 62.0;
 
-/// A date label for a time axis in `unit_s` units from `start`: `MM-DD HH:MM` for hours,
-/// `YYYY-MM-DD` for days, `YYYY-MM` for years (UTC).
-fn date_label(start: Epoch, x: f64, unit_s: f64) -> String {
-    let e = start + hifitime::Duration::from_seconds(x * unit_s);
-    let (y, mo, d, h, mi, _, _) = e.to_gregorian_utc();
-    if unit_s <= 3600.0 {
-        format!("{mo:02}-{d:02} {h:02}:{mi:02}")
-    } else if unit_s <= 86_400.0 {
-        format!("{y}-{mo:02}-{d:02}")
+/// Calendar ticks of a time axis in `unit_s` units from `start` over `0..x_max`: whole hours
+/// (every 3, 6, 12 or 24 h) for spans of hours, midnights (every 1, 2, 5, 7 or 14 days) for
+/// spans up to two months, else the first of a month (every 1, 2, 3, 6, 12, 24 or 60 months;
+/// `YYYY` labels from a year on), at most 10 ticks. Positions and labels (UTC).
+fn calendar_ticks(start: Epoch, x_max: f64, unit_s: f64) -> Vec<(f64, String)> {
+    let span_s = x_max * unit_s;
+    let end = start + hifitime::Duration::from_seconds(span_s);
+    let x_of = |e: Epoch| (e - start).to_seconds() / unit_s;
+    let (y0, m0, d0, h0, _, _, _) = start.to_gregorian_utc();
+    let mut ticks = Vec::new();
+    if span_s <= 3.0 * 86_400.0 {
+        let step_h = [3_i64, 6, 12, 24]
+            .into_iter()
+            .find(|h| span_s / (*h as f64 * 3600.0) <= 10.0)
+            .unwrap_or(24);
+        let mut e = Epoch::from_gregorian_utc(y0, m0, d0, h0, 0, 0, 0);
+        while e <= end {
+            let (_, mo, d, h, mi, _, _) = e.to_gregorian_utc();
+            if e >= start && i64::from(h) % step_h == 0 {
+                ticks.push((x_of(e), format!("{mo:02}-{d:02} {h:02}:{mi:02}")));
+            }
+            e += hifitime::Duration::from_seconds(3600.0);
+        }
+    } else if span_s <= 62.0 * 86_400.0 {
+        let step_d = [1_i64, 2, 5, 7, 14]
+            .into_iter()
+            .find(|d| span_s / (*d as f64 * 86_400.0) <= 10.0)
+            .unwrap_or(14);
+        let mut e = Epoch::from_gregorian_utc_at_midnight(y0, m0, d0);
+        let mut k = 0_i64;
+        while e <= end {
+            if e >= start && k % step_d == 0 {
+                let (y, mo, d, _, _, _, _) = e.to_gregorian_utc();
+                ticks.push((x_of(e), format!("{y}-{mo:02}-{d:02}")));
+            }
+            e += hifitime::Duration::from_seconds(86_400.0);
+            k += 1;
+        }
     } else {
-        format!("{y}-{mo:02}")
+        let months = span_s / (30.44 * 86_400.0);
+        let step_m = [1_i64, 2, 3, 6, 12, 24, 60]
+            .into_iter()
+            .find(|m| months / *m as f64 <= 10.0)
+            .unwrap_or(60);
+        let (mut y, mut mo) = (y0, m0);
+        loop {
+            let e = Epoch::from_gregorian_utc_at_midnight(y, mo, 1);
+            if e > end {
+                break;
+            }
+            let index = i64::from(y) * 12 + i64::from(mo) - 1;
+            if e >= start && index.rem_euclid(step_m) == 0 {
+                let label = if step_m >= 12 {
+                    format!("{y}")
+                } else {
+                    format!("{y}-{mo:02}")
+                };
+                ticks.push((x_of(e), label));
+            }
+            (y, mo) = if mo == 12 { (y + 1, 1) } else { (y, mo + 1) };
+        }
     }
+    ticks
 }
 
 /// One calendar month (UTC) of a series.
@@ -233,14 +284,15 @@ fn render_fraction_plot_png(
         chart
             .configure_mesh()
             .x_desc("date (UTC)")
-            .x_label_formatter(&|x| date_label(start, *x, unit_s))
-            .x_labels(8)
+            .x_labels(0)
             .y_desc("visible fraction of the disc")
             .y_labels(13)
             .light_line_style(BLACK.mix(0.04))
             .label_style(("sans-serif", 15))
             .axis_desc_style(("sans-serif", 17))
             .draw()
+            .map_err(plot_err(WHAT))?;
+        draw_ticks(root, &chart, &calendar_ticks(start, x_max, unit_s), &[])
             .map_err(plot_err(WHAT))?;
         if let Some(earth) = series.earth_fraction {
             chart
@@ -314,8 +366,7 @@ pub fn write_windows_plot(
         chart
             .configure_mesh()
             .x_desc("date (UTC)")
-            .x_label_formatter(&|x| date_label(start_utc, *x, unit_s))
-            .x_labels(8)
+            .x_labels(0)
             .y_labels(2 * rows.len() + 1)
             .y_label_formatter(&|y| {
                 // Ticks every half row: a row's label at its middle (rows from the top).
@@ -332,6 +383,13 @@ pub fn write_windows_plot(
             .axis_desc_style(("sans-serif", 17))
             .draw()
             .map_err(plot_err(WHAT))?;
+        draw_ticks(
+            root,
+            &chart,
+            &calendar_ticks(start_utc, span_s / unit_s, unit_s),
+            &[],
+        )
+        .map_err(plot_err(WHAT))?;
         for (i, row) in rows.iter().enumerate() {
             let y0 = m - i as f64 - 0.85;
             let y1 = m - i as f64 - 0.15;
@@ -425,13 +483,14 @@ pub fn write_power_plot(
                 .map_err(plot_err(WHAT))?;
             chart
                 .configure_mesh()
-                .x_label_formatter(&|x| date_label(start_utc, *x, unit_s))
-                .x_labels(8)
+                .x_labels(0)
                 .y_desc(label)
                 .light_line_style(BLACK.mix(0.04))
                 .label_style(("sans-serif", 14))
                 .axis_desc_style(("sans-serif", 16))
                 .draw()
+                .map_err(plot_err(WHAT))?;
+            draw_ticks(area, &chart, &calendar_ticks(start_utc, x_max, unit_s), &[])
                 .map_err(plot_err(WHAT))?;
             chart
                 .draw_series(
@@ -1633,6 +1692,66 @@ pub fn annotate_frame(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Days from 1970-01-01 to a civil date (H. Hinnant's algorithm, proleptic Gregorian):
+    /// the calendar the ticks are checked against, independent of hifitime.
+    fn days_from_civil(y: i64, m: i64, d: i64) -> i64 {
+        let y = if m <= 2 { y - 1 } else { y };
+        let era = y.div_euclid(400);
+        let yoe = y - era * 400;
+        let mp = (m + 9) % 12;
+        let doy = (153 * mp + 2) / 5 + d - 1;
+        let doe = yoe * 365 + yoe / 4 - yoe / 100 + doy;
+        era * 146_097 + doe - 719_468
+    }
+
+    #[test]
+    fn calendar_ticks_fall_on_calendar_dates() {
+        let day = 86_400.0;
+        // 20 years from 2017-01-01 in years: every second 1 January, labelled by the year.
+        let start = Epoch::from_gregorian_utc_at_midnight(2017, 1, 1);
+        let year_s = 365.25 * day;
+        let span = (days_from_civil(2037, 1, 1) - days_from_civil(2017, 1, 1)) as f64 * day;
+        let ticks = calendar_ticks(start, span / year_s, year_s);
+        let want: Vec<i64> = (2018..=2036).step_by(2).collect();
+        assert_eq!(ticks.len(), want.len(), "{ticks:?}");
+        for ((x, label), y) in ticks.iter().zip(&want) {
+            assert_eq!(label, &y.to_string());
+            let days = (days_from_civil(*y, 1, 1) - days_from_civil(2017, 1, 1)) as f64;
+            assert!((x * year_s / day - days).abs() < 1e-6, "{label}: {x}");
+        }
+        // One year from 2027-03-10 in days: the first of every second month, from 2027-05.
+        let start = Epoch::from_gregorian_utc_at_midnight(2027, 3, 10);
+        let ticks = calendar_ticks(start, 365.0, day);
+        let labels: Vec<&str> = ticks.iter().map(|(_, l)| l.as_str()).collect();
+        assert_eq!(
+            labels,
+            [
+                "2027-05", "2027-07", "2027-09", "2027-11", "2028-01", "2028-03"
+            ]
+        );
+        for ((x, _), (y, m)) in ticks.iter().zip([
+            (2027, 5),
+            (2027, 7),
+            (2027, 9),
+            (2027, 11),
+            (2028, 1),
+            (2028, 3),
+        ]) {
+            let days = (days_from_civil(y, m, 1) - days_from_civil(2027, 3, 10)) as f64;
+            assert!((x - days).abs() < 1e-9);
+        }
+        // Two days from 06:30 in hours: every 6 h on the hour.
+        let start = Epoch::from_gregorian_utc(2027, 3, 10, 6, 30, 0, 0);
+        let ticks = calendar_ticks(start, 48.0, 3600.0);
+        assert_eq!(ticks[0], (5.5, "03-10 12:00".to_string()));
+        assert_eq!(ticks.len(), 8);
+        assert!(
+            ticks
+                .windows(2)
+                .all(|w| (w[1].0 - w[0].0 - 6.0).abs() < 1e-9)
+        );
+    }
 
     #[test]
     fn nice_ticks_are_round() {
