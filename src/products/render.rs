@@ -477,14 +477,12 @@ fn render_one_frame(
     // Sun elevation at the site (or the orbit camera's target), above the plane normal to the
     // local up.
     let (lat, lon) = placed.ref_lat_lon_deg;
-    let up = job.hf.model_from_moon_me()
-        * crate::frames::enu_from_moon_me(lat, lon).transpose()
-        * nalgebra::Vector3::z();
     let enu_to_model =
         job.hf.model_from_moon_me() * crate::frames::enu_from_moon_me(lat, lon).transpose();
-    let (east, north) = (
+    let (east, north, up) = (
         enu_to_model * nalgebra::Vector3::x(),
         enu_to_model * nalgebra::Vector3::y(),
+        enu_to_model * nalgebra::Vector3::z(),
     );
     let az_el_deg = |v: &nalgebra::Vector3<f64>| {
         (

@@ -367,25 +367,30 @@ fn fuzz_kernel_texts() {
     });
 }
 
-#[test]
-fn fuzz_leap_seconds_kernel_in_a_folder() {
-    let name = "naif0012.tls";
+/// Fuzzes the shipped kernel `name` as it stands in a full kernel folder (the other kernels
+/// fixed): penumbra's loader, then a Sun/Earth query ([`load_and_query`]).
+fn fuzz_kernel_in_a_folder(target: &str, name: &str, plan: Plan) {
     let dir = kernel_set_without(name);
-    fuzz("lsk", &[seed(kernels_dir().join(name))], PLAIN, |bytes| {
+    fuzz(target, &[seed(kernels_dir().join(name))], plan, |bytes| {
         scratch(dir.path(), bytes, name);
         load_and_query(dir.path())
     });
 }
 
+/// Every second mutation of a binary kernel lands in its DAF header and summaries.
+const BINARY_KERNEL: Plan = Plan {
+    hot_bytes: Some(16 << 10),
+};
+
+#[test]
+fn fuzz_leap_seconds_kernel_in_a_folder() {
+    fuzz_kernel_in_a_folder("lsk", "naif0012.tls", PLAIN);
+}
+
 #[test]
 fn fuzz_frame_kernel_in_a_folder() {
     // anise's text kernel parser reads a path: the folder scan runs it on the input.
-    let name = "moon_080317.tf";
-    let dir = kernel_set_without(name);
-    fuzz("fk", &[seed(kernels_dir().join(name))], PLAIN, |bytes| {
-        scratch(dir.path(), bytes, name);
-        load_and_query(dir.path())
-    });
+    fuzz_kernel_in_a_folder("fk", "moon_080317.tf", PLAIN);
 }
 
 #[test]
@@ -440,30 +445,12 @@ fn load_and_query(folder: &Path) -> bool {
 
 #[test]
 fn fuzz_spk_reader() {
-    let name = "de440_moon_2000_2025.bsp";
-    let seeds = [seed(kernels_dir().join(name))];
-    let dir = kernel_set_without(name);
-    let plan = Plan {
-        hot_bytes: Some(16 << 10),
-    };
-    fuzz("spk", &seeds, plan, |bytes| {
-        scratch(dir.path(), bytes, name);
-        load_and_query(dir.path())
-    });
+    fuzz_kernel_in_a_folder("spk", "de440_moon_2000_2025.bsp", BINARY_KERNEL);
 }
 
 #[test]
 fn fuzz_binary_pck_reader() {
-    let name = "moon_pa_de421_2000_2050.bpc";
-    let seeds = [seed(kernels_dir().join(name))];
-    let dir = kernel_set_without(name);
-    let plan = Plan {
-        hot_bytes: Some(16 << 10),
-    };
-    fuzz("bpc", &seeds, plan, |bytes| {
-        scratch(dir.path(), bytes, name);
-        load_and_query(dir.path())
-    });
+    fuzz_kernel_in_a_folder("bpc", "moon_pa_de421_2000_2050.bpc", BINARY_KERNEL);
 }
 
 #[test]
@@ -562,6 +549,16 @@ fn shard_seeds() -> (Vec<u8>, Vec<u8>) {
     (read("shard.json"), read("shard.pnbstat"))
 }
 
+/// `penumbra merge` of the one shard in `dir` into a new folder under `out` (merge refuses to
+/// overwrite a finished one; `n` numbers them), removed afterwards: whether it succeeded.
+fn merge_one(dir: &Path, out: &Path, n: &std::cell::Cell<usize>) -> bool {
+    n.set(n.get() + 1);
+    let dest = out.join(format!("m{}", n.get()));
+    let ok = penumbra::products::map::shard::merge(&dest, &[dir.to_path_buf()]).is_ok();
+    let _ = std::fs::remove_dir_all(&dest);
+    ok
+}
+
 #[test]
 fn fuzz_shard_partials() {
     let (manifest, data) = shard_seeds();
@@ -571,28 +568,19 @@ fn fuzz_shard_partials() {
     let (json_dir, data_dir, out) = (scratch_dir(), scratch_dir(), scratch_dir());
     std::fs::write(json_dir.path().join("shard.pnbstat"), &data).unwrap();
     std::fs::write(data_dir.path().join("shard.json"), &manifest).unwrap();
-    let mut n = 0usize;
-    let merge = |dir: &Path, n: &mut usize| {
-        // A new output folder each time: merge refuses to overwrite a finished one.
-        *n += 1;
-        let dest = out.path().join(format!("m{n}"));
-        let ok = penumbra::products::map::shard::merge(&dest, &[dir.to_path_buf()]).is_ok();
-        let _ = std::fs::remove_dir_all(&dest);
-        ok
-    };
-    let n = std::cell::RefCell::new(&mut n);
+    let n = std::cell::Cell::new(0);
     fuzz(
         "shard-manifest",
         std::slice::from_ref(&manifest),
         PLAIN,
         |bytes| {
             scratch(json_dir.path(), bytes, "shard.json");
-            merge(json_dir.path(), &mut n.borrow_mut())
+            merge_one(json_dir.path(), out.path(), &n)
         },
     );
     fuzz("shard-data", &[data], PLAIN, |bytes| {
         scratch(data_dir.path(), bytes, "shard.pnbstat");
-        merge(data_dir.path(), &mut n.borrow_mut())
+        merge_one(data_dir.path(), out.path(), &n)
     });
 }
 
@@ -605,18 +593,14 @@ fn fuzz_shard_data_behind_a_matching_hash() {
     let (manifest, data) = shard_seeds();
     let manifest: serde_json::Value = serde_json::from_slice(&manifest).unwrap();
     let (dir, out) = (scratch_dir(), scratch_dir());
-    let n = std::cell::Cell::new(0usize);
+    let n = std::cell::Cell::new(0);
     fuzz("shard-data-rehashed", &[data], PLAIN, |bytes| {
         let mut m = manifest.clone();
         m["data_bytes"] = serde_json::json!(bytes.len());
         m["data_sha256"] = serde_json::json!(format!("{:x}", sha2::Sha256::digest(bytes)));
         scratch(dir.path(), &serde_json::to_vec(&m).unwrap(), "shard.json");
         scratch(dir.path(), bytes, "shard.pnbstat");
-        n.set(n.get() + 1);
-        let dest = out.path().join(format!("m{}", n.get()));
-        let ok = penumbra::products::map::shard::merge(&dest, &[dir.path().to_path_buf()]).is_ok();
-        let _ = std::fs::remove_dir_all(&dest);
-        ok
+        merge_one(dir.path(), out.path(), &n)
     });
 }
 
